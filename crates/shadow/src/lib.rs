@@ -1,0 +1,43 @@
+//! Self-shadowing of hair by a light-oriented density map (Bertails, Ménier
+//! and Cani 2005, sections 3 and 4).
+//!
+//! Three stages, each usable on its own so that a cluster can split them:
+//!
+//! 1. [`DensityMap::deposit`]: hair is sampled into a cubic grid whose first
+//!    axis is the light direction ([`LightFrame`]). Each cell accumulates
+//!    optical depth in fixed point, so partial maps add up to the same bytes
+//!    in any order, on any thread or machine.
+//! 2. [`sweep`]: one pass along each `(j, k)` column turns density into
+//!    cumulative optical depth; any range of columns can be swept alone, and
+//!    [`Transmittance::assemble`] joins the slabs.
+//! 3. [`Transmittance::lookup`]: trilinear filtering of the transmittance at
+//!    each point (or the unfiltered cell value, for comparison).
+//!
+//! The crate knows nothing of cameras, shading, files or networks.
+
+mod density;
+mod fiber;
+mod frame;
+mod transmittance;
+
+pub use density::{DensityMap, FillStats, DEPTH_QUANTUM, MAX_CELLS};
+pub use fiber::Fiber;
+pub use frame::{Light, LightFrame};
+pub use transmittance::{sweep, ColumnSlab, Span, Transmittance};
+
+/// Errors of the shadow stages.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum ShadowError {
+    #[error("fiber width {0} is not a finite number >= 0")]
+    FiberWidth(f32),
+    #[error("fiber opacity {0} is not in [0, 1]")]
+    FiberOpacity(f32),
+    #[error("light direction {0} is zero or not finite")]
+    LightDirection(glam::Vec3),
+    #[error("map of {0} cells a side is outside 1..={MAX_CELLS}")]
+    Cells(u32),
+    #[error("map size {0} is not a finite number > 0")]
+    MapSize(f32),
+    #[error("slabs do not tile the map's {expected} columns: {detail}")]
+    Slabs { expected: usize, detail: String },
+}

@@ -1,0 +1,178 @@
+//! The hair container: every strand's points in one array.
+
+use glam::Vec3;
+
+/// Hair as polylines: all points strand after strand, with strand `s`
+/// spanning `points[offsets[s]..offsets[s + 1]]`.
+///
+/// One flat array rather than a `Vec` per strand: the density fill and the
+/// filter walk every point once per frame, and a flat array keeps that walk
+/// contiguous.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Hair {
+    points: Vec<Vec3>,
+    offsets: Vec<u32>,
+    /// Linear RGB colour of each strand, when the source gives one.
+    colors: Option<Vec<Vec3>>,
+}
+
+/// Errors building hair from points.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum HairError {
+    #[error("strand {strand}, point {point}: coordinate ({x}, {y}, {z}) is not finite")]
+    NonFinite { strand: usize, point: usize, x: f32, y: f32, z: f32 },
+    #[error("hair has {points} points, more than the 4294967295 one model can index")]
+    TooManyPoints { points: usize },
+}
+
+/// An axis-aligned box.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Bounds {
+    pub min: Vec3,
+    pub max: Vec3,
+}
+
+impl Bounds {
+    pub fn empty() -> Self {
+        Bounds { min: Vec3::splat(f32::INFINITY), max: Vec3::splat(f32::NEG_INFINITY) }
+    }
+    pub fn is_empty(&self) -> bool {
+        self.min.x > self.max.x
+    }
+    pub fn include(&mut self, p: Vec3) {
+        self.min = self.min.min(p);
+        self.max = self.max.max(p);
+    }
+    pub fn union(self, o: Bounds) -> Bounds {
+        Bounds { min: self.min.min(o.min), max: self.max.max(o.max) }
+    }
+    pub fn center(&self) -> Vec3 {
+        0.5 * (self.min + self.max)
+    }
+    pub fn size(&self) -> Vec3 {
+        self.max - self.min
+    }
+}
+
+impl Default for Hair {
+    fn default() -> Self {
+        Hair::new()
+    }
+}
+
+impl Hair {
+    pub fn new() -> Self {
+        Hair { points: Vec::new(), offsets: vec![0], colors: None }
+    }
+
+    pub fn with_capacity(strands: usize, points: usize) -> Self {
+        let mut offsets = Vec::with_capacity(strands + 1);
+        offsets.push(0);
+        Hair { points: Vec::with_capacity(points), offsets, colors: None }
+    }
+
+    /// Appends a strand. Non-finite points are refused: a NaN that reached the
+    /// density map would poison a whole column.
+    pub fn push_strand(&mut self, points: &[Vec3]) -> Result<(), HairError> {
+        let strand = self.strand_count();
+        if let Some((point, p)) = points.iter().enumerate().find(|(_, p)| !p.is_finite()) {
+            return Err(HairError::NonFinite { strand, point, x: p.x, y: p.y, z: p.z });
+        }
+        let total = self.points.len() + points.len();
+        let end = u32::try_from(total).map_err(|_| HairError::TooManyPoints { points: total })?;
+        self.points.extend_from_slice(points);
+        self.offsets.push(end);
+        Ok(())
+    }
+
+    /// Sets one colour per strand; `colors.len()` must equal the strand count.
+    pub fn set_colors(&mut self, colors: Vec<Vec3>) {
+        assert_eq!(colors.len(), self.strand_count(), "one colour per strand");
+        self.colors = Some(colors);
+    }
+
+    pub fn colors(&self) -> Option<&[Vec3]> {
+        self.colors.as_deref()
+    }
+
+    pub fn strand_count(&self) -> usize {
+        self.offsets.len() - 1
+    }
+
+    pub fn point_count(&self) -> usize {
+        self.points.len()
+    }
+
+    /// Number of line segments: each strand of n points has n - 1.
+    pub fn segment_count(&self) -> usize {
+        self.offsets.windows(2).map(|w| (w[1] - w[0]).saturating_sub(1) as usize).sum()
+    }
+
+    pub fn points(&self) -> &[Vec3] {
+        &self.points
+    }
+
+    pub fn points_mut(&mut self) -> &mut [Vec3] {
+        &mut self.points
+    }
+
+    /// Strand boundaries: strand `s` is `points[offsets[s]..offsets[s + 1]]`.
+    pub fn offsets(&self) -> &[u32] {
+        &self.offsets
+    }
+
+    pub fn strand(&self, s: usize) -> &[Vec3] {
+        &self.points[self.offsets[s] as usize..self.offsets[s + 1] as usize]
+    }
+
+    pub fn strands(&self) -> impl ExactSizeIterator<Item = &[Vec3]> + '_ {
+        self.offsets.windows(2).map(|w| &self.points[w[0] as usize..w[1] as usize])
+    }
+
+    pub fn bounds(&self) -> Bounds {
+        self.points.iter().fold(Bounds::empty(), |mut b, &p| {
+            b.include(p);
+            b
+        })
+    }
+
+    /// Length of the longest strand, `l_max` in the paper's map bound.
+    pub fn max_strand_length(&self) -> f32 {
+        self.strands()
+            .map(|s| s.windows(2).map(|w| w[0].distance(w[1])).sum::<f32>())
+            .fold(0.0, f32::max)
+    }
+
+    /// Moves every point by `delta`.
+    pub fn translate(&mut self, delta: Vec3) {
+        for p in &mut self.points {
+            *p += delta;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counts_strands_points_and_segments() {
+        let mut h = Hair::new();
+        h.push_strand(&[Vec3::ZERO, Vec3::X, Vec3::Y]).unwrap();
+        h.push_strand(&[Vec3::Z]).unwrap();
+        h.push_strand(&[]).unwrap();
+        assert_eq!(h.strand_count(), 3);
+        assert_eq!(h.point_count(), 4);
+        assert_eq!(h.segment_count(), 2);
+        assert_eq!(h.strand(1), &[Vec3::Z]);
+        assert_eq!(h.max_strand_length(), 1.0 + 2f32.sqrt());
+    }
+
+    #[test]
+    fn refuses_nan_and_names_the_point() {
+        let mut h = Hair::new();
+        let err = h.push_strand(&[Vec3::ZERO, Vec3::new(0.0, f32::NAN, 0.0)]).unwrap_err();
+        assert!(matches!(err, HairError::NonFinite { strand: 0, point: 1, .. }));
+        assert_eq!(h.strand_count(), 0, "a refused strand leaves the hair unchanged");
+    }
+}

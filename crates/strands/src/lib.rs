@@ -1,0 +1,24 @@
+//! Hair geometry: strands as polylines, grouped into wisps.
+//!
+//! This crate owns the hair as data: loading it from files (Cem Yuksel's
+//! `.hair`, TressFX `.tfx`), growing it procedurally (the `smooth` and `curly`
+//! styles of 134 wisps on a spherical head), growing follow strands around
+//! guide strands, and Catmull-Rom resampling of every strand into the points
+//! that are both filled into the density map and drawn.
+//!
+//! It knows nothing of light, shadows, cameras or simulation, and does no I/O
+//! beyond reading the one file a loader is given.
+
+mod catmull_rom;
+mod follow;
+mod hair;
+mod load;
+mod rng;
+mod style;
+
+pub use catmull_rom::resample;
+pub use follow::{grow_followers, FollowParams};
+pub use hair::{Bounds, Hair, HairError};
+pub use load::{load, parse_hair_format, parse_tfx, FormatError, LoadError};
+pub use rng::Rng;
+pub use style::{Style, StyleParams, WispModel};

@@ -1,0 +1,337 @@
+//! File loaders: Cem Yuksel's HAIR format and TressFX 4 `.tfx`.
+//!
+//! Both parsers work on bytes already read, and check every count a header
+//! claims against the bytes actually present *before* allocating anything
+//! sized by it: a lying header gets an error, not a 10^12-element allocation.
+
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+
+use crate::hair::{Hair, HairError};
+
+/// A file that could not be loaded, with its path.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadError {
+    #[error("cannot read {}: {source}", path.display())]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("{}: {source}", path.display())]
+    Format { path: PathBuf, source: FormatError },
+    #[error("{}: unknown hair file type (expected a .hair or .tfx file)", path.display())]
+    UnknownExtension { path: PathBuf },
+}
+
+/// What is wrong inside a hair file.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum FormatError {
+    #[error("file is {len} bytes, shorter than the {need}-byte header")]
+    TruncatedHeader { len: usize, need: usize },
+    #[error("wrong magic {found:?}, expected \"HAIR\"")]
+    BadMagic { found: [u8; 4] },
+    #[error(
+        "header claims {count} {what}, needing {need} bytes, but only {have} bytes follow the header"
+    )]
+    Truncated { what: &'static str, count: u64, need: u64, have: u64 },
+    #[error("segment counts add up to {sum} points, but the header says {points}")]
+    CountMismatch { sum: u64, points: u64 },
+    #[error("{what} array starts at byte {offset}, outside the {len}-byte file")]
+    BadOffset { what: &'static str, offset: u64, len: u64 },
+    #[error("header claims {points} points but sets no point array flag")]
+    NoPointArray { points: u64 },
+    #[error("{0}")]
+    Hair(#[from] HairError),
+    #[error("colour of point {point} is not finite")]
+    NonFiniteColor { point: usize },
+    #[error("unsupported TressFX version {0} (expected 4)")]
+    TfxVersion(f32),
+}
+
+/// Loads `.hair` or `.tfx` by extension.
+pub fn load(path: &Path) -> Result<Hair, LoadError> {
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    let parse: fn(&[u8]) -> Result<Hair, FormatError> = match ext.as_deref() {
+        Some("hair") => parse_hair_format,
+        Some("tfx") => parse_tfx,
+        _ => return Err(LoadError::UnknownExtension { path: path.to_owned() }),
+    };
+    let bytes = std::fs::read(path).map_err(|source| LoadError::Io { path: path.to_owned(), source })?;
+    parse(&bytes).map_err(|source| LoadError::Format { path: path.to_owned(), source })
+}
+
+fn u32_at(b: &[u8], at: usize) -> u32 {
+    u32::from_le_bytes(b[at..at + 4].try_into().expect("4 bytes"))
+}
+
+fn f32_at(b: &[u8], at: usize) -> f32 {
+    f32::from_le_bytes(b[at..at + 4].try_into().expect("4 bytes"))
+}
+
+fn vec3_at(b: &[u8], at: usize) -> Vec3 {
+    Vec3::new(f32_at(b, at), f32_at(b, at + 4), f32_at(b, at + 8))
+}
+
+const HAIR_HEADER: usize = 128;
+const HAS_SEGMENTS: u32 = 1;
+const HAS_POINTS: u32 = 2;
+const HAS_THICKNESS: u32 = 4;
+const HAS_TRANSPARENCY: u32 = 8;
+const HAS_COLORS: u32 = 16;
+
+/// Parses Cem Yuksel's HAIR format.
+///
+/// Header (128 bytes, little-endian): `"HAIR"`, strand count, point count,
+/// array flags (1 segments, 2 points, 4 thickness, 8 transparency, 16
+/// colours), default segment count, default thickness, default
+/// transparency, default colour (3 f32), 88 bytes of text. Then the arrays
+/// present, in flag order: u16 segments per strand, f32 xyz per point, f32
+/// thickness per point, f32 transparency per point, f32 rgb per point.
+///
+/// Each strand's colour is its root point's colour (or the default colour).
+/// Thickness and transparency are read past: fiber width and opacity come
+/// from the scene, in physical units.
+pub fn parse_hair_format(b: &[u8]) -> Result<Hair, FormatError> {
+    if b.len() < HAIR_HEADER {
+        return Err(FormatError::TruncatedHeader { len: b.len(), need: HAIR_HEADER });
+    }
+    let magic: [u8; 4] = b[0..4].try_into().expect("4 bytes");
+    if &magic != b"HAIR" {
+        return Err(FormatError::BadMagic { found: magic });
+    }
+    let strands = u64::from(u32_at(b, 4));
+    let points = u64::from(u32_at(b, 8));
+    let flags = u32_at(b, 12);
+    let default_segments = u64::from(u32_at(b, 16));
+    let default_color = vec3_at(b, 36);
+    let have = (b.len() - HAIR_HEADER) as u64;
+
+    // Sizes of each array from the header's counts, in u64 so that no count
+    // can overflow; compared with the file length before any allocation.
+    let seg_bytes = if flags & HAS_SEGMENTS != 0 { strands * 2 } else { 0 };
+    let per_point = [(HAS_POINTS, 12u64), (HAS_THICKNESS, 4), (HAS_TRANSPARENCY, 4), (HAS_COLORS, 12)];
+    let point_bytes: u64 = per_point.iter().filter(|(f, _)| flags & f != 0).map(|(_, s)| s * points).sum();
+    let need = seg_bytes + point_bytes;
+    if need > have {
+        let what = if seg_bytes > have { "strands" } else { "points" };
+        let count = if seg_bytes > have { strands } else { points };
+        return Err(FormatError::Truncated { what, count, need, have });
+    }
+    if flags & HAS_POINTS == 0 && points != 0 {
+        return Err(FormatError::NoPointArray { points });
+    }
+
+    // Points per strand, checked to add up before building anything.
+    let seg_at = HAIR_HEADER;
+    let strand_len = |s: usize| -> u64 {
+        if flags & HAS_SEGMENTS != 0 {
+            u64::from(u16::from_le_bytes([b[seg_at + 2 * s], b[seg_at + 2 * s + 1]])) + 1
+        } else {
+            default_segments + 1
+        }
+    };
+    let sum: u64 = if flags & HAS_SEGMENTS != 0 {
+        (0..strands as usize).map(strand_len).sum()
+    } else {
+        strands.saturating_mul(default_segments + 1)
+    };
+    if sum != points {
+        return Err(FormatError::CountMismatch { sum, points });
+    }
+
+    let pos_at = HAIR_HEADER + seg_bytes as usize;
+    let mut array_at = pos_at + if flags & HAS_POINTS != 0 { 12 * points as usize } else { 0 };
+    for flag in [HAS_THICKNESS, HAS_TRANSPARENCY] {
+        if flags & flag != 0 {
+            array_at += 4 * points as usize;
+        }
+    }
+    let color_at = (flags & HAS_COLORS != 0).then_some(array_at);
+
+    let mut hair = Hair::with_capacity(strands as usize, points as usize);
+    let mut colors = Vec::with_capacity(strands as usize);
+    let mut strand_pts = Vec::new();
+    let mut first = 0usize;
+    for s in 0..strands as usize {
+        let n = strand_len(s) as usize;
+        strand_pts.clear();
+        strand_pts.extend((first..first + n).map(|p| vec3_at(b, pos_at + 12 * p)));
+        hair.push_strand(&strand_pts)?;
+        let color = match color_at {
+            Some(at) => {
+                let c = vec3_at(b, at + 12 * first);
+                if !c.is_finite() {
+                    return Err(FormatError::NonFiniteColor { point: first });
+                }
+                c
+            }
+            None => default_color,
+        };
+        colors.push(color);
+        first += n;
+    }
+    if color_at.is_some() {
+        hair.set_colors(colors);
+    }
+    Ok(hair)
+}
+
+const TFX_HEADER: usize = 160;
+
+/// Parses a TressFX 4 `.tfx` file.
+///
+/// Header (160 bytes, little-endian): f32 version, u32 strand count, u32
+/// vertices per strand, u32 byte offset of the positions, four more u32
+/// offsets (strand UV, vertex UV, thickness, colour) and 128 reserved bytes.
+/// Positions are f32 xyzw per vertex, `w` the inverse mass (0 pins the root).
+pub fn parse_tfx(b: &[u8]) -> Result<Hair, FormatError> {
+    if b.len() < TFX_HEADER {
+        return Err(FormatError::TruncatedHeader { len: b.len(), need: TFX_HEADER });
+    }
+    let version = f32_at(b, 0);
+    if version != 4.0 {
+        return Err(FormatError::TfxVersion(version));
+    }
+    let strands = u64::from(u32_at(b, 4));
+    let per_strand = u64::from(u32_at(b, 8));
+    let offset = u64::from(u32_at(b, 12));
+    let len = b.len() as u64;
+    if offset < TFX_HEADER as u64 || offset > len {
+        return Err(FormatError::BadOffset { what: "position", offset, len });
+    }
+    // u32 * u32 fits u64; times 16 may not: saturate, the length check refuses it.
+    let points = strands * per_strand;
+    let need = points.saturating_mul(16);
+    let have = len - offset;
+    if need > have {
+        return Err(FormatError::Truncated { what: "vertices", count: points, need, have });
+    }
+    let mut hair = Hair::with_capacity(strands as usize, points as usize);
+    let mut strand_pts = Vec::with_capacity(per_strand as usize);
+    for s in 0..strands as usize {
+        strand_pts.clear();
+        let base = offset as usize + 16 * s * per_strand as usize;
+        strand_pts.extend((0..per_strand as usize).map(|v| vec3_at(b, base + 16 * v)));
+        hair.push_strand(&strand_pts)?;
+    }
+    Ok(hair)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Writes a HAIR file by the format's description (independent of the parser).
+    fn hair_file(segments: Option<&[u16]>, points: &[[f32; 3]], colors: Option<&[[f32; 3]]>, strands: u32, default_seg: u32) -> Vec<u8> {
+        let mut b = Vec::new();
+        b.extend_from_slice(b"HAIR");
+        b.extend_from_slice(&strands.to_le_bytes());
+        b.extend_from_slice(&(points.len() as u32).to_le_bytes());
+        let flags = 2 | if segments.is_some() { 1 } else { 0 } | if colors.is_some() { 16 } else { 0 };
+        b.extend_from_slice(&(flags as u32).to_le_bytes());
+        b.extend_from_slice(&default_seg.to_le_bytes());
+        for f in [0.1f32, 1.0, 0.5, 0.25, 0.125] {
+            b.extend_from_slice(&f.to_le_bytes());
+        }
+        b.resize(128, 0);
+        for s in segments.unwrap_or(&[]) {
+            b.extend_from_slice(&s.to_le_bytes());
+        }
+        for p in points.iter().flatten() {
+            b.extend_from_slice(&p.to_le_bytes());
+        }
+        for c in colors.unwrap_or(&[]).iter().flatten() {
+            b.extend_from_slice(&c.to_le_bytes());
+        }
+        b
+    }
+
+    const PTS: [[f32; 3]; 5] = [[0.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, -2.0, 0.0], [1.0, 0.0, 0.0], [1.0, -1.0, 0.0]];
+
+    #[test]
+    fn reads_segments_points_and_root_colours() {
+        let cols = [[1.0, 0.0, 0.0], [0.0; 3], [0.0; 3], [0.0, 1.0, 0.0], [0.0; 3]];
+        let h = parse_hair_format(&hair_file(Some(&[2, 1]), &PTS, Some(&cols), 2, 0)).unwrap();
+        assert_eq!(h.strand_count(), 2);
+        assert_eq!(h.strand(0).len(), 3);
+        assert_eq!(h.strand(1), &[Vec3::X, Vec3::new(1.0, -1.0, 0.0)]);
+        assert_eq!(h.colors().unwrap(), &[Vec3::X, Vec3::Y]);
+    }
+
+    #[test]
+    fn default_segment_count_applies_without_segment_array() {
+        let pts = &PTS[..4];
+        let h = parse_hair_format(&hair_file(None, pts, None, 2, 1)).unwrap();
+        assert_eq!(h.strand_count(), 2);
+        assert_eq!(h.segment_count(), 2);
+        assert!(h.colors().is_none());
+    }
+
+    #[test]
+    fn refuses_wrong_magic_truncation_and_bad_counts() {
+        let mut f = hair_file(Some(&[2, 1]), &PTS, None, 2, 0);
+        f[0] = b'X';
+        assert!(matches!(parse_hair_format(&f), Err(FormatError::BadMagic { .. })));
+
+        let f = hair_file(Some(&[2, 1]), &PTS, None, 2, 0);
+        assert!(matches!(parse_hair_format(&f[..100]), Err(FormatError::TruncatedHeader { .. })));
+        assert!(matches!(parse_hair_format(&f[..f.len() - 1]), Err(FormatError::Truncated { .. })));
+
+        let f = hair_file(Some(&[2, 2]), &PTS, None, 2, 0);
+        assert_eq!(parse_hair_format(&f), Err(FormatError::CountMismatch { sum: 6, points: 5 }));
+    }
+
+    #[test]
+    fn a_lying_header_is_refused_before_allocating() {
+        let mut f = hair_file(Some(&[2, 1]), &PTS, None, 2, 0);
+        f[4..8].copy_from_slice(&u32::MAX.to_le_bytes());
+        f[8..12].copy_from_slice(&u32::MAX.to_le_bytes());
+        assert!(matches!(parse_hair_format(&f), Err(FormatError::Truncated { .. })));
+        // Without a segment array, strands * (default + 1) may overflow u32 arithmetic.
+        let mut f = hair_file(None, &PTS[..4], None, 2, 1);
+        f[4..8].copy_from_slice(&u32::MAX.to_le_bytes());
+        f[16..20].copy_from_slice(&u32::MAX.to_le_bytes());
+        assert!(matches!(parse_hair_format(&f), Err(FormatError::CountMismatch { .. })));
+    }
+
+    #[test]
+    fn refuses_non_finite_coordinates() {
+        let mut pts = PTS;
+        pts[4][1] = f32::INFINITY;
+        let err = parse_hair_format(&hair_file(Some(&[2, 1]), &pts, None, 2, 0)).unwrap_err();
+        assert_eq!(err.to_string(), "strand 1, point 1: coordinate (1, inf, 0) is not finite");
+    }
+
+    fn tfx_file(strands: u32, per: u32, pts: &[[f32; 4]]) -> Vec<u8> {
+        let mut b = Vec::new();
+        b.extend_from_slice(&4.0f32.to_le_bytes());
+        b.extend_from_slice(&strands.to_le_bytes());
+        b.extend_from_slice(&per.to_le_bytes());
+        b.extend_from_slice(&160u32.to_le_bytes());
+        b.resize(160, 0);
+        for p in pts.iter().flatten() {
+            b.extend_from_slice(&p.to_le_bytes());
+        }
+        b
+    }
+
+    #[test]
+    fn reads_tfx_and_refuses_truncation() {
+        let pts = [[0.0, 0.0, 0.0, 0.0], [0.0, -1.0, 0.0, 1.0], [2.0, 0.0, 0.0, 0.0], [2.0, -1.0, 0.0, 1.0]];
+        let h = parse_tfx(&tfx_file(2, 2, &pts)).unwrap();
+        assert_eq!(h.strand_count(), 2);
+        assert_eq!(h.strand(1)[0], Vec3::new(2.0, 0.0, 0.0));
+        let f = tfx_file(2, 2, &pts);
+        assert!(matches!(parse_tfx(&f[..f.len() - 4]), Err(FormatError::Truncated { .. })));
+        assert!(matches!(parse_tfx(&tfx_file(u32::MAX, u32::MAX, &pts)), Err(FormatError::Truncated { .. })));
+        let mut f = tfx_file(2, 2, &pts);
+        f[0..4].copy_from_slice(&3.0f32.to_le_bytes());
+        assert_eq!(parse_tfx(&f), Err(FormatError::TfxVersion(3.0)));
+    }
+
+    #[test]
+    fn unknown_extension_and_missing_file_name_the_path() {
+        let e = load(Path::new("groom.obj")).unwrap_err();
+        assert!(e.to_string().contains("groom.obj"), "{e}");
+        let e = load(Path::new("/nonexistent/x.hair")).unwrap_err();
+        assert!(e.to_string().starts_with("cannot read /nonexistent/x.hair"), "{e}");
+    }
+}
