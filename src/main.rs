@@ -1,1 +1,68 @@
-fn main() {}
+//! The `wisplight` command-line program: the only place that touches the
+//! terminal, parses arguments and turns errors into messages and exit codes.
+
+mod cmd;
+mod csv;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+/// Renders hair with light-oriented density-map self-shadowing.
+#[derive(Debug, Parser)]
+#[command(name = "wisplight", version, about, propagate_version = true)]
+struct Cli {
+    /// Worker threads for the parallel stages (default: one per core).
+    /// Results are the same bytes for any count.
+    #[arg(long, global = true, value_name = "N")]
+    threads: Option<usize>,
+    /// More log detail on stderr (-v info, -vv debug).
+    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    verbose: u8,
+    /// Only errors on stderr.
+    #[arg(short, long, global = true, conflicts_with = "verbose")]
+    quiet: bool,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Prints how much light reaches given points: CSV `x,y,z` in, `x,y,z,transmittance` out.
+    Probe(cmd::probe::Args),
+    /// Measures the speed of pipeline stages.
+    #[command(subcommand)]
+    Bench(cmd::bench::Bench),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let level = match (cli.quiet, cli.verbose) {
+        (true, _) => tracing::Level::ERROR,
+        (_, 0) => tracing::Level::WARN,
+        (_, 1) => tracing::Level::INFO,
+        _ => tracing::Level::DEBUG,
+    };
+    tracing_subscriber::fmt().with_max_level(level).with_writer(std::io::stderr).with_target(false).init();
+
+    let result = init_threads(cli.threads).and_then(|()| match cli.command {
+        Command::Probe(args) => cmd::probe::run(args),
+        Command::Bench(b) => cmd::bench::run(b),
+    });
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            // One line: the context chain, outermost first.
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn init_threads(threads: Option<usize>) -> anyhow::Result<()> {
+    if let Some(n) = threads {
+        anyhow::ensure!(n >= 1 && n <= 1024, "--threads {n}: must be in 1..=1024");
+        rayon::ThreadPoolBuilder::new().num_threads(n).build_global()?;
+    }
+    Ok(())
+}

@@ -1,1 +1,28 @@
-//! placeholder
+//! The scene and the frame pipeline.
+//!
+//! [`scene`] reads a TOML scene in two steps: raw serde structs that refuse
+//! unknown keys, then a validated [`Scene`] the rest of the engine trusts.
+//! [`pipeline`] builds the hair a scene describes and runs the shadow stages
+//! for every light.
+//!
+//! The engine is synchronous and deterministic: it does no networking, and
+//! does not print; the binary decides what the user sees.
+
+pub mod pipeline;
+pub mod scene;
+
+pub use pipeline::{build_hair, ShadowPipeline, StageTimes};
+pub use scene::{HairSource, Method, Scene, SceneError, ShadowSettings};
+
+/// Errors of the engine, each naming what is wrong and where.
+#[derive(Debug, thiserror::Error)]
+pub enum EngineError {
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    #[error(transparent)]
+    Load(#[from] strands::LoadError),
+    #[error(transparent)]
+    Shadow(#[from] shadow::ShadowError),
+    #[error("{what} would need {bytes} bytes, more than the {limit}-byte limit")]
+    TooLarge { what: String, bytes: u64, limit: u64 },
+}

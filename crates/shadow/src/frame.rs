@@ -1,7 +1,7 @@
 //! Lights and the light-oriented local frame of a map (paper 3.1, 3.2).
 
 use glam::Vec3;
-use strands::Bounds;
+use rayon::prelude::*;
 
 use crate::{ShadowError, MAX_CELLS};
 
@@ -55,24 +55,21 @@ impl LightFrame {
     pub fn fit(light: &Light, points: &[Vec3], n_cells: u32) -> Result<LightFrame, ShadowError> {
         check_cells(n_cells)?;
         let axes = light_axes(light.direction());
-        let world = points.iter().fold(Bounds::empty(), |mut b, &p| {
-            b.include(p);
-            b
-        });
-        if world.is_empty() {
+        let Some(&c) = points.first() else {
             return LightFrame::centered(light, Vec3::ZERO, 1.0, n_cells);
-        }
-        // Project relative to the box centre: keeps precision for hair far
-        // from the world origin.
-        let c = world.center();
-        let mut lo = Vec3::splat(f32::INFINITY);
-        let mut hi = Vec3::splat(f32::NEG_INFINITY);
-        for &p in points {
-            let q = p - c;
-            let m = Vec3::new(q.dot(axes[0]), q.dot(axes[1]), q.dot(axes[2]));
-            lo = lo.min(m);
-            hi = hi.max(m);
-        }
+        };
+        // Project relative to a point of the hair: keeps precision for hair
+        // far from the world origin. Min and max are exact in any order, so
+        // the parallel reduction is deterministic.
+        let (lo, hi) = points
+            .par_iter()
+            .with_min_len(4096)
+            .map(|&p| {
+                let q = p - c;
+                let m = Vec3::new(q.dot(axes[0]), q.dot(axes[1]), q.dot(axes[2]));
+                (m, m)
+            })
+            .reduce(|| (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |a, b| (a.0.min(b.0), a.1.max(b.1)));
         let extent = (hi - lo).max_element();
         // A map must be wider than float noise at this distance from the origin.
         let floor = 1e-3 * (1.0 + c.abs().max_element() * 1e-2);

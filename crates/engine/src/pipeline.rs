@@ -1,0 +1,193 @@
+//! Building a scene's hair and running the shadow stages for each light.
+
+use std::time::Instant;
+
+use glam::Vec3;
+use shadow::{DensityMap, Fiber, FillStats, Light, LightFrame, Transmittance};
+use strands::{grow_followers, resample, Hair, WispModel};
+
+use crate::{EngineError, HairSource, Scene, ShadowSettings};
+
+/// The most drawn segments one scene may ask for (about 1.6 GB of points):
+/// beyond this a typo in `strands_per_wisp` or `followers` is more likely
+/// than a real groom.
+pub const MAX_SEGMENTS: u64 = 100_000_000;
+
+/// Builds the hair a scene describes: generated or loaded, with follow
+/// strands when asked, then Catmull-Rom resampled into drawn points.
+pub fn build_hair(scene: &Scene) -> Result<Hair, EngineError> {
+    let control = match &scene.hair {
+        HairSource::Style(p) => {
+            let segs = u64::from(p.wisps) * u64::from(p.strands_per_wisp) * 31 * u64::from(scene.subdivide);
+            check_size(segs)?;
+            WispModel::generate(p).interpolate()
+        }
+        HairSource::File { path, follow } => {
+            let guides = strands::load(path)?;
+            match follow {
+                Some(f) => {
+                    check_size(guides.segment_count() as u64 * (u64::from(f.followers) + 1) * u64::from(scene.subdivide))?;
+                    grow_followers(&guides, f)
+                }
+                None => guides,
+            }
+        }
+    };
+    check_size(control.segment_count() as u64 * u64::from(scene.subdivide))?;
+    Ok(resample(&control, scene.subdivide))
+}
+
+fn check_size(segments: u64) -> Result<(), EngineError> {
+    if segments > MAX_SEGMENTS {
+        return Err(EngineError::TooLarge { what: format!("{segments} drawn segments"), bytes: segments * 16, limit: MAX_SEGMENTS * 16 });
+    }
+    Ok(())
+}
+
+/// The three shadow stages for every light of a scene. Each light owns its
+/// density map and transmittance.
+#[derive(Debug)]
+pub struct ShadowPipeline {
+    settings: ShadowSettings,
+    fiber: Fiber,
+    lights: Vec<LightState>,
+}
+
+#[derive(Debug)]
+struct LightState {
+    light: Light,
+    map: Option<DensityMap>,
+    trans: Option<Transmittance>,
+}
+
+impl ShadowPipeline {
+    pub fn new(scene: &Scene) -> ShadowPipeline {
+        ShadowPipeline {
+            settings: scene.shadow,
+            fiber: scene.fiber,
+            lights: scene.lights.iter().map(|&light| LightState { light, map: None, trans: None }).collect(),
+        }
+    }
+
+    pub fn light_count(&self) -> usize {
+        self.lights.len()
+    }
+
+    /// Stage 1: fits each light's map to the hair (a still frame) and fills
+    /// it with density. Returns the samples over all lights.
+    pub fn density(&mut self, hair: &Hair) -> Result<FillStats, EngineError> {
+        let mut total = FillStats::default();
+        for l in &mut self.lights {
+            let frame = LightFrame::fit(&l.light, hair.points(), self.settings.cells)?;
+            let map = match &mut l.map {
+                Some(m) => {
+                    m.set_frame(frame);
+                    m
+                }
+                None => l.map.insert(DensityMap::new(frame)),
+            };
+            let stats = map.fill(hair, &self.fiber);
+            if stats.out_of_map > 0 {
+                tracing::warn!(out_of_map = stats.out_of_map, samples = stats.samples, "density samples fell outside the map and were dropped");
+            }
+            total = total + stats;
+            l.trans = None;
+        }
+        Ok(total)
+    }
+
+    /// Stage 2: sweeps every column of every light's map.
+    pub fn transmittance(&mut self) {
+        for l in &mut self.lights {
+            let map = l.map.as_ref().expect("density runs before transmittance");
+            l.trans = Some(Transmittance::compute(map));
+        }
+    }
+
+    /// Stage 3: transmittance of every light at every point; `out[l][p]`.
+    pub fn filter(&self, points: &[Vec3], out: &mut [Vec<f32>]) {
+        assert_eq!(out.len(), self.lights.len());
+        for (l, o) in self.lights.iter().zip(out) {
+            o.resize(points.len(), 0.0);
+            l.trans.as_ref().expect("transmittance runs before filtering").lookup(points, self.settings.filter, o);
+        }
+    }
+
+    /// All three stages: transmittance of each light at `points` for `hair`.
+    pub fn run(&mut self, hair: &Hair, points: &[Vec3]) -> Result<Vec<Vec<f32>>, EngineError> {
+        self.density(hair)?;
+        self.transmittance();
+        let mut out = vec![Vec::new(); self.lights.len()];
+        self.filter(points, &mut out);
+        Ok(out)
+    }
+}
+
+/// Median milliseconds of each shadow stage over repeated runs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StageTimes {
+    pub density_ms: f64,
+    pub transmittance_ms: f64,
+    pub filter_ms: f64,
+    pub runs: usize,
+}
+
+impl StageTimes {
+    pub fn total_ms(&self) -> f64 {
+        self.density_ms + self.transmittance_ms + self.filter_ms
+    }
+
+    /// Runs the three stages `runs` times on `hair`, filtering at every drawn
+    /// point, after `warmup` untimed runs; reports the median of each stage.
+    pub fn measure(pipeline: &mut ShadowPipeline, hair: &Hair, warmup: usize, runs: usize, mut progress: impl FnMut(usize)) -> Result<StageTimes, EngineError> {
+        let mut out = vec![Vec::new(); pipeline.light_count()];
+        let mut times = [Vec::new(), Vec::new(), Vec::new()];
+        for r in 0..warmup + runs {
+            let t0 = Instant::now();
+            pipeline.density(hair)?;
+            let t1 = Instant::now();
+            pipeline.transmittance();
+            let t2 = Instant::now();
+            pipeline.filter(hair.points(), &mut out);
+            let t3 = Instant::now();
+            if r >= warmup {
+                for (v, d) in times.iter_mut().zip([t1 - t0, t2 - t1, t3 - t2]) {
+                    v.push(d.as_secs_f64() * 1e3);
+                }
+            }
+            progress(r + 1);
+        }
+        Ok(StageTimes { density_ms: median(&mut times[0]), transmittance_ms: median(&mut times[1]), filter_ms: median(&mut times[2]), runs })
+    }
+}
+
+/// The median of `v` (the mean of the middle two for even lengths).
+pub fn median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    let m = v.len() / 2;
+    if v.len() % 2 == 1 { v[m] } else { 0.5 * (v[m - 1] + v[m]) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn median_of_odd_and_even() {
+        assert_eq!(median(&mut [3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(&mut [4.0, 1.0, 3.0, 2.0]), 2.5);
+    }
+
+    #[test]
+    fn absurd_sizes_are_refused_before_building() {
+        let mut scene = Scene::default();
+        if let HairSource::Style(p) = &mut scene.hair {
+            p.strands_per_wisp = 2000;
+        }
+        scene.subdivide = 64;
+        assert!(matches!(build_hair(&scene), Err(EngineError::TooLarge { .. })));
+    }
+}

@@ -1,0 +1,335 @@
+//! Scene files: TOML with documented defaults; unknown keys are refused.
+//!
+//! ```toml
+//! [hair]
+//! style = "smooth"          # or "curly"; or file = "groom.tfx" (.hair or .tfx, relative to the scene)
+//! seed = 1                  # procedural styles
+//! strands_per_wisp = 25     # procedural styles: 134 wisps of this many drawn strands
+//! subdivide = 2             # Catmull-Rom pieces per input segment
+//! followers = 15            # files: follow strands grown per file strand (default 15 for .tfx, 0 for .hair)
+//! follow_radius = 0.4       # files: root disc radius of follow strands, scene units
+//! tip_spread = 1.5          # files: follow offset at the tip / at the root
+//!
+//! [fiber]
+//! width = 0.1               # effective width w of one drawn strand, scene units
+//! opacity = 0.5             # alpha in [0, 1]
+//!
+//! [light]                   # or several [[light]] tables
+//! direction = [0.6, -0.8, -0.35]   # the direction light travels
+//!
+//! [shadow]
+//! method = "density-map"
+//! cells = 128               # map cells a side, 1..=512
+//! filter = true             # trilinear filtering of transmittance
+//! ```
+
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+use serde::Deserialize;
+use shadow::{Fiber, Light};
+use strands::{FollowParams, Style, StyleParams};
+
+/// A scene that could not be read, naming the file and the field.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    #[error("cannot read scene {}: {source}", path.display())]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("{}: {message}", path.display())]
+    Parse { path: PathBuf, message: String },
+    #[error("{}: {field} = {value}: {reason}", path.display())]
+    Invalid { path: PathBuf, field: &'static str, value: String, reason: String },
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawScene {
+    #[serde(default)]
+    hair: RawHair,
+    #[serde(default)]
+    fiber: RawFiber,
+    #[serde(default)]
+    light: Option<OneOrMany<RawLight>>,
+    #[serde(default)]
+    shadow: RawShadow,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(untagged)]
+enum OneOrMany<T> {
+    One(T),
+    Many(Vec<T>),
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawHair {
+    style: Option<String>,
+    file: Option<PathBuf>,
+    seed: Option<u64>,
+    strands_per_wisp: Option<i64>,
+    subdivide: Option<i64>,
+    followers: Option<i64>,
+    follow_radius: Option<f32>,
+    tip_spread: Option<f32>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawFiber {
+    width: Option<f32>,
+    opacity: Option<f32>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawLight {
+    direction: [f32; 3],
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawShadow {
+    method: Option<String>,
+    cells: Option<i64>,
+    filter: Option<bool>,
+}
+
+/// Where the hair comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum HairSource {
+    Style(StyleParams),
+    File { path: PathBuf, follow: Option<FollowParams> },
+}
+
+/// Shadow methods. The density map is the paper's; more methods share this
+/// interface as they are added.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Method {
+    DensityMap,
+}
+
+impl Method {
+    pub const NAMES: &[&str] = &["density-map"];
+
+    pub fn from_name(name: &str) -> Option<Method> {
+        match name {
+            "density-map" => Some(Method::DensityMap),
+            _ => None,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::DensityMap => "density-map",
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ShadowSettings {
+    pub method: Method,
+    pub cells: u32,
+    pub filter: bool,
+}
+
+/// A validated scene.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scene {
+    pub hair: HairSource,
+    pub subdivide: u32,
+    pub fiber: Fiber,
+    pub lights: Vec<Light>,
+    pub shadow: ShadowSettings,
+}
+
+/// Defaults, documented in the module comment and README.
+pub const DEFAULT_LIGHT_DIRECTION: [f32; 3] = [0.6, -0.8, -0.35];
+pub const DEFAULT_FIBER_WIDTH: f32 = 0.1;
+pub const DEFAULT_FIBER_OPACITY: f32 = 0.5;
+pub const DEFAULT_CELLS: u32 = 128;
+pub const DEFAULT_SUBDIVIDE: u32 = 2;
+pub const DEFAULT_TFX_FOLLOWERS: u32 = 15;
+
+impl Default for Scene {
+    /// The built-in scene: the smooth style under the default light.
+    fn default() -> Scene {
+        Scene::from_toml_str("", Path::new("<built-in>")).expect("the empty scene is valid")
+    }
+}
+
+impl Scene {
+    /// Reads and validates a scene file; relative paths inside it are
+    /// relative to the file.
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io { path: path.to_owned(), source })?;
+        Scene::from_toml_str(&text, path)
+    }
+
+    /// Parses scene text; `path` names it in errors and anchors relative paths.
+    pub fn from_toml_str(text: &str, path: &Path) -> Result<Scene, SceneError> {
+        let raw: RawScene = toml::from_str(text).map_err(|e| SceneError::Parse { path: path.to_owned(), message: one_line(&e.to_string()) })?;
+        Validator { path }.scene(raw)
+    }
+}
+
+/// toml's messages span several lines with a source excerpt; keep them to one.
+fn one_line(message: &str) -> String {
+    let mut parts = message.lines().map(str::trim).filter(|l| !l.is_empty() && !l.starts_with('|') && !l.chars().next().is_some_and(|c| c.is_ascii_digit()));
+    let head = parts.next().unwrap_or("invalid TOML").trim_end_matches(':').to_string();
+    let rest: Vec<&str> = parts.collect();
+    if rest.is_empty() { head } else { format!("{head}: {}", rest.join("; ")) }
+}
+
+struct Validator<'a> {
+    path: &'a Path,
+}
+
+impl Validator<'_> {
+    fn invalid(&self, field: &'static str, value: impl std::fmt::Display, reason: impl Into<String>) -> SceneError {
+        SceneError::Invalid { path: self.path.to_owned(), field, value: value.to_string(), reason: reason.into() }
+    }
+
+    fn int(&self, field: &'static str, v: Option<i64>, default: u32, range: std::ops::RangeInclusive<u32>) -> Result<u32, SceneError> {
+        let Some(v) = v else { return Ok(default) };
+        u32::try_from(v)
+            .ok()
+            .filter(|v| range.contains(v))
+            .ok_or_else(|| self.invalid(field, v, format!("must be a whole number in {}..={}", range.start(), range.end())))
+    }
+
+    fn positive(&self, field: &'static str, v: Option<f32>, default: f32) -> Result<f32, SceneError> {
+        let v = v.unwrap_or(default);
+        if v.is_finite() && v >= 0.0 { Ok(v) } else { Err(self.invalid(field, v, "must be a finite number >= 0")) }
+    }
+
+    fn scene(&self, raw: RawScene) -> Result<Scene, SceneError> {
+        let h = raw.hair;
+        let subdivide = self.int("hair.subdivide", h.subdivide, DEFAULT_SUBDIVIDE, 1..=64)?;
+        let seed = h.seed.unwrap_or(1);
+        let hair = match (&h.style, &h.file) {
+            (Some(_), Some(_)) => return Err(self.invalid("hair.style", h.style.as_deref().unwrap_or_default(), "give either hair.style or hair.file, not both")),
+            (_, Some(file)) => {
+                let path = match self.path.parent() {
+                    Some(dir) if file.is_relative() => dir.join(file),
+                    _ => file.clone(),
+                };
+                let tfx = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("tfx"));
+                let followers = self.int("hair.followers", h.followers, if tfx { DEFAULT_TFX_FOLLOWERS } else { 0 }, 0..=1000)?;
+                let radius = self.positive("hair.follow_radius", h.follow_radius, 0.4)?;
+                let tip_spread = self.positive("hair.tip_spread", h.tip_spread, 1.5)?;
+                let follow = (followers > 0).then_some(FollowParams { followers, radius, tip_spread, seed });
+                HairSource::File { path, follow }
+            }
+            (style, None) => {
+                let name = style.as_deref().unwrap_or("smooth");
+                let style = Style::from_name(name).ok_or_else(|| self.invalid("hair.style", format!("{name:?}"), "expected \"smooth\" or \"curly\""))?;
+                for (field, set) in [("hair.followers", h.followers.is_some()), ("hair.follow_radius", h.follow_radius.is_some()), ("hair.tip_spread", h.tip_spread.is_some())] {
+                    if set {
+                        return Err(self.invalid(field, "(set)", "applies to hair.file only"));
+                    }
+                }
+                let mut p = StyleParams::new(style);
+                p.seed = seed;
+                p.strands_per_wisp = self.int("hair.strands_per_wisp", h.strands_per_wisp, p.strands_per_wisp, 1..=2000)?;
+                HairSource::Style(p)
+            }
+        };
+        if matches!(hair, HairSource::File { .. }) && h.strands_per_wisp.is_some() {
+            return Err(self.invalid("hair.strands_per_wisp", h.strands_per_wisp.unwrap_or_default(), "applies to hair.style only"));
+        }
+
+        let width = raw.fiber.width.unwrap_or(DEFAULT_FIBER_WIDTH);
+        let opacity = raw.fiber.opacity.unwrap_or(DEFAULT_FIBER_OPACITY);
+        let fiber = Fiber::new(width, opacity).map_err(|e| match e {
+            shadow::ShadowError::FiberWidth(v) => self.invalid("fiber.width", v, "must be a finite number >= 0"),
+            _ => self.invalid("fiber.opacity", opacity, "must be in [0, 1]"),
+        })?;
+
+        let raw_lights = match raw.light {
+            None => vec![RawLight { direction: DEFAULT_LIGHT_DIRECTION }],
+            Some(OneOrMany::One(l)) => vec![l],
+            Some(OneOrMany::Many(ls)) => ls,
+        };
+        if raw_lights.is_empty() {
+            return Err(self.invalid("light", "[]", "needs at least one light"));
+        }
+        let lights = raw_lights
+            .iter()
+            .map(|l| Light::directional(Vec3::from_array(l.direction)).map_err(|_| self.invalid("light.direction", format!("{:?}", l.direction), "must be finite and not zero")))
+            .collect::<Result<Vec<_>, _>>()?;
+
+        let s = raw.shadow;
+        let method_name = s.method.as_deref().unwrap_or("density-map");
+        let method = Method::from_name(method_name)
+            .ok_or_else(|| self.invalid("shadow.method", format!("{method_name:?}"), format!("known methods: {}", Method::NAMES.join(", "))))?;
+        let cells = self.int("shadow.cells", s.cells, DEFAULT_CELLS, 1..=shadow::MAX_CELLS)?;
+        let shadow = ShadowSettings { method, cells, filter: s.filter.unwrap_or(true) };
+        Ok(Scene { hair, subdivide, fiber, lights, shadow })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> Result<Scene, SceneError> {
+        Scene::from_toml_str(text, Path::new("dir/scene.toml"))
+    }
+
+    #[test]
+    fn empty_scene_gets_the_documented_defaults() {
+        let s = parse("").unwrap();
+        assert_eq!(s.shadow, ShadowSettings { method: Method::DensityMap, cells: 128, filter: true });
+        assert_eq!(s.fiber, Fiber::new(0.1, 0.5).unwrap());
+        assert_eq!(s.subdivide, 2);
+        assert_eq!(s.lights, vec![Light::directional(Vec3::from_array(DEFAULT_LIGHT_DIRECTION)).unwrap()]);
+        assert!(matches!(s.hair, HairSource::Style(p) if p.style == Style::Smooth && p.strands_per_wisp == 25));
+    }
+
+    #[test]
+    fn unknown_keys_are_refused_by_name() {
+        let e = parse("[shadow]\ncells = 64\nresolution = 3\n").unwrap_err().to_string();
+        assert!(e.contains("resolution") && e.starts_with("dir/scene.toml"), "{e}");
+        assert!(!e.contains('\n'), "one line: {e}");
+        let e = parse("[lights]\ndirection = [1, 0, 0]\n").unwrap_err().to_string();
+        assert!(e.contains("lights"), "{e}");
+    }
+
+    #[test]
+    fn bad_values_name_field_and_value() {
+        let e = parse("[shadow]\ncells = 100000\n").unwrap_err().to_string();
+        assert_eq!(e, "dir/scene.toml: shadow.cells = 100000: must be a whole number in 1..=512");
+        let e = parse("[fiber]\nwidth = nan\n").unwrap_err().to_string();
+        assert_eq!(e, "dir/scene.toml: fiber.width = NaN: must be a finite number >= 0");
+        let e = parse("[light]\ndirection = [0, 0, 0]\n").unwrap_err().to_string();
+        assert!(e.contains("light.direction = [0.0, 0.0, 0.0]"), "{e}");
+        let e = parse("[shadow]\nmethod = \"raytrace\"\n").unwrap_err().to_string();
+        assert!(e.contains("shadow.method = \"raytrace\""), "{e}");
+        let e = parse("[hair]\nstyle = \"wavy\"\n").unwrap_err().to_string();
+        assert!(e.contains("hair.style"), "{e}");
+        let e = parse("[hair]\nstrands_per_wisp = -3\n").unwrap_err().to_string();
+        assert!(e.contains("hair.strands_per_wisp = -3"), "{e}");
+    }
+
+    #[test]
+    fn files_are_relative_to_the_scene_and_tfx_grows_followers() {
+        let s = parse("[hair]\nfile = \"groom.tfx\"\n").unwrap();
+        match s.hair {
+            HairSource::File { path, follow } => {
+                assert_eq!(path, Path::new("dir/groom.tfx"));
+                assert_eq!(follow.unwrap().followers, 15);
+            }
+            other => panic!("{other:?}"),
+        }
+        let s = parse("[hair]\nfile = \"/abs/x.hair\"\n").unwrap();
+        assert!(matches!(s.hair, HairSource::File { ref path, follow: None } if path == Path::new("/abs/x.hair")));
+    }
+
+    #[test]
+    fn several_lights() {
+        let s = parse("[[light]]\ndirection = [1, 0, 0]\n[[light]]\ndirection = [0, -2, 0]\n").unwrap();
+        assert_eq!(s.lights.len(), 2);
+        assert_eq!(s.lights[1].direction(), Vec3::NEG_Y);
+    }
+}

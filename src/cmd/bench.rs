@@ -1,0 +1,79 @@
+//! `wisplight bench`: stage timings, medians over repeated runs.
+
+use std::path::PathBuf;
+
+use engine::{ShadowPipeline, StageTimes};
+
+#[derive(Debug, clap::Subcommand)]
+pub enum Bench {
+    /// Median time of the three shadow stages (density, transmittance,
+    /// filter at every drawn point) on a scene.
+    Shadow(ShadowArgs),
+}
+
+#[derive(Debug, clap::Args)]
+pub struct ShadowArgs {
+    /// Scene file (TOML); the built-in scene when omitted.
+    scene: Option<PathBuf>,
+    /// Map cells a side, overriding the scene's `shadow.cells`.
+    #[arg(long, value_name = "N")]
+    cells: Option<u32>,
+    /// Timed runs (after 5 untimed warm-up runs).
+    #[arg(long, default_value_t = 30, value_name = "N")]
+    runs: usize,
+    /// Also print the result as one JSON object on the last stdout line.
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(b: Bench) -> anyhow::Result<()> {
+    match b {
+        Bench::Shadow(a) => shadow(a),
+    }
+}
+
+fn shadow(a: ShadowArgs) -> anyhow::Result<()> {
+    anyhow::ensure!(a.runs >= 1, "--runs {}: must be at least 1", a.runs);
+    let mut scene = super::load_scene(a.scene.as_deref())?;
+    if let Some(c) = a.cells {
+        anyhow::ensure!((1..=shadow::MAX_CELLS).contains(&c), "--cells {c}: must be in 1..={}", shadow::MAX_CELLS);
+        scene.shadow.cells = c;
+    }
+    let hair = super::build_hair(&scene)?;
+    let name = a.scene.as_ref().map_or("built-in".to_string(), |p| p.display().to_string());
+    let threads = rayon::current_num_threads();
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    eprintln!(
+        "bench shadow: {name}: {} segments, {} points, {}^3 cells, {} light(s), {threads} threads on {cores} cores, {} runs",
+        hair.segment_count(),
+        hair.point_count(),
+        scene.shadow.cells,
+        scene.lights.len(),
+        a.runs
+    );
+    let mut pipeline = ShadowPipeline::new(&scene);
+    let t = StageTimes::measure(&mut pipeline, &hair, 5, a.runs, |_| {})?;
+    println!("stage           median ms");
+    println!("density         {:9.3}", t.density_ms);
+    println!("transmittance   {:9.3}", t.transmittance_ms);
+    println!("filter          {:9.3}", t.filter_ms);
+    println!("total           {:9.3}", t.total_ms());
+    if a.json {
+        let j = serde_json::json!({
+            "scene": name,
+            "segments": hair.segment_count(),
+            "points": hair.point_count(),
+            "cells": scene.shadow.cells,
+            "lights": scene.lights.len(),
+            "threads": threads,
+            "cores": cores,
+            "runs": t.runs,
+            "density_ms": t.density_ms,
+            "transmittance_ms": t.transmittance_ms,
+            "filter_ms": t.filter_ms,
+            "total_ms": t.total_ms(),
+        });
+        println!("{j}");
+    }
+    Ok(())
+}

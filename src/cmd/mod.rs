@@ -1,0 +1,22 @@
+//! One module per subcommand.
+
+pub mod bench;
+pub mod probe;
+
+use std::path::Path;
+
+use anyhow::Context;
+use engine::Scene;
+
+/// Loads a scene file, or the built-in scene when none is given.
+pub fn load_scene(path: Option<&Path>) -> anyhow::Result<Scene> {
+    match path {
+        Some(p) => Scene::load(p).context("invalid scene"),
+        None => Ok(Scene::default()),
+    }
+}
+
+/// Builds the scene's hair, with the scene file named in any error.
+pub fn build_hair(scene: &Scene) -> anyhow::Result<strands::Hair> {
+    engine::build_hair(scene).context("cannot build the hair")
+}
