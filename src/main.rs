@@ -43,7 +43,11 @@ fn main() -> ExitCode {
         (_, 1) => tracing::Level::INFO,
         _ => tracing::Level::DEBUG,
     };
-    tracing_subscriber::fmt().with_max_level(level).with_writer(std::io::stderr).with_target(false).init();
+    tracing_subscriber::fmt()
+        .with_max_level(level)
+        .with_writer(std::io::stderr)
+        .with_target(false)
+        .init();
 
     let result = init_threads(cli.threads).and_then(|()| match cli.command {
         Command::Probe(args) => cmd::probe::run(args),
@@ -61,8 +65,10 @@ fn main() -> ExitCode {
 
 fn init_threads(threads: Option<usize>) -> anyhow::Result<()> {
     if let Some(n) = threads {
-        anyhow::ensure!(n >= 1 && n <= 1024, "--threads {n}: must be in 1..=1024");
-        rayon::ThreadPoolBuilder::new().num_threads(n).build_global()?;
+        anyhow::ensure!((1..=1024).contains(&n), "--threads {n}: must be in 1..=1024");
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()?;
     }
     Ok(())
 }

@@ -36,11 +36,18 @@ fn shadow(a: ShadowArgs) -> anyhow::Result<()> {
     anyhow::ensure!(a.runs >= 1, "--runs {}: must be at least 1", a.runs);
     let mut scene = super::load_scene(a.scene.as_deref())?;
     if let Some(c) = a.cells {
-        anyhow::ensure!((1..=shadow::MAX_CELLS).contains(&c), "--cells {c}: must be in 1..={}", shadow::MAX_CELLS);
+        anyhow::ensure!(
+            (1..=shadow::MAX_CELLS).contains(&c),
+            "--cells {c}: must be in 1..={}",
+            shadow::MAX_CELLS
+        );
         scene.shadow.cells = c;
     }
     let hair = super::build_hair(&scene)?;
-    let name = a.scene.as_ref().map_or("built-in".to_string(), |p| p.display().to_string());
+    let name = a
+        .scene
+        .as_ref()
+        .map_or("built-in".to_string(), |p| p.display().to_string());
     let threads = rayon::current_num_threads();
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     eprintln!(
@@ -58,6 +65,7 @@ fn shadow(a: ShadowArgs) -> anyhow::Result<()> {
     println!("transmittance   {:9.3}", t.transmittance_ms);
     println!("filter          {:9.3}", t.filter_ms);
     println!("total           {:9.3}", t.total_ms());
+    eprintln!("bench shadow: {} density samples per run", t.samples);
     if a.json {
         let j = serde_json::json!({
             "scene": name,
@@ -68,6 +76,7 @@ fn shadow(a: ShadowArgs) -> anyhow::Result<()> {
             "threads": threads,
             "cores": cores,
             "runs": t.runs,
+            "samples": t.samples,
             "density_ms": t.density_ms,
             "transmittance_ms": t.transmittance_ms,
             "filter_ms": t.filter_ms,

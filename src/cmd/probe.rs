@@ -25,7 +25,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let t = pipeline.run(&hair, &points)?;
 
     let mut out = BufWriter::new(std::io::stdout().lock());
-    let header = if t.len() == 1 { "transmittance".to_string() } else { (0..t.len()).map(|l| format!("transmittance_{l}")).collect::<Vec<_>>().join(",") };
+    let header = if t.len() == 1 {
+        "transmittance".to_string()
+    } else {
+        (0..t.len())
+            .map(|l| format!("transmittance_{l}"))
+            .collect::<Vec<_>>()
+            .join(",")
+    };
     writeln!(out, "x,y,z,{header}")?;
     for (i, p) in points.iter().enumerate() {
         write!(out, "{},{},{}", p.x, p.y, p.z)?;

@@ -11,7 +11,7 @@
 pub mod pipeline;
 pub mod scene;
 
-pub use pipeline::{build_hair, ShadowPipeline, StageTimes};
+pub use pipeline::{ShadowPipeline, StageTimes, build_hair};
 pub use scene::{HairSource, Method, Scene, SceneError, ShadowSettings};
 
 /// Errors of the engine, each naming what is wrong and where.
@@ -24,5 +24,9 @@ pub enum EngineError {
     #[error(transparent)]
     Shadow(#[from] shadow::ShadowError),
     #[error("{what} would need {bytes} bytes, more than the {limit}-byte limit")]
-    TooLarge { what: String, bytes: u64, limit: u64 },
+    TooLarge {
+        what: String,
+        bytes: u64,
+        limit: u64,
+    },
 }

@@ -4,7 +4,7 @@ use std::time::Instant;
 
 use glam::Vec3;
 use shadow::{DensityMap, Fiber, FillStats, Light, LightFrame, Transmittance};
-use strands::{grow_followers, resample, Hair, WispModel};
+use strands::{Hair, WispModel, grow_followers, resample};
 
 use crate::{EngineError, HairSource, Scene, ShadowSettings};
 
@@ -18,7 +18,10 @@ pub const MAX_SEGMENTS: u64 = 100_000_000;
 pub fn build_hair(scene: &Scene) -> Result<Hair, EngineError> {
     let control = match &scene.hair {
         HairSource::Style(p) => {
-            let segs = u64::from(p.wisps) * u64::from(p.strands_per_wisp) * 31 * u64::from(scene.subdivide);
+            let segs = u64::from(p.wisps)
+                * u64::from(p.strands_per_wisp)
+                * 31
+                * u64::from(scene.subdivide);
             check_size(segs)?;
             WispModel::generate(p).interpolate()
         }
@@ -26,7 +29,11 @@ pub fn build_hair(scene: &Scene) -> Result<Hair, EngineError> {
             let guides = strands::load(path)?;
             match follow {
                 Some(f) => {
-                    check_size(guides.segment_count() as u64 * (u64::from(f.followers) + 1) * u64::from(scene.subdivide))?;
+                    check_size(
+                        guides.segment_count() as u64
+                            * (u64::from(f.followers) + 1)
+                            * u64::from(scene.subdivide),
+                    )?;
                     grow_followers(&guides, f)
                 }
                 None => guides,
@@ -39,7 +46,11 @@ pub fn build_hair(scene: &Scene) -> Result<Hair, EngineError> {
 
 fn check_size(segments: u64) -> Result<(), EngineError> {
     if segments > MAX_SEGMENTS {
-        return Err(EngineError::TooLarge { what: format!("{segments} drawn segments"), bytes: segments * 16, limit: MAX_SEGMENTS * 16 });
+        return Err(EngineError::TooLarge {
+            what: format!("{segments} drawn segments"),
+            bytes: segments * 16,
+            limit: MAX_SEGMENTS * 16,
+        });
     }
     Ok(())
 }
@@ -65,7 +76,15 @@ impl ShadowPipeline {
         ShadowPipeline {
             settings: scene.shadow,
             fiber: scene.fiber,
-            lights: scene.lights.iter().map(|&light| LightState { light, map: None, trans: None }).collect(),
+            lights: scene
+                .lights
+                .iter()
+                .map(|&light| LightState {
+                    light,
+                    map: None,
+                    trans: None,
+                })
+                .collect(),
         }
     }
 
@@ -88,7 +107,11 @@ impl ShadowPipeline {
             };
             let stats = map.fill(hair, &self.fiber);
             if stats.out_of_map > 0 {
-                tracing::warn!(out_of_map = stats.out_of_map, samples = stats.samples, "density samples fell outside the map and were dropped");
+                tracing::warn!(
+                    out_of_map = stats.out_of_map,
+                    samples = stats.samples,
+                    "density samples fell outside the map and were dropped"
+                );
             }
             total = total + stats;
             l.trans = None;
@@ -109,7 +132,10 @@ impl ShadowPipeline {
         assert_eq!(out.len(), self.lights.len());
         for (l, o) in self.lights.iter().zip(out) {
             o.resize(points.len(), 0.0);
-            l.trans.as_ref().expect("transmittance runs before filtering").lookup(points, self.settings.filter, o);
+            l.trans
+                .as_ref()
+                .expect("transmittance runs before filtering")
+                .lookup(points, self.settings.filter, o);
         }
     }
 
@@ -130,6 +156,8 @@ pub struct StageTimes {
     pub transmittance_ms: f64,
     pub filter_ms: f64,
     pub runs: usize,
+    /// Density samples deposited per run, over all lights.
+    pub samples: u64,
 }
 
 impl StageTimes {
@@ -139,12 +167,19 @@ impl StageTimes {
 
     /// Runs the three stages `runs` times on `hair`, filtering at every drawn
     /// point, after `warmup` untimed runs; reports the median of each stage.
-    pub fn measure(pipeline: &mut ShadowPipeline, hair: &Hair, warmup: usize, runs: usize, mut progress: impl FnMut(usize)) -> Result<StageTimes, EngineError> {
+    pub fn measure(
+        pipeline: &mut ShadowPipeline,
+        hair: &Hair,
+        warmup: usize,
+        runs: usize,
+        mut progress: impl FnMut(usize),
+    ) -> Result<StageTimes, EngineError> {
         let mut out = vec![Vec::new(); pipeline.light_count()];
         let mut times = [Vec::new(), Vec::new(), Vec::new()];
+        let mut samples = 0;
         for r in 0..warmup + runs {
             let t0 = Instant::now();
-            pipeline.density(hair)?;
+            samples = pipeline.density(hair)?.samples;
             let t1 = Instant::now();
             pipeline.transmittance();
             let t2 = Instant::now();
@@ -157,7 +192,13 @@ impl StageTimes {
             }
             progress(r + 1);
         }
-        Ok(StageTimes { density_ms: median(&mut times[0]), transmittance_ms: median(&mut times[1]), filter_ms: median(&mut times[2]), runs })
+        Ok(StageTimes {
+            density_ms: median(&mut times[0]),
+            transmittance_ms: median(&mut times[1]),
+            filter_ms: median(&mut times[2]),
+            runs,
+            samples,
+        })
     }
 }
 
@@ -168,7 +209,11 @@ pub fn median(v: &mut [f64]) -> f64 {
     }
     v.sort_by(f64::total_cmp);
     let m = v.len() / 2;
-    if v.len() % 2 == 1 { v[m] } else { 0.5 * (v[m - 1] + v[m]) }
+    if v.len() % 2 == 1 {
+        v[m]
+    } else {
+        0.5 * (v[m - 1] + v[m])
+    }
 }
 
 #[cfg(test)]
@@ -188,6 +233,9 @@ mod tests {
             p.strands_per_wisp = 2000;
         }
         scene.subdivide = 64;
-        assert!(matches!(build_hair(&scene), Err(EngineError::TooLarge { .. })));
+        assert!(matches!(
+            build_hair(&scene),
+            Err(EngineError::TooLarge { .. })
+        ));
     }
 }

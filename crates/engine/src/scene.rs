@@ -34,11 +34,19 @@ use strands::{FollowParams, Style, StyleParams};
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
     #[error("cannot read scene {}: {source}", path.display())]
-    Io { path: PathBuf, source: std::io::Error },
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     #[error("{}: {message}", path.display())]
     Parse { path: PathBuf, message: String },
     #[error("{}: {field} = {value}: {reason}", path.display())]
-    Invalid { path: PathBuf, field: &'static str, value: String, reason: String },
+    Invalid {
+        path: PathBuf,
+        field: &'static str,
+        value: String,
+        reason: String,
+    },
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -99,7 +107,10 @@ struct RawShadow {
 #[derive(Debug, Clone, PartialEq)]
 pub enum HairSource {
     Style(StyleParams),
-    File { path: PathBuf, follow: Option<FollowParams> },
+    File {
+        path: PathBuf,
+        follow: Option<FollowParams>,
+    },
 }
 
 /// Shadow methods. The density map is the paper's; more methods share this
@@ -162,23 +173,41 @@ impl Scene {
     /// Reads and validates a scene file; relative paths inside it are
     /// relative to the file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io { path: path.to_owned(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+            path: path.to_owned(),
+            source,
+        })?;
         Scene::from_toml_str(&text, path)
     }
 
     /// Parses scene text; `path` names it in errors and anchors relative paths.
     pub fn from_toml_str(text: &str, path: &Path) -> Result<Scene, SceneError> {
-        let raw: RawScene = toml::from_str(text).map_err(|e| SceneError::Parse { path: path.to_owned(), message: one_line(&e.to_string()) })?;
+        let raw: RawScene = toml::from_str(text).map_err(|e| SceneError::Parse {
+            path: path.to_owned(),
+            message: one_line(&e.to_string()),
+        })?;
         Validator { path }.scene(raw)
     }
 }
 
 /// toml's messages span several lines with a source excerpt; keep them to one.
 fn one_line(message: &str) -> String {
-    let mut parts = message.lines().map(str::trim).filter(|l| !l.is_empty() && !l.starts_with('|') && !l.chars().next().is_some_and(|c| c.is_ascii_digit()));
-    let head = parts.next().unwrap_or("invalid TOML").trim_end_matches(':').to_string();
+    let mut parts = message.lines().map(str::trim).filter(|l| {
+        !l.is_empty()
+            && !l.starts_with('|')
+            && !l.chars().next().is_some_and(|c| c.is_ascii_digit())
+    });
+    let head = parts
+        .next()
+        .unwrap_or("invalid TOML")
+        .trim_end_matches(':')
+        .to_string();
     let rest: Vec<&str> = parts.collect();
-    if rest.is_empty() { head } else { format!("{head}: {}", rest.join("; ")) }
+    if rest.is_empty() {
+        head
+    } else {
+        format!("{head}: {}", rest.join("; "))
+    }
 }
 
 struct Validator<'a> {
@@ -186,21 +215,56 @@ struct Validator<'a> {
 }
 
 impl Validator<'_> {
-    fn invalid(&self, field: &'static str, value: impl std::fmt::Display, reason: impl Into<String>) -> SceneError {
-        SceneError::Invalid { path: self.path.to_owned(), field, value: value.to_string(), reason: reason.into() }
+    fn invalid(
+        &self,
+        field: &'static str,
+        value: impl std::fmt::Display,
+        reason: impl Into<String>,
+    ) -> SceneError {
+        SceneError::Invalid {
+            path: self.path.to_owned(),
+            field,
+            value: value.to_string(),
+            reason: reason.into(),
+        }
     }
 
-    fn int(&self, field: &'static str, v: Option<i64>, default: u32, range: std::ops::RangeInclusive<u32>) -> Result<u32, SceneError> {
+    fn int(
+        &self,
+        field: &'static str,
+        v: Option<i64>,
+        default: u32,
+        range: std::ops::RangeInclusive<u32>,
+    ) -> Result<u32, SceneError> {
         let Some(v) = v else { return Ok(default) };
         u32::try_from(v)
             .ok()
             .filter(|v| range.contains(v))
-            .ok_or_else(|| self.invalid(field, v, format!("must be a whole number in {}..={}", range.start(), range.end())))
+            .ok_or_else(|| {
+                self.invalid(
+                    field,
+                    v,
+                    format!(
+                        "must be a whole number in {}..={}",
+                        range.start(),
+                        range.end()
+                    ),
+                )
+            })
     }
 
-    fn positive(&self, field: &'static str, v: Option<f32>, default: f32) -> Result<f32, SceneError> {
+    fn positive(
+        &self,
+        field: &'static str,
+        v: Option<f32>,
+        default: f32,
+    ) -> Result<f32, SceneError> {
         let v = v.unwrap_or(default);
-        if v.is_finite() && v >= 0.0 { Ok(v) } else { Err(self.invalid(field, v, "must be a finite number >= 0")) }
+        if v.is_finite() && v >= 0.0 {
+            Ok(v)
+        } else {
+            Err(self.invalid(field, v, "must be a finite number >= 0"))
+        }
     }
 
     fn scene(&self, raw: RawScene) -> Result<Scene, SceneError> {
@@ -208,46 +272,87 @@ impl Validator<'_> {
         let subdivide = self.int("hair.subdivide", h.subdivide, DEFAULT_SUBDIVIDE, 1..=64)?;
         let seed = h.seed.unwrap_or(1);
         let hair = match (&h.style, &h.file) {
-            (Some(_), Some(_)) => return Err(self.invalid("hair.style", h.style.as_deref().unwrap_or_default(), "give either hair.style or hair.file, not both")),
+            (Some(_), Some(_)) => {
+                return Err(self.invalid(
+                    "hair.style",
+                    h.style.as_deref().unwrap_or_default(),
+                    "give either hair.style or hair.file, not both",
+                ));
+            }
             (_, Some(file)) => {
                 let path = match self.path.parent() {
                     Some(dir) if file.is_relative() => dir.join(file),
                     _ => file.clone(),
                 };
-                let tfx = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("tfx"));
-                let followers = self.int("hair.followers", h.followers, if tfx { DEFAULT_TFX_FOLLOWERS } else { 0 }, 0..=1000)?;
+                let tfx = path
+                    .extension()
+                    .is_some_and(|e| e.eq_ignore_ascii_case("tfx"));
+                let followers = self.int(
+                    "hair.followers",
+                    h.followers,
+                    if tfx { DEFAULT_TFX_FOLLOWERS } else { 0 },
+                    0..=1000,
+                )?;
                 let radius = self.positive("hair.follow_radius", h.follow_radius, 0.4)?;
                 let tip_spread = self.positive("hair.tip_spread", h.tip_spread, 1.5)?;
-                let follow = (followers > 0).then_some(FollowParams { followers, radius, tip_spread, seed });
+                let follow = (followers > 0).then_some(FollowParams {
+                    followers,
+                    radius,
+                    tip_spread,
+                    seed,
+                });
                 HairSource::File { path, follow }
             }
             (style, None) => {
                 let name = style.as_deref().unwrap_or("smooth");
-                let style = Style::from_name(name).ok_or_else(|| self.invalid("hair.style", format!("{name:?}"), "expected \"smooth\" or \"curly\""))?;
-                for (field, set) in [("hair.followers", h.followers.is_some()), ("hair.follow_radius", h.follow_radius.is_some()), ("hair.tip_spread", h.tip_spread.is_some())] {
+                let style = Style::from_name(name).ok_or_else(|| {
+                    self.invalid(
+                        "hair.style",
+                        format!("{name:?}"),
+                        "expected \"smooth\" or \"curly\"",
+                    )
+                })?;
+                for (field, set) in [
+                    ("hair.followers", h.followers.is_some()),
+                    ("hair.follow_radius", h.follow_radius.is_some()),
+                    ("hair.tip_spread", h.tip_spread.is_some()),
+                ] {
                     if set {
                         return Err(self.invalid(field, "(set)", "applies to hair.file only"));
                     }
                 }
                 let mut p = StyleParams::new(style);
                 p.seed = seed;
-                p.strands_per_wisp = self.int("hair.strands_per_wisp", h.strands_per_wisp, p.strands_per_wisp, 1..=2000)?;
+                p.strands_per_wisp = self.int(
+                    "hair.strands_per_wisp",
+                    h.strands_per_wisp,
+                    p.strands_per_wisp,
+                    1..=2000,
+                )?;
                 HairSource::Style(p)
             }
         };
         if matches!(hair, HairSource::File { .. }) && h.strands_per_wisp.is_some() {
-            return Err(self.invalid("hair.strands_per_wisp", h.strands_per_wisp.unwrap_or_default(), "applies to hair.style only"));
+            return Err(self.invalid(
+                "hair.strands_per_wisp",
+                h.strands_per_wisp.unwrap_or_default(),
+                "applies to hair.style only",
+            ));
         }
 
         let width = raw.fiber.width.unwrap_or(DEFAULT_FIBER_WIDTH);
         let opacity = raw.fiber.opacity.unwrap_or(DEFAULT_FIBER_OPACITY);
         let fiber = Fiber::new(width, opacity).map_err(|e| match e {
-            shadow::ShadowError::FiberWidth(v) => self.invalid("fiber.width", v, "must be a finite number >= 0"),
+            shadow::ShadowError::FiberWidth(v) => {
+                self.invalid("fiber.width", v, "must be a finite number >= 0")
+            }
             _ => self.invalid("fiber.opacity", opacity, "must be in [0, 1]"),
         })?;
 
         let raw_lights = match raw.light {
-            None => vec![RawLight { direction: DEFAULT_LIGHT_DIRECTION }],
+            None => vec![RawLight {
+                direction: DEFAULT_LIGHT_DIRECTION,
+            }],
             Some(OneOrMany::One(l)) => vec![l],
             Some(OneOrMany::Many(ls)) => ls,
         };
@@ -256,16 +361,44 @@ impl Validator<'_> {
         }
         let lights = raw_lights
             .iter()
-            .map(|l| Light::directional(Vec3::from_array(l.direction)).map_err(|_| self.invalid("light.direction", format!("{:?}", l.direction), "must be finite and not zero")))
+            .map(|l| {
+                Light::directional(Vec3::from_array(l.direction)).map_err(|_| {
+                    self.invalid(
+                        "light.direction",
+                        format!("{:?}", l.direction),
+                        "must be finite and not zero",
+                    )
+                })
+            })
             .collect::<Result<Vec<_>, _>>()?;
 
         let s = raw.shadow;
         let method_name = s.method.as_deref().unwrap_or("density-map");
-        let method = Method::from_name(method_name)
-            .ok_or_else(|| self.invalid("shadow.method", format!("{method_name:?}"), format!("known methods: {}", Method::NAMES.join(", "))))?;
-        let cells = self.int("shadow.cells", s.cells, DEFAULT_CELLS, 1..=shadow::MAX_CELLS)?;
-        let shadow = ShadowSettings { method, cells, filter: s.filter.unwrap_or(true) };
-        Ok(Scene { hair, subdivide, fiber, lights, shadow })
+        let method = Method::from_name(method_name).ok_or_else(|| {
+            self.invalid(
+                "shadow.method",
+                format!("{method_name:?}"),
+                format!("known methods: {}", Method::NAMES.join(", ")),
+            )
+        })?;
+        let cells = self.int(
+            "shadow.cells",
+            s.cells,
+            DEFAULT_CELLS,
+            1..=shadow::MAX_CELLS,
+        )?;
+        let shadow = ShadowSettings {
+            method,
+            cells,
+            filter: s.filter.unwrap_or(true),
+        };
+        Ok(Scene {
+            hair,
+            subdivide,
+            fiber,
+            lights,
+            shadow,
+        })
     }
 }
 
@@ -280,35 +413,66 @@ mod tests {
     #[test]
     fn empty_scene_gets_the_documented_defaults() {
         let s = parse("").unwrap();
-        assert_eq!(s.shadow, ShadowSettings { method: Method::DensityMap, cells: 128, filter: true });
+        assert_eq!(
+            s.shadow,
+            ShadowSettings {
+                method: Method::DensityMap,
+                cells: 128,
+                filter: true
+            }
+        );
         assert_eq!(s.fiber, Fiber::new(0.1, 0.5).unwrap());
         assert_eq!(s.subdivide, 2);
-        assert_eq!(s.lights, vec![Light::directional(Vec3::from_array(DEFAULT_LIGHT_DIRECTION)).unwrap()]);
-        assert!(matches!(s.hair, HairSource::Style(p) if p.style == Style::Smooth && p.strands_per_wisp == 25));
+        assert_eq!(
+            s.lights,
+            vec![Light::directional(Vec3::from_array(DEFAULT_LIGHT_DIRECTION)).unwrap()]
+        );
+        assert!(
+            matches!(s.hair, HairSource::Style(p) if p.style == Style::Smooth && p.strands_per_wisp == 25)
+        );
     }
 
     #[test]
     fn unknown_keys_are_refused_by_name() {
-        let e = parse("[shadow]\ncells = 64\nresolution = 3\n").unwrap_err().to_string();
-        assert!(e.contains("resolution") && e.starts_with("dir/scene.toml"), "{e}");
+        let e = parse("[shadow]\ncells = 64\nresolution = 3\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("resolution") && e.starts_with("dir/scene.toml"),
+            "{e}"
+        );
         assert!(!e.contains('\n'), "one line: {e}");
-        let e = parse("[lights]\ndirection = [1, 0, 0]\n").unwrap_err().to_string();
+        let e = parse("[lights]\ndirection = [1, 0, 0]\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("lights"), "{e}");
     }
 
     #[test]
     fn bad_values_name_field_and_value() {
         let e = parse("[shadow]\ncells = 100000\n").unwrap_err().to_string();
-        assert_eq!(e, "dir/scene.toml: shadow.cells = 100000: must be a whole number in 1..=512");
+        assert_eq!(
+            e,
+            "dir/scene.toml: shadow.cells = 100000: must be a whole number in 1..=512"
+        );
         let e = parse("[fiber]\nwidth = nan\n").unwrap_err().to_string();
-        assert_eq!(e, "dir/scene.toml: fiber.width = NaN: must be a finite number >= 0");
-        let e = parse("[light]\ndirection = [0, 0, 0]\n").unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "dir/scene.toml: fiber.width = NaN: must be a finite number >= 0"
+        );
+        let e = parse("[light]\ndirection = [0, 0, 0]\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("light.direction = [0.0, 0.0, 0.0]"), "{e}");
-        let e = parse("[shadow]\nmethod = \"raytrace\"\n").unwrap_err().to_string();
+        let e = parse("[shadow]\nmethod = \"raytrace\"\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("shadow.method = \"raytrace\""), "{e}");
         let e = parse("[hair]\nstyle = \"wavy\"\n").unwrap_err().to_string();
         assert!(e.contains("hair.style"), "{e}");
-        let e = parse("[hair]\nstrands_per_wisp = -3\n").unwrap_err().to_string();
+        let e = parse("[hair]\nstrands_per_wisp = -3\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("hair.strands_per_wisp = -3"), "{e}");
     }
 
@@ -323,12 +487,15 @@ mod tests {
             other => panic!("{other:?}"),
         }
         let s = parse("[hair]\nfile = \"/abs/x.hair\"\n").unwrap();
-        assert!(matches!(s.hair, HairSource::File { ref path, follow: None } if path == Path::new("/abs/x.hair")));
+        assert!(
+            matches!(s.hair, HairSource::File { ref path, follow: None } if path == Path::new("/abs/x.hair"))
+        );
     }
 
     #[test]
     fn several_lights() {
-        let s = parse("[[light]]\ndirection = [1, 0, 0]\n[[light]]\ndirection = [0, -2, 0]\n").unwrap();
+        let s =
+            parse("[[light]]\ndirection = [1, 0, 0]\n[[light]]\ndirection = [0, -2, 0]\n").unwrap();
         assert_eq!(s.lights.len(), 2);
         assert_eq!(s.lights[1].direction(), Vec3::NEG_Y);
     }

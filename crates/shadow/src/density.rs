@@ -1,7 +1,6 @@
 //! Filling hair density into the light-oriented map (paper 4.1).
 
 use std::ops::Range;
-use std::sync::atomic::{AtomicU16, AtomicU32, Ordering::Relaxed};
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -30,13 +29,44 @@ const EMPTY_LO: u16 = u16::MAX;
 /// sweep reads each `(j, k)` column as one contiguous run. Each column also
 /// records its first and last occupied slice, so that clearing and sweeping
 /// cost time in proportion to the hair, not to `n^3`.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct DensityMap {
     frame: LightFrame,
     n: usize,
-    cells: Vec<AtomicU32>,
-    col_lo: Vec<AtomicU16>,
-    col_hi: Vec<AtomicU16>,
+    cells: Vec<u32>,
+    meta: Vec<ColumnMeta>,
+}
+
+/// What a column knows of its hair: the occupied cells `lo..=hi`, and
+/// `front`, the smallest slice coordinate (in cells) reached by any piece
+/// deposited there. Hair starts at `front`, not at the face of cell `lo`:
+/// a point in front of it has no hair between itself and the light.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ColumnMeta {
+    pub lo: u16,
+    pub hi: u16,
+    pub front: f32,
+}
+
+impl ColumnMeta {
+    pub const EMPTY: ColumnMeta = ColumnMeta {
+        lo: EMPTY_LO,
+        hi: 0,
+        front: f32::INFINITY,
+    };
+
+    pub fn is_empty(&self) -> bool {
+        self.lo > self.hi
+    }
+
+    /// Widens the column to hold a deposit in slice `i` whose piece starts
+    /// at slice coordinate `front`. Min and max do not depend on order.
+    #[inline]
+    fn include(&mut self, i: u16, front: f32) {
+        self.lo = self.lo.min(i);
+        self.hi = self.hi.max(i);
+        self.front = self.front.min(front);
+    }
 }
 
 /// What one fill did.
@@ -52,7 +82,10 @@ pub struct FillStats {
 impl std::ops::Add for FillStats {
     type Output = FillStats;
     fn add(self, o: FillStats) -> FillStats {
-        FillStats { samples: self.samples + o.samples, out_of_map: self.out_of_map + o.out_of_map }
+        FillStats {
+            samples: self.samples + o.samples,
+            out_of_map: self.out_of_map + o.out_of_map,
+        }
     }
 }
 
@@ -62,6 +95,18 @@ impl std::iter::Sum for FillStats {
     }
 }
 
+/// One piece's deposit into slice `i` of four columns: `q[0]` quanta into
+/// column `col = k * n + j`, `q[1]` into `(j + 1, k)`, `q[2]` into
+/// `(j, k + 1)`, `q[3]` into `(j + 1, k + 1)`, from a piece that starts at
+/// slice coordinate `front`. Zero quanta touch nothing.
+#[derive(Debug, Clone, Copy)]
+struct Deposit {
+    col: u32,
+    i: u32,
+    q: [u32; 4],
+    front: f32,
+}
+
 impl DensityMap {
     /// An empty map in `frame`.
     pub fn new(frame: LightFrame) -> DensityMap {
@@ -69,9 +114,8 @@ impl DensityMap {
         DensityMap {
             frame,
             n,
-            cells: std::iter::repeat_with(|| AtomicU32::new(0)).take(n * n * n).collect(),
-            col_lo: std::iter::repeat_with(|| AtomicU16::new(EMPTY_LO)).take(n * n).collect(),
-            col_hi: std::iter::repeat_with(|| AtomicU16::new(0)).take(n * n).collect(),
+            cells: vec![0; n * n * n],
+            meta: vec![ColumnMeta::EMPTY; n * n],
         }
     }
 
@@ -93,16 +137,17 @@ impl DensityMap {
     /// Empties the map, touching only the occupied spans.
     pub fn clear(&mut self) {
         let n = self.n;
-        self.cells.par_chunks_mut(n).zip(self.col_lo.par_iter_mut().zip(self.col_hi.par_iter_mut())).for_each(|(col, (lo, hi))| {
-            let (l, h) = (*lo.get_mut(), *hi.get_mut());
-            if l <= h {
-                for c in &mut col[l as usize..=h as usize] {
-                    *c.get_mut() = 0;
+        self.cells
+            .par_chunks_mut(n * n)
+            .zip(self.meta.par_chunks_mut(n))
+            .for_each(|(slice, meta)| {
+                for (col, m) in slice.chunks_mut(n).zip(meta) {
+                    if !m.is_empty() {
+                        col[m.lo as usize..=m.hi as usize].fill(0);
+                    }
+                    *m = ColumnMeta::EMPTY;
                 }
-            }
-            *lo.get_mut() = EMPTY_LO;
-            *hi.get_mut() = 0;
-        });
+            });
     }
 
     /// Empties the map and deposits all of `hair`.
@@ -113,11 +158,14 @@ impl DensityMap {
 
     /// Adds the density of strands `strands` of `hair` (to the map's current
     /// content). Any split of the strands over calls, threads or machines
-    /// gives the same cells.
+    /// gives the same cells: deposits are integers, and integer sums do not
+    /// depend on their order.
     ///
-    /// Each segment `(a, b)` is cut into `m = ceil(|b - a| / ds)` pieces, so
-    /// that no piece is longer than a cell, and each piece adds to the cell
-    /// holding its midpoint the optical depth (see [`Fiber`])
+    /// Each segment `(a, b)` is cut into `m = ceil(|b - a|_inf / ds)` equal
+    /// pieces, so that no piece spans more than a cell along any axis, and
+    /// each piece adds to the cells of its midpoint's slice (spread over the
+    /// four nearest columns with bilinear weights) the optical depth (see
+    /// [`Fiber`])
     ///
     /// ```text
     /// tau = kappa * ds = alpha * w * |piece x L| / ds^2
@@ -125,99 +173,255 @@ impl DensityMap {
     ///
     /// where `|piece x L| = dl sin(theta)`. In map coordinates (cells, X_map
     /// along L) that is `alpha * w / ds * sqrt(dy^2 + dz^2)`.
-    pub fn deposit(&self, hair: &Hair, strands: Range<usize>, fiber: &Fiber) -> FillStats {
+    ///
+    /// With several threads the strands are cut into tasks that list their
+    /// deposits by slab of `k`; then each slab applies its deposits alone.
+    /// No atomics: a locked add per deposit would serialize the cache misses
+    /// that dominate this stage.
+    pub fn deposit(&mut self, hair: &Hair, strands: Range<usize>, fiber: &Fiber) -> FillStats {
         // Fixed-point optical depth per cell of piece length across the light.
-        let k_q = (f64::from(fiber.cross_section()) / f64::from(self.frame.ds) / DEPTH_QUANTUM) as f32;
-        if k_q == 0.0 {
+        let k_q =
+            (f64::from(fiber.cross_section()) / f64::from(self.frame.ds) / DEPTH_QUANTUM) as f32;
+        if k_q == 0.0 || strands.is_empty() {
             return FillStats::default();
         }
+        let n = self.n;
         let offsets = hair.offsets();
-        strands
-            .into_par_iter()
-            .with_min_len(32)
-            .map(|s| {
-                let pts = &hair.points()[offsets[s] as usize..offsets[s + 1] as usize];
-                self.deposit_strand(pts, k_q)
-            })
-            .sum()
-    }
-
-    fn deposit_strand(&self, pts: &[Vec3], k_q: f32) -> FillStats {
-        let mut stats = FillStats::default();
-        let n = self.n as f32;
-        // A segment longer than the map diagonal is cut no finer than this.
-        let max_pieces = 4 * self.n;
-        let mut prev = match pts.first() {
-            Some(&p) => self.frame.to_cells(p),
-            None => return stats,
-        };
-        for &p in &pts[1..] {
-            let cur = self.frame.to_cells(p);
-            let d = cur - prev;
-            let across = (d.y * d.y + d.z * d.z).sqrt();
-            let m = (d.length().ceil() as usize).clamp(1, max_pieces);
-            let q = (k_q * across / m as f32).round();
-            if q >= 1.0 {
-                let q = if q >= u32::MAX as f32 { u32::MAX } else { q as u32 };
-                let step = d / m as f32;
-                let mut mid = prev + 0.5 * step;
-                for _ in 0..m {
-                    if mid.cmpge(Vec3::ZERO).all() && mid.cmplt(Vec3::splat(n)).all() {
-                        self.add(mid.x as usize, mid.y as usize, mid.z as usize, q);
-                        stats.samples += 1;
-                    } else {
-                        stats.out_of_map += 1;
-                    }
-                    mid += step;
-                }
+        let points = hair.points();
+        let strand_points = |s: usize| &points[offsets[s] as usize..offsets[s + 1] as usize];
+        let threads = rayon::current_num_threads();
+        if threads == 1 {
+            let mut stats = FillStats::default();
+            for s in strands {
+                stats = stats
+                    + pieces(&self.frame, strand_points(s), k_q, |_, d| {
+                        apply(&mut self.cells, &mut self.meta, n, 0, d)
+                    });
             }
-            prev = cur;
+            return stats;
         }
-        stats
+        // Phase 1: deposits of each task, bucketed by slab of k.
+        let slabs = (threads * 4).min(n);
+        let slab_k = n.div_ceil(slabs);
+        let slabs = n.div_ceil(slab_k);
+        let tasks = (threads * 4).min(strands.len());
+        let per_task = strands.len().div_ceil(tasks);
+        let frame = self.frame;
+        let lists: Vec<(Vec<Vec<Deposit>>, FillStats)> = (0..tasks)
+            .into_par_iter()
+            .map(|t| {
+                let lo = strands.start + t * per_task;
+                let hi = (lo + per_task).min(strands.end);
+                let mut buckets: Vec<Vec<Deposit>> = vec![Vec::new(); slabs];
+                let mut stats = FillStats::default();
+                for s in lo..hi {
+                    stats = stats
+                        + pieces(&frame, strand_points(s), k_q, |k, d| {
+                            buckets[k / slab_k].push(d)
+                        });
+                }
+                (buckets, stats)
+            })
+            .collect();
+        // Phase 2: each slab of k applies its deposits, which also reach the
+        // first row of the next slab (k + 1). Even slabs first, then odd
+        // ones, each together with its successor: no two tasks share a cell.
+        for parity in [0, 1] {
+            let (skip_cells, skip_cols) = (parity * n * n * slab_k, parity * n * slab_k);
+            self.cells[skip_cells..]
+                .par_chunks_mut(2 * n * n * slab_k)
+                .zip(self.meta[skip_cols..].par_chunks_mut(2 * n * slab_k))
+                .enumerate()
+                .for_each(|(pair, (cells, meta))| {
+                    let b = 2 * pair + parity;
+                    let base = b * n * slab_k;
+                    for (buckets, _) in &lists {
+                        for &d in &buckets[b] {
+                            apply(cells, meta, n, base, d);
+                        }
+                    }
+                });
+        }
+        lists.iter().map(|(_, s)| *s).sum()
     }
 
-    /// Adds `q` quanta to cell `(i, j, k)`, saturating: for non-negative
-    /// terms, a saturating sum is still independent of order.
-    #[inline]
-    fn add(&self, i: usize, j: usize, k: usize, q: u32) {
-        let col = k * self.n + j;
-        let prev = self.cells[col * self.n + i]
-            .fetch_update(Relaxed, Relaxed, |v| Some(v.saturating_add(q)))
-            .expect("the update closure always returns Some");
-        if prev == 0 {
-            // First deposit in this cell: widen the column's occupied span.
-            self.col_lo[col].fetch_min(i as u16, Relaxed);
-            self.col_hi[col].fetch_max(i as u16, Relaxed);
-        }
-    }
-
-    /// Adds raw quanta to cell `(i, j, k)`: for merging partial maps.
-    pub fn add_quanta(&self, i: usize, j: usize, k: usize, q: u32) {
+    /// Adds raw quanta to cell `(i, j, k)`, as if from a piece starting at
+    /// the cell's front face.
+    pub fn add_quanta(&mut self, i: usize, j: usize, k: usize, q: u32) {
+        let n = self.n;
         if q > 0 {
-            self.add(i, j, k, q);
+            apply(
+                &mut self.cells,
+                &mut self.meta,
+                n,
+                0,
+                Deposit {
+                    col: (k * n + j) as u32,
+                    i: i as u32,
+                    q: [q, 0, 0, 0],
+                    front: i as f32,
+                },
+            );
         }
+    }
+
+    /// Adds a column of another map over the same frame (a worker's partial
+    /// map): its quanta for cells `meta.lo..=meta.hi` and its front.
+    /// Merging in any order gives the same map.
+    pub fn merge_column(&mut self, col: usize, meta: ColumnMeta, quanta: &[u32]) {
+        if meta.is_empty() {
+            return;
+        }
+        let n = self.n;
+        let cells = &mut self.cells[col * n + meta.lo as usize..col * n + meta.hi as usize + 1];
+        for (c, &q) in cells.iter_mut().zip(quanta) {
+            *c = c.saturating_add(q);
+        }
+        let m = &mut self.meta[col];
+        m.include(meta.lo, meta.front);
+        m.include(meta.hi, meta.front);
     }
 
     /// The occupied span `lo..=hi` of column `col = k * n + j`, if any.
+    #[inline]
     pub fn span(&self, col: usize) -> Option<(usize, usize)> {
-        let lo = self.col_lo[col].load(Relaxed);
-        let hi = self.col_hi[col].load(Relaxed);
-        (lo <= hi).then_some((lo as usize, hi as usize))
+        let m = self.meta[col];
+        (!m.is_empty()).then_some((m.lo as usize, m.hi as usize))
+    }
+
+    /// What column `col` knows of its hair.
+    #[inline]
+    pub fn meta(&self, col: usize) -> ColumnMeta {
+        self.meta[col]
     }
 
     /// Quanta of column `col`'s cells `range`.
-    pub fn column(&self, col: usize, range: Range<usize>) -> impl Iterator<Item = u32> + '_ {
-        self.cells[col * self.n + range.start..col * self.n + range.end].iter().map(|c| c.load(Relaxed))
+    pub fn column(&self, col: usize, range: Range<usize>) -> &[u32] {
+        &self.cells[col * self.n + range.start..col * self.n + range.end]
     }
 
     /// Quanta of cell `(i, j, k)`.
     pub fn quanta(&self, i: usize, j: usize, k: usize) -> u32 {
-        self.cells[(k * self.n + j) * self.n + i].load(Relaxed)
+        self.cells[(k * self.n + j) * self.n + i]
     }
 
     /// Optical depth of cell `(i, j, k)`.
     pub fn cell_depth(&self, i: usize, j: usize, k: usize) -> f64 {
         f64::from(self.quanta(i, j, k)) * DEPTH_QUANTUM
+    }
+}
+
+/// Cuts one strand into pieces no longer than a cell and hands each
+/// piece's deposit to `emit`.
+#[inline]
+fn pieces(
+    frame: &LightFrame,
+    pts: &[Vec3],
+    k_q: f32,
+    mut emit: impl FnMut(usize, Deposit),
+) -> FillStats {
+    let mut stats = FillStats::default();
+    let nu = frame.n_cells as usize;
+    let n = frame.n_cells as f32;
+    // A segment longer than the map diagonal is cut no finer than this.
+    let max_pieces = (4 * frame.n_cells) as f32;
+    let Some(&first) = pts.first() else {
+        return stats;
+    };
+    let mut prev = frame.to_cells(first);
+    for &p in &pts[1..] {
+        let cur = frame.to_cells(p);
+        let d = cur - prev;
+        let across = (d.y * d.y + d.z * d.z).sqrt();
+        // m = ceil of the longest axis of d, at least 1: every piece spans
+        // at most one cell along each axis. (Truncating casts instead of
+        // `ceil`, which is a libm call on baseline x86-64.)
+        let len = d.abs().max_element().min(max_pieces);
+        let whole = len as u32;
+        let m = (whole + u32::from((whole as f32) < len)).max(1);
+        let inv_m = 1.0 / m as f32;
+        // Quanta of one piece; below half a quantum it rounds to nothing.
+        let q = (k_q * across * inv_m).min(u32::MAX as f32);
+        if q >= 0.5 {
+            let step = d * inv_m;
+            let mut mid = prev + 0.5 * step;
+            for _ in 0..m {
+                if mid.cmpge(Vec3::ZERO).all() && mid.cmplt(Vec3::splat(n)).all() {
+                    // The piece starts half a step before its midpoint.
+                    let front = mid.x - 0.5 * step.x.abs();
+                    let i = mid.x as u32;
+                    // Tent splat across the light: the piece's quanta go to
+                    // the four columns around its midpoint with bilinear
+                    // weights, so that the map is a smooth function of where
+                    // a fiber lies. A nearest-column deposit aliases against
+                    // combed hair into stripes that move with the grid.
+                    // (fy + 1) > 0, so the truncating cast is a floor.
+                    let (fy, fz) = (mid.y - 0.5, mid.z - 0.5);
+                    let (j0, k0) = ((fy + 1.0) as i32 - 1, (fz + 1.0) as i32 - 1);
+                    let (ty, tz) = (fy - j0 as f32, fz - k0 as f32);
+                    // q w >= 0: adding 0.5 and truncating rounds to nearest.
+                    let (sy, sz) = (1.0 - ty, 1.0 - tz);
+                    let qs = [
+                        (q * sy * sz + 0.5) as u32,
+                        (q * ty * sz + 0.5) as u32,
+                        (q * sy * tz + 0.5) as u32,
+                        (q * ty * tz + 0.5) as u32,
+                    ];
+                    let last = nu as i32 - 1;
+                    if j0 >= 0 && k0 >= 0 && j0 < last && k0 < last {
+                        emit(
+                            k0 as usize,
+                            Deposit {
+                                col: (k0 as usize * nu + j0 as usize) as u32,
+                                i,
+                                q: qs,
+                                front,
+                            },
+                        );
+                    } else {
+                        // At the map's edge: each column that exists on its own.
+                        for (x, (dj, dk)) in
+                            [(0, 0), (1, 0), (0, 1), (1, 1)].into_iter().enumerate()
+                        {
+                            let (j, k) = (j0 + dj, k0 + dk);
+                            if qs[x] > 0 && (0..=last).contains(&j) && (0..=last).contains(&k) {
+                                let (j, k) = (j as usize, k as usize);
+                                emit(
+                                    k,
+                                    Deposit {
+                                        col: (k * nu + j) as u32,
+                                        i,
+                                        q: [qs[x], 0, 0, 0],
+                                        front,
+                                    },
+                                );
+                            }
+                        }
+                    }
+                    stats.samples += 1;
+                } else {
+                    stats.out_of_map += 1;
+                }
+                mid += step;
+            }
+        }
+        prev = cur;
+    }
+    stats
+}
+
+/// Adds a deposit to `cells` (whose first column is column `base`),
+/// saturating: for non-negative terms a saturating sum is still independent
+/// of order. Widens the column's occupied span and front.
+#[inline]
+fn apply(cells: &mut [u32], meta: &mut [ColumnMeta], n: usize, base: usize, d: Deposit) {
+    let col = d.col as usize - base;
+    for (q, c) in d.q.into_iter().zip([col, col + 1, col + n, col + n + 1]) {
+        if q > 0 {
+            let cell = &mut cells[c * n + d.i as usize];
+            *cell = cell.saturating_add(q);
+            meta[c].include(d.i as u16, d.front);
+        }
     }
 }
 
@@ -235,24 +439,55 @@ mod tests {
         let mut map = DensityMap::new(frame(8));
         let ds = 0.25;
         let mut hair = Hair::new();
-        // Along z through the column centres j = 4, at slice i = 4: 8 cells long.
-        hair.push_strand(&[Vec3::new(0.1, 0.1, -1.0), Vec3::new(0.1, 0.1, 1.0)]).unwrap();
+        // Along z, a quarter cell off the column centres in y, at slice i = 4: 8 cells long.
+        hair.push_strand(&[Vec3::new(0.1, 0.1, -1.0), Vec3::new(0.1, 0.1, 1.0)])
+            .unwrap();
         let fiber = Fiber::new(0.01, 0.5).unwrap();
         let stats = map.fill(&hair, &fiber);
-        assert_eq!(stats, FillStats { samples: 8, out_of_map: 0 });
-        let total: f64 = (0..8).flat_map(|k| (0..8).flat_map(move |j| (0..8).map(move |i| (i, j, k)))).map(|(i, j, k)| map.cell_depth(i, j, k)).sum();
+        assert_eq!(
+            stats,
+            FillStats {
+                samples: 8,
+                out_of_map: 0
+            }
+        );
+        let all = || (0..8).flat_map(|k| (0..8).flat_map(move |j| (0..8).map(move |i| (i, j, k))));
+        let total: f64 = all().map(|(i, j, k)| map.cell_depth(i, j, k)).sum();
         // alpha * w * length / ds^2 = 0.005 * 2 / 0.0625
         assert!((total - 0.005 * 2.0 / (ds * ds)).abs() < 1e-5, "{total}");
+        // Every deposit lies in the fiber's slice, in 8 columns along it and
+        // 2 across it: the fiber is 0.4 cells past a column centre across,
+        // so the tent splat weighs the two sides 0.9 and 0.1.
         let c = map.frame().to_cells(Vec3::new(0.1, 0.1, 0.0));
-        let occupied: Vec<_> = (0..64).filter_map(|col| map.span(col)).collect();
-        assert_eq!(occupied, vec![(c.x as usize, c.x as usize); 8], "one cell in each of 8 columns, at slice i");
+        assert!(all().all(|(i, j, k)| i == c.x as usize || map.quanta(i, j, k) == 0));
+        let cols: Vec<f64> = (0..64)
+            .filter(|&col| map.span(col).is_some())
+            .map(|col| map.cell_depth(c.x as usize, col % 8, col / 8))
+            .collect();
+        assert_eq!(cols.len(), 16);
+        let per_col = total / 8.0;
+        assert_eq!(
+            cols.iter()
+                .filter(|&&d| (d - 0.9 * per_col).abs() < 1e-5)
+                .count(),
+            8,
+            "{cols:?}"
+        );
+        assert_eq!(
+            cols.iter()
+                .filter(|&&d| (d - 0.1 * per_col).abs() < 1e-5)
+                .count(),
+            8,
+            "{cols:?}"
+        );
     }
 
     #[test]
     fn a_fiber_along_the_light_casts_nothing() {
         let mut map = DensityMap::new(frame(8));
         let mut hair = Hair::new();
-        hair.push_strand(&[Vec3::new(-0.9, 0.1, 0.1), Vec3::new(0.9, 0.1, 0.1)]).unwrap();
+        hair.push_strand(&[Vec3::new(-0.9, 0.1, 0.1), Vec3::new(0.9, 0.1, 0.1)])
+            .unwrap();
         map.fill(&hair, &Fiber::new(0.01, 1.0).unwrap());
         assert!((0..64).all(|c| map.span(c).is_none()));
     }
@@ -261,18 +496,23 @@ mod tests {
     fn hair_outside_the_map_is_counted_not_wrapped() {
         let mut map = DensityMap::new(frame(4));
         let mut hair = Hair::new();
-        hair.push_strand(&[Vec3::new(0.0, 5.0, -0.5), Vec3::new(0.0, 5.0, 0.5)]).unwrap();
+        hair.push_strand(&[Vec3::new(0.0, 5.0, -0.5), Vec3::new(0.0, 5.0, 0.5)])
+            .unwrap();
         let stats = map.fill(&hair, &Fiber::new(0.1, 1.0).unwrap());
         assert_eq!(stats.samples, 0);
         assert!(stats.out_of_map > 0);
-        assert!((0..16).all(|c| map.span(c).is_none()), "nothing wrapped into the map");
+        assert!(
+            (0..16).all(|c| map.span(c).is_none()),
+            "nothing wrapped into the map"
+        );
     }
 
     #[test]
     fn clear_resets_cells_and_spans() {
         let mut map = DensityMap::new(frame(8));
         let mut hair = Hair::new();
-        hair.push_strand(&[Vec3::new(0.1, 0.1, -1.0), Vec3::new(0.1, 0.1, 1.0)]).unwrap();
+        hair.push_strand(&[Vec3::new(0.1, 0.1, -1.0), Vec3::new(0.1, 0.1, 1.0)])
+            .unwrap();
         map.fill(&hair, &Fiber::new(0.01, 0.5).unwrap());
         map.clear();
         assert!((0..64).all(|c| map.span(c).is_none()));
@@ -281,7 +521,7 @@ mod tests {
 
     #[test]
     fn saturates_instead_of_wrapping() {
-        let map = DensityMap::new(frame(2));
+        let mut map = DensityMap::new(frame(2));
         map.add_quanta(0, 0, 0, u32::MAX - 1);
         map.add_quanta(0, 0, 0, 5);
         assert_eq!(map.quanta(0, 0, 0), u32::MAX);

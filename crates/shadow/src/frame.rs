@@ -3,7 +3,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::{ShadowError, MAX_CELLS};
+use crate::{MAX_CELLS, ShadowError};
 
 /// A light source. Each light owns its own map; nothing here assumes a
 /// single light.
@@ -49,9 +49,9 @@ pub struct LightFrame {
 }
 
 impl LightFrame {
-    /// The smallest cubic map around `bounds` (a still frame: the map may fit
-    /// the hair), with a margin of a thousandth of its size so that the hair
-    /// lies strictly inside.
+    /// The smallest cubic map around `points` (a still frame: the map may fit
+    /// the hair), with a spare cell on each side so that the hair and its
+    /// deposits lie strictly inside.
     pub fn fit(light: &Light, points: &[Vec3], n_cells: u32) -> Result<LightFrame, ShadowError> {
         check_cells(n_cells)?;
         let axes = light_axes(light.direction());
@@ -62,18 +62,29 @@ impl LightFrame {
         // far from the world origin. Min and max are exact in any order, so
         // the parallel reduction is deterministic.
         let (lo, hi) = points
-            .par_iter()
-            .with_min_len(4096)
-            .map(|&p| {
-                let q = p - c;
-                let m = Vec3::new(q.dot(axes[0]), q.dot(axes[1]), q.dot(axes[2]));
-                (m, m)
+            .par_chunks(16 * 1024)
+            .map(|chunk| {
+                let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+                for &p in chunk {
+                    let q = p - c;
+                    let m = Vec3::new(q.dot(axes[0]), q.dot(axes[1]), q.dot(axes[2]));
+                    lo = lo.min(m);
+                    hi = hi.max(m);
+                }
+                (lo, hi)
             })
-            .reduce(|| (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |a, b| (a.0.min(b.0), a.1.max(b.1)));
+            .reduce(
+                || (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+                |a, b| (a.0.min(b.0), a.1.max(b.1)),
+            );
         let extent = (hi - lo).max_element();
         // A map must be wider than float noise at this distance from the origin.
         let floor = 1e-3 * (1.0 + c.abs().max_element() * 1e-2);
-        let size = (extent * 1.002).max(extent + 2.0 * floor);
+        // One spare cell on every side: the density deposit spreads hair
+        // half a cell across the light, and all of it must stay inside.
+        let n = n_cells as f32;
+        let size = ((extent * 1.002).max(extent + 2.0 * floor) * n / (n - 2.0).max(1.0))
+            .max(extent + 2.0 * floor);
         let mid = 0.5 * (lo + hi);
         let center = c + mid.x * axes[0] + mid.y * axes[1] + mid.z * axes[2];
         LightFrame::centered(light, center, size, n_cells)
@@ -82,14 +93,24 @@ impl LightFrame {
     /// A cubic map of side `size` centred on `center`. For animated hair the
     /// paper's bound `size >= 2 l_max + h_max` (longest strand, largest head
     /// dimension) around the head keeps every strand inside at every frame.
-    pub fn centered(light: &Light, center: Vec3, size: f32, n_cells: u32) -> Result<LightFrame, ShadowError> {
+    pub fn centered(
+        light: &Light,
+        center: Vec3,
+        size: f32,
+        n_cells: u32,
+    ) -> Result<LightFrame, ShadowError> {
         check_cells(n_cells)?;
         if !(size.is_finite() && size > 0.0) {
             return Err(ShadowError::MapSize(size));
         }
         let axes = light_axes(light.direction());
         let origin = center - 0.5 * size * (axes[0] + axes[1] + axes[2]);
-        Ok(LightFrame { origin, axes, ds: size / n_cells as f32, n_cells })
+        Ok(LightFrame {
+            origin,
+            axes,
+            ds: size / n_cells as f32,
+            n_cells,
+        })
     }
 
     /// The paper's bound for animated hair: `2 l_max + h_max`.
@@ -101,8 +122,12 @@ impl LightFrame {
     /// Cell `(i, j, k)` covers `[i, i+1) x [j, j+1) x [k, k+1)`.
     #[inline]
     pub fn to_cells(&self, p: Vec3) -> Vec3 {
-        let q = p - self.origin;
-        Vec3::new(q.dot(self.axes[0]), q.dot(self.axes[1]), q.dot(self.axes[2])) / self.ds
+        let q = (p - self.origin) * self.ds.recip();
+        Vec3::new(
+            q.dot(self.axes[0]),
+            q.dot(self.axes[1]),
+            q.dot(self.axes[2]),
+        )
     }
 
     /// The world position of continuous map coordinates (inverse of [`Self::to_cells`]).
@@ -117,7 +142,11 @@ impl LightFrame {
 }
 
 fn check_cells(n: u32) -> Result<(), ShadowError> {
-    if (1..=MAX_CELLS).contains(&n) { Ok(()) } else { Err(ShadowError::Cells(n)) }
+    if (1..=MAX_CELLS).contains(&n) {
+        Ok(())
+    } else {
+        Err(ShadowError::Cells(n))
+    }
 }
 
 /// An orthonormal frame whose first axis is `l`, by Duff et al.'s branchless
@@ -133,7 +162,15 @@ mod tests {
 
     #[test]
     fn axes_are_orthonormal_for_axis_aligned_and_vertical_lights() {
-        for d in [Vec3::X, Vec3::Y, Vec3::NEG_Y, Vec3::Z, Vec3::NEG_Z, Vec3::new(1.0, 1e-9, 0.0), Vec3::new(0.3, -0.9, 0.1)] {
+        for d in [
+            Vec3::X,
+            Vec3::Y,
+            Vec3::NEG_Y,
+            Vec3::Z,
+            Vec3::NEG_Z,
+            Vec3::new(1.0, 1e-9, 0.0),
+            Vec3::new(0.3, -0.9, 0.1),
+        ] {
             let l = Light::directional(d).unwrap();
             let a = light_axes(l.direction());
             for i in 0..3 {
@@ -142,7 +179,10 @@ mod tests {
                     assert!(a[i].dot(a[j]).abs() < 1e-6);
                 }
             }
-            assert!((a[0].cross(a[1]).dot(a[2]) - 1.0).abs() < 1e-5, "right-handed");
+            assert!(
+                (a[0].cross(a[1]).dot(a[2]) - 1.0).abs() < 1e-5,
+                "right-handed"
+            );
         }
     }
 
@@ -151,20 +191,37 @@ mod tests {
         assert!(Light::directional(Vec3::ZERO).is_err());
         assert!(Light::directional(Vec3::new(f32::NAN, 0.0, 1.0)).is_err());
         let l = Light::directional(Vec3::X).unwrap();
-        assert_eq!(LightFrame::fit(&l, &[Vec3::ZERO], 0), Err(ShadowError::Cells(0)));
-        assert_eq!(LightFrame::fit(&l, &[Vec3::ZERO], MAX_CELLS + 1), Err(ShadowError::Cells(MAX_CELLS + 1)));
+        assert_eq!(
+            LightFrame::fit(&l, &[Vec3::ZERO], 0),
+            Err(ShadowError::Cells(0))
+        );
+        assert_eq!(
+            LightFrame::fit(&l, &[Vec3::ZERO], MAX_CELLS + 1),
+            Err(ShadowError::Cells(MAX_CELLS + 1))
+        );
         assert!(LightFrame::centered(&l, Vec3::ZERO, f32::NAN, 8).is_err());
     }
 
     #[test]
     fn fit_contains_every_point_strictly() {
         let l = Light::directional(Vec3::new(1.0, -2.0, 0.5)).unwrap();
-        let pts: Vec<Vec3> = (0..100).map(|i| Vec3::new((i as f32).sin() * 5.0, i as f32 * 0.1, (i as f32 * 0.7).cos())).collect();
+        let pts: Vec<Vec3> = (0..100)
+            .map(|i| {
+                Vec3::new(
+                    (i as f32).sin() * 5.0,
+                    i as f32 * 0.1,
+                    (i as f32 * 0.7).cos(),
+                )
+            })
+            .collect();
         for n in [1, 7, 128] {
             let f = LightFrame::fit(&l, &pts, n).unwrap();
             for &p in &pts {
                 let c = f.to_cells(p);
-                assert!(c.min_element() > 0.0 && c.max_element() < n as f32, "{p} -> {c} at n = {n}");
+                assert!(
+                    c.min_element() > 0.0 && c.max_element() < n as f32,
+                    "{p} -> {c} at n = {n}"
+                );
                 assert!(f.to_world(c).distance(p) < 1e-4);
             }
         }

@@ -20,10 +20,10 @@ mod fiber;
 mod frame;
 mod transmittance;
 
-pub use density::{DensityMap, FillStats, DEPTH_QUANTUM, MAX_CELLS};
+pub use density::{ColumnMeta, DEPTH_QUANTUM, DensityMap, FillStats, MAX_CELLS};
 pub use fiber::Fiber;
 pub use frame::{Light, LightFrame};
-pub use transmittance::{sweep, ColumnSlab, Span, Transmittance};
+pub use transmittance::{ColumnSlab, Span, Transmittance, sweep};
 
 /// Errors of the shadow stages.
 #[derive(Debug, thiserror::Error, PartialEq)]

@@ -5,27 +5,41 @@ use std::ops::Range;
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::{DensityMap, LightFrame, ShadowError, DEPTH_QUANTUM};
+use crate::{DEPTH_QUANTUM, DensityMap, LightFrame, ShadowError};
 
 /// The occupied span of one `(j, k)` column after the sweep: cells
-/// `lo..=hi`, whose back-face depths start at `start` in the slab's `depth`.
-/// An empty column has `lo > hi`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// `lo..=hi`, whose back-face depths start at `start` in the slab's `depth`;
+/// hair starts at slice coordinate `front`, in `[lo, lo + 1)`. An empty
+/// column has `lo > hi`.
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Span {
     pub lo: u16,
     pub hi: u16,
     pub start: u32,
+    pub front: f32,
 }
 
 impl Span {
-    pub const EMPTY: Span = Span { lo: 1, hi: 0, start: 0 };
+    pub const EMPTY: Span = Span {
+        lo: 1,
+        hi: 0,
+        start: 0,
+        front: 0.0,
+    };
+
+    /// The latest front inside cell `lo` that keeps its depth ramp finite.
+    const FRONT_GAP: f32 = 1.0 / 1024.0;
 
     pub fn is_empty(&self) -> bool {
         self.lo > self.hi
     }
 
     pub fn len(&self) -> usize {
-        if self.is_empty() { 0 } else { (self.hi - self.lo) as usize + 1 }
+        if self.is_empty() {
+            0
+        } else {
+            (self.hi - self.lo) as usize + 1
+        }
     }
 }
 
@@ -51,19 +65,32 @@ pub fn sweep(density: &DensityMap, columns: Range<u32>) -> ColumnSlab {
     let mut spans = Vec::with_capacity(columns.len());
     let mut depth = Vec::new();
     for col in columns.clone() {
+        let meta = density.meta(col as usize);
         match density.span(col as usize) {
             None => spans.push(Span::EMPTY),
             Some((lo, hi)) => {
-                spans.push(Span { lo: lo as u16, hi: hi as u16, start: depth.len() as u32 });
+                let front = meta
+                    .front
+                    .clamp(lo as f32, lo as f32 + 1.0 - Span::FRONT_GAP);
+                spans.push(Span {
+                    lo: lo as u16,
+                    hi: hi as u16,
+                    start: depth.len() as u32,
+                    front,
+                });
                 let mut cum: u64 = 0;
-                depth.extend(density.column(col as usize, lo..hi + 1).map(|q| {
+                depth.extend(density.column(col as usize, lo..hi + 1).iter().map(|&q| {
                     cum += u64::from(q);
                     (cum as f64 * DEPTH_QUANTUM) as f32
                 }));
             }
         }
     }
-    ColumnSlab { columns, spans, depth }
+    ColumnSlab {
+        columns,
+        spans,
+        depth,
+    }
 }
 
 /// Cumulative optical depth everywhere in a map, assembled from slabs.
@@ -91,7 +118,10 @@ impl Transmittance {
     }
 
     /// Joins slabs that together cover every column once, in order.
-    pub fn assemble(frame: LightFrame, slabs: impl IntoIterator<Item = ColumnSlab>) -> Result<Transmittance, ShadowError> {
+    pub fn assemble(
+        frame: LightFrame,
+        slabs: impl IntoIterator<Item = ColumnSlab>,
+    ) -> Result<Transmittance, ShadowError> {
         let n = frame.n_cells as usize;
         let expected = frame.columns();
         let mut spans = Vec::with_capacity(expected);
@@ -99,27 +129,63 @@ impl Transmittance {
         for slab in slabs {
             let bad = |detail: String| ShadowError::Slabs { expected, detail };
             if slab.columns.start as usize != spans.len() {
-                return Err(bad(format!("slab {:?} follows column {}", slab.columns, spans.len())));
+                return Err(bad(format!(
+                    "slab {:?} follows column {}",
+                    slab.columns,
+                    spans.len()
+                )));
             }
             if slab.spans.len() != slab.columns.len() {
-                return Err(bad(format!("slab {:?} has {} spans", slab.columns, slab.spans.len())));
+                return Err(bad(format!(
+                    "slab {:?} has {} spans",
+                    slab.columns,
+                    slab.spans.len()
+                )));
             }
             let base = depth.len() as u32;
             for s in &slab.spans {
-                if !s.is_empty() && (s.hi as usize >= n || s.start as usize + s.len() > slab.depth.len()) {
-                    return Err(bad(format!("slab {:?} has span {s:?} outside its {} depths", slab.columns, slab.depth.len())));
+                let front_ok = s.front >= f32::from(s.lo)
+                    && s.front <= f32::from(s.lo) + 1.0 - Span::FRONT_GAP;
+                if !s.is_empty()
+                    && (s.hi as usize >= n
+                        || s.start as usize + s.len() > slab.depth.len()
+                        || !front_ok)
+                {
+                    return Err(bad(format!(
+                        "slab {:?} has span {s:?} outside its {} depths",
+                        slab.columns,
+                        slab.depth.len()
+                    )));
                 }
-                spans.push(if s.is_empty() { Span::EMPTY } else { Span { start: s.start + base, ..*s } });
+                spans.push(if s.is_empty() {
+                    Span::EMPTY
+                } else {
+                    Span {
+                        start: s.start + base,
+                        ..*s
+                    }
+                });
             }
             if slab.depth.iter().any(|d| !(d.is_finite() && *d >= 0.0)) {
-                return Err(bad(format!("slab {:?} holds a negative or non-finite depth", slab.columns)));
+                return Err(bad(format!(
+                    "slab {:?} holds a negative or non-finite depth",
+                    slab.columns
+                )));
             }
             depth.extend_from_slice(&slab.depth);
         }
         if spans.len() != expected {
-            return Err(ShadowError::Slabs { expected, detail: format!("slabs end at column {}", spans.len()) });
+            return Err(ShadowError::Slabs {
+                expected,
+                detail: format!("slabs end at column {}", spans.len()),
+            });
         }
-        Ok(Transmittance { frame, n, spans, depth })
+        Ok(Transmittance {
+            frame,
+            n,
+            spans,
+            depth,
+        })
     }
 
     pub fn frame(&self) -> &LightFrame {
@@ -127,26 +193,34 @@ impl Transmittance {
     }
 
     /// Cumulative optical depth along column `(j, k)` at slice coordinate `x`
-    /// (in cells): exact for density uniform inside each cell, i.e. linear
-    /// between the depths at a cell's front and back faces.
-    #[inline]
+    /// (in cells, `x >= -2`): exact for density uniform inside each cell,
+    /// i.e. linear between the depths at a cell's front and back faces; in
+    /// the first occupied cell, uniform between where the hair starts and
+    /// the back face. Exactly 0 in front of the column's hair.
+    #[inline(always)]
     fn column_depth(&self, j: i32, k: i32, x: f32) -> f32 {
         let n = self.n as i32;
         if j < 0 || k < 0 || j >= n || k >= n {
             return 0.0;
         }
         let s = self.spans[(k * n + j) as usize];
-        if s.is_empty() || x < f32::from(s.lo) {
+        if s.is_empty() || x <= s.front {
             return 0.0;
         }
-        let d = &self.depth[s.start as usize..s.start as usize + s.len()];
-        if x >= f32::from(s.hi) + 1.0 {
-            return d[d.len() - 1];
+        let lo = f32::from(s.lo);
+        let rel = x - lo;
+        let i = rel as usize;
+        if i >= s.len() {
+            return self.depth[s.start as usize + s.len() - 1];
         }
-        let i = x as usize - s.lo as usize;
-        let t = x - x.floor();
-        let front = if i == 0 { 0.0 } else { d[i - 1] };
-        front + t * (d[i] - front)
+        let at = s.start as usize + i;
+        if i == 0 {
+            // The first cell's hair fills [front, lo + 1).
+            return self.depth[at] * ((x - s.front) / (lo + 1.0 - s.front));
+        }
+        let t = rel - i as f32;
+        let front = self.depth[at - 1];
+        front + t * (self.depth[at] - front)
     }
 
     /// Optical depth `D(p)` between the light and `p`; transmittance is
@@ -157,27 +231,39 @@ impl Transmittance {
     /// between column centres. The paper interpolates transmittance; we
     /// interpolate optical depth and exponentiate once, which equals it to
     /// first order, never underflows in dense hair, and gives exactly 0 in
-    /// front of all hair. Unfiltered: the value at the centre of `p`'s cell.
+    /// front of all hair. Unfiltered: the value at the centre of `p`'s cell
+    /// (0 in front of the hair of `p`'s column).
     #[inline]
     pub fn optical_depth(&self, p: Vec3, filter: bool) -> f32 {
         debug_assert!(p.is_finite());
         let c = self.frame.to_cells(p);
         // Far outside the map: clamp so the casts below cannot overflow.
-        let c = c.clamp(Vec3::splat(-2.0), Vec3::splat(self.n as f32 + 2.0));
+        // Shifting by 2 cells keeps the coordinates positive, so truncating
+        // casts are floors (`floor` is a libm call on baseline x86-64).
+        let c = c.clamp(Vec3::splat(-2.0), Vec3::splat(self.n as f32 + 2.0)) + 2.0;
         if filter {
             let (fy, fz) = (c.y - 0.5, c.z - 0.5);
-            let (j, k) = (fy.floor(), fz.floor());
-            let (ty, tz) = (fy - j, fz - k);
-            let (j, k) = (j as i32, k as i32);
-            let d00 = self.column_depth(j, k, c.x);
-            let d10 = self.column_depth(j + 1, k, c.x);
-            let d01 = self.column_depth(j, k + 1, c.x);
-            let d11 = self.column_depth(j + 1, k + 1, c.x);
-            let d0 = d00 + ty * (d10 - d00);
-            let d1 = d01 + ty * (d11 - d01);
-            d0 + tz * (d1 - d0)
+            let (j, k) = (fy as i32, fz as i32);
+            let (ty, tz) = (fy - j as f32, fz - k as f32);
+            let (j, k, x) = (j - 2, k - 2, c.x - 2.0);
+            let d00 = self.column_depth(j, k, x);
+            let d10 = self.column_depth(j + 1, k, x);
+            let d01 = self.column_depth(j, k + 1, x);
+            let d11 = self.column_depth(j + 1, k + 1, x);
+            // Non-negative weights: for fixed weights the sum never
+            // decreases when any column's depth grows (monotone along the
+            // light, rounding included).
+            let (sy, sz) = (1.0 - ty, 1.0 - tz);
+            sz * (sy * d00 + ty * d10) + tz * (sy * d01 + ty * d11)
         } else {
-            self.column_depth(c.y.floor() as i32, c.z.floor() as i32, c.x.floor() + 0.5)
+            // The value at the centre of p's cell, but none in front of the
+            // column's hair: monotone along the light, and exactly 0 where
+            // no hair lies between p and the light.
+            let (j, k, x) = (c.y as i32 - 2, c.z as i32 - 2, c.x - 2.0);
+            if self.column_depth(j, k, x) == 0.0 {
+                return 0.0;
+            }
+            self.column_depth(j, k, (c.x as i32 - 2) as f32 + 0.5)
         }
     }
 
@@ -190,11 +276,13 @@ impl Transmittance {
     /// Transmittance at every point (the filtering stage), in parallel.
     pub fn lookup(&self, points: &[Vec3], filter: bool, out: &mut [f32]) {
         assert_eq!(points.len(), out.len());
-        out.par_chunks_mut(4096).zip(points.par_chunks(4096)).for_each(|(o, p)| {
-            for (o, &p) in o.iter_mut().zip(p) {
-                *o = self.transmittance(p, filter);
-            }
-        });
+        out.par_chunks_mut(4096)
+            .zip(points.par_chunks(4096))
+            .for_each(|(o, p)| {
+                for (o, &p) in o.iter_mut().zip(p) {
+                    *o = self.transmittance(p, filter);
+                }
+            });
     }
 
     /// Number of cells that store a depth: a measure of the occupied volume.
@@ -213,7 +301,7 @@ mod tests {
     fn depth_is_zero_in_front_linear_inside_and_constant_behind() {
         let light = Light::directional(Vec3::X).unwrap();
         let frame = LightFrame::centered(&light, Vec3::ZERO, 8.0, 8).unwrap();
-        let map = DensityMap::new(frame);
+        let mut map = DensityMap::new(frame);
         // One cell with depth 1 at slice 3, one with depth 0.5 at slice 5, column (2, 6).
         let q = (1.0 / DEPTH_QUANTUM) as u32;
         map.add_quanta(3, 2, 6, q);
@@ -228,7 +316,11 @@ mod tests {
         assert!((at(5.5) - 1.25).abs() < 1e-6);
         assert!((at(6.0) - 1.5).abs() < 1e-6);
         assert!((at(100.0) - 1.5).abs() < 1e-6);
-        assert_eq!(t.column_depth(3, 6, 7.0), 0.0, "a neighbouring column is empty");
+        assert_eq!(
+            t.column_depth(3, 6, 7.0),
+            0.0,
+            "a neighbouring column is empty"
+        );
     }
 
     #[test]
@@ -237,15 +329,34 @@ mod tests {
         let mut hair = Hair::new();
         for s in 0..50 {
             let x = s as f32 * 0.1;
-            hair.push_strand(&[Vec3::new(x, 1.0, 0.0), Vec3::new(x + 0.5, -1.0, 0.3 * x), Vec3::new(x, -2.0, 1.0)]).unwrap();
+            hair.push_strand(&[
+                Vec3::new(x, 1.0, 0.0),
+                Vec3::new(x + 0.5, -1.0, 0.3 * x),
+                Vec3::new(x, -2.0, 1.0),
+            ])
+            .unwrap();
         }
         let frame = LightFrame::fit(&light, hair.points(), 16).unwrap();
         let mut map = DensityMap::new(frame);
         map.fill(&hair, &Fiber::new(0.05, 0.7).unwrap());
         let whole = Transmittance::compute(&map);
-        let split = Transmittance::assemble(frame, [sweep(&map, 0..7), sweep(&map, 7..100), sweep(&map, 100..256)]).unwrap();
+        let split = Transmittance::assemble(
+            frame,
+            [
+                sweep(&map, 0..7),
+                sweep(&map, 7..100),
+                sweep(&map, 100..256),
+            ],
+        )
+        .unwrap();
         assert_eq!(whole, split);
-        assert!(Transmittance::assemble(frame, [sweep(&map, 0..7), sweep(&map, 8..256)]).is_err(), "a gap is refused");
-        assert!(Transmittance::assemble(frame, [sweep(&map, 0..200)]).is_err(), "missing columns are refused");
+        assert!(
+            Transmittance::assemble(frame, [sweep(&map, 0..7), sweep(&map, 8..256)]).is_err(),
+            "a gap is refused"
+        );
+        assert!(
+            Transmittance::assemble(frame, [sweep(&map, 0..200)]).is_err(),
+            "missing columns are refused"
+        );
     }
 }

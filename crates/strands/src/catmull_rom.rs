@@ -17,12 +17,16 @@ use crate::hair::Hair;
 /// which keeps the end tangents equal to the end segments.
 pub fn resample(hair: &Hair, subdivide: u32) -> Hair {
     let sub = subdivide.max(1) as usize;
-    let mut out = Hair::with_capacity(hair.strand_count(), hair.segment_count() * sub + hair.strand_count());
+    let mut out = Hair::with_capacity(
+        hair.strand_count(),
+        hair.segment_count() * sub + hair.strand_count(),
+    );
     let mut pts = Vec::new();
     for strand in hair.strands() {
         pts.clear();
         resample_strand(strand, sub, &mut pts);
-        out.push_strand(&pts).expect("a spline through finite points is finite");
+        out.push_strand(&pts)
+            .expect("a spline through finite points is finite");
     }
     if let Some(c) = hair.colors() {
         out.set_colors(c.to_vec());
@@ -61,7 +65,10 @@ fn resample_strand(p: &[Vec3], sub: usize, out: &mut Vec<Vec3>) {
 fn catmull_rom(p0: Vec3, p1: Vec3, p2: Vec3, p3: Vec3, t: f32) -> Vec3 {
     let t2 = t * t;
     let t3 = t2 * t;
-    0.5 * (2.0 * p1 + (p2 - p0) * t + (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3) * t2 + (3.0 * p1 - p0 - 3.0 * p2 + p3) * t3)
+    0.5 * (2.0 * p1
+        + (p2 - p0) * t
+        + (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3) * t2
+        + (3.0 * p1 - p0 - 3.0 * p2 + p3) * t3)
 }
 
 #[cfg(test)]
@@ -71,7 +78,9 @@ mod tests {
     #[test]
     fn passes_through_control_points_and_reproduces_straight_lines() {
         let mut h = Hair::new();
-        let line: Vec<Vec3> = (0..4).map(|i| Vec3::new(i as f32, 2.0 * i as f32, 0.0)).collect();
+        let line: Vec<Vec3> = (0..4)
+            .map(|i| Vec3::new(i as f32, 2.0 * i as f32, 0.0))
+            .collect();
         h.push_strand(&line).unwrap();
         let r = resample(&h, 4);
         assert_eq!(r.point_count(), 13);

@@ -44,8 +44,14 @@ pub fn grow_followers(guides: &Hair, p: &FollowParams) -> Hair {
                 r * (phi.cos() * u + phi.sin() * v)
             };
             pts.clear();
-            pts.extend(strand.iter().enumerate().map(|(k, &q)| q + offset * (1.0 + (p.tip_spread - 1.0) * k as f32 / last)));
-            out.push_strand(&pts).expect("offsets of finite points are finite");
+            pts.extend(
+                strand
+                    .iter()
+                    .enumerate()
+                    .map(|(k, &q)| q + offset * (1.0 + (p.tip_spread - 1.0) * k as f32 / last)),
+            );
+            out.push_strand(&pts)
+                .expect("offsets of finite points are finite");
             if let Some(c) = guides.colors() {
                 colors.push(c[g]);
             }
@@ -66,14 +72,22 @@ mod tests {
         let mut g = Hair::new();
         let strand: Vec<Vec3> = (0..5).map(|i| Vec3::new(0.0, -(i as f32), 0.0)).collect();
         g.push_strand(&strand).unwrap();
-        let p = FollowParams { followers: 20, radius: 0.5, tip_spread: 2.0, seed: 3 };
+        let p = FollowParams {
+            followers: 20,
+            radius: 0.5,
+            tip_spread: 2.0,
+            seed: 3,
+        };
         let h = grow_followers(&g, &p);
         assert_eq!(h.strand_count(), 21);
         assert_eq!(h.strand(0), strand.as_slice());
         for s in h.strands() {
             let root = s[0] - strand[0];
             let tip = s[4] - strand[4];
-            assert!(root.length() <= 0.5 + 1e-6 && root.y.abs() < 1e-6, "root offset {root} lies across the tangent");
+            assert!(
+                root.length() <= 0.5 + 1e-6 && root.y.abs() < 1e-6,
+                "root offset {root} lies across the tangent"
+            );
             assert!((tip - 2.0 * root).length() < 1e-5, "tip offset doubles");
         }
     }

@@ -20,7 +20,13 @@ pub struct Hair {
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum HairError {
     #[error("strand {strand}, point {point}: coordinate ({x}, {y}, {z}) is not finite")]
-    NonFinite { strand: usize, point: usize, x: f32, y: f32, z: f32 },
+    NonFinite {
+        strand: usize,
+        point: usize,
+        x: f32,
+        y: f32,
+        z: f32,
+    },
     #[error("hair has {points} points, more than the 4294967295 one model can index")]
     TooManyPoints { points: usize },
 }
@@ -34,7 +40,10 @@ pub struct Bounds {
 
 impl Bounds {
     pub fn empty() -> Self {
-        Bounds { min: Vec3::splat(f32::INFINITY), max: Vec3::splat(f32::NEG_INFINITY) }
+        Bounds {
+            min: Vec3::splat(f32::INFINITY),
+            max: Vec3::splat(f32::NEG_INFINITY),
+        }
     }
     pub fn is_empty(&self) -> bool {
         self.min.x > self.max.x
@@ -44,7 +53,10 @@ impl Bounds {
         self.max = self.max.max(p);
     }
     pub fn union(self, o: Bounds) -> Bounds {
-        Bounds { min: self.min.min(o.min), max: self.max.max(o.max) }
+        Bounds {
+            min: self.min.min(o.min),
+            max: self.max.max(o.max),
+        }
     }
     pub fn center(&self) -> Vec3 {
         0.5 * (self.min + self.max)
@@ -62,13 +74,21 @@ impl Default for Hair {
 
 impl Hair {
     pub fn new() -> Self {
-        Hair { points: Vec::new(), offsets: vec![0], colors: None }
+        Hair {
+            points: Vec::new(),
+            offsets: vec![0],
+            colors: None,
+        }
     }
 
     pub fn with_capacity(strands: usize, points: usize) -> Self {
         let mut offsets = Vec::with_capacity(strands + 1);
         offsets.push(0);
-        Hair { points: Vec::with_capacity(points), offsets, colors: None }
+        Hair {
+            points: Vec::with_capacity(points),
+            offsets,
+            colors: None,
+        }
     }
 
     /// Appends a strand. Non-finite points are refused: a NaN that reached the
@@ -76,7 +96,13 @@ impl Hair {
     pub fn push_strand(&mut self, points: &[Vec3]) -> Result<(), HairError> {
         let strand = self.strand_count();
         if let Some((point, p)) = points.iter().enumerate().find(|(_, p)| !p.is_finite()) {
-            return Err(HairError::NonFinite { strand, point, x: p.x, y: p.y, z: p.z });
+            return Err(HairError::NonFinite {
+                strand,
+                point,
+                x: p.x,
+                y: p.y,
+                z: p.z,
+            });
         }
         let total = self.points.len() + points.len();
         let end = u32::try_from(total).map_err(|_| HairError::TooManyPoints { points: total })?;
@@ -105,7 +131,10 @@ impl Hair {
 
     /// Number of line segments: each strand of n points has n - 1.
     pub fn segment_count(&self) -> usize {
-        self.offsets.windows(2).map(|w| (w[1] - w[0]).saturating_sub(1) as usize).sum()
+        self.offsets
+            .windows(2)
+            .map(|w| (w[1] - w[0]).saturating_sub(1) as usize)
+            .sum()
     }
 
     pub fn points(&self) -> &[Vec3] {
@@ -126,7 +155,9 @@ impl Hair {
     }
 
     pub fn strands(&self) -> impl ExactSizeIterator<Item = &[Vec3]> + '_ {
-        self.offsets.windows(2).map(|w| &self.points[w[0] as usize..w[1] as usize])
+        self.offsets
+            .windows(2)
+            .map(|w| &self.points[w[0] as usize..w[1] as usize])
     }
 
     pub fn bounds(&self) -> Bounds {
@@ -171,8 +202,21 @@ mod tests {
     #[test]
     fn refuses_nan_and_names_the_point() {
         let mut h = Hair::new();
-        let err = h.push_strand(&[Vec3::ZERO, Vec3::new(0.0, f32::NAN, 0.0)]).unwrap_err();
-        assert!(matches!(err, HairError::NonFinite { strand: 0, point: 1, .. }));
-        assert_eq!(h.strand_count(), 0, "a refused strand leaves the hair unchanged");
+        let err = h
+            .push_strand(&[Vec3::ZERO, Vec3::new(0.0, f32::NAN, 0.0)])
+            .unwrap_err();
+        assert!(matches!(
+            err,
+            HairError::NonFinite {
+                strand: 0,
+                point: 1,
+                ..
+            }
+        ));
+        assert_eq!(
+            h.strand_count(),
+            0,
+            "a refused strand leaves the hair unchanged"
+        );
     }
 }

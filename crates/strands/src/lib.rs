@@ -17,8 +17,8 @@ mod rng;
 mod style;
 
 pub use catmull_rom::resample;
-pub use follow::{grow_followers, FollowParams};
+pub use follow::{FollowParams, grow_followers};
 pub use hair::{Bounds, Hair, HairError};
-pub use load::{load, parse_hair_format, parse_tfx, FormatError, LoadError};
+pub use load::{FormatError, LoadError, load, parse_hair_format, parse_tfx};
 pub use rng::Rng;
 pub use style::{Style, StyleParams, WispModel};

@@ -14,7 +14,10 @@ use crate::hair::{Hair, HairError};
 #[derive(Debug, thiserror::Error)]
 pub enum LoadError {
     #[error("cannot read {}: {source}", path.display())]
-    Io { path: PathBuf, source: std::io::Error },
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     #[error("{}: {source}", path.display())]
     Format { path: PathBuf, source: FormatError },
     #[error("{}: unknown hair file type (expected a .hair or .tfx file)", path.display())]
@@ -31,11 +34,20 @@ pub enum FormatError {
     #[error(
         "header claims {count} {what}, needing {need} bytes, but only {have} bytes follow the header"
     )]
-    Truncated { what: &'static str, count: u64, need: u64, have: u64 },
+    Truncated {
+        what: &'static str,
+        count: u64,
+        need: u64,
+        have: u64,
+    },
     #[error("segment counts add up to {sum} points, but the header says {points}")]
     CountMismatch { sum: u64, points: u64 },
     #[error("{what} array starts at byte {offset}, outside the {len}-byte file")]
-    BadOffset { what: &'static str, offset: u64, len: u64 },
+    BadOffset {
+        what: &'static str,
+        offset: u64,
+        len: u64,
+    },
     #[error("header claims {points} points but sets no point array flag")]
     NoPointArray { points: u64 },
     #[error("{0}")]
@@ -48,14 +60,27 @@ pub enum FormatError {
 
 /// Loads `.hair` or `.tfx` by extension.
 pub fn load(path: &Path) -> Result<Hair, LoadError> {
-    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
     let parse: fn(&[u8]) -> Result<Hair, FormatError> = match ext.as_deref() {
         Some("hair") => parse_hair_format,
         Some("tfx") => parse_tfx,
-        _ => return Err(LoadError::UnknownExtension { path: path.to_owned() }),
+        _ => {
+            return Err(LoadError::UnknownExtension {
+                path: path.to_owned(),
+            });
+        }
     };
-    let bytes = std::fs::read(path).map_err(|source| LoadError::Io { path: path.to_owned(), source })?;
-    parse(&bytes).map_err(|source| LoadError::Format { path: path.to_owned(), source })
+    let bytes = std::fs::read(path).map_err(|source| LoadError::Io {
+        path: path.to_owned(),
+        source,
+    })?;
+    parse(&bytes).map_err(|source| LoadError::Format {
+        path: path.to_owned(),
+        source,
+    })
 }
 
 fn u32_at(b: &[u8], at: usize) -> u32 {
@@ -91,7 +116,10 @@ const HAS_COLORS: u32 = 16;
 /// from the scene, in physical units.
 pub fn parse_hair_format(b: &[u8]) -> Result<Hair, FormatError> {
     if b.len() < HAIR_HEADER {
-        return Err(FormatError::TruncatedHeader { len: b.len(), need: HAIR_HEADER });
+        return Err(FormatError::TruncatedHeader {
+            len: b.len(),
+            need: HAIR_HEADER,
+        });
     }
     let magic: [u8; 4] = b[0..4].try_into().expect("4 bytes");
     if &magic != b"HAIR" {
@@ -106,14 +134,36 @@ pub fn parse_hair_format(b: &[u8]) -> Result<Hair, FormatError> {
 
     // Sizes of each array from the header's counts, in u64 so that no count
     // can overflow; compared with the file length before any allocation.
-    let seg_bytes = if flags & HAS_SEGMENTS != 0 { strands * 2 } else { 0 };
-    let per_point = [(HAS_POINTS, 12u64), (HAS_THICKNESS, 4), (HAS_TRANSPARENCY, 4), (HAS_COLORS, 12)];
-    let point_bytes: u64 = per_point.iter().filter(|(f, _)| flags & f != 0).map(|(_, s)| s * points).sum();
+    let seg_bytes = if flags & HAS_SEGMENTS != 0 {
+        strands * 2
+    } else {
+        0
+    };
+    let per_point = [
+        (HAS_POINTS, 12u64),
+        (HAS_THICKNESS, 4),
+        (HAS_TRANSPARENCY, 4),
+        (HAS_COLORS, 12),
+    ];
+    let point_bytes: u64 = per_point
+        .iter()
+        .filter(|(f, _)| flags & f != 0)
+        .map(|(_, s)| s * points)
+        .sum();
     let need = seg_bytes + point_bytes;
     if need > have {
-        let what = if seg_bytes > have { "strands" } else { "points" };
+        let what = if seg_bytes > have {
+            "strands"
+        } else {
+            "points"
+        };
         let count = if seg_bytes > have { strands } else { points };
-        return Err(FormatError::Truncated { what, count, need, have });
+        return Err(FormatError::Truncated {
+            what,
+            count,
+            need,
+            have,
+        });
     }
     if flags & HAS_POINTS == 0 && points != 0 {
         return Err(FormatError::NoPointArray { points });
@@ -123,7 +173,10 @@ pub fn parse_hair_format(b: &[u8]) -> Result<Hair, FormatError> {
     let seg_at = HAIR_HEADER;
     let strand_len = |s: usize| -> u64 {
         if flags & HAS_SEGMENTS != 0 {
-            u64::from(u16::from_le_bytes([b[seg_at + 2 * s], b[seg_at + 2 * s + 1]])) + 1
+            u64::from(u16::from_le_bytes([
+                b[seg_at + 2 * s],
+                b[seg_at + 2 * s + 1],
+            ])) + 1
         } else {
             default_segments + 1
         }
@@ -138,7 +191,12 @@ pub fn parse_hair_format(b: &[u8]) -> Result<Hair, FormatError> {
     }
 
     let pos_at = HAIR_HEADER + seg_bytes as usize;
-    let mut array_at = pos_at + if flags & HAS_POINTS != 0 { 12 * points as usize } else { 0 };
+    let mut array_at = pos_at
+        + if flags & HAS_POINTS != 0 {
+            12 * points as usize
+        } else {
+            0
+        };
     for flag in [HAS_THICKNESS, HAS_TRANSPARENCY] {
         if flags & flag != 0 {
             array_at += 4 * points as usize;
@@ -184,7 +242,10 @@ const TFX_HEADER: usize = 160;
 /// Positions are f32 xyzw per vertex, `w` the inverse mass (0 pins the root).
 pub fn parse_tfx(b: &[u8]) -> Result<Hair, FormatError> {
     if b.len() < TFX_HEADER {
-        return Err(FormatError::TruncatedHeader { len: b.len(), need: TFX_HEADER });
+        return Err(FormatError::TruncatedHeader {
+            len: b.len(),
+            need: TFX_HEADER,
+        });
     }
     let version = f32_at(b, 0);
     if version != 4.0 {
@@ -195,14 +256,23 @@ pub fn parse_tfx(b: &[u8]) -> Result<Hair, FormatError> {
     let offset = u64::from(u32_at(b, 12));
     let len = b.len() as u64;
     if offset < TFX_HEADER as u64 || offset > len {
-        return Err(FormatError::BadOffset { what: "position", offset, len });
+        return Err(FormatError::BadOffset {
+            what: "position",
+            offset,
+            len,
+        });
     }
     // u32 * u32 fits u64; times 16 may not: saturate, the length check refuses it.
     let points = strands * per_strand;
     let need = points.saturating_mul(16);
     let have = len - offset;
     if need > have {
-        return Err(FormatError::Truncated { what: "vertices", count: points, need, have });
+        return Err(FormatError::Truncated {
+            what: "vertices",
+            count: points,
+            need,
+            have,
+        });
     }
     let mut hair = Hair::with_capacity(strands as usize, points as usize);
     let mut strand_pts = Vec::with_capacity(per_strand as usize);
@@ -220,12 +290,19 @@ mod tests {
     use super::*;
 
     /// Writes a HAIR file by the format's description (independent of the parser).
-    fn hair_file(segments: Option<&[u16]>, points: &[[f32; 3]], colors: Option<&[[f32; 3]]>, strands: u32, default_seg: u32) -> Vec<u8> {
+    fn hair_file(
+        segments: Option<&[u16]>,
+        points: &[[f32; 3]],
+        colors: Option<&[[f32; 3]]>,
+        strands: u32,
+        default_seg: u32,
+    ) -> Vec<u8> {
         let mut b = Vec::new();
         b.extend_from_slice(b"HAIR");
         b.extend_from_slice(&strands.to_le_bytes());
         b.extend_from_slice(&(points.len() as u32).to_le_bytes());
-        let flags = 2 | if segments.is_some() { 1 } else { 0 } | if colors.is_some() { 16 } else { 0 };
+        let flags =
+            2 | if segments.is_some() { 1 } else { 0 } | if colors.is_some() { 16 } else { 0 };
         b.extend_from_slice(&(flags as u32).to_le_bytes());
         b.extend_from_slice(&default_seg.to_le_bytes());
         for f in [0.1f32, 1.0, 0.5, 0.25, 0.125] {
@@ -244,11 +321,23 @@ mod tests {
         b
     }
 
-    const PTS: [[f32; 3]; 5] = [[0.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, -2.0, 0.0], [1.0, 0.0, 0.0], [1.0, -1.0, 0.0]];
+    const PTS: [[f32; 3]; 5] = [
+        [0.0, 0.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.0, -2.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [1.0, -1.0, 0.0],
+    ];
 
     #[test]
     fn reads_segments_points_and_root_colours() {
-        let cols = [[1.0, 0.0, 0.0], [0.0; 3], [0.0; 3], [0.0, 1.0, 0.0], [0.0; 3]];
+        let cols = [
+            [1.0, 0.0, 0.0],
+            [0.0; 3],
+            [0.0; 3],
+            [0.0, 1.0, 0.0],
+            [0.0; 3],
+        ];
         let h = parse_hair_format(&hair_file(Some(&[2, 1]), &PTS, Some(&cols), 2, 0)).unwrap();
         assert_eq!(h.strand_count(), 2);
         assert_eq!(h.strand(0).len(), 3);
@@ -269,14 +358,26 @@ mod tests {
     fn refuses_wrong_magic_truncation_and_bad_counts() {
         let mut f = hair_file(Some(&[2, 1]), &PTS, None, 2, 0);
         f[0] = b'X';
-        assert!(matches!(parse_hair_format(&f), Err(FormatError::BadMagic { .. })));
+        assert!(matches!(
+            parse_hair_format(&f),
+            Err(FormatError::BadMagic { .. })
+        ));
 
         let f = hair_file(Some(&[2, 1]), &PTS, None, 2, 0);
-        assert!(matches!(parse_hair_format(&f[..100]), Err(FormatError::TruncatedHeader { .. })));
-        assert!(matches!(parse_hair_format(&f[..f.len() - 1]), Err(FormatError::Truncated { .. })));
+        assert!(matches!(
+            parse_hair_format(&f[..100]),
+            Err(FormatError::TruncatedHeader { .. })
+        ));
+        assert!(matches!(
+            parse_hair_format(&f[..f.len() - 1]),
+            Err(FormatError::Truncated { .. })
+        ));
 
         let f = hair_file(Some(&[2, 2]), &PTS, None, 2, 0);
-        assert_eq!(parse_hair_format(&f), Err(FormatError::CountMismatch { sum: 6, points: 5 }));
+        assert_eq!(
+            parse_hair_format(&f),
+            Err(FormatError::CountMismatch { sum: 6, points: 5 })
+        );
     }
 
     #[test]
@@ -284,12 +385,18 @@ mod tests {
         let mut f = hair_file(Some(&[2, 1]), &PTS, None, 2, 0);
         f[4..8].copy_from_slice(&u32::MAX.to_le_bytes());
         f[8..12].copy_from_slice(&u32::MAX.to_le_bytes());
-        assert!(matches!(parse_hair_format(&f), Err(FormatError::Truncated { .. })));
+        assert!(matches!(
+            parse_hair_format(&f),
+            Err(FormatError::Truncated { .. })
+        ));
         // Without a segment array, strands * (default + 1) may overflow u32 arithmetic.
         let mut f = hair_file(None, &PTS[..4], None, 2, 1);
         f[4..8].copy_from_slice(&u32::MAX.to_le_bytes());
         f[16..20].copy_from_slice(&u32::MAX.to_le_bytes());
-        assert!(matches!(parse_hair_format(&f), Err(FormatError::CountMismatch { .. })));
+        assert!(matches!(
+            parse_hair_format(&f),
+            Err(FormatError::CountMismatch { .. })
+        ));
     }
 
     #[test]
@@ -297,7 +404,10 @@ mod tests {
         let mut pts = PTS;
         pts[4][1] = f32::INFINITY;
         let err = parse_hair_format(&hair_file(Some(&[2, 1]), &pts, None, 2, 0)).unwrap_err();
-        assert_eq!(err.to_string(), "strand 1, point 1: coordinate (1, inf, 0) is not finite");
+        assert_eq!(
+            err.to_string(),
+            "strand 1, point 1: coordinate (1, inf, 0) is not finite"
+        );
     }
 
     fn tfx_file(strands: u32, per: u32, pts: &[[f32; 4]]) -> Vec<u8> {
@@ -315,13 +425,24 @@ mod tests {
 
     #[test]
     fn reads_tfx_and_refuses_truncation() {
-        let pts = [[0.0, 0.0, 0.0, 0.0], [0.0, -1.0, 0.0, 1.0], [2.0, 0.0, 0.0, 0.0], [2.0, -1.0, 0.0, 1.0]];
+        let pts = [
+            [0.0, 0.0, 0.0, 0.0],
+            [0.0, -1.0, 0.0, 1.0],
+            [2.0, 0.0, 0.0, 0.0],
+            [2.0, -1.0, 0.0, 1.0],
+        ];
         let h = parse_tfx(&tfx_file(2, 2, &pts)).unwrap();
         assert_eq!(h.strand_count(), 2);
         assert_eq!(h.strand(1)[0], Vec3::new(2.0, 0.0, 0.0));
         let f = tfx_file(2, 2, &pts);
-        assert!(matches!(parse_tfx(&f[..f.len() - 4]), Err(FormatError::Truncated { .. })));
-        assert!(matches!(parse_tfx(&tfx_file(u32::MAX, u32::MAX, &pts)), Err(FormatError::Truncated { .. })));
+        assert!(matches!(
+            parse_tfx(&f[..f.len() - 4]),
+            Err(FormatError::Truncated { .. })
+        ));
+        assert!(matches!(
+            parse_tfx(&tfx_file(u32::MAX, u32::MAX, &pts)),
+            Err(FormatError::Truncated { .. })
+        ));
         let mut f = tfx_file(2, 2, &pts);
         f[0..4].copy_from_slice(&3.0f32.to_le_bytes());
         assert_eq!(parse_tfx(&f), Err(FormatError::TfxVersion(3.0)));
@@ -332,6 +453,9 @@ mod tests {
         let e = load(Path::new("groom.obj")).unwrap_err();
         assert!(e.to_string().contains("groom.obj"), "{e}");
         let e = load(Path::new("/nonexistent/x.hair")).unwrap_err();
-        assert!(e.to_string().starts_with("cannot read /nonexistent/x.hair"), "{e}");
+        assert!(
+            e.to_string().starts_with("cannot read /nonexistent/x.hair"),
+            "{e}"
+        );
     }
 }

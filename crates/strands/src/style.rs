@@ -55,7 +55,14 @@ pub struct StyleParams {
 
 impl StyleParams {
     pub fn new(style: Style) -> Self {
-        StyleParams { style, seed: 1, wisps: 134, strands_per_wisp: 25, head_center: Vec3::ZERO, head_radius: 10.0 }
+        StyleParams {
+            style,
+            seed: 1,
+            wisps: 134,
+            strands_per_wisp: 25,
+            head_center: Vec3::ZERO,
+            head_radius: 10.0,
+        }
     }
 }
 
@@ -93,10 +100,17 @@ impl WispModel {
         let mut pts = Vec::with_capacity(per);
         for m in &self.members {
             let g = m.wisp as usize * GUIDES_PER_WISP;
-            let (a, b, c) = (self.guides.strand(g), self.guides.strand(g + 1), self.guides.strand(g + 2));
+            let (a, b, c) = (
+                self.guides.strand(g),
+                self.guides.strand(g + 1),
+                self.guides.strand(g + 2),
+            );
             pts.clear();
-            pts.extend((0..per).map(|k| m.weights[0] * a[k] + m.weights[1] * b[k] + m.weights[2] * c[k]));
-            hair.push_strand(&pts).expect("weighted sums of finite points are finite");
+            pts.extend(
+                (0..per).map(|k| m.weights[0] * a[k] + m.weights[1] * b[k] + m.weights[2] * c[k]),
+            );
+            hair.push_strand(&pts)
+                .expect("weighted sums of finite points are finite");
         }
         hair.set_colors(self.colors.clone());
         hair
@@ -106,7 +120,10 @@ impl WispModel {
     pub fn generate(p: &StyleParams) -> WispModel {
         let roots = scalp_points(p.wisps as usize);
         let segs = p.style.control_segments();
-        let mut guides = Hair::with_capacity(roots.len() * GUIDES_PER_WISP, roots.len() * GUIDES_PER_WISP * (segs + 1));
+        let mut guides = Hair::with_capacity(
+            roots.len() * GUIDES_PER_WISP,
+            roots.len() * GUIDES_PER_WISP * (segs + 1),
+        );
         let mut members = Vec::with_capacity(roots.len() * p.strands_per_wisp as usize);
         let mut colors = Vec::with_capacity(members.capacity());
         let base_color = match p.style {
@@ -130,18 +147,30 @@ impl WispModel {
                 let a = spin + std::f32::consts::TAU * g as f32 / GUIDES_PER_WISP as f32;
                 let r = 1.1 * p.head_radius / 10.0;
                 let dir = (*n * p.head_radius + r * (a.cos() * t1 + a.sin() * t2)).normalize();
-                let jitter = GuideJitter { length: rng.range(-0.6, 0.6), bend: rng.range(-0.02, 0.02) };
+                let jitter = GuideJitter {
+                    length: rng.range(-0.6, 0.6),
+                    bend: rng.range(-0.02, 0.02),
+                };
                 let pts = grow_guide(p, &wisp, &jitter, dir, segs);
-                guides.push_strand(&pts).expect("procedural points are finite");
+                guides
+                    .push_strand(&pts)
+                    .expect("procedural points are finite");
             }
             for _ in 0..p.strands_per_wisp {
                 // Uniform in the triangle of the three guides.
                 let (r1, r2) = (rng.f32().sqrt(), rng.f32());
-                members.push(Member { wisp: w as u32, weights: [1.0 - r1, r1 * (1.0 - r2), r1 * r2] });
+                members.push(Member {
+                    wisp: w as u32,
+                    weights: [1.0 - r1, r1 * (1.0 - r2), r1 * r2],
+                });
                 colors.push(base_color * rng.range(0.8, 1.2));
             }
         }
-        WispModel { guides, members, colors }
+        WispModel {
+            guides,
+            members,
+            colors,
+        }
     }
 }
 
@@ -194,7 +223,11 @@ fn grow_guide(p: &StyleParams, w: &WispShape, j: &GuideJitter, n: Vec3, segs: us
     let keep_out = |q: Vec3| {
         let r = q - c;
         let min = p.head_radius + w.clearance * scale;
-        if r.length() < min { c + r.normalize_or(Vec3::Y) * min } else { q }
+        if r.length() < min {
+            c + r.normalize_or(Vec3::Y) * min
+        } else {
+            q
+        }
     };
     let mut pts = Vec::with_capacity(segs + 1);
     let mut q = c + n * p.head_radius;
@@ -245,7 +278,10 @@ mod tests {
         let m = WispModel::generate(&p);
         for s in m.guides.strands() {
             assert!((s[0].length() - 10.0).abs() < 1e-4, "root on the sphere");
-            assert!(s.iter().all(|q| q.length() >= 10.0 - 1e-3), "no point inside the head");
+            assert!(
+                s.iter().all(|q| q.length() >= 10.0 - 1e-3),
+                "no point inside the head"
+            );
         }
     }
 
@@ -254,6 +290,9 @@ mod tests {
         let p = StyleParams::new(Style::Smooth);
         assert_eq!(WispModel::generate(&p), WispModel::generate(&p));
         let other = WispModel::generate(&StyleParams { seed: 2, ..p });
-        assert_ne!(other.guides.points(), WispModel::generate(&p).guides.points());
+        assert_ne!(
+            other.guides.points(),
+            WispModel::generate(&p).guides.points()
+        );
     }
 }
