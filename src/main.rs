@@ -28,6 +28,8 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Renders a self-shadowed picture of a scene (the built-in one without a file).
+    Render(cmd::render::Args),
     /// Prints how much light reaches given points: CSV `x,y,z` in, `x,y,z,transmittance` out.
     Probe(cmd::probe::Args),
     /// Measures the speed of pipeline stages.
@@ -50,6 +52,7 @@ fn main() -> ExitCode {
         .init();
 
     let result = init_threads(cli.threads).and_then(|()| match cli.command {
+        Command::Render(args) => cmd::render::run(args),
         Command::Probe(args) => cmd::probe::run(args),
         Command::Bench(b) => cmd::bench::run(b),
     });
@@ -65,7 +68,10 @@ fn main() -> ExitCode {
 
 fn init_threads(threads: Option<usize>) -> anyhow::Result<()> {
     if let Some(n) = threads {
-        anyhow::ensure!((1..=1024).contains(&n), "--threads {n}: must be in 1..=1024");
+        anyhow::ensure!(
+            (1..=1024).contains(&n),
+            "--threads {n}: must be in 1..=1024"
+        );
         rayon::ThreadPoolBuilder::new()
             .num_threads(n)
             .build_global()?;

@@ -2,6 +2,7 @@
 
 pub mod bench;
 pub mod probe;
+pub mod render;
 
 use std::path::Path;
 

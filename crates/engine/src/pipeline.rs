@@ -6,7 +6,7 @@ use glam::Vec3;
 use shadow::{DensityMap, Fiber, FillStats, Light, LightFrame, Transmittance};
 use strands::{Hair, WispModel, grow_followers, resample};
 
-use crate::{EngineError, HairSource, Scene, ShadowSettings};
+use crate::{EngineError, HairSource, HeadSettings, Scene, ShadowSettings};
 
 /// The most drawn segments one scene may ask for (about 1.6 GB of points):
 /// beyond this a typo in `strands_per_wisp` or `followers` is more likely
@@ -61,8 +61,13 @@ fn check_size(segments: u64) -> Result<(), EngineError> {
 pub struct ShadowPipeline {
     settings: ShadowSettings,
     fiber: Fiber,
+    head: Option<HeadSettings>,
     lights: Vec<LightState>,
 }
+
+/// Optical depth of the opaque head along a ray through it: `exp(-30)` is
+/// 1e-13, no light.
+pub const HEAD_DEPTH: f32 = 30.0;
 
 #[derive(Debug)]
 struct LightState {
@@ -76,6 +81,8 @@ impl ShadowPipeline {
         ShadowPipeline {
             settings: scene.shadow,
             fiber: scene.fiber,
+            // A head casts shadow on hair only with head shadows on.
+            head: scene.head.filter(|h| h.shadow),
             lights: scene
                 .lights
                 .iter()
@@ -97,7 +104,20 @@ impl ShadowPipeline {
     pub fn density(&mut self, hair: &Hair) -> Result<FillStats, EngineError> {
         let mut total = FillStats::default();
         for l in &mut self.lights {
-            let frame = LightFrame::fit(&l.light, hair.points(), self.settings.cells)?;
+            // The map holds the hair and the head, which blocks light too.
+            let corners: Vec<Vec3> = self
+                .head
+                .iter()
+                .flat_map(|h| {
+                    [-1.0f32, 1.0].into_iter().flat_map(move |x| {
+                        [-1.0f32, 1.0].into_iter().flat_map(move |y| {
+                            [-1.0f32, 1.0].map(move |z| h.center + h.radius * Vec3::new(x, y, z))
+                        })
+                    })
+                })
+                .collect();
+            let frame =
+                LightFrame::fit_with(&l.light, hair.points(), &corners, self.settings.cells)?;
             let map = match &mut l.map {
                 Some(m) => {
                     m.set_frame(frame);
@@ -106,6 +126,9 @@ impl ShadowPipeline {
                 None => l.map.insert(DensityMap::new(frame)),
             };
             let stats = map.fill(hair, &self.fiber);
+            if let Some(h) = &self.head {
+                map.deposit_sphere(h.center, h.radius, HEAD_DEPTH);
+            }
             if stats.out_of_map > 0 {
                 tracing::warn!(
                     out_of_map = stats.out_of_map,
@@ -137,6 +160,23 @@ impl ShadowPipeline {
                 .expect("transmittance runs before filtering")
                 .lookup(points, self.settings.filter, o);
         }
+    }
+
+    /// Transmittance of light `l` at `p`, looked up `bias_cells` cells
+    /// towards the light (a shadow bias for surfaces that are themselves in
+    /// the map, like the head).
+    pub fn transmittance_at(&self, l: usize, p: Vec3, bias_cells: f32) -> f32 {
+        let t = self.lights[l]
+            .trans
+            .as_ref()
+            .expect("transmittance runs before lookups");
+        let f = t.frame();
+        t.transmittance(p - f.axes[0] * (bias_cells * f.ds), self.settings.filter)
+    }
+
+    /// The lights, in scene order.
+    pub fn lights(&self) -> impl Iterator<Item = &Light> {
+        self.lights.iter().map(|l| &l.light)
     }
 
     /// All three stages: transmittance of each light at `points` for `hair`.

@@ -15,7 +15,7 @@
 //! opacity = 0.5             # alpha in [0, 1]
 //!
 //! [light]                   # or several [[light]] tables
-//! direction = [0.6, -0.8, -0.35]   # the direction light travels
+//! direction = [0.9, -0.35, -0.25]  # the direction light travels (from the left, above, front)
 //!
 //! [shadow]
 //! method = "density-map"
@@ -60,6 +60,50 @@ struct RawScene {
     light: Option<OneOrMany<RawLight>>,
     #[serde(default)]
     shadow: RawShadow,
+    #[serde(default)]
+    camera: RawCamera,
+    #[serde(default)]
+    render: RawRender,
+    #[serde(default)]
+    head: RawHead,
+    #[serde(default)]
+    shading: RawShading,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawCamera {
+    position: Option<[f32; 3]>,
+    look_at: Option<[f32; 3]>,
+    fov_deg: Option<f32>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawRender {
+    width: Option<i64>,
+    height: Option<i64>,
+    background: Option<[f32; 3]>,
+    hair_alpha: Option<f32>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawHead {
+    visible: Option<bool>,
+    center: Option<[f32; 3]>,
+    radius: Option<f32>,
+    color: Option<[f32; 3]>,
+    shadow: Option<bool>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawShading {
+    ambient: Option<f32>,
+    diffuse: Option<f32>,
+    specular: Option<f32>,
+    shininess: Option<f32>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -144,6 +188,35 @@ pub struct ShadowSettings {
     pub filter: bool,
 }
 
+/// Where the camera is; `None` fields are framed around the hair.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CameraSettings {
+    pub position: Option<Vec3>,
+    pub look_at: Option<Vec3>,
+    pub fov_deg: f32,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RenderSettings {
+    pub width: u32,
+    pub height: u32,
+    /// Linear RGB.
+    pub background: Vec3,
+    /// Opacity of a drawn strand where it covers a whole pixel.
+    pub hair_alpha: f32,
+}
+
+/// The head: an opaque sphere that receives the hair's shadow (when
+/// `shadow`) and blocks light for the hair behind it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HeadSettings {
+    pub center: Vec3,
+    pub radius: f32,
+    /// Linear RGB.
+    pub color: Vec3,
+    pub shadow: bool,
+}
+
 /// A validated scene.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Scene {
@@ -152,15 +225,25 @@ pub struct Scene {
     pub fiber: Fiber,
     pub lights: Vec<Light>,
     pub shadow: ShadowSettings,
+    pub camera: CameraSettings,
+    pub render: RenderSettings,
+    pub head: Option<HeadSettings>,
+    pub shading: raster::Shading,
 }
 
 /// Defaults, documented in the module comment and README.
-pub const DEFAULT_LIGHT_DIRECTION: [f32; 3] = [0.6, -0.8, -0.35];
+pub const DEFAULT_LIGHT_DIRECTION: [f32; 3] = [0.9, -0.35, -0.25];
 pub const DEFAULT_FIBER_WIDTH: f32 = 0.1;
 pub const DEFAULT_FIBER_OPACITY: f32 = 0.5;
 pub const DEFAULT_CELLS: u32 = 128;
 pub const DEFAULT_SUBDIVIDE: u32 = 2;
 pub const DEFAULT_TFX_FOLLOWERS: u32 = 15;
+pub const DEFAULT_WIDTH: u32 = 1280;
+pub const DEFAULT_HEIGHT: u32 = 720;
+pub const DEFAULT_FOV_DEG: f32 = 30.0;
+pub const DEFAULT_BACKGROUND: [f32; 3] = [0.02, 0.025, 0.035];
+pub const DEFAULT_HAIR_ALPHA: f32 = 0.85;
+pub const DEFAULT_HEAD_COLOR: [f32; 3] = [0.55, 0.38, 0.3];
 
 impl Default for Scene {
     /// The built-in scene: the smooth style under the default light.
@@ -264,6 +347,24 @@ impl Validator<'_> {
             Ok(v)
         } else {
             Err(self.invalid(field, v, "must be a finite number >= 0"))
+        }
+    }
+
+    fn color(
+        &self,
+        field: &'static str,
+        v: Option<[f32; 3]>,
+        default: [f32; 3],
+    ) -> Result<Vec3, SceneError> {
+        let c = v.unwrap_or(default);
+        if c.iter().all(|x| x.is_finite() && (0.0..=1.0).contains(x)) {
+            Ok(Vec3::from_array(c))
+        } else {
+            Err(self.invalid(
+                field,
+                format!("{c:?}"),
+                "each component must be in [0, 1] (linear RGB)",
+            ))
         }
     }
 
@@ -392,12 +493,115 @@ impl Validator<'_> {
             cells,
             filter: s.filter.unwrap_or(true),
         };
+        let c = raw.camera;
+        let vec3 = |field: &'static str, v: Option<[f32; 3]>| -> Result<Option<Vec3>, SceneError> {
+            match v {
+                Some(a) if !a.iter().all(|x| x.is_finite()) => {
+                    Err(self.invalid(field, format!("{a:?}"), "must be finite"))
+                }
+                v => Ok(v.map(Vec3::from_array)),
+            }
+        };
+        let fov_deg = c.fov_deg.unwrap_or(DEFAULT_FOV_DEG);
+        if !(fov_deg > 0.1 && fov_deg < 179.0) {
+            return Err(self.invalid("camera.fov_deg", fov_deg, "must be in (0.1, 179) degrees"));
+        }
+        let camera = CameraSettings {
+            position: vec3("camera.position", c.position)?,
+            look_at: vec3("camera.look_at", c.look_at)?,
+            fov_deg,
+        };
+        if let (Some(p), Some(l)) = (camera.position, camera.look_at)
+            && p.distance(l) < 1e-6
+        {
+            return Err(self.invalid("camera.look_at", l, "must differ from camera.position"));
+        }
+
+        let r = raw.render;
+        let width = self.int(
+            "render.width",
+            r.width,
+            DEFAULT_WIDTH,
+            1..=raster::canvas_max_side(),
+        )?;
+        let height = self.int(
+            "render.height",
+            r.height,
+            DEFAULT_HEIGHT,
+            1..=raster::canvas_max_side(),
+        )?;
+        if u64::from(width) * u64::from(height) > raster::MAX_PIXELS {
+            return Err(self.invalid(
+                "render.width",
+                width,
+                format!(
+                    "{width}x{height} is more than {} pixels",
+                    raster::MAX_PIXELS
+                ),
+            ));
+        }
+        let background = self.color("render.background", r.background, DEFAULT_BACKGROUND)?;
+        let hair_alpha = r.hair_alpha.unwrap_or(DEFAULT_HAIR_ALPHA);
+        if !(0.0..=1.0).contains(&hair_alpha) {
+            return Err(self.invalid("render.hair_alpha", hair_alpha, "must be in [0, 1]"));
+        }
+        let render = RenderSettings {
+            width,
+            height,
+            background,
+            hair_alpha,
+        };
+
+        let hd = raw.head;
+        let style_head = match &hair {
+            HairSource::Style(p) => Some((p.head_center, p.head_radius)),
+            HairSource::File { .. } => None,
+        };
+        let visible = hd
+            .visible
+            .unwrap_or(style_head.is_some() || hd.center.is_some() || hd.radius.is_some());
+        let head = if visible {
+            let center = vec3("head.center", hd.center)?.or(style_head.map(|h| h.0));
+            let radius = hd.radius.or(style_head.map(|h| h.1));
+            let (Some(center), Some(radius)) = (center, radius) else {
+                return Err(self.invalid(
+                    "head",
+                    "(incomplete)",
+                    "a head for hair from a file needs head.center and head.radius",
+                ));
+            };
+            if !(radius.is_finite() && radius > 0.0) {
+                return Err(self.invalid("head.radius", radius, "must be a finite number > 0"));
+            }
+            Some(HeadSettings {
+                center,
+                radius,
+                color: self.color("head.color", hd.color, DEFAULT_HEAD_COLOR)?,
+                shadow: hd.shadow.unwrap_or(true),
+            })
+        } else {
+            None
+        };
+
+        let d = raster::Shading::default();
+        let sh = raw.shading;
+        let shading = raster::Shading {
+            ambient: self.positive("shading.ambient", sh.ambient, d.ambient)?,
+            diffuse: self.positive("shading.diffuse", sh.diffuse, d.diffuse)?,
+            specular: self.positive("shading.specular", sh.specular, d.specular)?,
+            shininess: self.positive("shading.shininess", sh.shininess, d.shininess)?,
+            specular_color: d.specular_color,
+        };
         Ok(Scene {
             hair,
             subdivide,
             fiber,
             lights,
             shadow,
+            camera,
+            render,
+            head,
+            shading,
         })
     }
 }

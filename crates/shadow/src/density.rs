@@ -245,6 +245,47 @@ impl DensityMap {
         lists.iter().map(|(_, s)| *s).sum()
     }
 
+    /// Adds an opaque sphere (a head) to the map: every column whose centre
+    /// line crosses the sphere gets optical depth `depth` in the cell where
+    /// the line enters it, starting exactly at the entry point. Hair behind
+    /// the sphere is then in its shadow. Returns the columns it covers.
+    pub fn deposit_sphere(&mut self, center: Vec3, radius: f32, depth: f32) -> usize {
+        let n = self.n;
+        let c = self.frame.to_cells(center);
+        let r = radius / self.frame.ds;
+        let q = (f64::from(depth) / DEPTH_QUANTUM).min(f64::from(u32::MAX)) as u32;
+        let mut covered = 0;
+        for k in 0..n {
+            for j in 0..n {
+                // Squared distance across the light from the column's centre line.
+                let (dy, dz) = (j as f32 + 0.5 - c.y, k as f32 + 0.5 - c.z);
+                let h2 = r * r - dy * dy - dz * dz;
+                if h2 < 0.0 {
+                    continue;
+                }
+                let entry = c.x - h2.sqrt();
+                if !(entry >= 0.0 && entry < n as f32) {
+                    continue;
+                }
+                let i = entry as usize;
+                apply(
+                    &mut self.cells,
+                    &mut self.meta,
+                    n,
+                    0,
+                    Deposit {
+                        col: (k * n + j) as u32,
+                        i: i as u32,
+                        q: [q, 0, 0, 0],
+                        front: entry,
+                    },
+                );
+                covered += 1;
+            }
+        }
+        covered
+    }
+
     /// Adds raw quanta to cell `(i, j, k)`, as if from a piece starting at
     /// the cell's front face.
     pub fn add_quanta(&mut self, i: usize, j: usize, k: usize, q: u32) {

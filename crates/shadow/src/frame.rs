@@ -53,9 +53,20 @@ impl LightFrame {
     /// the hair), with a spare cell on each side so that the hair and its
     /// deposits lie strictly inside.
     pub fn fit(light: &Light, points: &[Vec3], n_cells: u32) -> Result<LightFrame, ShadowError> {
+        LightFrame::fit_with(light, points, &[], n_cells)
+    }
+
+    /// Like [`Self::fit`], around `points` and `extra` (say, the corners of
+    /// a head's bounding box).
+    pub fn fit_with(
+        light: &Light,
+        points: &[Vec3],
+        extra: &[Vec3],
+        n_cells: u32,
+    ) -> Result<LightFrame, ShadowError> {
         check_cells(n_cells)?;
         let axes = light_axes(light.direction());
-        let Some(&c) = points.first() else {
+        let Some(&c) = points.first().or(extra.first()) else {
             return LightFrame::centered(light, Vec3::ZERO, 1.0, n_cells);
         };
         // Project relative to a point of the hair: keeps precision for hair
@@ -77,6 +88,11 @@ impl LightFrame {
                 || (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
                 |a, b| (a.0.min(b.0), a.1.max(b.1)),
             );
+        let (lo, hi) = extra.iter().fold((lo, hi), |(lo, hi), &p| {
+            let q = p - c;
+            let m = Vec3::new(q.dot(axes[0]), q.dot(axes[1]), q.dot(axes[2]));
+            (lo.min(m), hi.max(m))
+        });
         let extent = (hi - lo).max_element();
         // A map must be wider than float noise at this distance from the origin.
         let floor = 1e-3 * (1.0 + c.abs().max_element() * 1e-2);

@@ -1,0 +1,122 @@
+//! Whole frames: golden pictures, shadow switches and determinism.
+
+use std::path::{Path, PathBuf};
+
+use engine::{Renderer, Scene, build_hair};
+
+/// A small scene: few strands on the default head, a 96x64 picture.
+fn small_scene(extra: &str) -> Scene {
+    let text = format!(
+        "[hair]\nstrands_per_wisp = 4\n\n[render]\nwidth = 96\nheight = 64\n\n[shadow]\ncells = 64\n{extra}"
+    );
+    Scene::from_toml_str(&text, Path::new("small.toml")).unwrap()
+}
+
+fn render(scene: &Scene, shadows: bool) -> image::RgbImage {
+    let hair = build_hair(scene).unwrap();
+    Renderer::new(scene).render(&hair, shadows).unwrap().0
+}
+
+fn golden_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden")
+}
+
+/// Compares `img` with the golden picture `name`: every channel within
+/// `tol` of it, except at most `outliers` pixels. On failure writes the
+/// picture and an amplified difference beside the golden one. With
+/// `WISPLIGHT_BLESS=1` writes `img` as the new golden picture instead
+/// (look at it before committing it).
+fn check_golden(name: &str, img: &image::RgbImage, tol: u8, outliers: usize) {
+    let path = golden_dir().join(name);
+    if std::env::var_os("WISPLIGHT_BLESS").is_some() {
+        img.save(&path).unwrap();
+        return;
+    }
+    let golden = image::open(&path)
+        .unwrap_or_else(|e| {
+            panic!(
+                "{}: {e} (run with WISPLIGHT_BLESS=1 to create it)",
+                path.display()
+            )
+        })
+        .to_rgb8();
+    assert_eq!(golden.dimensions(), img.dimensions(), "{name}: size");
+    let mut diff = image::RgbImage::new(img.width(), img.height());
+    let mut bad = 0;
+    for (x, y, p) in img.enumerate_pixels() {
+        let g = golden.get_pixel(x, y);
+        let d: Vec<u8> = (0..3).map(|k| p[k].abs_diff(g[k])).collect();
+        if d.iter().any(|&v| v > tol) {
+            bad += 1;
+        }
+        diff.put_pixel(
+            x,
+            y,
+            image::Rgb([
+                d[0].saturating_mul(8),
+                d[1].saturating_mul(8),
+                d[2].saturating_mul(8),
+            ]),
+        );
+    }
+    if bad > outliers {
+        let out = std::env::temp_dir();
+        img.save(out.join(format!("actual-{name}"))).unwrap();
+        diff.save(out.join(format!("diff-{name}"))).unwrap();
+        panic!(
+            "{name}: {bad} pixels differ by more than {tol}; see {} and {}",
+            out.join(format!("actual-{name}")).display(),
+            out.join(format!("diff-{name}")).display()
+        );
+    }
+}
+
+#[test]
+fn the_small_scene_matches_its_golden_pictures() {
+    let scene = small_scene("");
+    check_golden("small-shadowed.png", &render(&scene, true), 3, 10);
+    check_golden("small-unshadowed.png", &render(&scene, false), 3, 10);
+}
+
+#[test]
+fn shadows_darken_hair_and_never_brighten_it() {
+    let scene = small_scene("");
+    let (lit, dark) = (render(&scene, false), render(&scene, true));
+    let sum = |img: &image::RgbImage| {
+        img.pixels()
+            .map(|p| p.0.iter().map(|&v| u64::from(v)).sum::<u64>())
+            .sum::<u64>()
+    };
+    assert!(sum(&dark) < sum(&lit), "self-shadowing must remove light");
+    let brighter = lit
+        .pixels()
+        .zip(dark.pixels())
+        .filter(|(a, b)| (0..3).any(|k| b[k] > a[k].saturating_add(1)))
+        .count();
+    assert_eq!(
+        brighter, 0,
+        "a shadowed pixel is never brighter than the unshadowed one"
+    );
+}
+
+#[test]
+fn no_shadow_equals_fibers_of_zero_opacity() {
+    let off = small_scene("\n[head]\nshadow = false\n");
+    let clear = small_scene("\n[head]\nshadow = false\n\n[fiber]\nopacity = 0.0\n");
+    assert!(render(&off, false) == render(&clear, true));
+}
+
+#[test]
+fn the_same_scene_gives_the_same_bytes_on_any_number_of_threads() {
+    let scene = small_scene("");
+    let on = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| render(&scene, true).into_raw())
+    };
+    let one = on(1);
+    assert!(one == on(2));
+    assert!(one == on(5));
+}

@@ -1,0 +1,43 @@
+//! Pictures: a perspective camera, Kajiya-Kay hair shading, a software
+//! renderer for anti-aliased, semi-transparent line strips over a
+//! depth-tested sphere, and PNG output.
+//!
+//! This crate knows nothing of density maps or scenes: it is handed shaded
+//! vertices (colour per vertex) and a head, and turns them into pixels. Its
+//! results are the same bytes whatever the thread count or the draw order:
+//! hair fragments are accumulated in integers (sums do not depend on order)
+//! and composited once per pixel.
+
+mod camera;
+mod canvas;
+mod png;
+mod shade;
+
+pub use camera::Camera;
+pub use canvas::{Canvas, MAX_PIXELS, Sphere};
+pub use png::write_png_atomic;
+pub use shade::{Shading, kajiya_kay};
+
+/// The largest image side, in pixels.
+pub const fn canvas_max_side() -> u32 {
+    canvas::MAX_SIDE
+}
+
+/// Errors of picture making.
+#[derive(Debug, thiserror::Error)]
+pub enum RasterError {
+    #[error("image size {width}x{height}: must be 1..={max} pixels a side and at most {pixels} pixels", max = canvas::MAX_SIDE, pixels = MAX_PIXELS)]
+    Size { width: u32, height: u32 },
+    #[error("camera: {0}")]
+    Camera(String),
+    #[error("cannot write {path}: {source}")]
+    Write {
+        path: std::path::PathBuf,
+        source: std::io::Error,
+    },
+    #[error("cannot encode {path}: {message}")]
+    Encode {
+        path: std::path::PathBuf,
+        message: String,
+    },
+}

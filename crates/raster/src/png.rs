@@ -1,0 +1,77 @@
+//! PNG output that never leaves a partial file behind.
+
+use std::io::BufWriter;
+use std::path::Path;
+
+use crate::RasterError;
+
+/// Writes `img` as PNG to `path`: first to a temporary file beside it, then
+/// renamed into place, so the file appears whole or not at all and an
+/// existing file is replaced only by a complete one.
+pub fn write_png_atomic(img: &image::RgbImage, path: &Path) -> Result<(), RasterError> {
+    let write_err = |source| RasterError::Write {
+        path: path.to_owned(),
+        source,
+    };
+    let dir = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let name = path.file_name().ok_or_else(|| {
+        write_err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "not a file name",
+        ))
+    })?;
+    let tmp = dir.join(format!(
+        ".{}.{}.tmp",
+        name.to_string_lossy(),
+        std::process::id()
+    ));
+    let result = (|| {
+        let file = std::fs::File::create(&tmp).map_err(write_err)?;
+        let mut out = BufWriter::new(file);
+        let encoder = image::codecs::png::PngEncoder::new(&mut out);
+        image::ImageEncoder::write_image(
+            encoder,
+            img.as_raw(),
+            img.width(),
+            img.height(),
+            image::ExtendedColorType::Rgb8,
+        )
+        .map_err(|e| RasterError::Encode {
+            path: path.to_owned(),
+            message: e.to_string(),
+        })?;
+        let file = out.into_inner().map_err(|e| write_err(e.into_error()))?;
+        file.sync_all().map_err(write_err)?;
+        std::fs::rename(&tmp, path).map_err(write_err)
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn writes_a_readable_png_and_leaves_no_temporary_file() {
+        let dir = std::env::temp_dir().join(format!("wisplight-png-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("a.png");
+        let img =
+            image::RgbImage::from_fn(5, 3, |x, y| image::Rgb([x as u8 * 40, y as u8 * 80, 7]));
+        write_png_atomic(&img, &path).unwrap();
+        let back = image::open(&path).unwrap().to_rgb8();
+        assert_eq!(back, img);
+        let names: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names, vec![std::ffi::OsString::from("a.png")]);
+        assert!(write_png_atomic(&img, &dir.join("missing-dir/b.png")).is_err());
+    }
+}

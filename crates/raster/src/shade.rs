@@ -1,0 +1,96 @@
+//! Kajiya-Kay hair shading, as in the paper:
+//! `Phi = Phi_ambient + T (Phi_diffuse + Phi_specular)`.
+
+use glam::Vec3;
+
+/// Shading weights. Setting `specular` to 0 turns the highlight off.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Shading {
+    /// `k_a`: light reaching hair regardless of shadow.
+    pub ambient: f32,
+    /// `k_d`: weight of the diffuse term `sin(t, l)`.
+    pub diffuse: f32,
+    /// `k_s`: weight of the specular term `cos(phi)^p`.
+    pub specular: f32,
+    /// `p`: specular exponent; higher is a tighter highlight.
+    pub shininess: f32,
+    /// Colour of the highlight (the light's colour: white by default).
+    pub specular_color: Vec3,
+}
+
+impl Default for Shading {
+    fn default() -> Shading {
+        Shading {
+            ambient: 0.25,
+            diffuse: 0.75,
+            specular: 0.3,
+            shininess: 40.0,
+            specular_color: Vec3::ONE,
+        }
+    }
+}
+
+/// Kajiya and Kay's model for a hair of colour `color` with unit tangent
+/// `t`, lit along unit `to_light` (towards the light) and seen along unit
+/// `to_eye`, with transmittance `trans` from the shadow stage:
+///
+/// ```text
+/// Phi_diffuse  = k_d * color * sin(t, l)
+/// Phi_specular = k_s * specular_color * max(0, sin(t,l) sin(t,e) - cos(t,l) cos(t,e))^p
+///              (cos of the angle between e and the cone of mirror directions
+///              of l about the fiber, where t.e = -t.l)
+/// Phi          = k_a * color + trans * (Phi_diffuse + Phi_specular)
+/// ```
+#[inline]
+pub fn kajiya_kay(
+    s: &Shading,
+    color: Vec3,
+    t: Vec3,
+    to_light: Vec3,
+    to_eye: Vec3,
+    trans: f32,
+) -> Vec3 {
+    debug_assert!(trans.is_finite());
+    let tl = t.dot(to_light).clamp(-1.0, 1.0);
+    let te = t.dot(to_eye).clamp(-1.0, 1.0);
+    let sin_tl = (1.0 - tl * tl).max(0.0).sqrt();
+    let sin_te = (1.0 - te * te).max(0.0).sqrt();
+    let diffuse = s.diffuse * sin_tl * color;
+    let cos_phi = (sin_tl * sin_te - tl * te).max(0.0);
+    let specular = if s.specular > 0.0 {
+        s.specular * cos_phi.powf(s.shininess) * s.specular_color
+    } else {
+        Vec3::ZERO
+    };
+    s.ambient * color + trans * (diffuse + specular)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shadow_leaves_only_ambient_and_the_highlight_peaks_on_the_mirror_cone() {
+        let s = Shading::default();
+        let c = Vec3::new(0.5, 0.3, 0.2);
+        let (t, l) = (Vec3::X, Vec3::Y);
+        assert_eq!(kajiya_kay(&s, c, t, l, Vec3::Y, 0.0), s.ambient * c);
+        // A tangent along the light gets no diffuse light.
+        let along = kajiya_kay(
+            &Shading { specular: 0.0, ..s },
+            c,
+            Vec3::Y,
+            Vec3::Y,
+            Vec3::Z,
+            1.0,
+        );
+        assert!((along - s.ambient * c).length() < 1e-6);
+        // The eye on the mirror cone (t.e = -t.l) sees the full highlight.
+        let e = Vec3::new(-0.6, 0.8, 0.0);
+        let l2 = Vec3::new(0.6, 0.8, 0.0);
+        let peak = kajiya_kay(&s, Vec3::ZERO, t, l2, e, 1.0);
+        assert!((peak - Vec3::splat(s.specular)).length() < 1e-5, "{peak}");
+        let off = kajiya_kay(&s, Vec3::ZERO, t, l2, Vec3::new(0.6, 0.8, 0.0), 1.0);
+        assert!(off.x < 0.01 * s.specular, "{off}");
+    }
+}

@@ -1,0 +1,167 @@
+//! The `wisplight` program as a user runs it: arguments, files, output and
+//! exit codes.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn wisplight(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_wisplight"))
+        .args(args)
+        .output()
+        .expect("the binary runs")
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// A fresh directory for one test's files.
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("wisplight-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> String {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p.display().to_string()
+}
+
+/// A small scene: few strands, coarse map, light straight down.
+const SMALL: &str = "[hair]\nstyle = \"smooth\"\nstrands_per_wisp = 3\n\n[light]\ndirection = [0, -1, 0]\n\n[shadow]\ncells = 64\n";
+
+#[test]
+fn probe_prints_one_row_per_point_in_order_and_full_light_above_the_hair() {
+    let dir = scratch("probe");
+    let scene = write(&dir, "scene.toml", SMALL);
+    // The head is centred at the origin with radius 10: y = 100 is above all
+    // hair for light travelling down; y = 0 is inside the head, under hair.
+    let points = write(
+        &dir,
+        "points.csv",
+        "x,y,z\n0,100,0\n3,100,-2\n0,0,0\n0,-11,0\n",
+    );
+    let o = wisplight(&["probe", &scene, "--points", &points]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    let rows: Vec<&str> = out.lines().collect();
+    assert_eq!(rows[0], "x,y,z,transmittance");
+    assert_eq!(rows.len(), 5, "{out}");
+    assert_eq!(rows[1], "0,100,0,1");
+    assert_eq!(rows[2], "3,100,-2,1");
+    let t: Vec<f32> = rows[3..]
+        .iter()
+        .map(|r| r.rsplit(',').next().unwrap().parse().unwrap())
+        .collect();
+    assert!(t[0] < 1.0, "the crown of the head is under hair: {out}");
+    assert!(t.iter().all(|v| (0.0..=1.0).contains(v)), "{out}");
+    // Further along the light: never brighter.
+    assert!(t[1] <= t[0], "{out}");
+}
+
+#[test]
+fn probe_names_the_file_line_and_field_of_bad_points() {
+    let dir = scratch("badpoints");
+    let scene = write(&dir, "scene.toml", SMALL);
+    let points = write(&dir, "points.csv", "x,y,z\n0,1,2\n0,nan,2\n");
+    let o = wisplight(&["probe", &scene, "--points", &points]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(
+        e.contains("points.csv") && e.contains("line 3") && e.contains("nan"),
+        "{e}"
+    );
+    assert!(!e.contains("panicked"), "{e}");
+    assert!(stdout(&o).is_empty(), "no partial output: {}", stdout(&o));
+}
+
+#[test]
+fn unknown_scene_keys_are_refused_by_name() {
+    let dir = scratch("unknown");
+    let scene = write(&dir, "scene.toml", "[fiber]\nwidht = 0.1\n");
+    let points = write(&dir, "points.csv", "x,y,z\n0,0,0\n");
+    let o = wisplight(&["probe", &scene, "--points", &points]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(e.contains("scene.toml") && e.contains("widht"), "{e}");
+    assert_eq!(e.trim().lines().count(), 1, "one line: {e}");
+}
+
+#[test]
+fn bad_values_name_the_field_and_value() {
+    let dir = scratch("values");
+    let points = write(&dir, "points.csv", "x,y,z\n0,0,0\n");
+    for (text, field, value) in [
+        ("[shadow]\ncells = 0\n", "shadow.cells", "0"),
+        ("[shadow]\ncells = 100000\n", "shadow.cells", "100000"),
+        ("[fiber]\nopacity = 1.5\n", "fiber.opacity", "1.5"),
+        ("[fiber]\nwidth = -1.0\n", "fiber.width", "-1"),
+        ("[light]\ndirection = [0, 0, 0]\n", "light", "0"),
+        ("[hair]\nstyle = \"frizzy\"\n", "hair.style", "frizzy"),
+        ("[hair]\nfile = \"missing.hair\"\n", "missing.hair", ""),
+    ] {
+        let scene = write(&dir, "scene.toml", text);
+        let o = wisplight(&["probe", &scene, "--points", &points]);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{text}: {e}");
+        assert!(
+            e.contains(field) && e.contains(value),
+            "{text}: expected {field} and {value} in {e}"
+        );
+        assert!(!e.contains("panicked"), "{e}");
+    }
+}
+
+#[test]
+fn a_truncated_hair_file_is_a_clear_error() {
+    let dir = scratch("truncated");
+    // A HAIR header that promises 10^9 points, and nothing after it.
+    let mut h = vec![0u8; 128];
+    h[..4].copy_from_slice(b"HAIR");
+    h[4..8].copy_from_slice(&1u32.to_le_bytes());
+    h[8..12].copy_from_slice(&1_000_000_000u32.to_le_bytes());
+    h[12..16].copy_from_slice(&2u32.to_le_bytes());
+    std::fs::write(dir.join("big.hair"), &h).unwrap();
+    let scene = write(&dir, "scene.toml", "[hair]\nfile = \"big.hair\"\n");
+    let points = write(&dir, "points.csv", "x,y,z\n0,0,0\n");
+    let o = wisplight(&["probe", &scene, "--points", &points]);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(e.contains("big.hair") && e.contains("truncated"), "{e}");
+}
+
+#[test]
+fn usage_errors_exit_with_2() {
+    assert_eq!(wisplight(&["probe"]).status.code(), Some(2));
+    assert_eq!(wisplight(&["frobnicate"]).status.code(), Some(2));
+    assert_eq!(
+        wisplight(&["bench", "shadow", "--cells", "lots"])
+            .status
+            .code(),
+        Some(2)
+    );
+}
+
+#[test]
+fn bench_shadow_json_is_the_last_line() {
+    let dir = scratch("bench");
+    let scene = write(&dir, "scene.toml", SMALL);
+    let o = wisplight(&[
+        "bench", "shadow", &scene, "--runs", "2", "--cells", "32", "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    let last = out.lines().last().unwrap();
+    let j: serde_json::Value = serde_json::from_str(last).unwrap();
+    assert_eq!(j["cells"], 32);
+    for key in ["segments", "density_ms", "transmittance_ms", "filter_ms"] {
+        assert!(j[key].as_f64().is_some_and(|v| v >= 0.0), "{key} in {last}");
+    }
+    assert!(j["segments"].as_u64().unwrap() > 1000);
+}
