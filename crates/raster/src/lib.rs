@@ -14,7 +14,7 @@ mod png;
 mod shade;
 
 pub use camera::Camera;
-pub use canvas::{Canvas, MAX_PIXELS, Sphere};
+pub use canvas::{Canvas, HairLook, MAX_PIXELS, Sphere};
 pub use png::write_png_atomic;
 pub use shade::{Shading, kajiya_kay};
 
