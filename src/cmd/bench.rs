@@ -9,6 +9,21 @@ pub enum Bench {
     /// Median time of the three shadow stages (density, transmittance,
     /// filter at every drawn point) on a scene.
     Shadow(ShadowArgs),
+    /// Median time of each stage of a whole rendered frame (shadow stages,
+    /// shading, drawing) at the scene's image size (1280x720 by default).
+    Frame(FrameArgs),
+}
+
+#[derive(Debug, clap::Args)]
+pub struct FrameArgs {
+    /// Scene file (TOML); the built-in scene when omitted.
+    scene: Option<PathBuf>,
+    /// Timed frames (after 3 untimed warm-up frames).
+    #[arg(long, default_value_t = 20, value_name = "N")]
+    runs: usize,
+    /// Also print the result as one JSON object on the last stdout line.
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Debug, clap::Args)]
@@ -29,6 +44,7 @@ pub struct ShadowArgs {
 pub fn run(b: Bench) -> anyhow::Result<()> {
     match b {
         Bench::Shadow(a) => shadow(a),
+        Bench::Frame(a) => frame(a),
     }
 }
 
@@ -81,6 +97,81 @@ fn shadow(a: ShadowArgs) -> anyhow::Result<()> {
             "transmittance_ms": t.transmittance_ms,
             "filter_ms": t.filter_ms,
             "total_ms": t.total_ms(),
+        });
+        println!("{j}");
+    }
+    Ok(())
+}
+
+fn frame(a: FrameArgs) -> anyhow::Result<()> {
+    anyhow::ensure!(a.runs >= 1, "--runs {}: must be at least 1", a.runs);
+    let scene = super::load_scene(a.scene.as_deref())?;
+    let hair = super::build_hair(&scene)?;
+    let name = a
+        .scene
+        .as_ref()
+        .map_or("built-in".to_string(), |p| p.display().to_string());
+    let threads = rayon::current_num_threads();
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    eprintln!(
+        "bench frame: {name}: {} segments, {}x{}, {}^3 cells, {threads} threads on {cores} cores, {} runs",
+        hair.segment_count(),
+        scene.render.width,
+        scene.render.height,
+        scene.shadow.cells,
+        a.runs
+    );
+    let mut renderer = engine::Renderer::new(&scene);
+    let mut stages: [Vec<f64>; 6] = Default::default();
+    for r in 0..3 + a.runs {
+        let t0 = std::time::Instant::now();
+        let (_, t) = renderer.render(&hair, true)?;
+        let whole = t0.elapsed().as_secs_f64() * 1e3;
+        if r >= 3 {
+            for (v, x) in stages.iter_mut().zip([
+                t.density_ms,
+                t.transmittance_ms,
+                t.filter_ms,
+                t.shade_ms,
+                t.draw_ms,
+                whole,
+            ]) {
+                v.push(x);
+            }
+        }
+    }
+    let m: Vec<f64> = stages
+        .iter_mut()
+        .map(|v| engine::pipeline::median(v))
+        .collect();
+    let names = [
+        "density",
+        "transmittance",
+        "filter",
+        "shade",
+        "draw",
+        "frame",
+    ];
+    println!("stage           median ms");
+    for (n, v) in names.iter().zip(&m) {
+        println!("{n:<15} {v:9.3}");
+    }
+    if a.json {
+        let j = serde_json::json!({
+            "scene": name,
+            "segments": hair.segment_count(),
+            "width": scene.render.width,
+            "height": scene.render.height,
+            "cells": scene.shadow.cells,
+            "threads": threads,
+            "cores": cores,
+            "runs": a.runs,
+            "density_ms": m[0],
+            "transmittance_ms": m[1],
+            "filter_ms": m[2],
+            "shade_ms": m[3],
+            "draw_ms": m[4],
+            "frame_ms": m[5],
         });
         println!("{j}");
     }

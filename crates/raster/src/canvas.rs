@@ -108,6 +108,22 @@ impl Canvas {
         })
     }
 
+    /// Empties the canvas for the next frame, keeping its memory.
+    pub fn clear(&mut self) {
+        self.depth
+            .par_iter_mut()
+            .with_min_len(4096)
+            .for_each(|d| *d = f32::INFINITY);
+        self.opaque
+            .par_iter_mut()
+            .with_min_len(4096)
+            .for_each(|c| *c = Vec3::ZERO);
+        self.hair
+            .par_iter_mut()
+            .with_min_len(4096)
+            .for_each(|a| *a = Acc::default());
+    }
+
     pub fn width(&self) -> u32 {
         self.width as u32
     }
@@ -250,28 +266,53 @@ impl Canvas {
     /// (linear colours), encoded as 8-bit sRGB.
     pub fn resolve(&self, background: Vec3) -> image::RgbImage {
         let mut img = image::RgbImage::new(self.width as u32, self.height as u32);
+        let lut = srgb_table();
         let buf: &mut [u8] = &mut img;
-        buf.par_chunks_mut(3).enumerate().for_each(|(i, px)| {
-            let base = if self.depth[i].is_finite() {
-                self.opaque[i]
-            } else {
-                background
-            };
-            let a = self.hair[i];
-            let c = if a.weight > 0 {
-                let hair =
-                    Vec3::new(a.rgb[0] as f32, a.rgb[1] as f32, a.rgb[2] as f32) / a.weight as f32;
-                let reveal = (-(a.depth as f32) / DEPTH_SCALE).exp();
-                hair * (1.0 - reveal) + base * reveal
-            } else {
-                base
-            };
-            for k in 0..3 {
-                px[k] = srgb8(c[k]);
-            }
-        });
+        buf.par_chunks_mut(3)
+            .enumerate()
+            .with_min_len(4096)
+            .for_each(|(i, px)| {
+                let base = if self.depth[i].is_finite() {
+                    self.opaque[i]
+                } else {
+                    background
+                };
+                let a = self.hair[i];
+                let c = if a.weight > 0 {
+                    let hair = Vec3::new(a.rgb[0] as f32, a.rgb[1] as f32, a.rgb[2] as f32)
+                        / a.weight as f32;
+                    let reveal = (-(a.depth as f32) / DEPTH_SCALE).exp();
+                    hair * (1.0 - reveal) + base * reveal
+                } else {
+                    base
+                };
+                for k in 0..3 {
+                    // The table has SRGB_STEPS + 1 entries over [0, 1].
+                    let v = if c[k].is_finite() {
+                        c[k].clamp(0.0, 1.0)
+                    } else {
+                        0.0
+                    };
+                    px[k] = lut[(v * SRGB_STEPS as f32 + 0.5) as usize];
+                }
+            });
         img
     }
+}
+
+/// Steps of the linear-to-sRGB table: fine enough that every 8-bit output
+/// is reached exactly as the formula would round it, within one level.
+const SRGB_STEPS: usize = 8192;
+
+/// Linear to 8-bit sRGB at `SRGB_STEPS + 1` evenly spaced linear values
+/// (`powf` per channel and pixel cost more than the rest of the resolve).
+fn srgb_table() -> &'static [u8] {
+    static TABLE: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| {
+        (0..=SRGB_STEPS)
+            .map(|i| srgb8(i as f32 / SRGB_STEPS as f32))
+            .collect()
+    })
 }
 
 /// Linear [0, 1] to 8-bit sRGB.
