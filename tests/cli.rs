@@ -165,3 +165,56 @@ fn bench_shadow_json_is_the_last_line() {
     }
     assert!(j["segments"].as_u64().unwrap() > 1000);
 }
+
+#[test]
+fn render_without_a_scene_writes_the_built_in_picture() {
+    let dir = scratch("render-default");
+    let out = dir.join("hair.png");
+    let o = wisplight(&["render", "-o", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let img = image::open(&out).unwrap().to_rgb8();
+    assert_eq!(img.dimensions(), (1280, 720));
+    // Hair and head cover a good part of the frame, not just background.
+    let bg = img.get_pixel(0, 0);
+    let covered = img.pixels().filter(|p| p != &bg).count();
+    assert!(
+        covered > 50_000,
+        "{covered} pixels differ from the background"
+    );
+    let names: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(
+        names,
+        vec![std::ffi::OsString::from("hair.png")],
+        "no temporary file left"
+    );
+}
+
+#[test]
+fn render_into_a_missing_directory_fails_cleanly() {
+    let dir = scratch("render-missing");
+    let scene = write(
+        &dir,
+        "scene.toml",
+        &format!("{SMALL}\n[render]\nwidth = 64\nheight = 48\n"),
+    );
+    let out = dir.join("no/such/dir/x.png");
+    let o = wisplight(&["render", &scene, "-o", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(e.contains("x.png") && !e.contains("panicked"), "{e}");
+}
+
+#[test]
+fn render_keeps_an_existing_picture_when_the_scene_is_bad() {
+    let dir = scratch("render-keep");
+    let out = dir.join("keep.png");
+    std::fs::write(&out, b"old picture").unwrap();
+    let scene = write(&dir, "scene.toml", "[render]\nwidth = -5\n");
+    let o = wisplight(&["render", &scene, "-o", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("render.width"), "{}", stderr(&o));
+    assert_eq!(std::fs::read(&out).unwrap(), b"old picture");
+}
