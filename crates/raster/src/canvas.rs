@@ -366,9 +366,11 @@ fn line_fragments(a: ScreenVertex, b: ScreenVertex, mut emit: impl FnMut(i32, i3
         let width = a.width + t * (b.width - a.width);
         let cov = width * stretch;
         let vc = v - 0.5;
-        let r0 = vc.floor();
-        let f = vc - r0;
-        let r0 = r0 as i32;
+        // Floor by truncation (`floor` is a libm call on baseline x86-64).
+        // At negative integers this picks the row below with share 0 and
+        // the row itself with share 1: the same fragments.
+        let r0 = if vc >= 0.0 { vc as i32 } else { vc as i32 - 1 };
+        let f = vc - r0 as f32;
         for (r, share) in [(r0, 1.0 - f), (r0 + 1, f)] {
             if share > 0.0 {
                 if steep {
