@@ -60,12 +60,7 @@ fn shadow(a: ShadowArgs) -> anyhow::Result<()> {
         scene.shadow.cells = c;
     }
     let hair = super::build_hair(&scene)?;
-    let name = a
-        .scene
-        .as_ref()
-        .map_or("built-in".to_string(), |p| p.display().to_string());
-    let threads = rayon::current_num_threads();
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let (name, threads, cores) = machine(a.scene.as_deref());
     eprintln!(
         "bench shadow: {name}: {} segments, {} points, {}^3 cells, {} light(s), {threads} threads on {cores} cores, {} runs",
         hair.segment_count(),
@@ -107,12 +102,7 @@ fn frame(a: FrameArgs) -> anyhow::Result<()> {
     anyhow::ensure!(a.runs >= 1, "--runs {}: must be at least 1", a.runs);
     let scene = super::load_scene(a.scene.as_deref())?;
     let hair = super::build_hair(&scene)?;
-    let name = a
-        .scene
-        .as_ref()
-        .map_or("built-in".to_string(), |p| p.display().to_string());
-    let threads = rayon::current_num_threads();
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let (name, threads, cores) = machine(a.scene.as_deref());
     eprintln!(
         "bench frame: {name}: {} segments, {}x{}, {}^3 cells, {threads} threads on {cores} cores, {} runs",
         hair.segment_count(),
@@ -176,4 +166,12 @@ fn frame(a: FrameArgs) -> anyhow::Result<()> {
         println!("{j}");
     }
     Ok(())
+}
+
+/// What a benchmark reports beside its times: the scene's name, the worker
+/// threads, and the machine's cores.
+fn machine(scene: Option<&std::path::Path>) -> (String, usize, usize) {
+    let name = scene.map_or("built-in".to_string(), |p| p.display().to_string());
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    (name, rayon::current_num_threads(), cores)
 }

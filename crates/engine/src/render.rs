@@ -6,7 +6,7 @@ use std::time::Instant;
 use glam::Vec3;
 use raster::{Camera, Canvas, Sphere, kajiya_kay};
 use rayon::prelude::*;
-use strands::Hair;
+use strands::{Bounds, Hair};
 
 use crate::{EngineError, Scene, ShadowPipeline};
 
@@ -61,8 +61,13 @@ impl Renderer {
     /// scene leaves position or target open: from the front (+z), slightly
     /// above, far enough that the whole hair fits the vertical field of view.
     pub fn camera(&self, hair: &Hair) -> Result<Camera, EngineError> {
+        self.framing(hair.bounds())
+    }
+
+    /// [`Self::camera`] from the hair's bounds.
+    fn framing(&self, hair_bounds: Bounds) -> Result<Camera, EngineError> {
         let s = &self.scene;
-        let mut b = hair.bounds();
+        let mut b = hair_bounds;
         if let Some(h) = &s.head {
             b.include(h.center - Vec3::splat(h.radius));
             b.include(h.center + Vec3::splat(h.radius));
@@ -94,7 +99,9 @@ impl Renderer {
         shadows: bool,
     ) -> Result<(image::RgbImage, FrameTimes), EngineError> {
         let mut times = FrameTimes::default();
-        let camera = self.camera(hair)?;
+        // One pass over the points serves the framing and the depth weighting.
+        let hair_bounds = hair.bounds();
+        let camera = self.framing(hair_bounds)?;
         let points = hair.points();
 
         // Shadow stages.
@@ -199,7 +206,7 @@ impl Renderer {
         }
         let depth_ref = camera
             .position
-            .distance(s.camera.look_at.unwrap_or_else(|| hair.bounds().center()));
+            .distance(s.camera.look_at.unwrap_or_else(|| hair_bounds.center()));
         let look = raster::HairLook {
             fiber_width: s.fiber.width(),
             opacity: s.render.hair_alpha,

@@ -267,19 +267,7 @@ impl DensityMap {
                 if !(entry >= 0.0 && entry < n as f32) {
                     continue;
                 }
-                let i = entry as usize;
-                apply(
-                    &mut self.cells,
-                    &mut self.meta,
-                    n,
-                    0,
-                    Deposit {
-                        col: (k * n + j) as u32,
-                        i: i as u32,
-                        q: [q, 0, 0, 0],
-                        front: entry,
-                    },
-                );
+                self.add_cell(entry as usize, j, k, q, entry);
                 covered += 1;
             }
         }
@@ -289,21 +277,22 @@ impl DensityMap {
     /// Adds raw quanta to cell `(i, j, k)`, as if from a piece starting at
     /// the cell's front face.
     pub fn add_quanta(&mut self, i: usize, j: usize, k: usize, q: u32) {
-        let n = self.n;
         if q > 0 {
-            apply(
-                &mut self.cells,
-                &mut self.meta,
-                n,
-                0,
-                Deposit {
-                    col: (k * n + j) as u32,
-                    i: i as u32,
-                    q: [q, 0, 0, 0],
-                    front: i as f32,
-                },
-            );
+            self.add_cell(i, j, k, q, i as f32);
         }
+    }
+
+    /// Adds `q` quanta to cell `(i, j, k)` from hair starting at slice
+    /// coordinate `front`.
+    fn add_cell(&mut self, i: usize, j: usize, k: usize, q: u32, front: f32) {
+        let n = self.n;
+        let d = Deposit {
+            col: (k * n + j) as u32,
+            i: i as u32,
+            q: [q, 0, 0, 0],
+            front,
+        };
+        apply(&mut self.cells, &mut self.meta, n, 0, d);
     }
 
     /// Adds a column of another map over the same frame (a worker's partial
