@@ -18,11 +18,18 @@
 mod density;
 mod fiber;
 mod frame;
+mod method;
+mod peers;
+pub mod reference;
 mod transmittance;
 
 pub use density::{ColumnMeta, DEPTH_QUANTUM, DensityMap, FillStats, MAX_CELLS};
 pub use fiber::Fiber;
 pub use frame::{Light, LightFrame};
+pub use method::{
+    Beyond, DensityMapMethod, MethodConfig, OPAQUE_DEPTH, Occluder, OpacityMode, ShadowInput,
+    ShadowMethod,
+};
 pub use transmittance::{ColumnSlab, Span, Transmittance, sweep};
 
 /// Errors of the shadow stages.
@@ -38,6 +45,12 @@ pub enum ShadowError {
     Cells(u32),
     #[error("map size {0} is not a finite number > 0")]
     MapSize(f32),
+    #[error("shadow setting {name} = {value}: {why}")]
+    Setting {
+        name: &'static str,
+        value: String,
+        why: &'static str,
+    },
     #[error("slabs do not tile the map's {expected} columns: {detail}")]
     Slabs { expected: usize, detail: String },
 }
