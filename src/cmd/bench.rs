@@ -57,7 +57,7 @@ fn shadow(a: ShadowArgs) -> anyhow::Result<()> {
             "--cells {c}: must be in 1..={}",
             shadow::MAX_CELLS
         );
-        scene.shadow.cells = c;
+        scene.shadow.set_cells(c);
     }
     let hair = super::build_hair(&scene)?;
     let (name, threads, cores) = machine(a.scene.as_deref());
@@ -65,11 +65,11 @@ fn shadow(a: ShadowArgs) -> anyhow::Result<()> {
         "bench shadow: {name}: {} segments, {} points, {}^3 cells, {} light(s), {threads} threads on {cores} cores, {} runs",
         hair.segment_count(),
         hair.point_count(),
-        scene.shadow.cells,
+        scene.shadow.cells(),
         scene.lights.len(),
         a.runs
     );
-    let mut pipeline = ShadowPipeline::new(&scene);
+    let mut pipeline = ShadowPipeline::new(&scene)?;
     let t = StageTimes::measure(&mut pipeline, &hair, 5, a.runs, |_| {})?;
     println!("stage           median ms");
     println!("density         {:9.3}", t.density_ms);
@@ -82,7 +82,7 @@ fn shadow(a: ShadowArgs) -> anyhow::Result<()> {
             "scene": name,
             "segments": hair.segment_count(),
             "points": hair.point_count(),
-            "cells": scene.shadow.cells,
+            "cells": scene.shadow.cells(),
             "lights": scene.lights.len(),
             "threads": threads,
             "cores": cores,
@@ -108,10 +108,10 @@ fn frame(a: FrameArgs) -> anyhow::Result<()> {
         hair.segment_count(),
         scene.render.width,
         scene.render.height,
-        scene.shadow.cells,
+        scene.shadow.cells(),
         a.runs
     );
-    let mut renderer = engine::Renderer::new(&scene);
+    let mut renderer = engine::Renderer::new(&scene)?;
     let mut stages: [Vec<f64>; 6] = Default::default();
     for r in 0..3 + a.runs {
         let t0 = std::time::Instant::now();
@@ -152,7 +152,7 @@ fn frame(a: FrameArgs) -> anyhow::Result<()> {
             "segments": hair.segment_count(),
             "width": scene.render.width,
             "height": scene.render.height,
-            "cells": scene.shadow.cells,
+            "cells": scene.shadow.cells(),
             "threads": threads,
             "cores": cores,
             "runs": a.runs,

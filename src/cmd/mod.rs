@@ -21,3 +21,23 @@ pub fn load_scene(path: Option<&Path>) -> anyhow::Result<Scene> {
 pub fn build_hair(scene: &Scene) -> anyhow::Result<strands::Hair> {
     engine::build_hair(scene).context("cannot build the hair")
 }
+
+/// `--method NAME`: the scene's shadow method replaced by another, at its
+/// default settings (the scene's resolution and filter switch kept).
+#[derive(Debug, Clone, clap::Args)]
+pub struct MethodArg {
+    /// Shadow method, overriding the scene's `[shadow] method`.
+    #[arg(long, value_name = "NAME",
+          value_parser = clap::builder::PossibleValuesParser::new(shadow::MethodConfig::NAMES))]
+    method: Option<String>,
+}
+
+impl MethodArg {
+    pub fn apply(&self, scene: &mut Scene) {
+        if let Some(name) = &self.method
+            && let Some(s) = scene.shadow.switch_to(name)
+        {
+            scene.shadow = s;
+        }
+    }
+}

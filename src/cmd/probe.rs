@@ -13,15 +13,18 @@ pub struct Args {
     /// CSV file of points: a header line `x,y,z`, then one point per line.
     #[arg(long, value_name = "POINTS.csv")]
     points: PathBuf,
+    #[command(flatten)]
+    method: super::MethodArg,
 }
 
 /// Prints `x,y,z,transmittance` (one column per light when there are
 /// several) for every input point, in order.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let scene = super::load_scene(Some(&args.scene))?;
+    let mut scene = super::load_scene(Some(&args.scene))?;
+    args.method.apply(&mut scene);
     let points = crate::csv::read_points(&args.points)?;
     let hair = super::build_hair(&scene)?;
-    let mut pipeline = ShadowPipeline::new(&scene);
+    let mut pipeline = ShadowPipeline::new(&scene)?;
     let t = pipeline.run(&hair, &points)?;
 
     let mut out = BufWriter::new(std::io::stdout().lock());

@@ -18,13 +18,16 @@ pub struct Args {
     /// Render the same frame without any shadow, for comparison.
     #[arg(long)]
     no_shadow: bool,
+    #[command(flatten)]
+    method: super::MethodArg,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let start = Instant::now();
-    let scene = super::load_scene(args.scene.as_deref())?;
+    let mut scene = super::load_scene(args.scene.as_deref())?;
+    args.method.apply(&mut scene);
     let hair = super::build_hair(&scene)?;
-    let mut renderer = Renderer::new(&scene);
+    let mut renderer = Renderer::new(&scene)?;
     let (img, times) = renderer
         .render(&hair, !args.no_shadow)
         .context("cannot render")?;

@@ -14,7 +14,7 @@ pub mod scene;
 
 pub use pipeline::{ShadowPipeline, StageTimes, build_hair};
 pub use render::{FrameTimes, Renderer};
-pub use scene::{HairSource, HeadSettings, Method, Scene, SceneError, ShadowSettings};
+pub use scene::{HairSource, HeadSettings, Scene, SceneError, ShadowSettings};
 
 /// Errors of the engine, each naming what is wrong and where.
 #[derive(Debug, thiserror::Error)]

@@ -3,10 +3,10 @@
 use std::time::Instant;
 
 use glam::Vec3;
-use shadow::{DensityMap, Fiber, FillStats, Light, LightFrame, Transmittance};
+use shadow::{Fiber, FillStats, Light, Occluder, ShadowInput, ShadowMethod};
 use strands::{Hair, WispModel, grow_followers, resample};
 
-use crate::{EngineError, HairSource, HeadSettings, Scene, ShadowSettings};
+use crate::{EngineError, HairSource, Scene};
 
 /// The most drawn segments one scene may ask for (about 1.6 GB of points):
 /// beyond this a typo in `strands_per_wisp` or `followers` is more likely
@@ -55,80 +55,67 @@ fn check_size(segments: u64) -> Result<(), EngineError> {
     Ok(())
 }
 
-/// The three shadow stages for every light of a scene. Each light owns its
-/// density map and transmittance.
+/// The three shadow stages for every light of a scene, by the scene's
+/// method. Each light owns its method's maps.
 #[derive(Debug)]
 pub struct ShadowPipeline {
-    settings: ShadowSettings,
     fiber: Fiber,
-    head: Option<HeadSettings>,
+    occluders: Vec<Occluder>,
     lights: Vec<LightState>,
 }
-
-/// Optical depth of the opaque head along a ray through it: `exp(-30)` is
-/// 1e-13, no light.
-pub const HEAD_DEPTH: f32 = 30.0;
 
 #[derive(Debug)]
 struct LightState {
     light: Light,
-    map: Option<DensityMap>,
-    trans: Option<Transmittance>,
+    method: Box<dyn ShadowMethod>,
+    prepared: bool,
 }
 
 impl ShadowPipeline {
-    pub fn new(scene: &Scene) -> ShadowPipeline {
-        ShadowPipeline {
-            settings: scene.shadow,
+    pub fn new(scene: &Scene) -> Result<ShadowPipeline, EngineError> {
+        let lights = scene
+            .lights
+            .iter()
+            .map(|&light| {
+                Ok(LightState {
+                    light,
+                    method: scene.shadow.method.create()?,
+                    prepared: false,
+                })
+            })
+            .collect::<Result<_, EngineError>>()?;
+        Ok(ShadowPipeline {
             fiber: scene.fiber,
             // A head casts shadow on hair only with head shadows on.
-            head: scene.head.filter(|h| h.shadow),
-            lights: scene
-                .lights
-                .iter()
-                .map(|&light| LightState {
-                    light,
-                    map: None,
-                    trans: None,
+            occluders: scene
+                .head
+                .filter(|h| h.shadow)
+                .map(|h| Occluder {
+                    center: h.center,
+                    radius: h.radius,
                 })
+                .into_iter()
                 .collect(),
-        }
+            lights,
+        })
     }
 
     pub fn light_count(&self) -> usize {
         self.lights.len()
     }
 
-    /// Stage 1: fits each light's map to the hair (a still frame) and fills
-    /// it with density. Returns the samples over all lights.
+    /// Stage 1: samples the hair (and the head) from each light: for the
+    /// density map, fits the map to them and fills it. Returns the samples
+    /// over all lights.
     pub fn density(&mut self, hair: &Hair) -> Result<FillStats, EngineError> {
         let mut total = FillStats::default();
         for l in &mut self.lights {
-            // The map holds the hair and the head, which blocks light too.
-            let corners: Vec<Vec3> = self
-                .head
-                .iter()
-                .flat_map(|h| {
-                    [-1.0f32, 1.0].into_iter().flat_map(move |x| {
-                        [-1.0f32, 1.0].into_iter().flat_map(move |y| {
-                            [-1.0f32, 1.0].map(move |z| h.center + h.radius * Vec3::new(x, y, z))
-                        })
-                    })
-                })
-                .collect();
-            let frame =
-                LightFrame::fit_with(&l.light, hair.points(), &corners, self.settings.cells)?;
-            let map = match &mut l.map {
-                Some(m) => {
-                    m.set_frame(frame);
-                    m
-                }
-                None => l.map.insert(DensityMap::new(frame)),
-            };
-            let stats = map.fill(hair, &self.fiber);
-            if let Some(h) = &self.head {
-                map.deposit_sphere(h.center, h.radius, HEAD_DEPTH);
-            }
+            let stats = l.method.build(&ShadowInput {
+                light: &l.light,
+                hair,
+                fiber: &self.fiber,
+                occluders: &self.occluders,
+            })?;
             if stats.out_of_map > 0 {
                 tracing::warn!(
                     out_of_map = stats.out_of_map,
@@ -137,16 +124,16 @@ impl ShadowPipeline {
                 );
             }
             total = total + stats;
-            l.trans = None;
+            l.prepared = false;
         }
         Ok(total)
     }
 
-    /// Stage 2: sweeps every column of every light's map.
+    /// Stage 2: for the density map, sweeps every column of every light's map.
     pub fn transmittance(&mut self) {
         for l in &mut self.lights {
-            let map = l.map.as_ref().expect("density runs before transmittance");
-            l.trans = Some(Transmittance::compute(map));
+            l.method.prepare();
+            l.prepared = true;
         }
     }
 
@@ -154,11 +141,9 @@ impl ShadowPipeline {
     pub fn filter(&self, points: &[Vec3], out: &mut [Vec<f32>]) {
         assert_eq!(out.len(), self.lights.len());
         for (l, o) in self.lights.iter().zip(out) {
+            assert!(l.prepared, "transmittance runs before filtering");
             o.resize(points.len(), 0.0);
-            l.trans
-                .as_ref()
-                .expect("transmittance runs before filtering")
-                .lookup(points, self.settings.filter, o);
+            l.method.lookup(points, o);
         }
     }
 
@@ -166,12 +151,9 @@ impl ShadowPipeline {
     /// towards the light (a shadow bias for surfaces that are themselves in
     /// the map, like the head).
     pub fn transmittance_at(&self, l: usize, p: Vec3, bias_cells: f32) -> f32 {
-        let t = self.lights[l]
-            .trans
-            .as_ref()
-            .expect("transmittance runs before lookups");
-        let f = t.frame();
-        t.transmittance(p - f.axes[0] * (bias_cells * f.ds), self.settings.filter)
+        let m = &self.lights[l].method;
+        let f = m.frame().expect("density runs before lookups");
+        m.transmittance(p - f.axes[0] * (bias_cells * f.ds))
     }
 
     /// The lights, in scene order.

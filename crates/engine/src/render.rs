@@ -46,15 +46,16 @@ fn ms(since: Instant) -> f64 {
 }
 
 impl Renderer {
-    pub fn new(scene: &Scene) -> Renderer {
-        let shadows = ShadowPipeline::new(scene);
-        Renderer {
+    /// A renderer for `scene`; fails on shadow settings out of range.
+    pub fn new(scene: &Scene) -> Result<Renderer, EngineError> {
+        let shadows = ShadowPipeline::new(scene)?;
+        Ok(Renderer {
             trans: vec![Vec::new(); shadows.light_count()],
             shadows,
             scene: scene.clone(),
             colors: Vec::new(),
             canvas: None,
-        }
+        })
     }
 
     /// The camera of the scene, framing `hair` (and the head) where the

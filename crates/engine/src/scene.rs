@@ -27,7 +27,7 @@ use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 use serde::Deserialize;
-use shadow::{Fiber, Light};
+use shadow::{Beyond, Fiber, Light, MethodConfig, OpacityMode};
 use strands::{FollowParams, Style, StyleParams};
 
 /// A scene that could not be read, naming the file and the field.
@@ -145,6 +145,17 @@ struct RawShadow {
     method: Option<String>,
     cells: Option<i64>,
     filter: Option<bool>,
+    slices: Option<i64>,
+    mode: Option<String>,
+    kappa: Option<f32>,
+    offset: Option<f32>,
+    layers: Option<i64>,
+    layer_cells: Option<f32>,
+    beyond: Option<String>,
+    clusters: Option<i64>,
+    tolerance: Option<f32>,
+    footprint: Option<f32>,
+    rays: Option<i64>,
 }
 
 /// Where the hair comes from.
@@ -157,35 +168,66 @@ pub enum HairSource {
     },
 }
 
-/// Shadow methods. The density map is the paper's; more methods share this
-/// interface as they are added.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Method {
-    DensityMap,
-}
-
-impl Method {
-    pub const NAMES: &[&str] = &["density-map"];
-
-    pub fn from_name(name: &str) -> Option<Method> {
-        match name {
-            "density-map" => Some(Method::DensityMap),
-            _ => None,
-        }
-    }
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Method::DensityMap => "density-map",
-        }
-    }
-}
-
+/// The shadow method and its settings (see [`MethodConfig`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ShadowSettings {
-    pub method: Method,
-    pub cells: u32,
-    pub filter: bool,
+    pub method: MethodConfig,
+}
+
+impl ShadowSettings {
+    /// The method's resolution: cells (or light-view pixels) a side.
+    pub fn cells(&self) -> u32 {
+        match self.method {
+            MethodConfig::DensityMap { cells, .. } => cells,
+            MethodConfig::OpacityShadowMap { resolution, .. }
+            | MethodConfig::DeepOpacityMap { resolution, .. }
+            | MethodConfig::DensityClustering { resolution, .. }
+            | MethodConfig::DeepShadowMap { resolution, .. } => resolution,
+            MethodConfig::Reference { .. } => 128,
+        }
+    }
+
+    /// Sets the method's resolution (the reference has none).
+    pub fn set_cells(&mut self, n: u32) {
+        match &mut self.method {
+            MethodConfig::DensityMap { cells, .. } => *cells = n,
+            MethodConfig::OpacityShadowMap { resolution, .. }
+            | MethodConfig::DeepOpacityMap { resolution, .. }
+            | MethodConfig::DensityClustering { resolution, .. }
+            | MethodConfig::DeepShadowMap { resolution, .. } => *resolution = n,
+            MethodConfig::Reference { .. } => {}
+        }
+    }
+
+    /// Switches to method `name` with its default settings, keeping the
+    /// resolution and the filter switch. `None` for an unknown name.
+    pub fn switch_to(&self, name: &str) -> Option<ShadowSettings> {
+        let mut m = MethodConfig::with_defaults(name, self.cells())?;
+        set_filter(&mut m, filter_of(&self.method));
+        Some(ShadowSettings { method: m })
+    }
+}
+
+fn filter_of(m: &MethodConfig) -> bool {
+    match *m {
+        MethodConfig::DensityMap { filter, .. }
+        | MethodConfig::OpacityShadowMap { filter, .. }
+        | MethodConfig::DeepOpacityMap { filter, .. }
+        | MethodConfig::DensityClustering { filter, .. }
+        | MethodConfig::DeepShadowMap { filter, .. } => filter,
+        MethodConfig::Reference { .. } => true,
+    }
+}
+
+fn set_filter(m: &mut MethodConfig, on: bool) {
+    match m {
+        MethodConfig::DensityMap { filter, .. }
+        | MethodConfig::OpacityShadowMap { filter, .. }
+        | MethodConfig::DeepOpacityMap { filter, .. }
+        | MethodConfig::DensityClustering { filter, .. }
+        | MethodConfig::DeepShadowMap { filter, .. } => *filter = on,
+        MethodConfig::Reference { .. } => {}
+    }
 }
 
 /// Where the camera is; `None` fields are framed around the hair.
@@ -310,6 +352,102 @@ impl Validator<'_> {
             value: value.to_string(),
             reason: reason.into(),
         }
+    }
+
+    /// The `[shadow]` table: the method, then the settings it takes; a
+    /// setting of another method is refused by name.
+    fn shadow(&self, s: RawShadow) -> Result<ShadowSettings, SceneError> {
+        let name = s.method.as_deref().unwrap_or("density-map");
+        let cells = self.int(
+            "shadow.cells",
+            s.cells,
+            DEFAULT_CELLS,
+            1..=shadow::MAX_CELLS,
+        )?;
+        let mut m = MethodConfig::with_defaults(name, cells).ok_or_else(|| {
+            self.invalid(
+                "shadow.method",
+                format!("{name:?}"),
+                format!("known methods: {}", MethodConfig::NAMES.join(", ")),
+            )
+        })?;
+        if let Some(f) = s.filter {
+            if matches!(m, MethodConfig::Reference { .. }) {
+                return Err(self.invalid("shadow.filter", f, "the reference does not filter"));
+            }
+            set_filter(&mut m, f);
+        }
+        if s.cells.is_some() && matches!(m, MethodConfig::Reference { .. }) {
+            return Err(self.invalid(
+                "shadow.cells",
+                cells,
+                "the reference has no cells; set shadow.footprint",
+            ));
+        }
+        let not_for = |field: &'static str, value: String, owner: &str| {
+            self.invalid(
+                field,
+                value,
+                format!("applies to method {owner:?} only, not {name:?}"),
+            )
+        };
+        let count = |field: &'static str, v: i64| {
+            u32::try_from(v).map_err(|_| self.invalid(field, v, "must be a whole number >= 0"))
+        };
+        macro_rules! set {
+            ($field:literal, $raw:expr, $owner:literal, $pat:pat => $assign:expr) => {
+                if let Some(v) = $raw {
+                    match &mut m {
+                        $pat => $assign(v)?,
+                        _ => return Err(not_for($field, format!("{v:?}"), $owner)),
+                    }
+                }
+            };
+        }
+        set!("shadow.slices", s.slices, "opacity-shadow-map",
+            MethodConfig::OpacityShadowMap { slices, .. } => |v| count("shadow.slices", v).map(|v| *slices = v));
+        set!("shadow.mode", s.mode.clone(), "opacity-shadow-map",
+        MethodConfig::OpacityShadowMap { mode, .. } => |v: String| match v.as_str() {
+            "linear" => { *mode = OpacityMode::Linear; Ok(()) }
+            "exponential" => {
+                if !matches!(mode, OpacityMode::Exponential { .. }) {
+                    *mode = OpacityMode::Exponential { kappa: 1.0 };
+                }
+                Ok(())
+            }
+            _ => Err(self.invalid("shadow.mode", format!("{v:?}"), "must be \"linear\" or \"exponential\"")),
+        });
+        set!("shadow.kappa", s.kappa, "opacity-shadow-map",
+        MethodConfig::OpacityShadowMap { mode, .. } => |v: f32| match mode {
+            OpacityMode::Exponential { kappa } => { *kappa = v; Ok(()) }
+            OpacityMode::Linear => Err(self.invalid("shadow.kappa", v, "applies to mode \"exponential\" only")),
+        });
+        set!("shadow.offset", s.offset, "opacity-shadow-map",
+            MethodConfig::OpacityShadowMap { offset, .. } => |v| { *offset = v; Ok::<(), SceneError>(()) });
+        set!("shadow.layers", s.layers, "deep-opacity-map",
+            MethodConfig::DeepOpacityMap { layers, .. } => |v| count("shadow.layers", v).map(|v| *layers = v));
+        set!("shadow.layer_cells", s.layer_cells, "deep-opacity-map",
+            MethodConfig::DeepOpacityMap { layer_cells, .. } => |v| { *layer_cells = v; Ok::<(), SceneError>(()) });
+        set!("shadow.beyond", s.beyond.clone(), "deep-opacity-map",
+        MethodConfig::DeepOpacityMap { beyond, .. } => |v: String| match Beyond::from_name(&v) {
+            Some(b) => { *beyond = b; Ok(()) }
+            None => Err(self.invalid("shadow.beyond", format!("{v:?}"), format!("known: {}", Beyond::NAMES.join(", ")))),
+        });
+        set!("shadow.clusters", s.clusters, "density-clustering",
+            MethodConfig::DensityClustering { clusters, .. } => |v| count("shadow.clusters", v).map(|v| *clusters = v));
+        set!("shadow.tolerance", s.tolerance, "deep-shadow-map",
+            MethodConfig::DeepShadowMap { tolerance, .. } => |v| { *tolerance = v; Ok::<(), SceneError>(()) });
+        set!("shadow.footprint", s.footprint, "reference",
+            MethodConfig::Reference { footprint, .. } => |v| { *footprint = Some(v); Ok::<(), SceneError>(()) });
+        set!("shadow.rays", s.rays, "reference",
+            MethodConfig::Reference { rays, .. } => |v| count("shadow.rays", v).map(|v| *rays = v));
+        m.validate().map_err(|e| match e {
+            shadow::ShadowError::Setting { name, value, why } => {
+                self.invalid(setting_field(name), value, why)
+            }
+            other => self.invalid("shadow", name, other.to_string()),
+        })?;
+        Ok(ShadowSettings { method: m })
     }
 
     fn int(
@@ -473,26 +611,7 @@ impl Validator<'_> {
             })
             .collect::<Result<Vec<_>, _>>()?;
 
-        let s = raw.shadow;
-        let method_name = s.method.as_deref().unwrap_or("density-map");
-        let method = Method::from_name(method_name).ok_or_else(|| {
-            self.invalid(
-                "shadow.method",
-                format!("{method_name:?}"),
-                format!("known methods: {}", Method::NAMES.join(", ")),
-            )
-        })?;
-        let cells = self.int(
-            "shadow.cells",
-            s.cells,
-            DEFAULT_CELLS,
-            1..=shadow::MAX_CELLS,
-        )?;
-        let shadow = ShadowSettings {
-            method,
-            cells,
-            filter: s.filter.unwrap_or(true),
-        };
+        let shadow = self.shadow(raw.shadow)?;
         let c = raw.camera;
         let vec3 = |field: &'static str, v: Option<[f32; 3]>| -> Result<Option<Vec3>, SceneError> {
             match v {
@@ -606,6 +725,22 @@ impl Validator<'_> {
     }
 }
 
+/// The scene field of a method setting.
+fn setting_field(name: &str) -> &'static str {
+    match name {
+        "slices" => "shadow.slices",
+        "kappa" => "shadow.kappa",
+        "offset" => "shadow.offset",
+        "layers" => "shadow.layers",
+        "layer_cells" => "shadow.layer_cells",
+        "clusters" => "shadow.clusters",
+        "tolerance" => "shadow.tolerance",
+        "footprint" => "shadow.footprint",
+        "rays" => "shadow.rays",
+        _ => "shadow",
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -620,9 +755,10 @@ mod tests {
         assert_eq!(
             s.shadow,
             ShadowSettings {
-                method: Method::DensityMap,
-                cells: 128,
-                filter: true
+                method: MethodConfig::DensityMap {
+                    cells: 128,
+                    filter: true
+                }
             }
         );
         assert_eq!(s.fiber, Fiber::new(0.1, 0.5).unwrap());
@@ -702,5 +838,63 @@ mod tests {
             parse("[[light]]\ndirection = [1, 0, 0]\n[[light]]\ndirection = [0, -2, 0]\n").unwrap();
         assert_eq!(s.lights.len(), 2);
         assert_eq!(s.lights[1].direction(), Vec3::NEG_Y);
+    }
+
+    #[test]
+    fn method_settings_parse_and_settings_of_other_methods_are_refused() {
+        let s = parse(
+            "[shadow]\nmethod = \"opacity-shadow-map\"\ncells = 64\nslices = 16\nmode = \"linear\"\noffset = 0.5\n",
+        )
+        .unwrap();
+        assert_eq!(
+            s.shadow.method,
+            MethodConfig::OpacityShadowMap {
+                resolution: 64,
+                slices: 16,
+                mode: OpacityMode::Linear,
+                offset: 0.5,
+                filter: true
+            }
+        );
+        let s = parse("[shadow]\nmethod = \"deep-opacity-map\"\nlayers = 3\nbeyond = \"cover\"\n")
+            .unwrap();
+        assert!(matches!(
+            s.shadow.method,
+            MethodConfig::DeepOpacityMap {
+                layers: 3,
+                beyond: Beyond::Cover,
+                ..
+            }
+        ));
+        for (text, field, says) in [
+            (
+                "[shadow]\nslices = 16\n",
+                "shadow.slices",
+                "opacity-shadow-map",
+            ),
+            (
+                "[shadow]\nmethod = \"deep-opacity-map\"\nbeyond = \"nowhere\"\n",
+                "shadow.beyond",
+                "last-layer",
+            ),
+            (
+                "[shadow]\nmethod = \"opacity-shadow-map\"\nslices = 1\n",
+                "shadow.slices",
+                "2..=4096",
+            ),
+            (
+                "[shadow]\nmethod = \"reference\"\ncells = 64\n",
+                "shadow.cells",
+                "footprint",
+            ),
+            (
+                "[shadow]\nmethod = \"deep-shadow-map\"\ntolerance = -1.0\n",
+                "shadow.tolerance",
+                "[0, 1)",
+            ),
+        ] {
+            let e = parse(text).unwrap_err().to_string();
+            assert!(e.contains(field) && e.contains(says), "{text:?}: {e}");
+        }
     }
 }

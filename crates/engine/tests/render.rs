@@ -14,7 +14,11 @@ fn small_scene(extra: &str) -> Scene {
 
 fn render(scene: &Scene, shadows: bool) -> image::RgbImage {
     let hair = build_hair(scene).unwrap();
-    Renderer::new(scene).render(&hair, shadows).unwrap().0
+    Renderer::new(scene)
+        .unwrap()
+        .render(&hair, shadows)
+        .unwrap()
+        .0
 }
 
 fn golden_dir() -> PathBuf {
