@@ -3,6 +3,7 @@
 
 mod cmd;
 mod csv;
+mod plot;
 
 use std::process::ExitCode;
 

@@ -218,3 +218,77 @@ fn render_keeps_an_existing_picture_when_the_scene_is_bad() {
     assert!(stderr(&o).contains("render.width"), "{}", stderr(&o));
     assert_eq!(std::fs::read(&out).unwrap(), b"old picture");
 }
+
+#[test]
+fn probe_takes_every_method_by_name_and_each_agrees_on_lit_and_shadowed_points() {
+    let dir = scratch("probe-methods");
+    let scene = write(&dir, "scene.toml", SMALL);
+    // Above all hair; and below the head (in its shadow: light travels down).
+    let points = write(&dir, "points.csv", "x,y,z\n0,100,0\n0,-11,0\n");
+    for method in [
+        "density-map",
+        "opacity-shadow-map",
+        "deep-opacity-map",
+        "density-clustering",
+        "deep-shadow-map",
+        "reference",
+    ] {
+        let o = wisplight(&["probe", &scene, "--points", &points, "--method", method]);
+        assert!(o.status.success(), "{method}: {}", stderr(&o));
+        let t: Vec<f32> = stdout(&o)
+            .lines()
+            .skip(1)
+            .map(|r| r.rsplit(',').next().unwrap().parse().unwrap())
+            .collect();
+        assert!(t[0] > 0.99, "{method}: above the hair T = {}", t[0]);
+        assert!(t[1] < 0.01, "{method}: under the head T = {}", t[1]);
+    }
+    let o = wisplight(&["probe", &scene, "--points", &points, "--method", "raytrace"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("raytrace"), "{}", stderr(&o));
+}
+
+#[test]
+fn bench_accuracy_writes_a_table_a_csv_and_a_plot() {
+    let dir = scratch("accuracy");
+    let scene = write(&dir, "scene.toml", SMALL);
+    let csv = dir.join("acc.csv");
+    let plot = dir.join("acc.png");
+    let o = wisplight(&[
+        "bench",
+        "accuracy",
+        &scene,
+        "--methods",
+        "density-map,deep-shadow-map",
+        "--runs",
+        "1",
+        "--csv",
+        csv.to_str().unwrap(),
+        "--plot",
+        plot.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let rows: Vec<&str> = text.lines().collect();
+    assert_eq!(rows[0], "method,parameters,ms,mean_abs,rms,max,image_error");
+    // The reference, 8 density-map settings and 4 deep-shadow-map settings.
+    assert_eq!(rows.len(), 1 + 1 + 8 + 4, "{text}");
+    assert!(rows[1].starts_with("reference,"));
+    for r in &rows[2..] {
+        let f: Vec<f64> = r
+            .rsplitn(6, ',')
+            .take(5)
+            .map(|x| x.parse().unwrap())
+            .collect::<Vec<_>>();
+        // image_error, max, rms, mean_abs, ms (reversed); errors in [0, 1].
+        assert!(f[..4].iter().all(|&e| (0.0..=1.0).contains(&e)), "{r}");
+        assert!(
+            f[3] <= f[2] + 1e-9 && f[2] <= f[1] + 1e-9,
+            "mean <= rms <= max: {r}"
+        );
+        assert!(f[4] > 0.0, "{r}");
+    }
+    let img = image::open(&plot).unwrap();
+    assert!(img.width() > 400 && img.height() > 300);
+    assert!(stdout(&o).contains("deep-shadow-map"));
+}

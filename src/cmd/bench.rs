@@ -12,6 +12,9 @@ pub enum Bench {
     /// Median time of each stage of a whole rendered frame (shadow stages,
     /// shading, drawing) at the scene's image size (1280x720 by default).
     Frame(FrameArgs),
+    /// Every shadow method at a range of settings against the exact
+    /// reference: time and error at every drawn point and in the picture.
+    Accuracy(super::accuracy::AccuracyArgs),
 }
 
 #[derive(Debug, clap::Args)]
@@ -45,6 +48,7 @@ pub fn run(b: Bench) -> anyhow::Result<()> {
     match b {
         Bench::Shadow(a) => shadow(a),
         Bench::Frame(a) => frame(a),
+        Bench::Accuracy(a) => super::accuracy::run(a),
     }
 }
 
@@ -170,7 +174,7 @@ fn frame(a: FrameArgs) -> anyhow::Result<()> {
 
 /// What a benchmark reports beside its times: the scene's name, the worker
 /// threads, and the machine's cores.
-fn machine(scene: Option<&std::path::Path>) -> (String, usize, usize) {
+pub(crate) fn machine(scene: Option<&std::path::Path>) -> (String, usize, usize) {
     let name = scene.map_or("built-in".to_string(), |p| p.display().to_string());
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     (name, rayon::current_num_threads(), cores)

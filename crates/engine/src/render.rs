@@ -58,6 +58,12 @@ impl Renderer {
         })
     }
 
+    /// Transmittance of each light at each drawn point in the last
+    /// shadowed frame: `[light][point]`.
+    pub fn transmittance(&self) -> &[Vec<f32>] {
+        &self.trans
+    }
+
     /// The camera of the scene, framing `hair` (and the head) where the
     /// scene leaves position or target open: from the front (+z), slightly
     /// above, far enough that the whole hair fits the vertical field of view.

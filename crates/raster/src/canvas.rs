@@ -286,15 +286,7 @@ impl Canvas {
                 } else {
                     base
                 };
-                for k in 0..3 {
-                    // The table has SRGB_STEPS + 1 entries over [0, 1].
-                    let v = if c[k].is_finite() {
-                        c[k].clamp(0.0, 1.0)
-                    } else {
-                        0.0
-                    };
-                    px[k] = lut[(v * SRGB_STEPS as f32 + 0.5) as usize];
-                }
+                px.copy_from_slice(&encode(lut, c));
             });
         img
     }
@@ -313,6 +305,26 @@ fn srgb_table() -> &'static [u8] {
             .map(|i| srgb8(i as f32 / SRGB_STEPS as f32))
             .collect()
     })
+}
+
+/// A linear colour as the 8-bit sRGB pixel [`Canvas::resolve`] writes for it.
+pub fn to_srgb8(c: Vec3) -> [u8; 3] {
+    encode(srgb_table(), c)
+}
+
+#[inline]
+fn encode(lut: &[u8], c: Vec3) -> [u8; 3] {
+    let mut px = [0u8; 3];
+    for (k, p) in px.iter_mut().enumerate() {
+        // The table has SRGB_STEPS + 1 entries over [0, 1].
+        let v = if c[k].is_finite() {
+            c[k].clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        *p = lut[(v * SRGB_STEPS as f32 + 0.5) as usize];
+    }
+    px
 }
 
 /// Linear [0, 1] to 8-bit sRGB.

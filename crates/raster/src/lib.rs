@@ -14,8 +14,8 @@ mod png;
 mod shade;
 
 pub use camera::Camera;
-pub use canvas::{Canvas, HairLook, MAX_PIXELS, Sphere};
-pub use png::write_png_atomic;
+pub use canvas::{Canvas, HairLook, MAX_PIXELS, Sphere, to_srgb8};
+pub use png::{write_atomic, write_png_atomic};
 pub use shade::{Shading, kajiya_kay};
 
 /// The largest image side, in pixels.

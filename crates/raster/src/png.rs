@@ -9,6 +9,29 @@ use crate::RasterError;
 /// renamed into place, so the file appears whole or not at all and an
 /// existing file is replaced only by a complete one.
 pub fn write_png_atomic(img: &image::RgbImage, path: &Path) -> Result<(), RasterError> {
+    write_atomic(path, |out| {
+        let encoder = image::codecs::png::PngEncoder::new(out);
+        image::ImageEncoder::write_image(
+            encoder,
+            img.as_raw(),
+            img.width(),
+            img.height(),
+            image::ExtendedColorType::Rgb8,
+        )
+        .map_err(|e| RasterError::Encode {
+            path: path.to_owned(),
+            message: e.to_string(),
+        })
+    })
+}
+
+/// Writes a file through `write`: first to a temporary file beside `path`,
+/// synced, then renamed into place. On any error the temporary file is
+/// removed and `path` is untouched.
+pub fn write_atomic(
+    path: &Path,
+    write: impl FnOnce(&mut BufWriter<std::fs::File>) -> Result<(), RasterError>,
+) -> Result<(), RasterError> {
     let write_err = |source| RasterError::Write {
         path: path.to_owned(),
         source,
@@ -31,18 +54,7 @@ pub fn write_png_atomic(img: &image::RgbImage, path: &Path) -> Result<(), Raster
     let result = (|| {
         let file = std::fs::File::create(&tmp).map_err(write_err)?;
         let mut out = BufWriter::new(file);
-        let encoder = image::codecs::png::PngEncoder::new(&mut out);
-        image::ImageEncoder::write_image(
-            encoder,
-            img.as_raw(),
-            img.width(),
-            img.height(),
-            image::ExtendedColorType::Rgb8,
-        )
-        .map_err(|e| RasterError::Encode {
-            path: path.to_owned(),
-            message: e.to_string(),
-        })?;
+        write(&mut out)?;
         let file = out.into_inner().map_err(|e| write_err(e.into_error()))?;
         file.sync_all().map_err(write_err)?;
         std::fs::rename(&tmp, path).map_err(write_err)
