@@ -106,7 +106,7 @@ pub fn scatter(
     }
     line(&mut img, (x0, y0), (x1, y0), ink);
     line(&mut img, (x0, y0), (x0, y1), ink);
-    text(&mut img, x0, 6, title, ink);
+    text(&mut img, x0, 4, title, ink);
     text(
         &mut img,
         (x0 + x1) / 2 - 6 * x_label.len() as i32,
@@ -114,7 +114,7 @@ pub fn scatter(
         x_label,
         ink,
     );
-    text(&mut img, 8, TOP - 20, y_label, ink);
+    text(&mut img, 8, TOP - 27, y_label, ink);
     // The Pareto front, then the points over it.
     let front = pareto_front(points);
     for w in front.windows(2) {

@@ -26,6 +26,7 @@ pub struct AccuracyArgs {
     #[arg(long, value_name = "FILE.png")]
     plot: Option<PathBuf>,
     /// Timed frames per setting, after one untimed frame; the median counts.
+    /// The reference is rendered once.
     #[arg(long, default_value_t = 3, value_name = "N")]
     runs: usize,
     /// Only these methods (comma separated); all by default.
@@ -124,7 +125,7 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
     );
     bar.set_message("reference");
     let reference = MethodConfig::with_defaults("reference", 128).expect("a known method");
-    let (ref_ms, ref_t, ref_img) = measure(&scene, reference, &hair, 1)?;
+    let (ref_ms, ref_t, ref_img) = measure(&scene, reference, &hair, 1, false)?;
     bar.inc(1);
     let bg = scene.render.background;
     let mut rows = vec![Row {
@@ -137,7 +138,7 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
     }];
     for c in configs {
         bar.set_message(format!("{} {}", c.name(), c.parameters()));
-        let (ms, t, img) = measure(&scene, c, &hair, a.runs)?;
+        let (ms, t, img) = measure(&scene, c, &hair, a.runs, true)?;
         let (mean_abs, rms, max) = errors(&t, &ref_t);
         rows.push(Row {
             config: c,
@@ -201,21 +202,22 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Renders `hair` with `config` `runs` times after one untimed frame: the
-/// median time of the three shadow stages, the transmittance at every
-/// drawn point of every light, and the last picture.
+/// Renders `hair` with `config` `runs` times (after one untimed frame with
+/// `warmup`): the median time of the three shadow stages, the transmittance
+/// at every drawn point of every light, and the last picture.
 fn measure(
     scene: &Scene,
     config: MethodConfig,
     hair: &Hair,
     runs: usize,
+    warmup: bool,
 ) -> anyhow::Result<(f64, Vec<f32>, RgbImage)> {
     let mut s = scene.clone();
     s.shadow.method = config;
     let mut r = Renderer::new(&s)?;
     let mut times = Vec::with_capacity(runs);
     let mut img = None;
-    let warmup = usize::from(runs > 1);
+    let warmup = usize::from(warmup);
     for i in 0..warmup + runs {
         let (pic, t) = r
             .render(hair, true)

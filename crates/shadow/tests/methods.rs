@@ -350,3 +350,40 @@ fn every_method_keeps_t_in_unit_range_and_non_increasing_along_the_light() {
         }
     }
 }
+
+#[test]
+fn every_method_gives_the_same_bytes_on_any_number_of_threads() {
+    let hair = WispModel::generate(&StyleParams {
+        strands_per_wisp: 3,
+        ..StyleParams::new(Style::Smooth)
+    })
+    .interpolate();
+    let head = [Occluder {
+        center: Vec3::ZERO,
+        radius: 10.0,
+    }];
+    let light = Light::directional(Vec3::new(0.9, -0.35, -0.25)).unwrap();
+    let points: Vec<Vec3> = hair.points().iter().step_by(7).copied().collect();
+    for name in MethodConfig::NAMES {
+        let c = MethodConfig::with_defaults(name, 48).unwrap();
+        let results: Vec<Vec<u32>> = [1, 2, 3]
+            .into_iter()
+            .map(|threads| {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                pool.install(|| {
+                    let m = run(&c, &hair, &light, &head);
+                    let mut t = vec![0.0f32; points.len()];
+                    m.lookup(&points, &mut t);
+                    t.iter().map(|x| x.to_bits()).collect()
+                })
+            })
+            .collect();
+        assert!(
+            results.windows(2).all(|w| w[0] == w[1]),
+            "{name}: results differ between thread counts"
+        );
+    }
+}
