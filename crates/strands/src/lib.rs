@@ -21,4 +21,4 @@ pub use follow::{FollowParams, grow_followers};
 pub use hair::{Bounds, Hair, HairError};
 pub use load::{FormatError, LoadError, load, parse_hair_format, parse_tfx};
 pub use rng::Rng;
-pub use style::{Style, StyleParams, WispModel};
+pub use style::{GUIDES_PER_WISP, Member, Style, StyleParams, WispModel};

@@ -1,0 +1,343 @@
+//! Wisps of three guide strands, each a chain of rigid links (paper 5.1).
+//!
+//! Each step of a guide, with time step `dt`:
+//!
+//! 1. its first two points follow the head (the root and the direction the
+//!    hair leaves the scalp);
+//! 2. the others move by Verlet integration, `x += (x - x_prev) e^(-c dt)
+//!    + (g + f(x)) dt^2`, with damping rate `c` (1/s), gravity `g` and the
+//!    acceleration `f` of a force field (self-collisions);
+//! 3. `iterations` rounds of constraint projection (position-based
+//!    dynamics): each point moves a fraction `stiffness` towards its groomed
+//!    place (carried along by the head), each link is projected back to its
+//!    rest length, and points inside a body sphere are pushed to its
+//!    surface. (Pulling a point towards its parent's position plus the
+//!    groomed offset instead feeds back along the chain and oscillates.)
+//! 4. a last pass from the root to the tip sets every link to exactly its
+//!    rest length (follow the leader), so lengths never drift.
+//!
+//! A wisp's step reads only its own state, the head transform, the bodies
+//! and the force field (the previous frame's density map): wisps can be
+//! stepped in any order, on any thread or machine, with the same bytes.
+
+use std::ops::Range;
+
+use glam::{Affine3A, Vec3};
+use rayon::prelude::*;
+use strands::{GUIDES_PER_WISP, Hair};
+
+use crate::SimError;
+
+/// Dynamics settings. Scene units are taken as centimetres (the procedural
+/// head has radius 10), so gravity is 981 units/s^2.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimParams {
+    /// Time step, seconds.
+    pub dt: f32,
+    /// Gravity, scene units per s^2.
+    pub gravity: Vec3,
+    /// Velocity damping rate `c`, 1/s.
+    pub damping: f32,
+    /// Fraction of the way each point moves towards its groomed place per
+    /// iteration, in [0, 1]: how firmly the hair keeps its style.
+    pub stiffness: f32,
+    /// Constraint iterations per step.
+    pub iterations: u32,
+}
+
+impl Default for SimParams {
+    fn default() -> Self {
+        SimParams {
+            dt: 1.0 / 60.0,
+            gravity: Vec3::new(0.0, -981.0, 0.0),
+            damping: 3.0,
+            stiffness: 0.02,
+            iterations: 4,
+        }
+    }
+}
+
+impl SimParams {
+    pub fn validate(&self) -> Result<(), SimError> {
+        let bad = |what: &str, v: String| Err(SimError::Params(format!("{what} = {v}")));
+        if !(self.dt.is_finite() && self.dt > 0.0 && self.dt <= 1.0) {
+            return bad("time step (must be in (0, 1] s)", self.dt.to_string());
+        }
+        if !self.gravity.is_finite() {
+            return bad("gravity (must be finite)", self.gravity.to_string());
+        }
+        if !(self.damping.is_finite() && self.damping >= 0.0) {
+            return bad("damping (must be >= 0)", self.damping.to_string());
+        }
+        if !(0.0..=1.0).contains(&self.stiffness) {
+            return bad("stiffness (must be in [0, 1])", self.stiffness.to_string());
+        }
+        if !(1..=64).contains(&self.iterations) {
+            return bad(
+                "iterations (must be in 1..=64)",
+                self.iterations.to_string(),
+            );
+        }
+        Ok(())
+    }
+}
+
+/// A sphere hair collides with (head, neck, shoulders), in world space.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Body {
+    pub center: Vec3,
+    pub radius: f32,
+}
+
+/// An acceleration field acting on hair points (self-collision repulsion).
+pub trait ForceField: Sync {
+    /// Acceleration at `p`, scene units per s^2. Must be finite.
+    fn acceleration(&self, p: Vec3) -> Vec3;
+}
+
+/// The state of one wisp: its three guides' points, now and one step ago.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WispState {
+    pub pos: Vec<Vec3>,
+    pub prev: Vec<Vec3>,
+}
+
+/// The guides of every wisp and their rest shape.
+#[derive(Debug, Clone)]
+pub struct HairSim {
+    params: SimParams,
+    /// Points per guide.
+    n: usize,
+    /// Rest points of every guide, in head space.
+    rest: Vec<Vec3>,
+    /// Rest length of every link, `n - 1` per guide.
+    lengths: Vec<f32>,
+    wisps: Vec<WispState>,
+}
+
+impl HairSim {
+    /// Guides at rest in head space: strands `3w .. 3w + 3` are wisp `w`,
+    /// all with the same number of points (at least 3).
+    pub fn new(guides: &Hair, params: SimParams) -> Result<HairSim, SimError> {
+        params.validate()?;
+        let count = guides.strand_count();
+        if count == 0 || !count.is_multiple_of(GUIDES_PER_WISP) {
+            return Err(SimError::Guides(format!(
+                "{count} guides is not a positive multiple of {GUIDES_PER_WISP}"
+            )));
+        }
+        let n = guides.strand(0).len();
+        if n < 3 || guides.strands().any(|s| s.len() != n) {
+            return Err(SimError::Guides(
+                "every guide needs the same number of points, at least 3".into(),
+            ));
+        }
+        let rest = guides.points().to_vec();
+        let lengths: Vec<f32> = guides
+            .strands()
+            .flat_map(|s| s.windows(2).map(|w| w[0].distance(w[1])))
+            .collect();
+        let wisps = rest
+            .chunks(GUIDES_PER_WISP * n)
+            .map(|c| WispState {
+                pos: c.to_vec(),
+                prev: c.to_vec(),
+            })
+            .collect();
+        Ok(HairSim {
+            params,
+            n,
+            rest,
+            lengths,
+            wisps,
+        })
+    }
+
+    pub fn params(&self) -> &SimParams {
+        &self.params
+    }
+
+    pub fn wisp_count(&self) -> usize {
+        self.wisps.len()
+    }
+
+    /// Places every guide at its rest shape under `head`, at rest.
+    pub fn reset(&mut self, head: &Affine3A) {
+        let per = GUIDES_PER_WISP * self.n;
+        for (w, s) in self.wisps.iter_mut().enumerate() {
+            for (i, (p, q)) in s.pos.iter_mut().zip(s.prev.iter_mut()).enumerate() {
+                *p = head.transform_point3(self.rest[w * per + i]);
+                *q = *p;
+            }
+        }
+    }
+
+    /// One step of every wisp, in parallel.
+    pub fn step(&mut self, head: &Affine3A, bodies: &[Body], field: Option<&dyn ForceField>) {
+        self.step_wisps(0..self.wisps.len(), head, bodies, field);
+    }
+
+    /// One step of wisps `range` only (a worker's share).
+    pub fn step_wisps(
+        &mut self,
+        range: Range<usize>,
+        head: &Affine3A,
+        bodies: &[Body],
+        field: Option<&dyn ForceField>,
+    ) {
+        let (n, params) = (self.n, self.params);
+        let per = GUIDES_PER_WISP * n;
+        let (rest, lengths) = (&self.rest, &self.lengths);
+        self.wisps[range.clone()]
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(i, s)| {
+                let w = range.start + i;
+                for g in 0..GUIDES_PER_WISP {
+                    let at = g * n..(g + 1) * n;
+                    let guide = w * GUIDES_PER_WISP + g;
+                    step_guide(
+                        &mut s.pos[at.clone()],
+                        &mut s.prev[at],
+                        &rest[w * per + g * n..w * per + (g + 1) * n],
+                        &lengths[guide * (n - 1)..(guide + 1) * (n - 1)],
+                        head,
+                        &params,
+                        bodies,
+                        field,
+                    );
+                }
+            });
+    }
+
+    pub fn wisp(&self, w: usize) -> &WispState {
+        &self.wisps[w]
+    }
+
+    /// Replaces wisp `w`'s state (from another machine).
+    pub fn set_wisp(&mut self, w: usize, state: WispState) -> Result<(), SimError> {
+        let per = GUIDES_PER_WISP * self.n;
+        if state.pos.len() != per || state.prev.len() != per {
+            return Err(SimError::Guides(format!(
+                "wisp {w} state has {} points, expected {per}",
+                state.pos.len()
+            )));
+        }
+        if !state.pos.iter().chain(&state.prev).all(|p| p.is_finite()) {
+            return Err(SimError::Guides(format!("wisp {w} state is not finite")));
+        }
+        self.wisps[w] = state;
+        Ok(())
+    }
+
+    /// The guides' current points, in the order of the guides given to
+    /// [`Self::new`].
+    pub fn write_guides(&self, guides: &mut Hair) {
+        let pts = guides.points_mut();
+        assert_eq!(
+            pts.len(),
+            self.rest.len(),
+            "the guides given to HairSim::new"
+        );
+        for (chunk, s) in pts.chunks_mut(GUIDES_PER_WISP * self.n).zip(&self.wisps) {
+            chunk.copy_from_slice(&s.pos);
+        }
+    }
+
+    /// The largest relative deviation of any link from its rest length.
+    pub fn max_stretch(&self) -> f32 {
+        let n = self.n;
+        let mut worst = 0.0f32;
+        for (w, s) in self.wisps.iter().enumerate() {
+            for g in 0..GUIDES_PER_WISP {
+                let pts = &s.pos[g * n..(g + 1) * n];
+                let guide = w * GUIDES_PER_WISP + g;
+                for (k, pair) in pts.windows(2).enumerate() {
+                    let rest = self.lengths[guide * (n - 1) + k];
+                    if rest > 0.0 {
+                        worst = worst.max((pair[0].distance(pair[1]) / rest - 1.0).abs());
+                    }
+                }
+            }
+        }
+        worst
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn step_guide(
+    pos: &mut [Vec3],
+    prev: &mut [Vec3],
+    rest: &[Vec3],
+    len: &[f32],
+    head: &Affine3A,
+    p: &SimParams,
+    bodies: &[Body],
+    field: Option<&dyn ForceField>,
+) {
+    let n = pos.len();
+    let dt = p.dt;
+    let decay = (-p.damping * dt).exp();
+    for i in 0..2 {
+        prev[i] = pos[i];
+        pos[i] = head.transform_point3(rest[i]);
+    }
+    for (x, x_prev) in pos[2..].iter_mut().zip(&mut prev[2..]) {
+        let a = p.gravity + field.map_or(Vec3::ZERO, |f| f.acceleration(*x));
+        let v = (*x - *x_prev) * decay;
+        *x_prev = *x;
+        *x += v + a * (dt * dt);
+    }
+    for _ in 0..p.iterations {
+        for i in 2..n {
+            let groomed = head.transform_point3(rest[i]);
+            pos[i] = pos[i].lerp(groomed, p.stiffness);
+            let d = pos[i] - pos[i - 1];
+            let l = d.length();
+            if l > 1e-12 {
+                let corr = d * (1.0 - len[i - 1] / l);
+                if i - 1 < 2 {
+                    pos[i] -= corr;
+                } else {
+                    pos[i - 1] += 0.5 * corr;
+                    pos[i] -= 0.5 * corr;
+                }
+            }
+        }
+        for x in &mut pos[2..] {
+            push_out(x, bodies);
+        }
+    }
+    // Follow the leader: every link exactly at rest length.
+    for i in 2..n {
+        let d = pos[i] - pos[i - 1];
+        let l = d.length();
+        let dir = if l > 1e-12 && d.is_finite() {
+            d / l
+        } else {
+            head.transform_vector3(rest[i] - rest[i - 1])
+                .normalize_or(Vec3::NEG_Y)
+        };
+        pos[i] = pos[i - 1] + dir * len[i - 1];
+    }
+    // A guide that went non-finite (a force field gone wrong) restarts from
+    // its groomed shape rather than spreading NaN.
+    if !pos.iter().chain(prev.iter()).all(|x| x.is_finite()) {
+        for i in 0..n {
+            pos[i] = head.transform_point3(rest[i]);
+            prev[i] = pos[i];
+        }
+    }
+}
+
+fn push_out(x: &mut Vec3, bodies: &[Body]) {
+    for b in bodies {
+        let d = *x - b.center;
+        let l2 = d.length_squared();
+        if l2 < b.radius * b.radius {
+            let l = l2.sqrt();
+            let dir = if l > 1e-12 { d / l } else { Vec3::Y };
+            *x = b.center + dir * b.radius;
+        }
+    }
+}

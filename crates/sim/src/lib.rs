@@ -1,0 +1,25 @@
+//! Hair dynamics (Bertails, Ménier and Cani 2005, section 5.1): wisps of
+//! three guide strands, each a chain of rigid links stepped by position-based
+//! dynamics; the head's motion; collisions with body spheres; and, through
+//! [`ForceField`], self-collisions driven by the density map.
+//!
+//! Synchronous and deterministic: a wisp's step depends only on its own
+//! state and its inputs, so any split of wisps over threads or machines
+//! gives the same bytes. Knows nothing of light, pictures or files.
+
+mod dynamics;
+mod motion;
+
+pub use dynamics::{Body, ForceField, HairSim, SimParams, WispState};
+pub use motion::{Keyframe, Motion};
+
+/// Errors of the simulation's inputs.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum SimError {
+    #[error("simulation settings: {0}")]
+    Params(String),
+    #[error("guide strands: {0}")]
+    Guides(String),
+    #[error("head motion: {0}")]
+    Motion(String),
+}
