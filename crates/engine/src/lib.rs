@@ -8,6 +8,7 @@
 //! The engine is synchronous and deterministic: it does no networking, and
 //! does not print; the binary decides what the user sees.
 
+pub mod collide;
 pub mod pipeline;
 pub mod render;
 pub mod scene;

@@ -1,0 +1,147 @@
+//! Self-collisions through the density map (paper 5.1): where hair is
+//! denser than a threshold, it pushes hair out of the cell.
+
+use glam::Vec3;
+use shadow::{DensityMap, Fiber};
+
+/// Repulsion from the cells of a filled density map.
+///
+/// A cell's optical depth `tau` (see [`shadow::DensityMap`]) is
+/// `alpha * w * L / ds^2` for a length `L` of hair inside it, so its hair
+/// density, length per volume, is
+///
+/// ```text
+/// rho = tau / (alpha * w * ds)          (1 / scene units^2)
+/// ```
+///
+/// independent of the map's resolution. A point in a cell with
+/// `rho > rho_max` is pushed away from the cell's centre with acceleration
+///
+/// ```text
+/// a = min(k * (rho / rho_max - 1), a_max) * (p - c) / |p - c|
+/// ```
+///
+/// (`k` and `a_max` in scene units per s^2): bounded, zero at or below the
+/// threshold, outside the map, and at the centre itself.
+#[derive(Debug, Clone, Copy)]
+pub struct DensityRepulsion<'a> {
+    map: &'a DensityMap,
+    /// `1 / (alpha * w * ds)`: from optical depth to hair density.
+    to_density: f32,
+    pub rho_max: f32,
+    pub k: f32,
+    pub a_max: f32,
+}
+
+impl<'a> DensityRepulsion<'a> {
+    /// `None` when the fiber casts no shadow (`alpha * w = 0`): the map then
+    /// holds no density to collide with.
+    pub fn new(
+        map: &'a DensityMap,
+        fiber: &Fiber,
+        rho_max: f32,
+        k: f32,
+        a_max: f32,
+    ) -> Option<Self> {
+        let cross = fiber.cross_section() * map.frame().ds;
+        (cross > 0.0 && rho_max > 0.0).then(|| DensityRepulsion {
+            map,
+            to_density: 1.0 / cross,
+            rho_max,
+            k,
+            a_max,
+        })
+    }
+
+    /// Hair density (length per volume) of the cell holding `p`, if inside.
+    pub fn density_at(&self, p: Vec3) -> Option<f32> {
+        let n = self.map.frame().n_cells as f32;
+        let c = self.map.frame().to_cells(p);
+        if !(c.cmpge(Vec3::ZERO).all() && c.cmplt(Vec3::splat(n)).all()) {
+            return None;
+        }
+        let (i, j, k) = (c.x as usize, c.y as usize, c.z as usize);
+        Some(self.map.cell_depth(i, j, k) as f32 * self.to_density)
+    }
+}
+
+impl sim::ForceField for DensityRepulsion<'_> {
+    fn acceleration(&self, p: Vec3) -> Vec3 {
+        let Some(rho) = self.density_at(p) else {
+            return Vec3::ZERO;
+        };
+        if rho.is_nan() || rho <= self.rho_max {
+            return Vec3::ZERO;
+        }
+        let f = self.map.frame();
+        let c = f.to_cells(p);
+        let centre = f.to_world(c.floor() + Vec3::splat(0.5));
+        let away = (p - centre).normalize_or_zero();
+        let a = (self.k * (rho / self.rho_max - 1.0)).min(self.a_max);
+        away * a
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use shadow::{Light, LightFrame};
+    use sim::ForceField;
+    use strands::Hair;
+
+    fn map_with_a_bundle() -> (DensityMap, Fiber) {
+        let light = Light::directional(Vec3::NEG_Y).unwrap();
+        let frame = LightFrame::centered(&light, Vec3::ZERO, 8.0, 8).unwrap();
+        let mut map = DensityMap::new(frame);
+        let mut hair = Hair::new();
+        // 50 strands along x through the cell around (0.5, 0.5, 0.5).
+        for s in 0..50 {
+            let o = 0.2 + 0.01 * s as f32;
+            hair.push_strand(&[Vec3::new(-4.0, o, 0.5), Vec3::new(4.0, o, 0.5)])
+                .unwrap();
+        }
+        let fiber = Fiber::new(0.01, 0.5).unwrap();
+        map.fill(&hair, &fiber);
+        (map, fiber)
+    }
+
+    #[test]
+    fn density_is_hair_length_per_volume() {
+        let (map, fiber) = map_with_a_bundle();
+        let r = DensityRepulsion::new(&map, &fiber, 1.0, 100.0, 1000.0).unwrap();
+        // Light travels along -y, so y is the map's depth axis: every strand
+        // lies in the slice y in [0, 1). Across the light they run at z = 0.5,
+        // the centre of a column, where the tent splat keeps all of a strand
+        // in that column. Each cell along x then holds 50 strands of length 1
+        // in a unit volume.
+        let total = 50.0;
+        let got = r.density_at(Vec3::new(0.5, 0.5, 0.5)).unwrap();
+        assert!((got - total).abs() < 0.01 * total, "{got} vs {total}");
+    }
+
+    #[test]
+    fn repulsion_pushes_out_of_dense_cells_and_is_bounded() {
+        let (map, fiber) = map_with_a_bundle();
+        let r = DensityRepulsion::new(&map, &fiber, 5.0, 100.0, 300.0).unwrap();
+        let a = r.acceleration(Vec3::new(0.9, 0.5, 0.5));
+        assert!(a.x > 0.0 && a.length() <= 300.0 + 1e-3, "{a}");
+        assert_eq!(
+            r.acceleration(Vec3::new(0.5, 3.5, 3.5)),
+            Vec3::ZERO,
+            "empty cell"
+        );
+        assert_eq!(
+            r.acceleration(Vec3::new(0.5, 50.0, 0.5)),
+            Vec3::ZERO,
+            "outside"
+        );
+        let strong = DensityRepulsion::new(&map, &fiber, 0.001, 1e9, 300.0).unwrap();
+        assert!((strong.acceleration(Vec3::new(0.9, 0.5, 0.5)).length() - 300.0).abs() < 1e-2);
+        let weak = DensityRepulsion::new(&map, &fiber, 1e6, 100.0, 300.0).unwrap();
+        assert_eq!(
+            weak.acceleration(Vec3::new(0.9, 0.5, 0.5)),
+            Vec3::ZERO,
+            "below threshold"
+        );
+    }
+}
