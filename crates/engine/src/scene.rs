@@ -177,56 +177,20 @@ pub struct ShadowSettings {
 impl ShadowSettings {
     /// The method's resolution: cells (or light-view pixels) a side.
     pub fn cells(&self) -> u32 {
-        match self.method {
-            MethodConfig::DensityMap { cells, .. } => cells,
-            MethodConfig::OpacityShadowMap { resolution, .. }
-            | MethodConfig::DeepOpacityMap { resolution, .. }
-            | MethodConfig::DensityClustering { resolution, .. }
-            | MethodConfig::DeepShadowMap { resolution, .. } => resolution,
-            MethodConfig::Reference { .. } => 128,
-        }
+        self.method.resolution()
     }
 
     /// Sets the method's resolution (the reference has none).
     pub fn set_cells(&mut self, n: u32) {
-        match &mut self.method {
-            MethodConfig::DensityMap { cells, .. } => *cells = n,
-            MethodConfig::OpacityShadowMap { resolution, .. }
-            | MethodConfig::DeepOpacityMap { resolution, .. }
-            | MethodConfig::DensityClustering { resolution, .. }
-            | MethodConfig::DeepShadowMap { resolution, .. } => *resolution = n,
-            MethodConfig::Reference { .. } => {}
-        }
+        self.method.set_resolution(n);
     }
 
     /// Switches to method `name` with its default settings, keeping the
     /// resolution and the filter switch. `None` for an unknown name.
     pub fn switch_to(&self, name: &str) -> Option<ShadowSettings> {
         let mut m = MethodConfig::with_defaults(name, self.cells())?;
-        set_filter(&mut m, filter_of(&self.method));
+        m.set_filter(self.method.filter());
         Some(ShadowSettings { method: m })
-    }
-}
-
-fn filter_of(m: &MethodConfig) -> bool {
-    match *m {
-        MethodConfig::DensityMap { filter, .. }
-        | MethodConfig::OpacityShadowMap { filter, .. }
-        | MethodConfig::DeepOpacityMap { filter, .. }
-        | MethodConfig::DensityClustering { filter, .. }
-        | MethodConfig::DeepShadowMap { filter, .. } => filter,
-        MethodConfig::Reference { .. } => true,
-    }
-}
-
-fn set_filter(m: &mut MethodConfig, on: bool) {
-    match m {
-        MethodConfig::DensityMap { filter, .. }
-        | MethodConfig::OpacityShadowMap { filter, .. }
-        | MethodConfig::DeepOpacityMap { filter, .. }
-        | MethodConfig::DensityClustering { filter, .. }
-        | MethodConfig::DeepShadowMap { filter, .. } => *filter = on,
-        MethodConfig::Reference { .. } => {}
     }
 }
 
@@ -375,7 +339,7 @@ impl Validator<'_> {
             if matches!(m, MethodConfig::Reference { .. }) {
                 return Err(self.invalid("shadow.filter", f, "the reference does not filter"));
             }
-            set_filter(&mut m, f);
+            m.set_filter(f);
         }
         if s.cells.is_some() && matches!(m, MethodConfig::Reference { .. }) {
             return Err(self.invalid(

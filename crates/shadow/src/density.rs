@@ -363,12 +363,7 @@ fn pieces(
         let cur = frame.to_cells(p);
         let d = cur - prev;
         let across = (d.y * d.y + d.z * d.z).sqrt();
-        // m = ceil of the longest axis of d, at least 1: every piece spans
-        // at most one cell along each axis. (Truncating casts instead of
-        // `ceil`, which is a libm call on baseline x86-64.)
-        let len = d.abs().max_element().min(max_pieces);
-        let whole = len as u32;
-        let m = (whole + u32::from((whole as f32) < len)).max(1);
+        let m = piece_count(d, max_pieces);
         let inv_m = 1.0 / m as f32;
         // Quanta of one piece; below half a quantum it rounds to nothing.
         let q = (k_q * across * inv_m).min(u32::MAX as f32);
@@ -438,6 +433,17 @@ fn pieces(
         prev = cur;
     }
     stats
+}
+
+/// Pieces a segment spanning `d` cells is cut into: `m = ceil` of its
+/// longest axis (at most `max_pieces`), at least 1, so that every piece
+/// spans at most one cell along each axis. (Truncating casts instead of
+/// `ceil`, which is a libm call on baseline x86-64.)
+#[inline]
+pub(crate) fn piece_count(d: Vec3, max_pieces: f32) -> u32 {
+    let len = d.abs().max_element().min(max_pieces);
+    let whole = len as u32;
+    (whole + u32::from((whole as f32) < len)).max(1)
 }
 
 /// Adds a deposit to `cells` (whose first column is column `base`),

@@ -258,6 +258,56 @@ impl MethodConfig {
         }
     }
 
+    /// Cells (or light-view pixels) a side; the reference bins its segments
+    /// on a 128-column grid.
+    pub fn resolution(&self) -> u32 {
+        match *self {
+            MethodConfig::DensityMap { cells, .. } => cells,
+            MethodConfig::OpacityShadowMap { resolution, .. }
+            | MethodConfig::DeepOpacityMap { resolution, .. }
+            | MethodConfig::DensityClustering { resolution, .. }
+            | MethodConfig::DeepShadowMap { resolution, .. } => resolution,
+            MethodConfig::Reference { .. } => 128,
+        }
+    }
+
+    /// Sets the resolution (the reference has none to set).
+    pub fn set_resolution(&mut self, n: u32) {
+        match self {
+            MethodConfig::DensityMap { cells: r, .. }
+            | MethodConfig::OpacityShadowMap { resolution: r, .. }
+            | MethodConfig::DeepOpacityMap { resolution: r, .. }
+            | MethodConfig::DensityClustering { resolution: r, .. }
+            | MethodConfig::DeepShadowMap { resolution: r, .. } => *r = n,
+            MethodConfig::Reference { .. } => {}
+        }
+    }
+
+    /// Whether lookups interpolate between cells (the reference always
+    /// averages over its footprint).
+    pub fn filter(&self) -> bool {
+        match *self {
+            MethodConfig::DensityMap { filter, .. }
+            | MethodConfig::OpacityShadowMap { filter, .. }
+            | MethodConfig::DeepOpacityMap { filter, .. }
+            | MethodConfig::DensityClustering { filter, .. }
+            | MethodConfig::DeepShadowMap { filter, .. } => filter,
+            MethodConfig::Reference { .. } => true,
+        }
+    }
+
+    /// Turns filtering on or off (the reference has no switch).
+    pub fn set_filter(&mut self, on: bool) {
+        match self {
+            MethodConfig::DensityMap { filter, .. }
+            | MethodConfig::OpacityShadowMap { filter, .. }
+            | MethodConfig::DeepOpacityMap { filter, .. }
+            | MethodConfig::DensityClustering { filter, .. }
+            | MethodConfig::DeepShadowMap { filter, .. } => *filter = on,
+            MethodConfig::Reference { .. } => {}
+        }
+    }
+
     /// Checks the settings, naming the first that is out of range.
     pub fn validate(&self) -> Result<(), ShadowError> {
         let bad = |name: &'static str, value: String, why: &'static str| {

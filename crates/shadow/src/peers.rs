@@ -159,9 +159,7 @@ fn strand_fragments(
         let cur = frame.to_cells(p);
         let d = cur - prev;
         let across = (d.y * d.y + d.z * d.z).sqrt();
-        let len = d.abs().max_element().min(max_pieces);
-        let whole = len as u32;
-        let m = (whole + u32::from((whole as f32) < len)).max(1);
+        let m = crate::density::piece_count(d, max_pieces);
         let step = d / m as f32;
         let beta = k_beta * across / m as f32;
         if beta > 0.0 {
@@ -319,28 +317,6 @@ impl PixelMethod {
         }
     }
 
-    fn resolution(&self) -> u32 {
-        match self.config {
-            MethodConfig::OpacityShadowMap { resolution, .. }
-            | MethodConfig::DeepOpacityMap { resolution, .. }
-            | MethodConfig::DensityClustering { resolution, .. }
-            | MethodConfig::DeepShadowMap { resolution, .. } => resolution,
-            MethodConfig::DensityMap { cells, .. } => cells,
-            MethodConfig::Reference { .. } => 1,
-        }
-    }
-
-    fn filter(&self) -> bool {
-        match self.config {
-            MethodConfig::OpacityShadowMap { filter, .. }
-            | MethodConfig::DeepOpacityMap { filter, .. }
-            | MethodConfig::DensityClustering { filter, .. }
-            | MethodConfig::DeepShadowMap { filter, .. }
-            | MethodConfig::DensityMap { filter, .. } => filter,
-            MethodConfig::Reference { .. } => true,
-        }
-    }
-
     fn pixels(&self) -> usize {
         self.frags.start.len().saturating_sub(1)
     }
@@ -352,7 +328,7 @@ const MIN_SPAN: f32 = 1e-3;
 
 impl ShadowMethod for PixelMethod {
     fn build(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
-        let frame = input.fit(self.resolution())?;
+        let frame = input.fit(self.config.resolution())?;
         let (frags, stats) = rasterize(&frame, input);
         self.frame = Some(frame);
         self.frags = frags;
@@ -501,7 +477,7 @@ impl ShadowMethod for PixelMethod {
 
     fn transmittance(&self, p: Vec3) -> f32 {
         let frame = self.frame.as_ref().expect("build runs before lookups");
-        let filter = self.filter();
+        let filter = self.config.filter();
         match &self.prepared {
             Prepared::None => panic!("prepare runs before lookups"),
             Prepared::Slices {
