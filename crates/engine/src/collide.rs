@@ -55,8 +55,12 @@ impl<'a> DensityRepulsion<'a> {
 
     /// Hair density (length per volume) of the cell holding `p`, if inside.
     pub fn density_at(&self, p: Vec3) -> Option<f32> {
+        self.density_in_cells(self.map.frame().to_cells(p))
+    }
+
+    /// [`Self::density_at`] from map coordinates `c` (in cells).
+    fn density_in_cells(&self, c: Vec3) -> Option<f32> {
         let n = self.map.frame().n_cells as f32;
-        let c = self.map.frame().to_cells(p);
         if !(c.cmpge(Vec3::ZERO).all() && c.cmplt(Vec3::splat(n)).all()) {
             return None;
         }
@@ -67,14 +71,14 @@ impl<'a> DensityRepulsion<'a> {
 
 impl sim::ForceField for DensityRepulsion<'_> {
     fn acceleration(&self, p: Vec3) -> Vec3 {
-        let Some(rho) = self.density_at(p) else {
+        let f = self.map.frame();
+        let c = f.to_cells(p);
+        let Some(rho) = self.density_in_cells(c) else {
             return Vec3::ZERO;
         };
         if rho.is_nan() || rho <= self.rho_max {
             return Vec3::ZERO;
         }
-        let f = self.map.frame();
-        let c = f.to_cells(p);
         let centre = f.to_world(c.floor() + Vec3::splat(0.5));
         let away = (p - centre).normalize_or_zero();
         let a = (self.k * (rho / self.rho_max - 1.0)).min(self.a_max);

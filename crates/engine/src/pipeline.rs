@@ -68,7 +68,6 @@ pub struct ShadowPipeline {
 struct LightState {
     light: Light,
     method: Box<dyn ShadowMethod>,
-    prepared: bool,
 }
 
 impl ShadowPipeline {
@@ -80,7 +79,6 @@ impl ShadowPipeline {
                 Ok(LightState {
                     light,
                     method: scene.shadow.method.create()?,
-                    prepared: false,
                 })
             })
             .collect::<Result<_, EngineError>>()?;
@@ -124,7 +122,6 @@ impl ShadowPipeline {
                 );
             }
             total = total + stats;
-            l.prepared = false;
         }
         Ok(total)
     }
@@ -133,7 +130,6 @@ impl ShadowPipeline {
     pub fn transmittance(&mut self) {
         for l in &mut self.lights {
             l.method.prepare();
-            l.prepared = true;
         }
     }
 
@@ -141,7 +137,6 @@ impl ShadowPipeline {
     pub fn filter(&self, points: &[Vec3], out: &mut [Vec<f32>]) {
         assert_eq!(out.len(), self.lights.len());
         for (l, o) in self.lights.iter().zip(out) {
-            assert!(l.prepared, "transmittance runs before filtering");
             o.resize(points.len(), 0.0);
             l.method.lookup(points, o);
         }

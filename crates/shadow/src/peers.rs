@@ -230,6 +230,23 @@ fn sample(
     }
 }
 
+/// `ceil(u)` for finite `u >= 0` (negative `u` gives 0), by truncating
+/// casts: `ceil` is a libm call on baseline x86-64.
+#[inline]
+fn ceil_index(u: f32) -> usize {
+    let whole = u as usize;
+    whole + usize::from((whole as f32) < u)
+}
+
+/// Turns per-slice (or per-layer) values into running sums, front to back.
+fn accumulate(o: &mut [f32]) {
+    let mut acc = 0.0;
+    for v in o.iter_mut() {
+        acc += *v;
+        *v = acc;
+    }
+}
+
 /// `a + t (b - a)` for `t` in [0, 1]: between `a` and `b` whatever the rounding.
 #[inline]
 fn lerp(a: f32, b: f32, t: f32) -> f32 {
@@ -363,15 +380,10 @@ impl ShadowMethod for PixelMethod {
                         // A fragment between planes s - 1 and s counts from plane s on.
                         for f in frags.of(pix) {
                             let u = ((f.mid() - d0) / delta).max(0.0);
-                            let whole = u as usize;
-                            let s = (whole + usize::from((whole as f32) < u)).min(slices - 1);
+                            let s = ceil_index(u).min(slices - 1);
                             o[s] += f.beta;
                         }
-                        let mut acc = 0.0;
-                        for v in o.iter_mut() {
-                            acc += *v;
-                            *v = acc;
-                        }
+                        accumulate(o);
                     });
                 Prepared::Slices {
                     d0,
@@ -406,8 +418,7 @@ impl ShadowMethod for PixelMethod {
                             let u = (f.mid() - *z0) / *delta;
                             // Layer l (0-based) spans (z0 + l delta, z0 + (l + 1) delta].
                             let l = if u.is_finite() {
-                                let whole = u as usize;
-                                (whole + usize::from((whole as f32) < u)).max(1) - 1
+                                ceil_index(u).max(1) - 1
                             } else if f.mid() <= *z0 {
                                 0
                             } else {
@@ -422,11 +433,7 @@ impl ShadowMethod for PixelMethod {
                             };
                             o[l] += f.beta;
                         }
-                        let mut acc = 0.0;
-                        for v in o.iter_mut() {
-                            acc += *v;
-                            *v = acc;
-                        }
+                        accumulate(o);
                     });
                 Prepared::Layers {
                     z0,

@@ -167,37 +167,45 @@ impl ShadowMethod for Reference {
         let mut t = 1.0f64;
         if y1 >= 0.0 && z1 >= 0.0 && y0 < n as f32 && z0 < n as f32 {
             let cols = |lo: f32, hi: f32| (lo.max(0.0) as i32)..=(hi.max(0.0) as i32).min(n - 1);
-            let mut cand: Vec<u32> = Vec::new();
-            for k in cols(z0, z1) {
-                for j in cols(y0, y1) {
-                    let col = (k * n + j) as usize;
-                    cand.extend_from_slice(
-                        &b.segs[b.start[col] as usize..b.start[col + 1] as usize],
-                    );
-                }
+            // One candidate buffer per thread, not one allocation per lookup.
+            thread_local! {
+                static CANDIDATES: std::cell::RefCell<Vec<u32>> = const {
+                    std::cell::RefCell::new(Vec::new())
+                };
             }
-            cand.sort_unstable();
-            cand.dedup();
-            // Coverage of the footprint by one fiber: its shadow strip, w
-            // wide, over the length of its projection inside the square.
-            let per_length = 2.0 * b.radius / (b.side * b.side);
-            let alpha = f64::from(1.0 - b.transmit);
-            let (mut cover, mut last) = (0.0f64, u32::MAX - 1);
-            for &s in &cand {
-                let (a, e) = (b.cells[s as usize], b.cells[s as usize + 1]);
-                let len = clipped_across(a, e, [y0, y1, z0, z1], before);
-                if len <= 0.0 {
-                    continue;
+            CANDIDATES.with_borrow_mut(|cand| {
+                cand.clear();
+                for k in cols(z0, z1) {
+                    for j in cols(y0, y1) {
+                        let col = (k * n + j) as usize;
+                        cand.extend_from_slice(
+                            &b.segs[b.start[col] as usize..b.start[col + 1] as usize],
+                        );
+                    }
                 }
-                // Consecutive segments of one strand are one fiber.
-                if s != last.wrapping_add(1) && cover > 0.0 {
-                    t *= 1.0 - alpha * cover.min(1.0);
-                    cover = 0.0;
+                cand.sort_unstable();
+                cand.dedup();
+                // Coverage of the footprint by one fiber: its shadow strip, w
+                // wide, over the length of its projection inside the square.
+                let per_length = 2.0 * b.radius / (b.side * b.side);
+                let alpha = f64::from(1.0 - b.transmit);
+                let (mut cover, mut last) = (0.0f64, u32::MAX - 1);
+                for &s in cand.iter() {
+                    let (a, e) = (b.cells[s as usize], b.cells[s as usize + 1]);
+                    let len = clipped_across(a, e, [y0, y1, z0, z1], before);
+                    if len <= 0.0 {
+                        continue;
+                    }
+                    // Consecutive segments of one strand are one fiber.
+                    if s != last.wrapping_add(1) && cover > 0.0 {
+                        t *= 1.0 - alpha * cover.min(1.0);
+                        cover = 0.0;
+                    }
+                    cover += f64::from(per_length * len);
+                    last = s;
                 }
-                cover += f64::from(per_length * len);
-                last = s;
-            }
-            t *= 1.0 - alpha * cover.min(1.0);
+                t *= 1.0 - alpha * cover.min(1.0);
+            });
         }
         if !b.occluders.is_empty() {
             let blocked = b
