@@ -2,15 +2,17 @@
 
 use std::path::PathBuf;
 
-use engine::{ShadowPipeline, StageTimes};
+use anyhow::Context;
+use engine::{ShadowPipeline, Stage, StageTimes};
 
 #[derive(Debug, clap::Subcommand)]
 pub enum Bench {
     /// Median time of the three shadow stages (density, transmittance,
     /// filter at every drawn point) on a scene.
     Shadow(ShadowArgs),
-    /// Median time of each stage of a whole rendered frame (shadow stages,
-    /// shading, drawing) at the scene's image size (1280x720 by default).
+    /// Median time of each stage of whole animated frames (simulation,
+    /// collisions, shadow stages, shading, drawing) at the scene's image
+    /// size (1280x720 by default), over consecutive frames of its animation.
     Frame(FrameArgs),
     /// Every shadow method at a range of settings against the exact
     /// reference: time and error at every drawn point and in the picture.
@@ -21,7 +23,7 @@ pub enum Bench {
 pub struct FrameArgs {
     /// Scene file (TOML); the built-in scene when omitted.
     scene: Option<PathBuf>,
-    /// Timed frames (after 3 untimed warm-up frames).
+    /// Timed frames (after 3 untimed frames: the first settles the hair).
     #[arg(long, default_value_t = 20, value_name = "N")]
     runs: usize,
     /// Also print the result as one JSON object on the last stdout line.
@@ -105,68 +107,65 @@ fn shadow(a: ShadowArgs) -> anyhow::Result<()> {
 fn frame(a: FrameArgs) -> anyhow::Result<()> {
     anyhow::ensure!(a.runs >= 1, "--runs {}: must be at least 1", a.runs);
     let scene = super::load_scene(a.scene.as_deref())?;
-    let hair = super::build_hair(&scene)?;
     let (name, threads, cores) = machine(a.scene.as_deref());
+    let mut seq = engine::Sequence::new(&scene).context("cannot set up the scene")?;
     eprintln!(
-        "bench frame: {name}: {} segments, {}x{}, {}^3 cells, {threads} threads on {cores} cores, {} runs",
-        hair.segment_count(),
+        "bench frame: {name}: {} segments, {}x{}, {}^3 cells, {} motion, {threads} threads on {cores} cores, {} runs",
+        seq.hair().segment_count(),
         scene.render.width,
         scene.render.height,
         scene.shadow.cells(),
+        match &scene.animation.motion {
+            sim::Motion::Still => "still",
+            sim::Motion::Dance { .. } => "dance",
+            sim::Motion::Keyframes(_) => "keyframed",
+        },
         a.runs
     );
-    let mut renderer = engine::Renderer::new(&scene)?;
-    let mut stages: [Vec<f64>; 6] = Default::default();
+    if scene.animation.motion.is_still() {
+        eprintln!(
+            "bench frame: the scene does not move: after the first frame every stage is reused"
+        );
+    }
+    // Frame 0 settles the hair; frames 1 and 2 warm up.
+    let mut per_stage: Vec<Vec<f64>> = vec![Vec::new(); Stage::ALL.len()];
+    let mut whole = Vec::new();
     for r in 0..3 + a.runs {
         let t0 = std::time::Instant::now();
-        let (_, t) = renderer.render(&hair, true)?;
-        let whole = t0.elapsed().as_secs_f64() * 1e3;
+        let (_, stats) = seq.next_frame()?;
+        let ms = t0.elapsed().as_secs_f64() * 1e3;
         if r >= 3 {
-            for (v, x) in stages.iter_mut().zip([
-                t.density_ms,
-                t.transmittance_ms,
-                t.filter_ms,
-                t.shade_ms,
-                t.draw_ms,
-                whole,
-            ]) {
-                v.push(x);
+            for (v, (_, rec)) in per_stage.iter_mut().zip(stats.stages()) {
+                v.push(rec.ms);
             }
+            whole.push(ms);
         }
     }
-    let m: Vec<f64> = stages
+    let medians: Vec<f64> = per_stage
         .iter_mut()
         .map(|v| engine::pipeline::median(v))
         .collect();
-    let names = [
-        "density",
-        "transmittance",
-        "filter",
-        "shade",
-        "draw",
-        "frame",
-    ];
+    let frame_ms = engine::pipeline::median(&mut whole);
     println!("stage           median ms");
-    for (n, v) in names.iter().zip(&m) {
-        println!("{n:<15} {v:9.3}");
+    for (s, m) in Stage::ALL.iter().zip(&medians) {
+        println!("{:<15} {m:9.3}", s.name());
     }
+    println!("{:<15} {frame_ms:9.3}", "frame");
     if a.json {
-        let j = serde_json::json!({
+        let mut j = serde_json::json!({
             "scene": name,
-            "segments": hair.segment_count(),
+            "segments": seq.hair().segment_count(),
             "width": scene.render.width,
             "height": scene.render.height,
             "cells": scene.shadow.cells(),
             "threads": threads,
             "cores": cores,
             "runs": a.runs,
-            "density_ms": m[0],
-            "transmittance_ms": m[1],
-            "filter_ms": m[2],
-            "shade_ms": m[3],
-            "draw_ms": m[4],
-            "frame_ms": m[5],
+            "frame_ms": frame_ms,
         });
+        for (s, m) in Stage::ALL.iter().zip(&medians) {
+            j[format!("{}_ms", s.name())] = serde_json::json!(m);
+        }
         println!("{j}");
     }
     Ok(())

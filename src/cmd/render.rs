@@ -1,50 +1,284 @@
-//! `wisplight render`: a self-shadowed picture of a scene.
+//! `wisplight render`: a self-shadowed picture of a scene, or a sequence of
+//! frames of its animation.
 
-use std::path::PathBuf;
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context;
-use engine::Renderer;
+use engine::{FrameStats, Sequence};
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Scene file (TOML); the built-in scene (the smooth style on a head)
-    /// when omitted.
+    /// Scene file (TOML); the built-in scene (the smooth style on a dancing
+    /// head) when omitted.
     scene: Option<PathBuf>,
-    /// Output PNG. Written to a temporary file first, then renamed: the
-    /// file appears whole or not at all.
-    #[arg(short, long, value_name = "OUT.png", default_value = "wisplight.png")]
-    output: PathBuf,
-    /// Render the same frame without any shadow, for comparison.
+    /// Output: a PNG (default `wisplight.png`); for several frames a
+    /// pattern with `%d` or `%04d` for the frame number (default
+    /// `wisplight_%04d.png`; its directory is created); or a `.gif` for one
+    /// animated GIF. Every file is written to a temporary file first, then
+    /// renamed: it appears whole or not at all.
+    #[arg(short, long, value_name = "OUT")]
+    output: Option<PathBuf>,
+    /// Frames to render, from time 0 at the scene's `animation.fps`.
+    #[arg(long, default_value_t = 1, value_name = "N",
+          value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
+    frames: u64,
+    /// Write what every stage of every frame did, as JSON:
+    /// {"frames": [{"index": 0, "stages": {"simulate": {"ran": true, "ms": 1.2}, ...}}]}.
+    #[arg(long, value_name = "FILE.json")]
+    stats: Option<PathBuf>,
+    /// Render without any shadow (the scene's `effects.self_shadow` off), for comparison.
     #[arg(long)]
     no_shadow: bool,
     #[command(flatten)]
     method: super::MethodArg,
 }
 
+/// Where the frames go.
+enum Output {
+    /// One PNG per frame, named by the pattern.
+    Pngs(Pattern),
+    Gif(raster::GifWriter, PathBuf),
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
     let start = Instant::now();
     let mut scene = super::load_scene(args.scene.as_deref())?;
     args.method.apply(&mut scene);
-    let hair = super::build_hair(&scene)?;
-    let mut renderer = Renderer::new(&scene)?;
-    let (img, times) = renderer
-        .render(&hair, !args.no_shadow)
-        .context("cannot render")?;
-    raster::write_png_atomic(&img, &args.output).context("cannot save the picture")?;
-    eprintln!(
-        "wrote {} ({}x{}, {} segments, {}, frame {:.1} ms, {:.0} ms in all)",
-        args.output.display(),
-        img.width(),
-        img.height(),
-        hair.segment_count(),
-        if args.no_shadow {
-            "no shadows"
+    if args.no_shadow {
+        scene.effects.self_shadow = false;
+    }
+    let n = args.frames;
+    let out_path = args.output.clone().unwrap_or_else(|| {
+        PathBuf::from(if n == 1 {
+            "wisplight.png"
         } else {
+            "wisplight_%04d.png"
+        })
+    });
+    let mut output = if is_gif(&out_path) {
+        let w = raster::GifWriter::create(
+            &out_path,
+            scene.render.width,
+            scene.render.height,
+            scene.animation.fps,
+        )
+        .context("cannot start the GIF")?;
+        Output::Gif(w, out_path.clone())
+    } else {
+        let pattern = Pattern::parse(&out_path)?;
+        anyhow::ensure!(
+            n == 1 || pattern.numbered(),
+            "-o {}: {n} frames need a numbered name, like out/frame_%04d.png (or a .gif)",
+            out_path.display()
+        );
+        if pattern.numbered()
+            && let Some(dir) = out_path.parent().filter(|d| !d.as_os_str().is_empty())
+        {
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("cannot create the directory {}", dir.display()))?;
+        }
+        Output::Pngs(pattern)
+    };
+
+    let mut seq = Sequence::new(&scene).context("cannot set up the scene")?;
+    let bar = progress(n);
+    let mut all = Vec::with_capacity(n.min(100_000) as usize);
+    for _ in 0..n {
+        let (img, stats) = seq.next_frame().context("cannot render")?;
+        match &mut output {
+            Output::Pngs(p) => {
+                let path = p.path(stats.index);
+                raster::write_png_atomic(img, &path).context("cannot save the picture")?;
+            }
+            Output::Gif(w, _) => w.add(img).context("cannot add a frame to the GIF")?,
+        }
+        tracing::debug!(
+            frame = stats.index,
+            ms = stats.total_ms(),
+            steps = stats.steps,
+            "frame done"
+        );
+        all.push(stats);
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let written = match output {
+        Output::Gif(w, path) => {
+            w.finish().context("cannot save the GIF")?;
+            path.display().to_string()
+        }
+        Output::Pngs(p) if n == 1 => p.path(0).display().to_string(),
+        Output::Pngs(p) => format!("{} .. {}", p.path(0).display(), p.path(n - 1).display()),
+    };
+    if let Some(path) = &args.stats {
+        write_stats(path, &all)?;
+    }
+
+    let mut frame_ms: Vec<f64> = all.iter().map(FrameStats::total_ms).collect();
+    let hair = seq.hair();
+    eprintln!(
+        "wrote {written} ({n} frame{}, {}x{}, {} segments, {}, median frame {:.1} ms, {:.0} ms in all)",
+        if n == 1 { "" } else { "s" },
+        scene.render.width,
+        scene.render.height,
+        hair.segment_count(),
+        if scene.effects.self_shadow {
             "self-shadowed"
+        } else {
+            "no shadows"
         },
-        times.total_ms(),
+        engine::pipeline::median(&mut frame_ms),
         start.elapsed().as_secs_f64() * 1e3
     );
     Ok(())
+}
+
+fn is_gif(p: &Path) -> bool {
+    p.extension().is_some_and(|e| e.eq_ignore_ascii_case("gif"))
+}
+
+/// A progress bar on a terminal for more than one frame; nothing otherwise.
+fn progress(n: u64) -> indicatif::ProgressBar {
+    if n > 1 && std::io::stderr().is_terminal() {
+        let bar = indicatif::ProgressBar::new(n);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{bar:30} frame {pos}/{len} [{elapsed} < {eta}]",
+            )
+            .expect("a valid template"),
+        );
+        bar
+    } else {
+        indicatif::ProgressBar::hidden()
+    }
+}
+
+/// Writes `{"frames": [{"index", "time_s", "steps", "stages": {name: {"ran", "ms"}}}]}`.
+fn write_stats(path: &Path, frames: &[FrameStats]) -> anyhow::Result<()> {
+    let frames: Vec<serde_json::Value> = frames
+        .iter()
+        .map(|f| {
+            let stages: serde_json::Map<String, serde_json::Value> = f
+                .stages()
+                .map(|(s, r)| {
+                    (
+                        s.name().to_string(),
+                        serde_json::json!({"ran": r.ran, "ms": r.ms}),
+                    )
+                })
+                .collect();
+            serde_json::json!({
+                "index": f.index,
+                "time_s": f.time_s,
+                "steps": f.steps,
+                "stages": stages,
+            })
+        })
+        .collect();
+    let doc = serde_json::json!({ "frames": frames });
+    raster::write_atomic(path, |w| {
+        serde_json::to_writer_pretty(&mut *w, &doc).map_err(|e| raster::RasterError::Write {
+            path: path.to_owned(),
+            source: e.into(),
+        })
+    })
+    .context("cannot save the stats")
+}
+
+/// An output name with an optional printf-style frame number: `%d`, or
+/// `%0Nd` for N digits with leading zeros (`%%` is a literal `%`).
+#[derive(Debug, Clone, PartialEq)]
+struct Pattern {
+    before: String,
+    /// Digits, when numbered.
+    width: Option<usize>,
+    after: String,
+}
+
+impl Pattern {
+    fn parse(path: &Path) -> anyhow::Result<Pattern> {
+        let s = path
+            .to_str()
+            .with_context(|| format!("-o {}: not valid UTF-8", path.display()))?;
+        let bad = |why: &str| anyhow::anyhow!("-o {s}: {why}");
+        let mut before = String::new();
+        let mut after = String::new();
+        let mut width = None;
+        let mut chars = s.chars().peekable();
+        while let Some(c) = chars.next() {
+            let out = if width.is_some() {
+                &mut after
+            } else {
+                &mut before
+            };
+            if c != '%' {
+                out.push(c);
+                continue;
+            }
+            if chars.peek() == Some(&'%') {
+                chars.next();
+                out.push('%');
+                continue;
+            }
+            let mut digits = String::new();
+            while let Some(&d) = chars.peek().filter(|d| d.is_ascii_digit()) {
+                digits.push(d);
+                chars.next();
+            }
+            if chars.next() != Some('d') {
+                return Err(bad("a % must start %d or %04d (or be written %%)"));
+            }
+            if width.is_some() {
+                return Err(bad("only one frame number (%d) is allowed"));
+            }
+            let w = if digits.is_empty() {
+                0
+            } else {
+                digits
+                    .parse::<usize>()
+                    .ok()
+                    .filter(|&w| w <= 12)
+                    .ok_or_else(|| bad("at most 12 digits"))?
+            };
+            width = Some(w);
+        }
+        Ok(Pattern {
+            before,
+            width,
+            after,
+        })
+    }
+
+    fn numbered(&self) -> bool {
+        self.width.is_some()
+    }
+
+    fn path(&self, index: u64) -> PathBuf {
+        match self.width {
+            Some(w) => format!("{}{index:0w$}{}", self.before, self.after).into(),
+            None => format!("{}{}", self.before, self.after).into(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frame_patterns_expand_like_printf() {
+        let p = Pattern::parse(Path::new("out/frame_%04d.png")).unwrap();
+        assert_eq!(p.path(7), PathBuf::from("out/frame_0007.png"));
+        assert_eq!(p.path(12345), PathBuf::from("out/frame_12345.png"));
+        let p = Pattern::parse(Path::new("f%d-100%%.png")).unwrap();
+        assert_eq!(p.path(3), PathBuf::from("f3-100%.png"));
+        let p = Pattern::parse(Path::new("plain.png")).unwrap();
+        assert!(!p.numbered());
+        assert_eq!(p.path(9), PathBuf::from("plain.png"));
+        for bad in ["a%s.png", "a%d%d.png", "a%.png", "a%099999999999999d.png"] {
+            assert!(Pattern::parse(Path::new(bad)).is_err(), "{bad}");
+        }
+    }
 }

@@ -18,11 +18,15 @@ use shadow::{DensityMap, Fiber};
 /// `rho > rho_max` is pushed away from the cell's centre with acceleration
 ///
 /// ```text
-/// a = min(k * (rho / rho_max - 1), a_max) * (p - c) / |p - c|
+/// |a| = min(k * (rho / rho_max - 1), a_max)
 /// ```
 ///
-/// (`k` and `a_max` in scene units per s^2): bounded, zero at or below the
-/// threshold, outside the map, and at the centre itself.
+/// (`k` and `a_max` in scene units per s^2): bounded, and zero at or below
+/// the threshold and outside the map. The push points down the density
+/// slope, `-grad rho / |grad rho|` by central differences over the
+/// neighbouring cells, so that hair leaves a crowd rather than shuttling
+/// between the centres of two dense cells; where the neighbourhood is flat
+/// it points away from the cell's centre `c`, as in the paper.
 #[derive(Debug, Clone, Copy)]
 pub struct DensityRepulsion<'a> {
     map: &'a DensityMap,
@@ -53,7 +57,8 @@ impl<'a> DensityRepulsion<'a> {
         })
     }
 
-    /// Hair density (length per volume) of the cell holding `p`, if inside.
+    /// Hair density (length per volume) of the cell holding `p`, if inside;
+    /// opaque spheres in the map (the head) do not count.
     pub fn density_at(&self, p: Vec3) -> Option<f32> {
         self.density_in_cells(self.map.frame().to_cells(p))
     }
@@ -65,7 +70,8 @@ impl<'a> DensityRepulsion<'a> {
             return None;
         }
         let (i, j, k) = (c.x as usize, c.y as usize, c.z as usize);
-        Some(self.map.cell_depth(i, j, k) as f32 * self.to_density)
+        let tau = f64::from(self.map.hair_quanta(i, j, k)) * shadow::DEPTH_QUANTUM;
+        Some(tau as f32 * self.to_density)
     }
 }
 
@@ -79,8 +85,21 @@ impl sim::ForceField for DensityRepulsion<'_> {
         if rho.is_nan() || rho <= self.rho_max {
             return Vec3::ZERO;
         }
-        let centre = f.to_world(c.floor() + Vec3::splat(0.5));
-        let away = (p - centre).normalize_or_zero();
+        // Down the density slope: the central difference of the
+        // neighbouring cells' densities (0 outside the map).
+        let at = |d: Vec3| self.density_in_cells(c + d).unwrap_or(0.0);
+        let grad = Vec3::new(
+            at(Vec3::X) - at(Vec3::NEG_X),
+            at(Vec3::Y) - at(Vec3::NEG_Y),
+            at(Vec3::Z) - at(Vec3::NEG_Z),
+        );
+        let dir_cells = if grad.length() > 1e-3 * rho {
+            -grad.normalize()
+        } else {
+            // A flat neighbourhood: away from the cell's centre.
+            (c - (c.floor() + Vec3::splat(0.5))).normalize_or_zero()
+        };
+        let away = dir_cells.x * f.axes[0] + dir_cells.y * f.axes[1] + dir_cells.z * f.axes[2];
         let a = (self.k * (rho / self.rho_max - 1.0)).min(self.a_max);
         away * a
     }
@@ -121,6 +140,50 @@ mod tests {
         let total = 50.0;
         let got = r.density_at(Vec3::new(0.5, 0.5, 0.5)).unwrap();
         assert!((got - total).abs() < 0.01 * total, "{got} vs {total}");
+    }
+
+    #[test]
+    fn the_head_in_the_map_is_not_dense_hair() {
+        let (mut map, fiber) = map_with_a_bundle();
+        let before = DensityRepulsion::new(&map, &fiber, 1.0, 100.0, 1000.0)
+            .unwrap()
+            .density_at(Vec3::new(0.5, 0.5, 0.5))
+            .unwrap();
+        let c = map.frame().to_cells(Vec3::new(0.5, 0.5, 0.5));
+        let (i, j, k) = (c.x as usize, c.y as usize, c.z as usize);
+        let hair_only = map.cell_depth(i, j, k);
+        // A head whose lit surface lies in the bundle's cell.
+        map.deposit_sphere(Vec3::new(0.5, -1.4, 0.5), 2.0, shadow::OPAQUE_DEPTH);
+        assert!(
+            map.cell_depth(i, j, k) > hair_only + 1.0,
+            "the sphere's deposit is in the bundle's cell"
+        );
+        let r = DensityRepulsion::new(&map, &fiber, 1.0, 100.0, 1000.0).unwrap();
+        assert_eq!(r.density_at(Vec3::new(0.5, 0.5, 0.5)).unwrap(), before);
+        assert_eq!(r.density_at(Vec3::new(0.5, 3.5, 3.5)).unwrap(), 0.0);
+    }
+
+    #[test]
+    fn repulsion_points_down_the_density_slope() {
+        let light = Light::directional(Vec3::NEG_Y).unwrap();
+        let frame = LightFrame::centered(&light, Vec3::ZERO, 8.0, 8).unwrap();
+        let mut map = DensityMap::new(frame);
+        let fiber = Fiber::new(0.01, 0.5).unwrap();
+        // Many strands at z = 0.5, fewer at z = 1.5: the crowd is at -z.
+        let mut hair = Hair::new();
+        for (z, count) in [(0.5, 60), (1.5, 20)] {
+            for s in 0..count {
+                let y = 0.2 + 0.6 * s as f32 / count as f32;
+                hair.push_strand(&[Vec3::new(-4.0, y, z), Vec3::new(4.0, y, z)])
+                    .unwrap();
+            }
+        }
+        map.fill(&hair, &fiber);
+        let r = DensityRepulsion::new(&map, &fiber, 10.0, 100.0, 1e6).unwrap();
+        let a = r.acceleration(Vec3::new(0.5, 0.5, 1.2));
+        // The neighbours: 60 strands below in z, none above: push up in z,
+        // even though the point lies below its cell's centre.
+        assert!(a.z > 0.0 && a.x.abs() < 1e-3 && a.y.abs() < 1e-3, "{a}");
     }
 
     #[test]

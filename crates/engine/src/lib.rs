@@ -3,19 +3,29 @@
 //! [`scene`] reads a TOML scene in two steps: raw serde structs that refuse
 //! unknown keys, then a validated [`Scene`] the rest of the engine trusts.
 //! [`pipeline`] builds the hair a scene describes and runs the shadow stages
-//! for every light; [`render`] shades and draws a frame.
+//! for every light; [`render`] shades and draws a frame. [`animate`] moves
+//! the hair over time (simulated wisps, or rigidly with the head), and
+//! [`frames`] runs an animation's frames, each stage only when the scene's
+//! effects call for it and its inputs changed.
 //!
 //! The engine is synchronous and deterministic: it does no networking, and
 //! does not print; the binary decides what the user sees.
 
+pub mod animate;
 pub mod collide;
+pub mod frames;
 pub mod pipeline;
 pub mod render;
 pub mod scene;
 
+pub use animate::Animator;
+pub use frames::{FrameStats, Sequence, Stage, StageRecord};
 pub use pipeline::{ShadowPipeline, StageTimes, build_hair};
 pub use render::{FrameTimes, Renderer};
-pub use scene::{HairSource, HeadSettings, Scene, SceneError, ShadowSettings};
+pub use scene::{
+    Animation, BodySettings, Collision, Dynamics, Effects, HairSource, HeadSettings, Scene,
+    SceneError, ShadowSettings,
+};
 
 /// Errors of the engine, each naming what is wrong and where.
 #[derive(Debug, thiserror::Error)]
@@ -28,6 +38,8 @@ pub enum EngineError {
     Shadow(#[from] shadow::ShadowError),
     #[error(transparent)]
     Raster(#[from] raster::RasterError),
+    #[error(transparent)]
+    Sim(#[from] sim::SimError),
     #[error("{what} would need {bytes} bytes, more than the {limit}-byte limit")]
     TooLarge {
         what: String,

@@ -87,7 +87,7 @@ impl ShadowPipeline {
             // A head casts shadow on hair only with head shadows on.
             occluders: scene
                 .head
-                .filter(|h| h.shadow)
+                .filter(|_| scene.effects.head_shadow)
                 .map(|h| Occluder {
                     center: h.center,
                     radius: h.radius,
@@ -96,6 +96,19 @@ impl ShadowPipeline {
                 .collect(),
             lights,
         })
+    }
+
+    /// Moves the occluder (the head) to `center`.
+    pub fn set_occluder_center(&mut self, center: Vec3) {
+        for o in &mut self.occluders {
+            o.center = center;
+        }
+    }
+
+    /// The density map of the first light, when the method fills one and
+    /// has been built.
+    pub fn density_map(&self) -> Option<&shadow::DensityMap> {
+        self.lights.first().and_then(|l| l.method.density_map())
     }
 
     pub fn light_count(&self) -> usize {

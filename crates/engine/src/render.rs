@@ -30,6 +30,10 @@ impl FrameTimes {
 }
 
 /// Renders frames of one scene, keeping its buffers between frames.
+///
+/// [`Self::render`] runs every stage of a frame; a frame pipeline that
+/// skips stages calls [`Self::shadows_mut`], [`Self::filter`],
+/// [`Self::shade`] and [`Self::draw`] itself.
 #[derive(Debug)]
 pub struct Renderer {
     scene: Scene,
@@ -39,6 +43,18 @@ pub struct Renderer {
     /// Kept between frames: allocating and zeroing ~50 MB per frame at
     /// 1280x720 costs more than clearing it in parallel.
     canvas: Option<Canvas>,
+    /// The camera, framed on the first frame and then fixed, so that an
+    /// animation does not shake.
+    view: Option<View>,
+    /// Where the head is now (it moves with the scene's motion).
+    head_center: Option<Vec3>,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct View {
+    camera: Camera,
+    /// Distance that sets the depth weighting of hair fragments.
+    depth_ref: f32,
 }
 
 fn ms(since: Instant) -> f64 {
@@ -49,12 +65,18 @@ impl Renderer {
     /// A renderer for `scene`; fails on shadow settings out of range.
     pub fn new(scene: &Scene) -> Result<Renderer, EngineError> {
         let shadows = ShadowPipeline::new(scene)?;
+        let mut scene = scene.clone();
+        if !scene.effects.specular {
+            scene.shading.specular = 0.0;
+        }
         Ok(Renderer {
             trans: vec![Vec::new(); shadows.light_count()],
             shadows,
-            scene: scene.clone(),
+            head_center: scene.head.map(|h| h.center),
+            scene,
             colors: Vec::new(),
             canvas: None,
+            view: None,
         })
     }
 
@@ -64,20 +86,49 @@ impl Renderer {
         &self.trans
     }
 
+    pub fn shadows(&self) -> &ShadowPipeline {
+        &self.shadows
+    }
+
+    /// The shadow stages 1 and 2 ([`ShadowPipeline::density`] and
+    /// [`ShadowPipeline::transmittance`]).
+    pub fn shadows_mut(&mut self) -> &mut ShadowPipeline {
+        &mut self.shadows
+    }
+
+    /// Moves the head (drawn, and as an occluder) to `center`.
+    pub fn set_head_center(&mut self, center: Vec3) {
+        if self.head_center.is_some() {
+            self.head_center = Some(center);
+            self.shadows.set_occluder_center(center);
+        }
+    }
+
     /// The camera of the scene, framing `hair` (and the head) where the
     /// scene leaves position or target open: from the front (+z), slightly
     /// above, far enough that the whole hair fits the vertical field of view.
     pub fn camera(&self, hair: &Hair) -> Result<Camera, EngineError> {
-        self.framing(hair.bounds())
+        Ok(self.framing(hair.bounds())?.camera)
+    }
+
+    /// The fixed view, framed on `hair` the first time.
+    fn view(&mut self, hair: &Hair) -> Result<View, EngineError> {
+        match self.view {
+            Some(v) => Ok(v),
+            None => {
+                let v = self.framing(hair.bounds())?;
+                Ok(*self.view.insert(v))
+            }
+        }
     }
 
     /// [`Self::camera`] from the hair's bounds.
-    fn framing(&self, hair_bounds: Bounds) -> Result<Camera, EngineError> {
+    fn framing(&self, hair_bounds: Bounds) -> Result<View, EngineError> {
         let s = &self.scene;
         let mut b = hair_bounds;
-        if let Some(h) = &s.head {
-            b.include(h.center - Vec3::splat(h.radius));
-            b.include(h.center + Vec3::splat(h.radius));
+        if let (Some(h), Some(c)) = (&s.head, self.head_center) {
+            b.include(c - Vec3::splat(h.radius));
+            b.include(c + Vec3::splat(h.radius));
         }
         let (center, size) = if b.is_empty() {
             (Vec3::ZERO, 1.0)
@@ -89,29 +140,39 @@ impl Renderer {
             let dist = 0.5 * size / (0.5 * s.camera.fov_deg.to_radians()).tan() + 0.5 * size;
             look_at + Vec3::new(0.0, 0.15, 1.0).normalize() * dist
         });
-        Ok(Camera::new(
+        let camera = Camera::new(
             position,
             look_at,
             s.camera.fov_deg,
             s.render.width,
             s.render.height,
-        )?)
+        )?;
+        let depth_ref = position.distance(s.camera.look_at.unwrap_or(hair_bounds.center()));
+        Ok(View {
+            camera,
+            depth_ref: if depth_ref.is_finite() {
+                depth_ref.max(1e-3)
+            } else {
+                1.0
+            },
+        })
+    }
+
+    /// Shadow stage 3: the transmittance of every light at every drawn
+    /// point, kept for [`Self::shade`].
+    pub fn filter(&mut self, hair: &Hair) {
+        self.shadows.filter(hair.points(), &mut self.trans);
     }
 
     /// Renders `hair` with self-shadowing (`shadows`) or without (every
-    /// transmittance 1, no head shadow): the picture and its stage times.
+    /// transmittance 1, no head shadow): all the stages, the picture and
+    /// their times.
     pub fn render(
         &mut self,
         hair: &Hair,
         shadows: bool,
     ) -> Result<(image::RgbImage, FrameTimes), EngineError> {
         let mut times = FrameTimes::default();
-        // One pass over the points serves the framing and the depth weighting.
-        let hair_bounds = hair.bounds();
-        let camera = self.framing(hair_bounds)?;
-        let points = hair.points();
-
-        // Shadow stages.
         if shadows {
             let t = Instant::now();
             self.shadows.density(hair)?;
@@ -120,19 +181,36 @@ impl Renderer {
             self.shadows.transmittance();
             times.transmittance_ms = ms(t);
             let t = Instant::now();
-            self.shadows.filter(points, &mut self.trans);
+            self.filter(hair);
             times.filter_ms = ms(t);
         }
-
-        // Shading: Kajiya-Kay at every vertex, with the strand's colour.
         let t = Instant::now();
+        self.shade(hair, shadows)?;
+        times.shade_ms = ms(t);
+        let t = Instant::now();
+        let img = self.draw(hair, shadows)?;
+        times.draw_ms = ms(t);
+        Ok((img, times))
+    }
+
+    /// Kajiya-Kay shading at every drawn vertex with the strand's colour,
+    /// lit by the transmittance of the last [`Self::filter`] (`shadows`) or
+    /// by full light.
+    pub fn shade(&mut self, hair: &Hair, shadows: bool) -> Result<(), EngineError> {
+        let eye = self.view(hair)?.camera.position;
+        let points = hair.points();
         let s = &self.scene;
         let to_lights: Vec<Vec3> = self.shadows.lights().map(|l| -l.direction()).collect();
+        if shadows {
+            assert!(
+                self.trans.iter().all(|t| t.len() == points.len()),
+                "filter runs before shading with shadows"
+            );
+        }
         self.colors.resize(points.len(), Vec3::ZERO);
         let offsets = hair.offsets();
         let strand_colors = hair.colors();
         let trans = &self.trans;
-        let eye = camera.position;
         // Strands in parallel; each writes its own vertices.
         let mut chunks: Vec<&mut [Vec3]> = Vec::with_capacity(hair.strand_count());
         let mut rest: &mut [Vec3] = &mut self.colors;
@@ -170,10 +248,22 @@ impl Renderer {
                     *o = c;
                 }
             });
-        times.shade_ms = ms(t);
+        Ok(())
+    }
 
-        // Draw: the head, then the hair over it.
-        let t = Instant::now();
+    /// Draws the head, then `hair` over it with the colours of the last
+    /// [`Self::shade`]; the head receives the hair's shadow when `shadows`
+    /// and the scene's head shadow are on.
+    pub fn draw(&mut self, hair: &Hair, shadows: bool) -> Result<image::RgbImage, EngineError> {
+        let view = self.view(hair)?;
+        let camera = view.camera;
+        let s = &self.scene;
+        assert_eq!(
+            self.colors.len(),
+            hair.point_count(),
+            "shade runs before draw"
+        );
+        let to_lights: Vec<Vec3> = self.shadows.lights().map(|l| -l.direction()).collect();
         let canvas = match &mut self.canvas {
             Some(c) => {
                 c.clear();
@@ -183,14 +273,14 @@ impl Renderer {
                 .canvas
                 .insert(Canvas::new(s.render.width, s.render.height)?),
         };
-        if let Some(h) = &s.head {
-            let head_shadow = shadows && h.shadow;
+        if let (Some(h), Some(center)) = (&s.head, self.head_center) {
+            let head_shadow = shadows && s.effects.head_shadow;
             let pipeline = &self.shadows;
             let ambient = s.shading.ambient;
             canvas.draw_sphere(
                 &camera,
                 &Sphere {
-                    center: h.center,
+                    center,
                     radius: h.radius,
                 },
                 |p, n| {
@@ -211,17 +301,12 @@ impl Renderer {
                 },
             );
         }
-        let depth_ref = camera
-            .position
-            .distance(s.camera.look_at.unwrap_or_else(|| hair_bounds.center()));
         let look = raster::HairLook {
             fiber_width: s.fiber.width(),
             opacity: s.render.hair_alpha,
-            depth_ref: depth_ref.max(1e-3),
+            depth_ref: view.depth_ref,
         };
-        canvas.draw_hair(&camera, points, offsets, &self.colors, &look);
-        let img = canvas.resolve(s.render.background);
-        times.draw_ms = ms(t);
-        Ok((img, times))
+        canvas.draw_hair(&camera, hair.points(), hair.offsets(), &self.colors, &look);
+        Ok(canvas.resolve(s.render.background))
     }
 }

@@ -23,12 +23,19 @@
 //! filter = true             # trilinear filtering of transmittance
 //! ```
 
+mod motion;
+
 use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 use serde::Deserialize;
 use shadow::{Beyond, Fiber, Light, MethodConfig, OpacityMode};
 use strands::{FollowParams, Style, StyleParams};
+
+pub use motion::{
+    Animation, BodySettings, Collision, DEFAULT_COLLISION_DENSITY, DEFAULT_FPS,
+    DEFAULT_MAX_ACCELERATION, DEFAULT_REPULSION, DEFAULT_SETTLE_S, Dynamics, Effects,
+};
 
 /// A scene that could not be read, naming the file and the field.
 #[derive(Debug, thiserror::Error)]
@@ -68,6 +75,16 @@ struct RawScene {
     head: RawHead,
     #[serde(default)]
     shading: RawShading,
+    #[serde(default)]
+    effects: motion::RawEffects,
+    #[serde(default)]
+    animation: motion::RawAnimation,
+    #[serde(default)]
+    dynamics: motion::RawDynamics,
+    #[serde(default)]
+    collision: motion::RawCollision,
+    #[serde(default)]
+    body: Option<Vec<motion::RawBody>>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -94,7 +111,6 @@ struct RawHead {
     center: Option<[f32; 3]>,
     radius: Option<f32>,
     color: Option<[f32; 3]>,
-    shadow: Option<bool>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -212,15 +228,16 @@ pub struct RenderSettings {
     pub hair_alpha: f32,
 }
 
-/// The head: an opaque sphere that receives the hair's shadow (when
-/// `shadow`) and blocks light for the hair behind it.
+/// The head: an opaque sphere that receives the hair's shadow and blocks
+/// light for the hair behind it (with `effects.head_shadow`), and that
+/// hair collides with (with `effects.body_collision`). It moves with the
+/// scene's motion, turning about its centre.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HeadSettings {
     pub center: Vec3,
     pub radius: f32,
     /// Linear RGB.
     pub color: Vec3,
-    pub shadow: bool,
 }
 
 /// A validated scene.
@@ -235,6 +252,11 @@ pub struct Scene {
     pub render: RenderSettings,
     pub head: Option<HeadSettings>,
     pub shading: raster::Shading,
+    pub effects: Effects,
+    pub animation: Animation,
+    pub dynamics: Dynamics,
+    pub collision: Collision,
+    pub bodies: Vec<BodySettings>,
 }
 
 /// Defaults, documented in the module comment and README.
@@ -251,10 +273,15 @@ pub const DEFAULT_BACKGROUND: [f32; 3] = [0.02, 0.025, 0.035];
 pub const DEFAULT_HAIR_ALPHA: f32 = 0.85;
 pub const DEFAULT_HEAD_COLOR: [f32; 3] = [0.55, 0.38, 0.3];
 
+/// The built-in scene: the defaults of every key, with the head dancing.
+pub const BUILT_IN_SCENE: &str = "[animation]\nmotion = \"dance\"\n";
+
 impl Default for Scene {
-    /// The built-in scene: the smooth style under the default light.
+    /// The built-in scene: the smooth style under the default light, the
+    /// head dancing.
     fn default() -> Scene {
-        Scene::from_toml_str("", Path::new("<built-in>")).expect("the empty scene is valid")
+        Scene::from_toml_str(BUILT_IN_SCENE, Path::new("<built-in>"))
+            .expect("the built-in scene is valid")
     }
 }
 
@@ -660,7 +687,6 @@ impl Validator<'_> {
                 center,
                 radius,
                 color: self.color("head.color", hd.color, DEFAULT_HEAD_COLOR)?,
-                shadow: hd.shadow.unwrap_or(true),
             })
         } else {
             None
@@ -675,6 +701,7 @@ impl Validator<'_> {
             shininess: self.positive("shading.shininess", sh.shininess, d.shininess)?,
             specular_color: d.specular_color,
         };
+        let from_file = matches!(hair, HairSource::File { .. });
         Ok(Scene {
             hair,
             subdivide,
@@ -685,6 +712,11 @@ impl Validator<'_> {
             render,
             head,
             shading,
+            effects: self.effects(raw.effects, from_file)?,
+            animation: self.animation(raw.animation)?,
+            dynamics: self.dynamics(raw.dynamics)?,
+            collision: self.collision(raw.collision)?,
+            bodies: self.bodies(raw.body)?,
         })
     }
 }

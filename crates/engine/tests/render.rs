@@ -105,8 +105,8 @@ fn shadows_darken_hair_and_never_brighten_it() {
 
 #[test]
 fn no_shadow_equals_fibers_of_zero_opacity() {
-    let off = small_scene("\n[head]\nshadow = false\n");
-    let clear = small_scene("\n[head]\nshadow = false\n\n[fiber]\nopacity = 0.0\n");
+    let off = small_scene("\n[effects]\nhead_shadow = false\n");
+    let clear = small_scene("\n[effects]\nhead_shadow = false\n\n[fiber]\nopacity = 0.0\n");
     assert!(render(&off, false) == render(&clear, true));
 }
 

@@ -10,12 +10,14 @@
 
 mod camera;
 mod canvas;
+mod gif;
 mod png;
 mod shade;
 
 pub use camera::Camera;
 pub use canvas::{Canvas, HairLook, MAX_PIXELS, Sphere, to_srgb8};
-pub use png::{write_atomic, write_png_atomic};
+pub use gif::GifWriter;
+pub use png::{AtomicFile, write_atomic, write_png_atomic};
 pub use shade::{Shading, kajiya_kay};
 
 /// The largest image side, in pixels.

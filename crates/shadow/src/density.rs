@@ -35,6 +35,9 @@ pub struct DensityMap {
     n: usize,
     cells: Vec<u32>,
     meta: Vec<ColumnMeta>,
+    /// Opaque spheres deposited since the last clear: centre and radius in
+    /// cells, and the quanta each put in its entry cells.
+    spheres: Vec<(Vec3, f32, u32)>,
 }
 
 /// What a column knows of its hair: the occupied cells `lo..=hi`, and
@@ -116,6 +119,7 @@ impl DensityMap {
             n,
             cells: vec![0; n * n * n],
             meta: vec![ColumnMeta::EMPTY; n * n],
+            spheres: Vec::new(),
         }
     }
 
@@ -136,6 +140,7 @@ impl DensityMap {
 
     /// Empties the map, touching only the occupied spans.
     pub fn clear(&mut self) {
+        self.spheres.clear();
         let n = self.n;
         self.cells
             .par_chunks_mut(n * n)
@@ -257,21 +262,27 @@ impl DensityMap {
         let mut covered = 0;
         for k in 0..n {
             for j in 0..n {
-                // Squared distance across the light from the column's centre line.
-                let (dy, dz) = (j as f32 + 0.5 - c.y, k as f32 + 0.5 - c.z);
-                let h2 = r * r - dy * dy - dz * dz;
-                if h2 < 0.0 {
-                    continue;
+                if let Some(entry) = sphere_entry(c, r, n, j, k) {
+                    self.add_cell(entry as usize, j, k, q, entry);
+                    covered += 1;
                 }
-                let entry = c.x - h2.sqrt();
-                if !(entry >= 0.0 && entry < n as f32) {
-                    continue;
-                }
-                self.add_cell(entry as usize, j, k, q, entry);
-                covered += 1;
             }
         }
+        self.spheres.push((c, r, q));
         covered
+    }
+
+    /// The quanta of cell `(i, j, k)` that hair deposited: the cell's
+    /// quanta without those of the opaque spheres (a self-collision must
+    /// not mistake the head's shadow for dense hair).
+    pub fn hair_quanta(&self, i: usize, j: usize, k: usize) -> u32 {
+        let mut q = self.quanta(i, j, k);
+        for &(c, r, sq) in &self.spheres {
+            if sphere_entry(c, r, self.n, j, k).is_some_and(|e| e as usize == i) {
+                q = q.saturating_sub(sq);
+            }
+        }
+        q
     }
 
     /// Adds raw quanta to cell `(i, j, k)`, as if from a piece starting at
@@ -339,6 +350,19 @@ impl DensityMap {
     pub fn cell_depth(&self, i: usize, j: usize, k: usize) -> f64 {
         f64::from(self.quanta(i, j, k)) * DEPTH_QUANTUM
     }
+}
+
+/// Where the centre line of column `(j, k)` enters a sphere of centre `c`
+/// and radius `r` (in cells), as a slice coordinate inside the map.
+fn sphere_entry(c: Vec3, r: f32, n: usize, j: usize, k: usize) -> Option<f32> {
+    // Squared distance across the light from the column's centre line.
+    let (dy, dz) = (j as f32 + 0.5 - c.y, k as f32 + 0.5 - c.z);
+    let h2 = r * r - dy * dy - dz * dz;
+    if h2 < 0.0 {
+        return None;
+    }
+    let entry = c.x - h2.sqrt();
+    (entry >= 0.0 && entry < n as f32).then_some(entry)
 }
 
 /// Cuts one strand into pieces no longer than a cell and hands each

@@ -102,6 +102,11 @@ pub trait ShadowMethod: Send + Sync + fmt::Debug {
     /// The frame of the last build: its first axis is the light direction
     /// and `ds` its resolution, for biasing lookups on surfaces.
     fn frame(&self) -> Option<&LightFrame>;
+    /// The density map of the last build, for methods that fill one (the
+    /// simulation's self-collisions read it too).
+    fn density_map(&self) -> Option<&DensityMap> {
+        None
+    }
 }
 
 /// Koster et al.'s two ways of turning accumulated opacity `Omega` into
@@ -473,13 +478,6 @@ pub struct DensityMapMethod {
     trans: Option<Transmittance>,
 }
 
-impl DensityMapMethod {
-    /// The filled map of the last build.
-    pub fn map(&self) -> Option<&DensityMap> {
-        self.map.as_ref()
-    }
-}
-
 impl ShadowMethod for DensityMapMethod {
     fn build(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
         let frame = input.fit(self.cells)?;
@@ -519,6 +517,10 @@ impl ShadowMethod for DensityMapMethod {
 
     fn frame(&self) -> Option<&LightFrame> {
         self.map.as_ref().map(|m| m.frame())
+    }
+
+    fn density_map(&self) -> Option<&DensityMap> {
+        self.map.as_ref()
     }
 }
 

@@ -9,12 +9,18 @@
 //!    acceleration `f` of a force field (self-collisions);
 //! 3. `iterations` rounds of constraint projection (position-based
 //!    dynamics): each point moves a fraction `stiffness` towards its groomed
-//!    place (carried along by the head), each link is projected back to its
-//!    rest length, and points inside a body sphere are pushed to its
-//!    surface. (Pulling a point towards its parent's position plus the
-//!    groomed offset instead feeds back along the chain and oscillates.)
+//!    place (carried along by the head) and each link is projected back to
+//!    its rest length. (Pulling a point towards its parent's position plus
+//!    the groomed offset instead feeds back along the chain and oscillates.)
 //! 4. a last pass from the root to the tip sets every link to exactly its
-//!    rest length (follow the leader), so lengths never drift.
+//!    rest length (follow the leader), so lengths never drift;
+//! 5. body collisions: from the root to the tip, a point inside a body
+//!    sphere is pushed to its surface and put back at link length from its
+//!    parent.
+//!
+//! The force field is sampled before the step ([`HairSim::sample_field`]),
+//! and steps 2-4 ([`HairSim::integrate`]) and 5 ([`HairSim::collide`]) are
+//! separate calls, so a frame pipeline can time and skip them apart.
 //!
 //! A wisp's step reads only its own state, the head transform, the bodies
 //! and the force field (the previous frame's density map): wisps can be
@@ -172,12 +178,13 @@ impl HairSim {
         }
     }
 
-    /// One step of every wisp, in parallel.
+    /// One whole step of every wisp, in parallel: [`Self::sample_field`],
+    /// [`Self::integrate`], then [`Self::collide`].
     pub fn step(&mut self, head: &Affine3A, bodies: &[Body], field: Option<&dyn ForceField>) {
         self.step_wisps(0..self.wisps.len(), head, bodies, field);
     }
 
-    /// One step of wisps `range` only (a worker's share).
+    /// One whole step of wisps `range` only (a worker's share).
     pub fn step_wisps(
         &mut self,
         range: Range<usize>,
@@ -185,8 +192,44 @@ impl HairSim {
         bodies: &[Body],
         field: Option<&dyn ForceField>,
     ) {
+        let mut accel = Vec::new();
+        if let Some(f) = field {
+            self.sample_field(range.clone(), f, &mut accel);
+        }
+        self.integrate(range.clone(), head, field.map(|_| accel.as_slice()));
+        self.collide(range, head, bodies);
+    }
+
+    /// Points per wisp: three guides' worth.
+    pub fn points_per_wisp(&self) -> usize {
+        GUIDES_PER_WISP * self.n
+    }
+
+    /// The acceleration of `field` at every point of wisps `range`, wisp
+    /// after wisp, into `out` (self-collisions: evaluated where the hair is
+    /// at the start of the step).
+    pub fn sample_field(&self, range: Range<usize>, field: &dyn ForceField, out: &mut Vec<Vec3>) {
+        let per = self.points_per_wisp();
+        out.resize(range.len() * per, Vec3::ZERO);
+        out.par_chunks_mut(per)
+            .zip(&self.wisps[range])
+            .for_each(|(o, s)| {
+                for (a, &p) in o.iter_mut().zip(&s.pos) {
+                    let f = field.acceleration(p);
+                    *a = if f.is_finite() { f } else { Vec3::ZERO };
+                }
+            });
+    }
+
+    /// Moves wisps `range` one time step under gravity and `accel` (one
+    /// acceleration per point of the range, from [`Self::sample_field`]),
+    /// with the roots on `head`, and projects the links back to length.
+    pub fn integrate(&mut self, range: Range<usize>, head: &Affine3A, accel: Option<&[Vec3]>) {
         let (n, params) = (self.n, self.params);
         let per = GUIDES_PER_WISP * n;
+        if let Some(a) = accel {
+            assert_eq!(a.len(), range.len() * per, "one acceleration per point");
+        }
         let (rest, lengths) = (&self.rest, &self.lengths);
         self.wisps[range.clone()]
             .par_iter_mut()
@@ -196,6 +239,7 @@ impl HairSim {
                 for g in 0..GUIDES_PER_WISP {
                     let at = g * n..(g + 1) * n;
                     let guide = w * GUIDES_PER_WISP + g;
+                    let ext = accel.map(|a| &a[i * per + g * n..i * per + (g + 1) * n]);
                     step_guide(
                         &mut s.pos[at.clone()],
                         &mut s.prev[at],
@@ -203,9 +247,42 @@ impl HairSim {
                         &lengths[guide * (n - 1)..(guide + 1) * (n - 1)],
                         head,
                         &params,
-                        bodies,
-                        field,
+                        ext,
                     );
+                }
+            });
+    }
+
+    /// Pushes the points of wisps `range` out of `bodies`, keeping every
+    /// link at its rest length: from the root to the tip, each point is
+    /// pushed to the surface of any sphere it is inside, then put back at
+    /// link length from its parent (twice, so a point pushed along a curved
+    /// surface settles on it).
+    pub fn collide(&mut self, range: Range<usize>, head: &Affine3A, bodies: &[Body]) {
+        if bodies.is_empty() {
+            return;
+        }
+        let n = self.n;
+        let per = GUIDES_PER_WISP * n;
+        let (rest, lengths) = (&self.rest, &self.lengths);
+        self.wisps[range.clone()]
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(i, s)| {
+                let w = range.start + i;
+                for g in 0..GUIDES_PER_WISP {
+                    let guide = w * GUIDES_PER_WISP + g;
+                    let pos = &mut s.pos[g * n..(g + 1) * n];
+                    let rest = &rest[w * per + g * n..w * per + (g + 1) * n];
+                    let len = &lengths[guide * (n - 1)..(guide + 1) * (n - 1)];
+                    for k in 2..n {
+                        let parent = pos[k - 1];
+                        let fallback = head.transform_vector3(rest[k] - rest[k - 1]);
+                        for _ in 0..2 {
+                            push_out(&mut pos[k], bodies);
+                            pos[k] = at_length(parent, pos[k], len[k - 1], fallback);
+                        }
+                    }
                 }
             });
     }
@@ -264,7 +341,6 @@ impl HairSim {
     }
 }
 
-#[allow(clippy::too_many_arguments)]
 fn step_guide(
     pos: &mut [Vec3],
     prev: &mut [Vec3],
@@ -272,8 +348,7 @@ fn step_guide(
     len: &[f32],
     head: &Affine3A,
     p: &SimParams,
-    bodies: &[Body],
-    field: Option<&dyn ForceField>,
+    accel: Option<&[Vec3]>,
 ) {
     let n = pos.len();
     let dt = p.dt;
@@ -282,8 +357,8 @@ fn step_guide(
         prev[i] = pos[i];
         pos[i] = head.transform_point3(rest[i]);
     }
-    for (x, x_prev) in pos[2..].iter_mut().zip(&mut prev[2..]) {
-        let a = p.gravity + field.map_or(Vec3::ZERO, |f| f.acceleration(*x));
+    for (i, (x, x_prev)) in pos.iter_mut().zip(prev.iter_mut()).enumerate().skip(2) {
+        let a = p.gravity + accel.map_or(Vec3::ZERO, |a| a[i]);
         let v = (*x - *x_prev) * decay;
         *x_prev = *x;
         *x += v + a * (dt * dt);
@@ -304,21 +379,11 @@ fn step_guide(
                 }
             }
         }
-        for x in &mut pos[2..] {
-            push_out(x, bodies);
-        }
     }
     // Follow the leader: every link exactly at rest length.
     for i in 2..n {
-        let d = pos[i] - pos[i - 1];
-        let l = d.length();
-        let dir = if l > 1e-12 && d.is_finite() {
-            d / l
-        } else {
-            head.transform_vector3(rest[i] - rest[i - 1])
-                .normalize_or(Vec3::NEG_Y)
-        };
-        pos[i] = pos[i - 1] + dir * len[i - 1];
+        let fallback = head.transform_vector3(rest[i] - rest[i - 1]);
+        pos[i] = at_length(pos[i - 1], pos[i], len[i - 1], fallback);
     }
     // A guide that went non-finite (a force field gone wrong) restarts from
     // its groomed shape rather than spreading NaN.
@@ -330,7 +395,22 @@ fn step_guide(
     }
 }
 
-fn push_out(x: &mut Vec3, bodies: &[Body]) {
+/// The point at distance `len` from `parent` in the direction of `q` (or of
+/// `fallback` when `q` sits on the parent or is not finite).
+fn at_length(parent: Vec3, q: Vec3, len: f32, fallback: Vec3) -> Vec3 {
+    let d = q - parent;
+    let l = d.length();
+    let dir = if l > 1e-12 && d.is_finite() {
+        d / l
+    } else {
+        fallback.normalize_or(Vec3::NEG_Y)
+    };
+    parent + dir * len
+}
+
+/// Moves `x` to the surface of every body sphere it is inside (straight
+/// out from the centre).
+pub fn push_out(x: &mut Vec3, bodies: &[Body]) {
     for b in bodies {
         let d = *x - b.center;
         let l2 = d.length_squared();

@@ -10,7 +10,7 @@
 mod dynamics;
 mod motion;
 
-pub use dynamics::{Body, ForceField, HairSim, SimParams, WispState};
+pub use dynamics::{Body, ForceField, HairSim, SimParams, WispState, push_out};
 pub use motion::{Keyframe, Motion};
 
 /// Errors of the simulation's inputs.

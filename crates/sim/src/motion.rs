@@ -24,7 +24,8 @@ pub enum Motion {
     Keyframes(Vec<Keyframe>),
     /// A built-in test sequence like the paper's: the head shakes from side
     /// to side (yaw 40 degrees at 0.5 Hz), nods (12 degrees at 1 Hz), rolls
-    /// a little and sways sideways, scaled by `amplitude`.
+    /// (6 degrees at 2/3 Hz) and sways sideways (3 units at 1/3 Hz), all
+    /// scaled by `amplitude`; at time 0 the head is at rest.
     Dance { amplitude: f32 },
 }
 
@@ -85,8 +86,8 @@ impl Motion {
                 let a = *amplitude;
                 let yaw = a * 40f32.to_radians() * (tau * t / 2.0).sin();
                 let pitch = a * 12f32.to_radians() * (tau * t).sin();
-                let roll = a * 6f32.to_radians() * (tau * t / 1.5 + 0.5).sin();
-                let sway = Vec3::new(a * 3.0 * (tau * t / 2.0 + 1.0).sin(), 0.0, 0.0);
+                let roll = a * 6f32.to_radians() * (tau * t / 1.5).sin();
+                let sway = Vec3::new(a * 3.0 * (tau * t / 3.0).sin(), 0.0, 0.0);
                 (sway, Quat::from_euler(EulerRot::YXZ, yaw, pitch, roll))
             }
             Motion::Keyframes(keys) => {
@@ -169,6 +170,7 @@ mod tests {
         let moved = x.transform_point3(pivot) - pivot;
         assert!(moved.y.abs() < 1e-5 && moved.z.abs() < 1e-5, "{moved}");
         assert!(Motion::Dance { amplitude: 0.0 }.is_still());
+        assert_eq!(m.at(0.0, pivot), Affine3A::IDENTITY, "at rest at time 0");
         assert!(!m.is_still());
     }
 }

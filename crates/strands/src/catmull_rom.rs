@@ -4,6 +4,8 @@
 
 use glam::Vec3;
 
+use rayon::prelude::*;
+
 use crate::hair::Hair;
 
 /// Resamples every strand with a uniform Catmull-Rom spline through its
@@ -21,23 +23,49 @@ pub fn resample(hair: &Hair, subdivide: u32) -> Hair {
         hair.strand_count(),
         hair.segment_count() * sub + hair.strand_count(),
     );
-    let mut pts = Vec::new();
+    let mut zeros = Vec::new();
     for strand in hair.strands() {
-        pts.clear();
-        resample_strand(strand, sub, &mut pts);
-        out.push_strand(&pts)
-            .expect("a spline through finite points is finite");
+        zeros.resize(resampled_len(strand.len(), sub), Vec3::ZERO);
+        out.push_strand(&zeros)
+            .expect("as many points as the hair already holds");
     }
     if let Some(c) = hair.colors() {
         out.set_colors(c.to_vec());
     }
+    resample_into(hair, subdivide, &mut out);
     out
 }
 
-fn resample_strand(p: &[Vec3], sub: usize, out: &mut Vec<Vec3>) {
+/// [`resample`] into `out`, reusing its memory when it already has the
+/// shape of the result (the next frame of an animation); strands in
+/// parallel. Otherwise `out` is replaced.
+pub fn resample_into(hair: &Hair, subdivide: u32, out: &mut Hair) {
+    let sub = subdivide.max(1) as usize;
+    let same_shape = out.strand_count() == hair.strand_count()
+        && hair
+            .strands()
+            .zip(out.strands())
+            .all(|(a, b)| b.len() == resampled_len(a.len(), sub));
+    if !same_shape {
+        *out = resample(hair, subdivide);
+        return;
+    }
+    out.strands_mut()
+        .into_par_iter()
+        .enumerate()
+        .with_min_len(16)
+        .for_each(|(s, o)| resample_strand(hair.strand(s), sub, o));
+}
+
+/// Points of a strand of `n` points after resampling.
+fn resampled_len(n: usize, sub: usize) -> usize {
+    if n < 2 { n } else { (n - 1) * sub + 1 }
+}
+
+fn resample_strand(p: &[Vec3], sub: usize, out: &mut [Vec3]) {
     let n = p.len();
     if n < 2 || sub == 1 {
-        out.extend_from_slice(p);
+        out.copy_from_slice(p);
         return;
     }
     let at = |i: isize| -> Vec3 {
@@ -51,13 +79,14 @@ fn resample_strand(p: &[Vec3], sub: usize, out: &mut Vec<Vec3>) {
     };
     for i in 0..n - 1 {
         let (p0, p1, p2, p3) = (at(i as isize - 1), p[i], p[i + 1], at(i as isize + 2));
-        out.push(p1);
-        for s in 1..sub {
+        let o = &mut out[i * sub..(i + 1) * sub];
+        o[0] = p1;
+        for (s, q) in o.iter_mut().enumerate().skip(1) {
             let t = s as f32 / sub as f32;
-            out.push(catmull_rom(p0, p1, p2, p3, t));
+            *q = catmull_rom(p0, p1, p2, p3, t);
         }
     }
-    out.push(p[n - 1]);
+    out[(n - 1) * sub] = p[n - 1];
 }
 
 /// The uniform Catmull-Rom segment between `p1` (t = 0) and `p2` (t = 1):
@@ -111,5 +140,23 @@ mod tests {
         assert!(r.strand(1).iter().all(|p| *p == Vec3::ONE));
         assert_eq!(r.strand(1).len(), 7);
         assert_eq!(r.strand(2).len(), 0);
+    }
+
+    #[test]
+    fn resampling_into_last_frames_hair_gives_the_same_points() {
+        let mut h = Hair::new();
+        h.push_strand(&[Vec3::ZERO, Vec3::X, Vec3::new(2.0, 1.0, 0.0)])
+            .unwrap();
+        h.push_strand(&[Vec3::Z, Vec3::ONE]).unwrap();
+        let mut out = resample(&h, 3);
+        let mut moved = h.clone();
+        for p in moved.points_mut() {
+            *p = *p * 2.0 + Vec3::Y;
+        }
+        resample_into(&moved, 3, &mut out);
+        assert_eq!(out, resample(&moved, 3));
+        // A different shape is rebuilt, not written out of bounds.
+        resample_into(&moved, 5, &mut out);
+        assert_eq!(out, resample(&moved, 5));
     }
 }

@@ -145,6 +145,19 @@ impl Hair {
         &mut self.points
     }
 
+    /// Every strand's points, mutable, in strand order (for filling them in
+    /// parallel).
+    pub fn strands_mut(&mut self) -> Vec<&mut [Vec3]> {
+        let mut out = Vec::with_capacity(self.strand_count());
+        let mut rest: &mut [Vec3] = &mut self.points;
+        for w in self.offsets.windows(2) {
+            let (a, b) = rest.split_at_mut((w[1] - w[0]) as usize);
+            out.push(a);
+            rest = b;
+        }
+        out
+    }
+
     /// Strand boundaries: strand `s` is `points[offsets[s]..offsets[s + 1]]`.
     pub fn offsets(&self) -> &[u32] {
         &self.offsets

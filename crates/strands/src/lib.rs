@@ -16,7 +16,7 @@ mod load;
 mod rng;
 mod style;
 
-pub use catmull_rom::resample;
+pub use catmull_rom::{resample, resample_into};
 pub use follow::{FollowParams, grow_followers};
 pub use hair::{Bounds, Hair, HairError};
 pub use load::{FormatError, LoadError, load, parse_hair_format, parse_tfx};

@@ -3,6 +3,7 @@
 //! rendered strands interpolated between them (paper section 5.1).
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use crate::{hair::Hair, rng::Rng};
 
@@ -114,6 +115,32 @@ impl WispModel {
         }
         hair.set_colors(self.colors.clone());
         hair
+    }
+
+    /// [`Self::interpolate`] into `out`, which must be its earlier result
+    /// (same members): the next frame's points without allocating.
+    pub fn interpolate_into(&self, out: &mut Hair) {
+        let per = self.guides.strand(0).len();
+        assert_eq!(
+            out.point_count(),
+            self.members.len() * per,
+            "out comes from interpolate()"
+        );
+        out.points_mut()
+            .par_chunks_mut(per)
+            .zip(&self.members)
+            .with_min_len(16)
+            .for_each(|(pts, m)| {
+                let g = m.wisp as usize * GUIDES_PER_WISP;
+                let (a, b, c) = (
+                    self.guides.strand(g),
+                    self.guides.strand(g + 1),
+                    self.guides.strand(g + 2),
+                );
+                for (k, p) in pts.iter_mut().enumerate() {
+                    *p = m.weights[0] * a[k] + m.weights[1] * b[k] + m.weights[2] * c[k];
+                }
+            });
     }
 
     /// Grows a procedural hairstyle; the same parameters give the same bytes.
@@ -283,6 +310,17 @@ mod tests {
                 "no point inside the head"
             );
         }
+    }
+
+    #[test]
+    fn interpolating_in_place_matches_interpolating_anew() {
+        let mut m = WispModel::generate(&StyleParams::new(Style::Smooth));
+        let mut out = m.interpolate();
+        for p in m.guides.points_mut() {
+            p.y -= 1.5;
+        }
+        m.interpolate_into(&mut out);
+        assert_eq!(out, m.interpolate());
     }
 
     #[test]

@@ -1,0 +1,227 @@
+//! The hair of a scene over time: simulated wisps, or hair carried rigidly
+//! by the head.
+
+use glam::{Affine3A, Vec3};
+use rayon::prelude::*;
+use sim::{Body, ForceField, HairSim, Motion, SimParams};
+use strands::{Hair, WispModel, resample_into};
+
+use crate::{EngineError, HairSource, Scene, build_hair};
+
+/// Where the drawn hair of each frame comes from.
+#[derive(Debug)]
+enum Source {
+    /// The hair at rest, moved by the head's transform.
+    Rigid { rest: Hair },
+    /// Wisps simulated through their guides; drawn strands are
+    /// interpolated from the guides and Catmull-Rom smoothed.
+    Wisps {
+        model: WispModel,
+        sim: Box<HairSim>,
+        control: Hair,
+        subdivide: u32,
+    },
+}
+
+/// The drawn hair of one scene, frame after frame.
+#[derive(Debug)]
+pub struct Animator {
+    motion: Motion,
+    /// The head's centre at rest: the motion turns about it.
+    pivot: Vec3,
+    /// Seconds per frame.
+    frame_dt: f32,
+    /// Simulation steps per frame: the scene's time step, rounded so that a
+    /// frame holds a whole number of steps.
+    substeps: u32,
+    /// Frames' worth of steps simulated at the first pose before frame 0.
+    settle_frames: u32,
+    source: Source,
+    hair: Hair,
+    /// The head transform the drawn hair is posed under.
+    head: Affine3A,
+    /// Accelerations of the self-collision field at every guide point.
+    accel: Vec<Vec3>,
+}
+
+impl Animator {
+    /// The scene's hair at time 0, at rest.
+    pub fn new(scene: &Scene) -> Result<Animator, EngineError> {
+        let rest = build_hair(scene)?;
+        let motion = scene.animation.motion.clone();
+        let frame_dt = 1.0 / scene.animation.fps;
+        let dt = scene.dynamics.params.dt;
+        let substeps = ((frame_dt / dt).round() as u32).clamp(1, 10_000);
+        let pivot = match (&scene.head, &scene.hair) {
+            (Some(h), _) => h.center,
+            (None, HairSource::Style(p)) => p.head_center,
+            (None, HairSource::File { .. }) => {
+                let b = rest.bounds();
+                if b.is_empty() { Vec3::ZERO } else { b.center() }
+            }
+        };
+        let simulate = scene.effects.dynamics && !motion.is_still();
+        let source = match &scene.hair {
+            HairSource::Style(p) if simulate => {
+                let model = WispModel::generate(p);
+                let params = SimParams {
+                    dt: frame_dt / substeps as f32,
+                    ..scene.dynamics.params
+                };
+                let sim = HairSim::new(&model.guides, params)?;
+                let control = model.interpolate();
+                Source::Wisps {
+                    model,
+                    sim: Box::new(sim),
+                    control,
+                    subdivide: scene.subdivide,
+                }
+            }
+            _ => Source::Rigid { rest: rest.clone() },
+        };
+        let settle_frames = (scene.dynamics.settle_s / frame_dt).ceil() as u32;
+        let mut a = Animator {
+            head: motion.at(0.0, pivot),
+            motion,
+            pivot,
+            frame_dt,
+            substeps,
+            settle_frames,
+            source,
+            hair: rest,
+            accel: Vec::new(),
+        };
+        a.pose();
+        Ok(a)
+    }
+
+    /// The drawn hair as last posed.
+    pub fn hair(&self) -> &Hair {
+        &self.hair
+    }
+
+    /// The guide strands as last posed, when the wisps are simulated.
+    pub fn guides(&self) -> Option<&Hair> {
+        match &self.source {
+            Source::Wisps { model, .. } => Some(&model.guides),
+            Source::Rigid { .. } => None,
+        }
+    }
+
+    /// Whether the wisps are simulated (else the hair moves rigidly).
+    pub fn simulates(&self) -> bool {
+        matches!(self.source, Source::Wisps { .. })
+    }
+
+    /// Whether the head moves at all.
+    pub fn moves(&self) -> bool {
+        !self.motion.is_still()
+    }
+
+    pub fn frame_dt(&self) -> f32 {
+        self.frame_dt
+    }
+
+    pub fn substeps(&self) -> u32 {
+        self.substeps
+    }
+
+    pub fn settle_frames(&self) -> u32 {
+        self.settle_frames
+    }
+
+    /// The head transform at time `t` (seconds).
+    pub fn head_at(&self, t: f32) -> Affine3A {
+        self.motion.at(t, self.pivot)
+    }
+
+    /// The head transform the drawn hair is posed under.
+    pub fn head(&self) -> Affine3A {
+        self.head
+    }
+
+    /// Samples `field` at every guide point for the next
+    /// [`Self::integrate`] (self-collisions).
+    pub fn sample_field(&mut self, field: &dyn ForceField) {
+        if let Source::Wisps { sim, .. } = &self.source {
+            sim.sample_field(0..sim.wisp_count(), field, &mut self.accel);
+        }
+    }
+
+    /// Drops the sampled field: the next step feels gravity only.
+    pub fn clear_field(&mut self) {
+        self.accel.clear();
+    }
+
+    /// One time step of the wisps with the roots on `head`, under the field
+    /// last sampled (if any).
+    pub fn integrate(&mut self, head: &Affine3A) {
+        if let Source::Wisps { sim, .. } = &mut self.source {
+            let accel = (!self.accel.is_empty()).then_some(self.accel.as_slice());
+            sim.integrate(0..sim.wisp_count(), head, accel);
+        }
+    }
+
+    /// Keeps the wisps out of `bodies`.
+    pub fn collide(&mut self, head: &Affine3A, bodies: &[Body]) {
+        if let Source::Wisps { sim, .. } = &mut self.source {
+            sim.collide(0..sim.wisp_count(), head, bodies);
+        }
+    }
+
+    /// Pushes the drawn points of simulated hair out of `bodies`: strands
+    /// interpolated between guides that wrap around a sphere can cut into
+    /// it even though the guides stay out.
+    pub fn collide_drawn(&mut self, bodies: &[Body]) {
+        if bodies.is_empty() || !self.simulates() {
+            return;
+        }
+        self.hair
+            .points_mut()
+            .par_chunks_mut(4096)
+            .for_each(|pts| pts.iter_mut().for_each(|p| sim::push_out(p, bodies)));
+    }
+
+    /// Sets the head to `head` and poses the drawn hair: interpolated from
+    /// the simulated guides and smoothed, or the rest hair moved rigidly.
+    pub fn set_head(&mut self, head: Affine3A) {
+        self.head = head;
+        self.pose();
+    }
+
+    fn pose(&mut self) {
+        match &mut self.source {
+            Source::Rigid { rest } => {
+                let head = self.head;
+                self.hair
+                    .points_mut()
+                    .par_chunks_mut(4096)
+                    .zip(rest.points().par_chunks(4096))
+                    .for_each(|(out, src)| {
+                        for (o, &p) in out.iter_mut().zip(src) {
+                            *o = head.transform_point3(p);
+                        }
+                    });
+            }
+            Source::Wisps {
+                model,
+                sim,
+                control,
+                subdivide,
+            } => {
+                sim.write_guides(&mut model.guides);
+                model.interpolate_into(control);
+                resample_into(control, *subdivide, &mut self.hair);
+            }
+        }
+    }
+
+    /// The largest relative deviation of any guide link from its rest
+    /// length (0 for rigid hair).
+    pub fn max_stretch(&self) -> f32 {
+        match &self.source {
+            Source::Wisps { sim, .. } => sim.max_stretch(),
+            Source::Rigid { .. } => 0.0,
+        }
+    }
+}

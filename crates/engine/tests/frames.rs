@@ -1,0 +1,273 @@
+//! The frame pipeline of an animation: which stages run, and what they do
+//! to the hair over time.
+
+use std::path::Path;
+
+use engine::{FrameStats, Scene, Sequence, Stage};
+use glam::Vec3;
+
+/// A small animated scene: few strands on the default head, a 96x64
+/// picture, 48^3 cells, and `extra` TOML.
+fn scene(extra: &str) -> Scene {
+    let text = format!(
+        "[hair]\nstrands_per_wisp = 3\n\n[render]\nwidth = 96\nheight = 64\n\n[shadow]\ncells = 48\n\n[dynamics]\nsettle = 0.2\n\n{extra}"
+    );
+    Scene::from_toml_str(&text, Path::new("test.toml")).unwrap()
+}
+
+fn run(scene: &Scene, frames: usize) -> (Vec<FrameStats>, Vec<image::RgbImage>, Sequence) {
+    let mut seq = Sequence::new(scene).unwrap();
+    let mut stats = Vec::new();
+    let mut images = Vec::new();
+    for _ in 0..frames {
+        let (img, s) = seq.next_frame().unwrap();
+        images.push(img.clone());
+        stats.push(s);
+    }
+    (stats, images, seq)
+}
+
+/// The frames in which `stage` ran.
+fn ran(stats: &[FrameStats], stage: Stage) -> Vec<u64> {
+    stats
+        .iter()
+        .filter(|f| f.stage(stage).ran)
+        .map(|f| f.index)
+        .collect()
+}
+
+#[test]
+fn a_still_scene_never_simulates_and_fills_the_map_once() {
+    let s = scene("[animation]\nmotion = \"still\"\n");
+    assert!(
+        s.effects.dynamics,
+        "dynamics is on; only the motion is still"
+    );
+    let (stats, images, _) = run(&s, 30);
+    assert_eq!(stats.len(), 30);
+    for stage in [
+        Stage::Simulate,
+        Stage::SelfCollide,
+        Stage::BodyCollide,
+        Stage::Pose,
+    ] {
+        assert!(ran(&stats, stage).is_empty(), "{stage:?} ran");
+    }
+    for stage in [
+        Stage::Density,
+        Stage::Transmittance,
+        Stage::Filter,
+        Stage::Shade,
+        Stage::Draw,
+    ] {
+        assert_eq!(ran(&stats, stage), vec![0], "{stage:?}");
+    }
+    assert!(
+        stats[1..]
+            .iter()
+            .all(|f| f.total_ms() == 0.0 && f.steps == 0)
+    );
+    assert!(images.iter().all(|i| i == &images[0]), "the same picture");
+}
+
+#[test]
+fn without_self_shadow_nothing_is_swept() {
+    // Dancing, so the hair moves every frame.
+    let (stats, _, _) = run(
+        &scene("[animation]\nmotion = \"dance\"\n[effects]\nself_shadow = false\n"),
+        6,
+    );
+    assert!(ran(&stats, Stage::Transmittance).is_empty());
+    assert!(ran(&stats, Stage::Filter).is_empty());
+    // Self-collisions still read a density map, one fill per frame.
+    assert_eq!(ran(&stats, Stage::Density), vec![0, 1, 2, 3, 4, 5]);
+    assert_eq!(ran(&stats, Stage::SelfCollide).len(), 6);
+
+    let (stats, _, _) = run(
+        &scene(
+            "[animation]\nmotion = \"dance\"\n[effects]\nself_shadow = false\nself_collision = false\n",
+        ),
+        6,
+    );
+    for stage in [
+        Stage::Density,
+        Stage::Transmittance,
+        Stage::Filter,
+        Stage::SelfCollide,
+    ] {
+        assert!(ran(&stats, stage).is_empty(), "{stage:?} ran");
+    }
+    assert_eq!(ran(&stats, Stage::Simulate).len(), 6);
+}
+
+#[test]
+fn a_dance_simulates_every_frame_and_settles_first() {
+    let s = scene("[animation]\nmotion = \"dance\"\nfps = 30\n");
+    let (stats, images, seq) = run(&s, 5);
+    // 30 fps at the default 1/60 s step: two steps a frame; the first
+    // frame settles 0.2 s first (6 frames' worth).
+    assert_eq!(seq.animator().substeps(), 2);
+    assert_eq!(stats[0].steps, 12);
+    assert!(stats[1..].iter().all(|f| f.steps == 2));
+    for stage in Stage::ALL {
+        assert_eq!(ran(&stats, stage).len(), 5, "{stage:?}");
+    }
+    assert!(images.windows(2).all(|w| w[0] != w[1]), "the hair moves");
+    assert!(seq.animator().max_stretch() < 0.01);
+}
+
+#[test]
+fn without_dynamics_hair_moves_rigidly_with_the_head() {
+    let s = scene("[animation]\nmotion = \"dance\"\n[effects]\ndynamics = false\n");
+    let rest = engine::build_hair(&s).unwrap();
+    let (stats, _, seq) = run(&s, 4);
+    assert!(ran(&stats, Stage::Simulate).is_empty());
+    // Frame 0 is the rest pose; then the head moves every frame.
+    assert_eq!(ran(&stats, Stage::Pose), vec![1, 2, 3]);
+    assert_eq!(ran(&stats, Stage::Density), vec![0, 1, 2, 3]);
+    // The hair is the rest hair under the head's transform at frame 3.
+    let head = s.animation.motion.at(3.0 / 30.0, Vec3::ZERO);
+    for (a, b) in seq.hair().points().iter().zip(rest.points()) {
+        assert!(a.distance(head.transform_point3(*b)) < 1e-4);
+    }
+}
+
+#[test]
+fn keyframes_that_hold_still_stop_the_shadow_work() {
+    // The head turns for 0.1 s, then holds: without dynamics nothing moves
+    // after the last key, and the last shadow is reused.
+    let s = scene(
+        "[animation]\nmotion = \"keyframes\"\n[[animation.key]]\ntime = 0.0\n[[animation.key]]\ntime = 0.1\nrotate_deg = [0, 20, 0]\n[effects]\ndynamics = false\n",
+    );
+    let (stats, _, _) = run(&s, 8);
+    assert_eq!(ran(&stats, Stage::Density), vec![0, 1, 2, 3]);
+    assert_eq!(ran(&stats, Stage::Draw), vec![0, 1, 2, 3]);
+}
+
+#[test]
+fn body_spheres_keep_the_hair_out() {
+    // A sphere where the hair at the back of the head hangs (a shoulder
+    // blade, say), and a strong dance.
+    let s = scene(
+        "[animation]\nmotion = \"dance\"\namplitude = 1.5\n\n[[body]]\ncenter = [0, -15, -20]\nradius = 5\n",
+    );
+    let (_, _, seq) = run(&s, 20);
+    let head = seq.animator().head();
+    let spheres = [
+        (head.transform_point3(Vec3::ZERO), 10.0),
+        (head.transform_point3(Vec3::new(0.0, -15.0, -20.0)), 5.0),
+    ];
+    let hair = seq.hair();
+    let mut worst = 0.0f32;
+    for strand in hair.strands() {
+        // The first drawn points sit on the scalp.
+        for p in &strand[4..] {
+            for (c, r) in spheres {
+                worst = worst.max(r - p.distance(c));
+            }
+        }
+    }
+    // Drawn strands interpolate between guides and are smoothed: they
+    // may cut a little into a sphere the guides stay out of.
+    assert!(worst < 0.6, "hair {worst} units inside a body");
+
+    let free = scene(
+        "[animation]\nmotion = \"dance\"\namplitude = 1.5\n\n[[body]]\ncenter = [0, -15, -20]\nradius = 5\n[effects]\nbody_collision = false\n",
+    );
+    let (stats, _, seq) = run(&free, 20);
+    assert!(ran(&stats, Stage::BodyCollide).is_empty());
+    let inside = seq.hair().strands().flat_map(|s| s[4..].iter()).any(|p| {
+        p.distance(
+            seq.animator()
+                .head()
+                .transform_point3(Vec3::new(0.0, -15.0, -20.0)),
+        ) < 4.0
+    });
+    assert!(
+        inside,
+        "without body collisions the hair goes through the sphere"
+    );
+}
+
+#[test]
+fn the_same_bytes_on_one_thread_and_on_three() {
+    let s = scene("[animation]\nmotion = \"dance\"\n");
+    let frames = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| run(&s, 4).1)
+    };
+    let one = frames(1);
+    assert!(one == frames(3));
+}
+
+#[test]
+fn specular_off_removes_only_the_highlight() {
+    let on = run(&scene(""), 1).1.remove(0);
+    let off = run(&scene("[effects]\nspecular = false\n"), 1).1.remove(0);
+    let zero = run(&scene("[shading]\nspecular = 0.0\n"), 1).1.remove(0);
+    assert!(off == zero, "the same as a zero specular weight");
+    assert!(on != off);
+    // The highlight only adds light.
+    let brighter = on
+        .pixels()
+        .zip(off.pixels())
+        .filter(|(a, b)| a.0 != b.0)
+        .all(|(a, b)| a.0.iter().zip(b.0).all(|(x, y)| *x + 1 >= y));
+    assert!(brighter);
+}
+
+/// Hair density above `threshold` (length per volume), summed over the
+/// cells more than 3 units outside the head: how much the wisps crowd.
+fn crowding(scene: &Scene, hair: &strands::Hair, threshold: f32) -> f32 {
+    let mut s = scene.clone();
+    s.effects.head_shadow = false;
+    let mut p = engine::ShadowPipeline::new(&s).unwrap();
+    p.density(hair).unwrap();
+    let map = p.density_map().unwrap();
+    let f = *map.frame();
+    let n = f.n_cells as usize;
+    let to_density = 1.0 / (s.fiber.cross_section() * f.ds);
+    let mut excess = 0.0;
+    for k in 0..n {
+        for j in 0..n {
+            for i in 0..n {
+                let c = Vec3::new(i as f32, j as f32, k as f32) + 0.5;
+                let world = f.to_world(c);
+                let head = seq_head_distance(world);
+                if head < 13.0 {
+                    continue;
+                }
+                let rho =
+                    (map.hair_quanta(i, j, k) as f64 * shadow::DEPTH_QUANTUM) as f32 * to_density;
+                excess += (rho - threshold).max(0.0);
+            }
+        }
+    }
+    excess
+}
+
+fn seq_head_distance(p: Vec3) -> f32 {
+    // The head turns about its centre at the origin and sways by at most
+    // 3 units: distance from the centre is what counts.
+    p.length()
+}
+
+#[test]
+fn self_collisions_thin_out_crowded_hair() {
+    // 3 strands a wisp instead of 25: the threshold scales with them.
+    let text = "[animation]\nmotion = \"dance\"\n[collision]\ndensity = 2.4\nrepulsion = 5000\nmax_acceleration = 10000\n";
+    let with = scene(text);
+    let mut without = with.clone();
+    without.effects.self_collision = false;
+    let (_, _, a) = run(&with, 20);
+    let (_, _, b) = run(&without, 20);
+    let (ca, cb) = (
+        crowding(&with, a.hair(), 2.4),
+        crowding(&without, b.hair(), 2.4),
+    );
+    assert!(cb > 0.0, "the groom crowds somewhere");
+    assert!(ca < 0.95 * cb, "with {ca}, without {cb}");
+}
