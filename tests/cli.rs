@@ -292,3 +292,155 @@ fn bench_accuracy_writes_a_table_a_csv_and_a_plot() {
     assert!(img.width() > 400 && img.height() > 300);
     assert!(stdout(&o).contains("deep-shadow-map"));
 }
+
+/// The small scene, dancing, at 96x64 with a short settle.
+fn dancing(dir: &Path) -> String {
+    write(
+        dir,
+        "dance.toml",
+        &format!(
+            "{SMALL}\n[render]\nwidth = 96\nheight = 64\n\n[animation]\nmotion = \"dance\"\n\n[dynamics]\nsettle = 0.1\n"
+        ),
+    )
+}
+
+#[test]
+fn render_frames_writes_numbered_pictures_and_per_stage_stats() {
+    let dir = scratch("frames");
+    let scene = dancing(&dir);
+    let pattern = dir.join("out/frame_%04d.png");
+    let stats = dir.join("stats.json");
+    let o = wisplight(&[
+        "render",
+        &scene,
+        "--frames",
+        "4",
+        "-o",
+        pattern.to_str().unwrap(),
+        "--stats",
+        stats.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let frames: Vec<image::RgbImage> = (0..4)
+        .map(|i| {
+            image::open(dir.join(format!("out/frame_{i:04}.png")))
+                .unwrap()
+                .to_rgb8()
+        })
+        .collect();
+    assert!(frames.windows(2).all(|w| w[0] != w[1]), "the hair moves");
+    let j: serde_json::Value = serde_json::from_slice(&std::fs::read(&stats).unwrap()).unwrap();
+    let list = j["frames"].as_array().unwrap();
+    assert_eq!(list.len(), 4);
+    for (i, f) in list.iter().enumerate() {
+        assert_eq!(f["index"], i);
+        for stage in [
+            "simulate",
+            "self_collide",
+            "body_collide",
+            "density",
+            "transmittance",
+            "filter",
+            "shade",
+            "draw",
+        ] {
+            let s = &f["stages"][stage];
+            assert_eq!(s["ran"], true, "frame {i} {stage}");
+            assert!(s["ms"].as_f64().unwrap() >= 0.0);
+        }
+    }
+    // Not a terminal: no progress bar, one summary line.
+    assert_eq!(stderr(&o).lines().count(), 1, "{}", stderr(&o));
+}
+
+#[test]
+fn a_still_scene_skips_every_stage_after_the_first_frame() {
+    let dir = scratch("still");
+    let scene = write(
+        &dir,
+        "still.toml",
+        &format!("{SMALL}\n[render]\nwidth = 96\nheight = 64\n"),
+    );
+    let stats = dir.join("stats.json");
+    let o = wisplight(&[
+        "render",
+        &scene,
+        "--frames",
+        "30",
+        "-o",
+        dir.join("f%d.png").to_str().unwrap(),
+        "--stats",
+        stats.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_slice(&std::fs::read(&stats).unwrap()).unwrap();
+    let ran = |stage: &str| {
+        j["frames"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|f| f["stages"][stage]["ran"] == true)
+            .count()
+    };
+    assert_eq!(ran("simulate"), 0);
+    assert_eq!(ran("density"), 1);
+    assert_eq!(ran("transmittance"), 1);
+    assert!(dir.join("f29.png").exists());
+}
+
+#[test]
+fn render_writes_an_animated_gif() {
+    let dir = scratch("gif");
+    let scene = dancing(&dir);
+    let gif = dir.join("dance.gif");
+    let o = wisplight(&[
+        "render",
+        &scene,
+        "--frames",
+        "3",
+        "-o",
+        gif.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mut d = gif::DecodeOptions::new()
+        .read_info(std::fs::File::open(&gif).unwrap())
+        .unwrap();
+    assert_eq!((d.width(), d.height()), (96, 64));
+    let mut frames = 0;
+    while let Some(f) = d.read_next_frame().unwrap() {
+        assert_eq!(f.delay, 3, "30 fps: 3 hundredths of a second");
+        frames += 1;
+    }
+    assert_eq!(frames, 3);
+    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 2, "scene and GIF only");
+}
+
+#[test]
+fn several_frames_need_a_numbered_name_and_files_cannot_simulate() {
+    let dir = scratch("frames-bad");
+    let scene = dancing(&dir);
+    let o = wisplight(&[
+        "render",
+        &scene,
+        "--frames",
+        "2",
+        "-o",
+        dir.join("one.png").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("%04d"), "{}", stderr(&o));
+
+    let bad = write(
+        &dir,
+        "file.toml",
+        "[hair]\nfile = \"groom.hair\"\n\n[effects]\ndynamics = true\n",
+    );
+    let o = wisplight(&["render", &bad]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(e.contains("effects.dynamics") && e.contains("rigidly"), "{e}");
+
+    let bad = write(&dir, "motion.toml", "[animation]\nmotion = \"twist\"\n");
+    let o = wisplight(&["render", &bad]);
+    assert!(stderr(&o).contains("animation.motion = \"twist\""), "{}", stderr(&o));
+}
