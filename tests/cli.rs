@@ -412,7 +412,11 @@ fn render_writes_an_animated_gif() {
         frames += 1;
     }
     assert_eq!(frames, 3);
-    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 2, "scene and GIF only");
+    assert_eq!(
+        std::fs::read_dir(&dir).unwrap().count(),
+        2,
+        "scene and GIF only"
+    );
 }
 
 #[test]
@@ -438,9 +442,16 @@ fn several_frames_need_a_numbered_name_and_files_cannot_simulate() {
     let o = wisplight(&["render", &bad]);
     assert_eq!(o.status.code(), Some(1));
     let e = stderr(&o);
-    assert!(e.contains("effects.dynamics") && e.contains("rigidly"), "{e}");
+    assert!(
+        e.contains("effects.dynamics") && e.contains("rigidly"),
+        "{e}"
+    );
 
     let bad = write(&dir, "motion.toml", "[animation]\nmotion = \"twist\"\n");
     let o = wisplight(&["render", &bad]);
-    assert!(stderr(&o).contains("animation.motion = \"twist\""), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("animation.motion = \"twist\""),
+        "{}",
+        stderr(&o)
+    );
 }
