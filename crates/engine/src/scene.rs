@@ -21,7 +21,15 @@
 //! method = "density-map"
 //! cells = 128               # map cells a side, 1..=512
 //! filter = true             # trilinear filtering of transmittance
+//!
+//! [effects]                 # dynamics, self_collision, body_collision, self_shadow, specular, head_shadow
+//! [animation]               # motion = "still" | "dance" | "keyframes" ([[animation.key]]), fps = 30
+//! [dynamics]                # time_step, gravity, damping, stiffness, iterations, settle
+//! [collision]               # density, repulsion, max_acceleration (self-collisions)
+//! [[body]]                  # center, radius, follows_head (collision spheres)
 //! ```
+//!
+//! The README lists every key with its default and unit.
 
 mod motion;
 
