@@ -3,8 +3,8 @@
 //!
 //! Hair is drawn as anti-aliased line strips. Its fragments are blended in
 //! an order-independent way (weighted blended transparency, McGuire and
-//! Bavoil 2013): each pixel sums colour times alpha times a depth weight,
-//! alpha times the weight, and `-ln(1 - alpha)`. The picture is cut into
+//! Bavoil 2013): each pixel sums colour times alpha times a depth weight
+//! and alpha times the weight, and multiplies `1 - alpha`. The picture is cut into
 //! bands of rows; one thread rasterizes a band, always in the order the
 //! strands were given, into sums that stay in cache, and composites it. The
 //! sums are the same floating-point operations in the same order whatever
@@ -21,7 +21,7 @@ pub const MAX_SIDE: u32 = 16_384;
 /// The most pixels an image may have (about 200 MB of accumulators).
 pub const MAX_PIXELS: u64 = 40_000_000;
 
-/// Fragment alpha never reaches 1, so `-ln(1 - alpha)` stays finite.
+/// Fragment alpha never reaches 1: one fragment never hides all behind it.
 const MAX_ALPHA: f32 = 0.995;
 /// Image rows per band: bands are drawn in parallel, each by one thread.
 const BAND: usize = 16;
@@ -61,12 +61,21 @@ pub struct HairLook {
 }
 
 /// Per-pixel hair sums: colour times alpha times depth weight, alpha
-/// times depth weight, and the optical depth `-ln(1 - alpha)`.
-#[derive(Debug, Clone, Copy, Default)]
+/// times depth weight, and the product of `1 - alpha`, the fraction of the
+/// background the hair reveals.
+#[derive(Debug, Clone, Copy)]
 struct Acc {
     rgb: Vec3,
     weight: f32,
-    depth: f32,
+    reveal: f32,
+}
+
+impl Acc {
+    const EMPTY: Acc = Acc {
+        rgb: Vec3::ZERO,
+        weight: 0.0,
+        reveal: 1.0,
+    };
 }
 
 /// A picture being drawn.
@@ -286,7 +295,7 @@ impl Canvas {
                 let y0 = band * BAND;
                 let rows = out.len() / (3 * w);
                 acc.clear();
-                acc.resize(rows * w, Acc::default());
+                acc.resize(rows * w, Acc::EMPTY);
                 for &(a, b, look) in segs {
                     self.rasterize(a, b, &self.looks[look as usize].1, y0, rows, acc);
                 }
@@ -302,8 +311,7 @@ impl Canvas {
                     let base = if covered { opaque[i] } else { background };
                     let c = if a.weight > 0.0 {
                         let hair = a.rgb / a.weight;
-                        let reveal = (-a.depth).exp();
-                        hair * (1.0 - reveal) + base * reveal
+                        hair * (1.0 - a.reveal) + base * a.reveal
                     } else {
                         base
                     };
@@ -333,49 +341,31 @@ impl Canvas {
         let (wa, wb) = (weight(a.p.z), weight(b.p.z));
         let depth = &self.depth[y0 * w..(y0 + rows) * w];
         let clip = [0, w as i32, y0 as i32, (y0 + rows) as i32];
-        line_fragments_in(a, b, clip, |x, y, t, coverage| {
-            let px = (y as usize - y0) * w + x as usize;
+        line_steps(a, b, clip, |steep, s| {
+            // What the step's two pixels share: depth, colour, weight.
+            let t = s.t;
             let z = a.p.z + t * (b.p.z - a.p.z);
-            if z >= depth[px] {
-                return;
+            let c = (a.color + t * (b.color - a.color)).max(Vec3::ZERO);
+            let wt = wa + t * (wb - wa);
+            let step_alpha = opacity * s.cov;
+            for (r, share) in [(s.minor, s.shares[0]), (s.minor + 1, s.shares[1])] {
+                let alpha = (step_alpha * share).min(MAX_ALPHA);
+                if alpha <= 0.0 {
+                    continue;
+                }
+                let (x, y) = if steep { (r, s.major) } else { (s.major, r) };
+                let px = (y as usize - y0) * w + x as usize;
+                if z >= depth[px] {
+                    continue;
+                }
+                let aw = alpha * wt;
+                let cell = &mut acc[px];
+                cell.rgb += c * aw;
+                cell.weight += aw;
+                cell.reveal *= 1.0 - alpha;
             }
-            let alpha = (opacity * coverage).min(MAX_ALPHA);
-            if alpha <= 0.0 {
-                return;
-            }
-            let c = a.color + t * (b.color - a.color);
-            let aw = alpha * (wa + t * (wb - wa));
-            let cell = &mut acc[px];
-            cell.rgb += c.max(Vec3::ZERO) * aw;
-            cell.weight += aw;
-            cell.depth += optical_depth(alpha);
         });
     }
-}
-
-/// Steps of the table of `-ln(1 - alpha)` over `[0, MAX_ALPHA]`.
-const LN_STEPS: usize = 1024;
-
-/// `-ln(1 - alpha)` for a fragment's alpha in `[0, MAX_ALPHA]`,
-/// linearly interpolated in a table (`ln` per fragment costs more than the
-/// rest of the fragment). The interpolation error is at most `h^2 / 8`
-/// times the second derivative `1 / (1 - alpha)^2`: below 0.005 in optical
-/// depth at the largest alpha, below 1e-6 for alpha under 0.5.
-#[inline]
-fn optical_depth(alpha: f32) -> f32 {
-    static TABLE: std::sync::OnceLock<Vec<f32>> = std::sync::OnceLock::new();
-    let t = TABLE.get_or_init(|| {
-        (0..=LN_STEPS + 1)
-            .map(|i| {
-                let a = (i as f64 / LN_STEPS as f64 * f64::from(MAX_ALPHA)).min(0.999_999);
-                -(1.0 - a).ln() as f32
-            })
-            .collect()
-    });
-    let x = alpha.clamp(0.0, MAX_ALPHA) * (LN_STEPS as f32 / MAX_ALPHA);
-    let i = x as usize;
-    let f = x - i as f32;
-    t[i] + f * (t[i + 1] - t[i])
 }
 
 /// Steps of the linear-to-sRGB table: fine enough that every 8-bit output
@@ -436,8 +426,16 @@ fn srgb8(v: f32) -> u8 {
 /// coverage)` gets the pixel, the parameter along the line and the
 /// coverage. Half-open, so strips cover each joint once.
 #[cfg(test)]
-fn line_fragments(a: ScreenVertex, b: ScreenVertex, emit: impl FnMut(i32, i32, f32, f32)) {
-    line_fragments_in(a, b, [i32::MIN, i32::MAX, i32::MIN, i32::MAX], emit)
+fn line_fragments(a: ScreenVertex, b: ScreenVertex, mut emit: impl FnMut(i32, i32, f32, f32)) {
+    let all = [i32::MIN, i32::MAX, i32::MIN, i32::MAX];
+    line_steps(a, b, all, |steep, s| {
+        for (r, share) in [(s.minor, s.shares[0]), (s.minor + 1, s.shares[1])] {
+            if share > 0.0 {
+                let (x, y) = if steep { (r, s.major) } else { (s.major, r) };
+                emit(x, y, s.t, s.cov * share);
+            }
+        }
+    });
 }
 
 /// `ceil(x)` as an integer, by truncation (`ceil` is a libm call on
@@ -452,15 +450,25 @@ fn ceil_i32(x: f32) -> i32 {
     }
 }
 
+/// One step of a line along its major axis: the pixel column (or row)
+/// `major`, the parameter `t` along the line, the coverage `cov` of the
+/// step, and the two pixels across it, `minor` and `minor + 1`, with their
+/// shares of the coverage (0 for a pixel outside the clip).
+#[derive(Debug, Clone, Copy)]
+struct Step {
+    major: i32,
+    t: f32,
+    cov: f32,
+    minor: i32,
+    shares: [f32; 2],
+}
+
 /// [`line_fragments`] restricted to the pixels `x0..x1`, `y0..y1` of
-/// `clip`: the same fragments there, and no work spent outside (a segment
-/// that reaches far off screen costs only its visible steps).
-fn line_fragments_in(
-    a: ScreenVertex,
-    b: ScreenVertex,
-    clip: [i32; 4],
-    mut emit: impl FnMut(i32, i32, f32, f32),
-) {
+/// `clip`, a step at a time: `emit(steep, step)`, where a steep line's
+/// major axis is y. The same fragments inside the clip, and no work spent
+/// outside (a segment that reaches far off screen costs only its visible
+/// steps).
+fn line_steps(a: ScreenVertex, b: ScreenVertex, clip: [i32; 4], mut emit: impl FnMut(bool, Step)) {
     let d = b.p - a.p;
     let steep = d.y.abs() > d.x.abs();
     // Major axis u, minor axis v, and the clip along each.
@@ -511,23 +519,34 @@ fn line_fragments_in(
             last = last.min(ceil_i32(hi).saturating_add(1));
         }
     }
+    let dw = b.width - a.width;
     for k in first..last {
         let uc = k as f32 + 0.5;
         let t = ((uc - ua) * inv_du).clamp(0.0, 1.0);
         let v = va + t * dv;
-        let width = a.width + t * (b.width - a.width);
-        let cov = width * stretch;
+        let cov = (a.width + t * dw) * stretch;
         let vc = v - 0.5;
         // Floor by truncation (`floor` is a libm call on baseline x86-64).
         // At negative integers this picks the row below with share 0 and
         // the row itself with share 1: the same fragments.
         let r0 = if vc >= 0.0 { vc as i32 } else { vc as i32 - 1 };
         let f = vc - r0 as f32;
-        for (r, share) in [(r0, 1.0 - f), (r0 + 1, f)] {
-            if share > 0.0 && r >= v_lo && r < v_hi {
-                let (x, y) = if steep { (r, k) } else { (k, r) };
-                emit(x, y, t, cov * share);
-            }
+        let inside = |r: i32| r >= v_lo && r < v_hi;
+        let shares = [
+            if inside(r0) { 1.0 - f } else { 0.0 },
+            if inside(r0.saturating_add(1)) { f } else { 0.0 },
+        ];
+        if shares[0] > 0.0 || shares[1] > 0.0 {
+            emit(
+                steep,
+                Step {
+                    major: k,
+                    t,
+                    cov,
+                    minor: r0,
+                    shares,
+                },
+            );
         }
     }
 }
