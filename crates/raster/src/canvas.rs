@@ -97,12 +97,22 @@ pub struct Canvas {
     dirty: Option<[usize; 4]>,
     /// Projected hair vertices (`None`: behind the camera).
     verts: Vec<Option<ScreenVertex>>,
-    /// Per band of rows, every segment that touches it (copied, so that a
-    /// band reads its segments in one stream), with its look's index.
-    bins: Vec<Vec<(ScreenVertex, ScreenVertex, u32)>>,
+    /// Per chunk of strands (binned in parallel) and band of rows, every
+    /// segment that touches the band (copied, so that a band reads its
+    /// segments in one stream), with its look's index. A band reads the
+    /// chunks in order: strand order.
+    bins: Vec<Vec<Vec<Segment>>>,
+    /// Chunks of `bins` in use since the last clear.
+    chunks: usize,
     /// The look of the hair drawn from each vertex on.
     looks: Vec<(u32, HairLook)>,
 }
+
+/// A segment binned for drawing: its ends and the index of its look.
+type Segment = (ScreenVertex, ScreenVertex, u32);
+
+/// Strands per binning task.
+const STRANDS_PER_CHUNK: usize = 256;
 
 /// One vertex of a line strip, in screen space: pixel position and view
 /// depth, and its shaded linear colour.
@@ -130,7 +140,8 @@ impl Canvas {
             opaque: vec![Vec3::ZERO; n],
             dirty: None,
             verts: Vec::new(),
-            bins: vec![Vec::new(); (height as usize).div_ceil(BAND)],
+            bins: Vec::new(),
+            chunks: 0,
             looks: Vec::new(),
         })
     }
@@ -148,7 +159,10 @@ impl Canvas {
                 });
         }
         self.verts.clear();
-        self.bins.iter_mut().for_each(Vec::clear);
+        for chunk in &mut self.bins[..self.chunks] {
+            chunk.iter_mut().for_each(Vec::clear);
+        }
+        self.chunks = 0;
         self.looks.clear();
     }
 
@@ -257,26 +271,41 @@ impl Canvas {
             }));
         self.looks.push((base as u32, *look));
         let look_index = (self.looks.len() - 1) as u32;
-        // Bin segments to bands of rows, in strand order.
+        // Bin segments to bands of rows: chunks of strands in parallel, each
+        // in strand order.
+        let strands = offsets.len().saturating_sub(1);
+        let new_chunks = strands.div_ceil(STRANDS_PER_CHUNK);
+        let bands = self.height.div_ceil(BAND);
+        let (first_chunk, end_chunk) = (self.chunks, self.chunks + new_chunks);
+        if self.bins.len() < end_chunk {
+            self.bins.resize_with(end_chunk, || vec![Vec::new(); bands]);
+        }
+        self.chunks = end_chunk;
         let verts = &self.verts;
         let (w, h) = (self.width as f32, self.height);
-        for s in 0..offsets.len().saturating_sub(1) {
-            for i in offsets[s] as usize..(offsets[s + 1] as usize).saturating_sub(1) {
-                let (Some(a), Some(b)) = (verts[base + i], verts[base + i + 1]) else {
-                    continue;
-                };
-                let pad = a.width.max(b.width) + 2.0;
-                let lo = (a.p.y.min(b.p.y) - pad).max(0.0);
-                let hi = (a.p.y.max(b.p.y) + pad).min(h as f32);
-                if lo >= hi || a.p.x.max(b.p.x) < -pad || a.p.x.min(b.p.x) > w + pad {
-                    continue;
+        self.bins[first_chunk..end_chunk]
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(c, bins)| {
+                let strands = c * STRANDS_PER_CHUNK..((c + 1) * STRANDS_PER_CHUNK).min(strands);
+                for s in strands {
+                    for i in offsets[s] as usize..(offsets[s + 1] as usize).saturating_sub(1) {
+                        let (Some(a), Some(b)) = (verts[base + i], verts[base + i + 1]) else {
+                            continue;
+                        };
+                        let pad = a.width.max(b.width) + 2.0;
+                        let lo = (a.p.y.min(b.p.y) - pad).max(0.0);
+                        let hi = (a.p.y.max(b.p.y) + pad).min(h as f32);
+                        if lo >= hi || a.p.x.max(b.p.x) < -pad || a.p.x.min(b.p.x) > w + pad {
+                            continue;
+                        }
+                        let (first, last) = (lo as usize / BAND, (hi as usize).min(h - 1) / BAND);
+                        for bin in &mut bins[first..=last] {
+                            bin.push((a, b, look_index));
+                        }
+                    }
                 }
-                let (first, last) = (lo as usize / BAND, (hi as usize).min(h - 1) / BAND);
-                for bin in &mut self.bins[first..=last] {
-                    bin.push((a, b, look_index));
-                }
-            }
-        }
+            });
     }
 
     /// The finished picture: hair over the opaque layer over `background`
@@ -288,15 +317,15 @@ impl Canvas {
         let lut = srgb_table();
         let bg = encode(lut, background);
         let buf: &mut [u8] = &mut img;
-        buf.par_chunks_mut(w * BAND * 3)
-            .zip(&self.bins)
-            .enumerate()
-            .for_each_init(Vec::new, |acc: &mut Vec<Acc>, (band, (out, segs))| {
+        let chunks = &self.bins[..self.chunks];
+        buf.par_chunks_mut(w * BAND * 3).enumerate().for_each_init(
+            Vec::new,
+            |acc: &mut Vec<Acc>, (band, out)| {
                 let y0 = band * BAND;
                 let rows = out.len() / (3 * w);
                 acc.clear();
                 acc.resize(rows * w, Acc::EMPTY);
-                for &(a, b, look) in segs {
+                for &(a, b, look) in chunks.iter().flat_map(|c| &c[band]) {
                     self.rasterize(a, b, &self.looks[look as usize].1, y0, rows, acc);
                 }
                 let depth = &self.depth[y0 * w..(y0 + rows) * w];
@@ -317,7 +346,8 @@ impl Canvas {
                     };
                     px.copy_from_slice(&encode(lut, c));
                 }
-            });
+            },
+        );
         img
     }
 
