@@ -85,12 +85,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut seq = Sequence::new(&scene).context("cannot set up the scene")?;
     let bar = progress(n);
     let mut all = Vec::with_capacity(n.min(100_000) as usize);
+    // The last frame's PNG bytes: a frame that drew nothing new is the same
+    // picture, written again without encoding it again.
+    let mut png: Option<Vec<u8>> = None;
     for _ in 0..n {
         let (img, stats) = seq.next_frame().context("cannot render")?;
         match &mut output {
             Output::Pngs(p) => {
                 let path = p.path(stats.index);
-                raster::write_png_atomic(img, &path).context("cannot save the picture")?;
+                let bytes = match png.take() {
+                    Some(b) if !stats.stage(engine::Stage::Draw).ran => b,
+                    _ => raster::encode_png(img).context("cannot encode the picture")?,
+                };
+                raster::write_bytes_atomic(&path, &bytes).context("cannot save the picture")?;
+                png = Some(bytes);
             }
             Output::Gif(w, _) => w.add(img).context("cannot add a frame to the GIF")?,
         }

@@ -17,7 +17,7 @@ mod shade;
 pub use camera::Camera;
 pub use canvas::{Canvas, HairLook, MAX_PIXELS, Sphere, to_srgb8};
 pub use gif::GifWriter;
-pub use png::{AtomicFile, write_atomic, write_png_atomic};
+pub use png::{AtomicFile, encode_png, write_atomic, write_bytes_atomic, write_png_atomic};
 pub use shade::{Shading, kajiya_kay};
 
 /// The largest image side, in pixels.

@@ -25,6 +25,35 @@ pub fn write_png_atomic(img: &image::RgbImage, path: &Path) -> Result<(), Raster
     })
 }
 
+/// `img` encoded as PNG, in memory (to write the same picture to several
+/// files without encoding it again).
+pub fn encode_png(img: &image::RgbImage) -> Result<Vec<u8>, RasterError> {
+    let mut out = Vec::new();
+    let encoder = image::codecs::png::PngEncoder::new(&mut out);
+    image::ImageEncoder::write_image(
+        encoder,
+        img.as_raw(),
+        img.width(),
+        img.height(),
+        image::ExtendedColorType::Rgb8,
+    )
+    .map_err(|e| RasterError::Encode {
+        path: PathBuf::from("<memory>"),
+        message: e.to_string(),
+    })?;
+    Ok(out)
+}
+
+/// Writes `bytes` to `path` whole or not at all (see [`write_atomic`]).
+pub fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<(), RasterError> {
+    write_atomic(path, |out| {
+        std::io::Write::write_all(out, bytes).map_err(|source| RasterError::Write {
+            path: path.to_owned(),
+            source,
+        })
+    })
+}
+
 /// Writes a file through `write`: first to a temporary file beside `path`,
 /// synced, then renamed into place. On any error the temporary file is
 /// removed and `path` is untouched.
