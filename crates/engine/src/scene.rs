@@ -710,6 +710,9 @@ impl Validator<'_> {
             specular_color: d.specular_color,
         };
         let from_file = matches!(hair, HairSource::File { .. });
+        let animation = self.animation(raw.animation)?;
+        let dynamics = self.dynamics(raw.dynamics)?;
+        self.steps_in_bounds(&animation, &dynamics)?;
         Ok(Scene {
             hair,
             subdivide,
@@ -721,8 +724,8 @@ impl Validator<'_> {
             head,
             shading,
             effects: self.effects(raw.effects, from_file)?,
-            animation: self.animation(raw.animation)?,
-            dynamics: self.dynamics(raw.dynamics)?,
+            animation,
+            dynamics,
             collision: self.collision(raw.collision)?,
             bodies: self.bodies(raw.body)?,
         })
@@ -834,6 +837,33 @@ mod tests {
         assert!(
             matches!(s.hair, HairSource::File { ref path, follow: None } if path == Path::new("/abs/x.hair"))
         );
+    }
+
+    #[test]
+    fn animation_settings_are_checked() {
+        let s = parse("[animation]\nmotion = \"keyframes\"\n[[animation.key]]\ntime = 0.0\n[[animation.key]]\ntime = 1.0\nrotate_deg = [0, 90, 0]\n").unwrap();
+        assert!(matches!(s.animation.motion, sim::Motion::Keyframes(ref k) if k.len() == 2));
+        for (text, field) in [
+            ("[animation]\nmotion = \"keyframes\"\n", "animation.key"),
+            (
+                "[animation]\nmotion = \"keyframes\"\n[[animation.key]]\ntime = 1.0\n[[animation.key]]\ntime = 0.5\n",
+                "animation.key",
+            ),
+            ("[animation]\namplitude = 2.0\n", "animation.amplitude"),
+            ("[animation]\nfps = 0\n", "animation.fps"),
+            ("[dynamics]\ntime_step = 0.0000001\n", "dynamics.time_step"),
+            (
+                "[dynamics]\nsettle = 60\ntime_step = 0.0001\n",
+                "dynamics.settle",
+            ),
+            ("[dynamics]\nstiffness = 2\n", "dynamics.stiffness"),
+            ("[collision]\ndensity = 0\n", "collision.density"),
+            ("[[body]]\ncenter = [0, 0, 0]\nradius = -1\n", "body.radius"),
+            ("[effects]\nshadows = true\n", "shadows"),
+        ] {
+            let e = parse(text).unwrap_err().to_string();
+            assert!(e.contains(field), "{text:?}: {e}");
+        }
     }
 
     #[test]

@@ -124,6 +124,10 @@ pub struct BodySettings {
 }
 
 pub const DEFAULT_FPS: f32 = 30.0;
+/// The most simulation steps one frame may take.
+pub const MAX_STEPS_PER_FRAME: u32 = 1000;
+/// The most steps the settling before frame 0 may take.
+pub const MAX_SETTLE_STEPS: u32 = 100_000;
 pub const DEFAULT_SETTLE_S: f32 = 1.0;
 pub const DEFAULT_DANCE_AMPLITUDE: f32 = 1.0;
 /// Twice the density around a typical strand of the smooth style (half its
@@ -252,6 +256,34 @@ impl Validator<'_> {
             iterations: self.int("dynamics.iterations", d.iterations, def.iterations, 1..=64)?,
         };
         Ok(Dynamics { params, settle_s })
+    }
+
+    /// Refuses step counts that would run for hours: more than
+    /// [`MAX_STEPS_PER_FRAME`] steps a frame, or more than
+    /// [`MAX_SETTLE_STEPS`] steps of settling.
+    pub(super) fn steps_in_bounds(&self, a: &Animation, d: &Dynamics) -> Result<(), SceneError> {
+        let per_frame = (1.0 / (f64::from(a.fps) * f64::from(d.params.dt)))
+            .round()
+            .max(1.0);
+        if per_frame > f64::from(MAX_STEPS_PER_FRAME) {
+            return Err(self.invalid(
+                "dynamics.time_step",
+                d.params.dt,
+                format!(
+                    "{per_frame} steps a frame at {} fps; at most {MAX_STEPS_PER_FRAME}",
+                    a.fps
+                ),
+            ));
+        }
+        let settle = (f64::from(d.settle_s) * f64::from(a.fps)).ceil() * per_frame;
+        if settle > f64::from(MAX_SETTLE_STEPS) {
+            return Err(self.invalid(
+                "dynamics.settle",
+                d.settle_s,
+                format!("{settle} steps of settling; at most {MAX_SETTLE_STEPS}"),
+            ));
+        }
+        Ok(())
     }
 
     pub(super) fn collision(&self, c: RawCollision) -> Result<Collision, SceneError> {
