@@ -29,7 +29,7 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Renders a self-shadowed picture of a scene (the built-in one without a file).
+    /// Renders a self-shadowed picture of a scene (the built-in one without a file), or frames of its animation.
     Render(cmd::render::Args),
     /// Prints how much light reaches given points: CSV `x,y,z` in, `x,y,z,transmittance` out.
     Probe(cmd::probe::Args),
