@@ -10,17 +10,9 @@ use crate::RasterError;
 /// existing file is replaced only by a complete one.
 pub fn write_png_atomic(img: &image::RgbImage, path: &Path) -> Result<(), RasterError> {
     write_atomic(path, |out| {
-        let encoder = image::codecs::png::PngEncoder::new(out);
-        image::ImageEncoder::write_image(
-            encoder,
-            img.as_raw(),
-            img.width(),
-            img.height(),
-            image::ExtendedColorType::Rgb8,
-        )
-        .map_err(|e| RasterError::Encode {
+        encode_into(img, out).map_err(|message| RasterError::Encode {
             path: path.to_owned(),
-            message: e.to_string(),
+            message,
         })
     })
 }
@@ -29,7 +21,15 @@ pub fn write_png_atomic(img: &image::RgbImage, path: &Path) -> Result<(), Raster
 /// files without encoding it again).
 pub fn encode_png(img: &image::RgbImage) -> Result<Vec<u8>, RasterError> {
     let mut out = Vec::new();
-    let encoder = image::codecs::png::PngEncoder::new(&mut out);
+    encode_into(img, &mut out).map_err(|message| RasterError::Encode {
+        path: PathBuf::from("<memory>"),
+        message,
+    })?;
+    Ok(out)
+}
+
+fn encode_into(img: &image::RgbImage, out: impl std::io::Write) -> Result<(), String> {
+    let encoder = image::codecs::png::PngEncoder::new(out);
     image::ImageEncoder::write_image(
         encoder,
         img.as_raw(),
@@ -37,11 +37,7 @@ pub fn encode_png(img: &image::RgbImage) -> Result<Vec<u8>, RasterError> {
         img.height(),
         image::ExtendedColorType::Rgb8,
     )
-    .map_err(|e| RasterError::Encode {
-        path: PathBuf::from("<memory>"),
-        message: e.to_string(),
-    })?;
-    Ok(out)
+    .map_err(|e| e.to_string())
 }
 
 /// Writes `bytes` to `path` whole or not at all (see [`write_atomic`]).

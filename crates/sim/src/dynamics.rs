@@ -238,13 +238,13 @@ impl HairSim {
                 let w = range.start + i;
                 for g in 0..GUIDES_PER_WISP {
                     let at = g * n..(g + 1) * n;
-                    let guide = w * GUIDES_PER_WISP + g;
+                    let (rest, len) = guide_rest(rest, lengths, n, w, g);
                     let ext = accel.map(|a| &a[i * per + g * n..i * per + (g + 1) * n]);
                     step_guide(
                         &mut s.pos[at.clone()],
                         &mut s.prev[at],
-                        &rest[w * per + g * n..w * per + (g + 1) * n],
-                        &lengths[guide * (n - 1)..(guide + 1) * (n - 1)],
+                        rest,
+                        len,
                         head,
                         &params,
                         ext,
@@ -263,7 +263,6 @@ impl HairSim {
             return;
         }
         let n = self.n;
-        let per = GUIDES_PER_WISP * n;
         let (rest, lengths) = (&self.rest, &self.lengths);
         self.wisps[range.clone()]
             .par_iter_mut()
@@ -271,10 +270,8 @@ impl HairSim {
             .for_each(|(i, s)| {
                 let w = range.start + i;
                 for g in 0..GUIDES_PER_WISP {
-                    let guide = w * GUIDES_PER_WISP + g;
                     let pos = &mut s.pos[g * n..(g + 1) * n];
-                    let rest = &rest[w * per + g * n..w * per + (g + 1) * n];
-                    let len = &lengths[guide * (n - 1)..(guide + 1) * (n - 1)];
+                    let (rest, len) = guide_rest(rest, lengths, n, w, g);
                     for k in 2..n {
                         let parent = pos[k - 1];
                         let fallback = head.transform_vector3(rest[k] - rest[k - 1]);
@@ -393,6 +390,22 @@ fn step_guide(
             prev[i] = pos[i];
         }
     }
+}
+
+/// Guide `g` of wisp `w`: its rest points and its link lengths, out of all
+/// guides' (`n` points per guide).
+fn guide_rest<'a>(
+    rest: &'a [Vec3],
+    lengths: &'a [f32],
+    n: usize,
+    w: usize,
+    g: usize,
+) -> (&'a [Vec3], &'a [f32]) {
+    let guide = w * GUIDES_PER_WISP + g;
+    (
+        &rest[guide * n..(guide + 1) * n],
+        &lengths[guide * (n - 1)..(guide + 1) * (n - 1)],
+    )
 }
 
 /// The point at distance `len` from `parent` in the direction of `q` (or of
