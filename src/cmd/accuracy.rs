@@ -2,7 +2,6 @@
 //! against the exact reference, error against time.
 
 use std::fmt::Write as _;
-use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
@@ -114,14 +113,9 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
         configs.len(),
         a.runs
     );
-    let bar = if std::io::stderr().is_terminal() {
-        indicatif::ProgressBar::new(configs.len() as u64 + 1)
-    } else {
-        indicatif::ProgressBar::hidden()
-    };
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} [{elapsed}]")
-            .expect("a valid template"),
+    let bar = super::progress_bar(
+        configs.len() as u64 + 1,
+        "{bar:30} {pos}/{len} {msg} [{elapsed}]",
     );
     bar.set_message("reference");
     let reference = MethodConfig::with_defaults("reference", 128).expect("a known method");
@@ -183,15 +177,7 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
                 r.image
             )?;
         }
-        raster::write_atomic(path, |w| {
-            std::io::Write::write_all(w, s.as_bytes()).map_err(|source| {
-                raster::RasterError::Write {
-                    path: path.clone(),
-                    source,
-                }
-            })
-        })
-        .context("cannot save the table")?;
+        raster::write_bytes_atomic(path, s.as_bytes()).context("cannot save the table")?;
         eprintln!("wrote {}", path.display());
     }
     if let Some(path) = &a.plot {

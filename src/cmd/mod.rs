@@ -18,6 +18,17 @@ pub fn load_scene(path: Option<&Path>) -> anyhow::Result<Scene> {
     }
 }
 
+/// A progress bar of `len` steps drawn with `template` on a terminal;
+/// hidden (nothing printed) when stderr is not one.
+pub fn progress_bar(len: u64, template: &str) -> indicatif::ProgressBar {
+    if !std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::new(len);
+    bar.set_style(indicatif::ProgressStyle::with_template(template).expect("a valid template"));
+    bar
+}
+
 /// Builds the scene's hair, with the scene file named in any error.
 pub fn build_hair(scene: &Scene) -> anyhow::Result<strands::Hair> {
     engine::build_hair(scene).context("cannot build the hair")

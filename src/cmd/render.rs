@@ -1,7 +1,6 @@
 //! `wisplight render`: a self-shadowed picture of a scene, or a sequence of
 //! frames of its animation.
 
-use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -83,7 +82,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
 
     let mut seq = Sequence::new(&scene).context("cannot set up the scene")?;
-    let bar = progress(n);
+    // A progress bar on a terminal for more than one frame.
+    let bar = if n > 1 {
+        super::progress_bar(n, "{bar:30} frame {pos}/{len} [{elapsed} < {eta}]")
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
     let mut all = Vec::with_capacity(n.min(100_000) as usize);
     // The last frame's PNG bytes: a frame that drew nothing new is the same
     // picture, written again without encoding it again.
@@ -147,22 +151,6 @@ fn is_gif(p: &Path) -> bool {
     p.extension().is_some_and(|e| e.eq_ignore_ascii_case("gif"))
 }
 
-/// A progress bar on a terminal for more than one frame; nothing otherwise.
-fn progress(n: u64) -> indicatif::ProgressBar {
-    if n > 1 && std::io::stderr().is_terminal() {
-        let bar = indicatif::ProgressBar::new(n);
-        bar.set_style(
-            indicatif::ProgressStyle::with_template(
-                "{bar:30} frame {pos}/{len} [{elapsed} < {eta}]",
-            )
-            .expect("a valid template"),
-        );
-        bar
-    } else {
-        indicatif::ProgressBar::hidden()
-    }
-}
-
 /// Writes `{"frames": [{"index", "time_s", "steps", "stages": {name: {"ran", "ms"}}}]}`.
 fn write_stats(path: &Path, frames: &[FrameStats]) -> anyhow::Result<()> {
     let frames: Vec<serde_json::Value> = frames
@@ -186,13 +174,8 @@ fn write_stats(path: &Path, frames: &[FrameStats]) -> anyhow::Result<()> {
         })
         .collect();
     let doc = serde_json::json!({ "frames": frames });
-    raster::write_atomic(path, |w| {
-        serde_json::to_writer_pretty(&mut *w, &doc).map_err(|e| raster::RasterError::Write {
-            path: path.to_owned(),
-            source: e.into(),
-        })
-    })
-    .context("cannot save the stats")
+    let bytes = serde_json::to_vec_pretty(&doc).context("cannot encode the stats")?;
+    raster::write_bytes_atomic(path, &bytes).context("cannot save the stats")
 }
 
 /// An output name with an optional printf-style frame number: `%d`, or

@@ -50,8 +50,7 @@ impl Animator {
         let rest = build_hair(scene)?;
         let motion = scene.animation.motion.clone();
         let frame_dt = 1.0 / scene.animation.fps;
-        let dt = scene.dynamics.params.dt;
-        let substeps = ((frame_dt / dt).round() as u32).clamp(1, 10_000);
+        let substeps = scene.dynamics.steps_per_frame(scene.animation.fps);
         let pivot = match (&scene.head, &scene.hair) {
             (Some(h), _) => h.center,
             (None, HairSource::Style(p)) => p.head_center,
@@ -111,11 +110,6 @@ impl Animator {
     /// Whether the wisps are simulated (else the hair moves rigidly).
     pub fn simulates(&self) -> bool {
         matches!(self.source, Source::Wisps { .. })
-    }
-
-    /// Whether the head moves at all.
-    pub fn moves(&self) -> bool {
-        !self.motion.is_still()
     }
 
     pub fn frame_dt(&self) -> f32 {

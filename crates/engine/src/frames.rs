@@ -196,15 +196,6 @@ impl Sequence {
         &self.anim
     }
 
-    pub fn renderer(&self) -> &Renderer {
-        &self.renderer
-    }
-
-    /// The index of the frame [`Self::next_frame`] renders.
-    pub fn next_index(&self) -> u64 {
-        self.next
-    }
-
     /// Renders the next frame: its picture and what each stage did.
     pub fn next_frame(&mut self) -> Result<(&image::RgbImage, FrameStats), EngineError> {
         let index = self.next;
@@ -220,10 +211,8 @@ impl Sequence {
                 // collision map refreshed once per such frame.
                 for _ in 0..self.anim.settle_frames() {
                     self.steps(&mut stats, |_| head)?;
-                    stats.time(Stage::Pose, || self.anim.set_head(head));
-                    self.version += 1;
+                    self.pose(&mut stats, head);
                 }
-                // (The drawn hair is pushed out of the bodies below.)
             } else {
                 let (t0, dt) = (t - self.anim.frame_dt(), self.anim.frame_dt());
                 let n = self.anim.substeps();
@@ -232,18 +221,14 @@ impl Sequence {
                     .map(|s| anim.head_at(t0 + dt * s as f32 / n as f32))
                     .collect();
                 self.steps(&mut stats, |s| heads[s])?;
+                self.pose(&mut stats, head);
             }
-            if index > 0 {
-                stats.time(Stage::Pose, || self.anim.set_head(head));
-                self.version += 1;
-            }
-            if self.scene.effects.body_collision {
+            if fx.body_collision {
                 let bodies = self.bodies(&head);
                 stats.time(Stage::BodyCollide, || self.anim.collide_drawn(&bodies));
             }
         } else if head != self.anim.head() {
-            stats.time(Stage::Pose, || self.anim.set_head(head));
-            self.version += 1;
+            self.pose(&mut stats, head);
         }
         if let Some(h) = &self.scene.head {
             self.renderer
@@ -275,6 +260,12 @@ impl Sequence {
         self.next += 1;
         let (_, img) = self.picture.as_ref().expect("drawn above");
         Ok((img, stats))
+    }
+
+    /// Poses the drawn hair under `head`: a new version of the hair.
+    fn pose(&mut self, stats: &mut FrameStats, head: Affine3A) {
+        stats.time(Stage::Pose, || self.anim.set_head(head));
+        self.version += 1;
     }
 
     /// One frame's worth of simulation steps, the head at `head(s)` for

@@ -104,13 +104,6 @@ impl Renderer {
         }
     }
 
-    /// The camera of the scene, framing `hair` (and the head) where the
-    /// scene leaves position or target open: from the front (+z), slightly
-    /// above, far enough that the whole hair fits the vertical field of view.
-    pub fn camera(&self, hair: &Hair) -> Result<Camera, EngineError> {
-        Ok(self.framing(hair.bounds())?.camera)
-    }
-
     /// The fixed view, framed on `hair` the first time.
     fn view(&mut self, hair: &Hair) -> Result<View, EngineError> {
         match self.view {
@@ -122,7 +115,10 @@ impl Renderer {
         }
     }
 
-    /// [`Self::camera`] from the hair's bounds.
+    /// The camera of the scene, framing hair with `hair_bounds` (and the
+    /// head) where the scene leaves position or target open: from the front
+    /// (+z), slightly above, far enough that the whole hair fits the
+    /// vertical field of view.
     fn framing(&self, hair_bounds: Bounds) -> Result<View, EngineError> {
         let s = &self.scene;
         let mut b = hair_bounds;

@@ -101,6 +101,16 @@ pub struct Dynamics {
     pub settle_s: f32,
 }
 
+impl Dynamics {
+    /// Simulation steps per frame at `fps`: the time step rounded so that a
+    /// frame holds a whole number of steps, at least one.
+    pub fn steps_per_frame(&self, fps: f32) -> u32 {
+        (1.0 / (f64::from(fps) * f64::from(self.params.dt)))
+            .round()
+            .clamp(1.0, f64::from(u32::MAX)) as u32
+    }
+}
+
 /// Self-collisions through the density map (see [`crate::collide`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Collision {
@@ -262,10 +272,8 @@ impl Validator<'_> {
     /// [`MAX_STEPS_PER_FRAME`] steps a frame, or more than
     /// [`MAX_SETTLE_STEPS`] steps of settling.
     pub(super) fn steps_in_bounds(&self, a: &Animation, d: &Dynamics) -> Result<(), SceneError> {
-        let per_frame = (1.0 / (f64::from(a.fps) * f64::from(d.params.dt)))
-            .round()
-            .max(1.0);
-        if per_frame > f64::from(MAX_STEPS_PER_FRAME) {
+        let per_frame = d.steps_per_frame(a.fps);
+        if per_frame > MAX_STEPS_PER_FRAME {
             return Err(self.invalid(
                 "dynamics.time_step",
                 d.params.dt,
@@ -275,7 +283,7 @@ impl Validator<'_> {
                 ),
             ));
         }
-        let settle = (f64::from(d.settle_s) * f64::from(a.fps)).ceil() * per_frame;
+        let settle = (f64::from(d.settle_s) * f64::from(a.fps)).ceil() * f64::from(per_frame);
         if settle > f64::from(MAX_SETTLE_STEPS) {
             return Err(self.invalid(
                 "dynamics.settle",
