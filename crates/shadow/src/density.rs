@@ -377,17 +377,7 @@ fn pieces(
     let mut stats = FillStats::default();
     let nu = frame.n_cells as usize;
     let n = frame.n_cells as f32;
-    // A segment longer than the map diagonal is cut no finer than this.
-    let max_pieces = (4 * frame.n_cells) as f32;
-    let Some(&first) = pts.first() else {
-        return stats;
-    };
-    let mut prev = frame.to_cells(first);
-    for &p in &pts[1..] {
-        let cur = frame.to_cells(p);
-        let d = cur - prev;
-        let across = (d.y * d.y + d.z * d.z).sqrt();
-        let m = piece_count(d, max_pieces);
+    for_each_segment(frame, pts, |prev, d, across, m| {
         let inv_m = 1.0 / m as f32;
         // Quanta of one piece; below half a quantum it rounds to nothing.
         let q = (k_q * across * inv_m).min(u32::MAX as f32);
@@ -454,9 +444,32 @@ fn pieces(
                 mid += step;
             }
         }
+    });
+    stats
+}
+
+/// Walks a strand's segments in map coordinates (cells): `f(start, d,
+/// across, m)` for each, with `d` the segment, `across` its length across
+/// the light and `m` the pieces it is cut into ([`piece_count`]; a segment
+/// longer than the map diagonal is cut no finer than that).
+#[inline]
+pub(crate) fn for_each_segment(
+    frame: &LightFrame,
+    pts: &[Vec3],
+    mut f: impl FnMut(Vec3, Vec3, f32, u32),
+) {
+    let max_pieces = (4 * frame.n_cells) as f32;
+    let Some(&first) = pts.first() else {
+        return;
+    };
+    let mut prev = frame.to_cells(first);
+    for &p in &pts[1..] {
+        let cur = frame.to_cells(p);
+        let d = cur - prev;
+        let across = (d.y * d.y + d.z * d.z).sqrt();
+        f(prev, d, across, piece_count(d, max_pieces));
         prev = cur;
     }
-    stats
 }
 
 /// Pieces a segment spanning `d` cells is cut into: `m = ceil` of its

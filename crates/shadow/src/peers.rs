@@ -150,16 +150,7 @@ fn strand_fragments(
     let mut stats = FillStats::default();
     let n = frame.n_cells as i32;
     let nf = n as f32;
-    let max_pieces = (4 * frame.n_cells) as f32;
-    let Some(&first) = pts.first() else {
-        return stats;
-    };
-    let mut prev = frame.to_cells(first);
-    for &p in &pts[1..] {
-        let cur = frame.to_cells(p);
-        let d = cur - prev;
-        let across = (d.y * d.y + d.z * d.z).sqrt();
-        let m = crate::density::piece_count(d, max_pieces);
+    crate::density::for_each_segment(frame, pts, |prev, d, across, m| {
         let step = d / m as f32;
         let beta = k_beta * across / m as f32;
         if beta > 0.0 {
@@ -191,8 +182,7 @@ fn strand_fragments(
                 }
             }
         }
-        prev = cur;
-    }
+    });
     stats
 }
 
