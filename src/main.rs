@@ -15,8 +15,9 @@ use clap::{Parser, Subcommand};
 struct Cli {
     /// Worker threads for the parallel stages (default: one per core).
     /// Results are the same bytes for any count.
-    #[arg(long, global = true, value_name = "N")]
-    threads: Option<usize>,
+    #[arg(long, global = true, value_name = "N",
+          value_parser = clap::value_parser!(u16).range(1..=1024))]
+    threads: Option<u16>,
     /// More log detail on stderr (-v info, -vv debug).
     #[arg(short, long, global = true, action = clap::ArgAction::Count)]
     verbose: u8,
@@ -39,6 +40,20 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    // A bug is still reported on one line, never as a trace.
+    std::panic::set_hook(Box::new(|info| {
+        let message = info
+            .payload()
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| info.payload().downcast_ref::<String>().cloned())
+            .unwrap_or_default();
+        let at = info
+            .location()
+            .map(|l| format!(" at {}:{}", l.file(), l.line()))
+            .unwrap_or_default();
+        eprintln!("error: internal error{at}: {message} (a bug in wisplight; please report it)");
+    }));
     let cli = Cli::parse();
     let level = match (cli.quiet, cli.verbose) {
         (true, _) => tracing::Level::ERROR,
@@ -62,19 +77,21 @@ fn main() -> ExitCode {
         Err(e) => {
             // One line: the context chain, outermost first.
             eprintln!("error: {e:#}");
-            ExitCode::FAILURE
+            // 2 for a mistake in the command line (as clap's own errors),
+            // 1 for anything that failed while running.
+            if e.chain().any(|c| c.is::<cmd::Usage>()) {
+                ExitCode::from(2)
+            } else {
+                ExitCode::FAILURE
+            }
         }
     }
 }
 
-fn init_threads(threads: Option<usize>) -> anyhow::Result<()> {
+fn init_threads(threads: Option<u16>) -> anyhow::Result<()> {
     if let Some(n) = threads {
-        anyhow::ensure!(
-            (1..=1024).contains(&n),
-            "--threads {n}: must be in 1..=1024"
-        );
         rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
+            .num_threads(n.into())
             .build_global()?;
     }
     Ok(())

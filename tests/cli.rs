@@ -431,7 +431,7 @@ fn several_frames_need_a_numbered_name_and_files_cannot_simulate() {
         "-o",
         dir.join("one.png").to_str().unwrap(),
     ]);
-    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("%04d"), "{}", stderr(&o));
 
     let bad = write(
@@ -454,4 +454,221 @@ fn several_frames_need_a_numbered_name_and_files_cannot_simulate() {
         "{}",
         stderr(&o)
     );
+}
+
+/// A `.hair` header (128 bytes) with the given counts and flags, then `body`.
+fn hair_file(strands: u32, points: u32, flags: u32, body: &[u8]) -> Vec<u8> {
+    let mut h = vec![0u8; 128];
+    h[..4].copy_from_slice(b"HAIR");
+    h[4..8].copy_from_slice(&strands.to_le_bytes());
+    h[8..12].copy_from_slice(&points.to_le_bytes());
+    h[12..16].copy_from_slice(&flags.to_le_bytes());
+    // Default segments per strand, when there is no segment array.
+    h[16..20].copy_from_slice(&(points / strands.max(1)).saturating_sub(1).to_le_bytes());
+    h.extend_from_slice(body);
+    h
+}
+
+#[test]
+fn every_bad_input_gets_one_line_naming_it_and_the_right_exit_status() {
+    let dir = scratch("bad-inputs");
+    let d = |name: &str| dir.join(name).display().to_string();
+    let points = write(&dir, "points.csv", "x,y,z\n0,0,0\n");
+    std::fs::write(dir.join("garbage.hair"), b"HAIR but not really").unwrap();
+    std::fs::write(dir.join("garbage.tfx"), [7u8; 300]).unwrap();
+    std::fs::write(
+        dir.join("magic.hair"),
+        hair_file(1, 2, 2, &[0; 24])
+            .iter()
+            .enumerate()
+            .map(|(i, &b)| if i == 0 { b'X' } else { b })
+            .collect::<Vec<u8>>(),
+    )
+    .unwrap();
+    // Segment counts that add up to 3 points for a header that says 4.
+    let mut body = 2u16.to_le_bytes().to_vec();
+    body.extend_from_slice(&[0u8; 48]);
+    std::fs::write(dir.join("counts.hair"), hair_file(1, 4, 1 | 2, &body)).unwrap();
+    // A point that is NaN.
+    let mut body = Vec::new();
+    for v in [0.0f32, 0.0, 0.0, f32::NAN, 1.0, 0.0] {
+        body.extend_from_slice(&v.to_le_bytes());
+    }
+    std::fs::write(dir.join("nan.hair"), hair_file(1, 2, 2, &body)).unwrap();
+    std::fs::write(dir.join("latin1.toml"), b"[hair]\nstyle = \"\xe9\"\n").unwrap();
+
+    // (scene text or None for a file named below, extra arguments, exit
+    // status, words the message must hold)
+    let scene_cases: &[(&str, &[&str])] = &[
+        ("[hair\nstyle = 1\n", &["scene.toml", "line 1"]),
+        ("[render]\nwdith = 10\n", &["scene.toml", "wdith"]),
+        ("[effects]\nhair_glow = true\n", &["hair_glow"]),
+        ("[[body]]\ncentre = [0, 0, 0]\nradius = 1\n", &["centre"]),
+        ("[fiber]\nwidth = nan\n", &["fiber.width", "NaN"]),
+        ("[fiber]\nopacity = inf\n", &["fiber.opacity", "inf"]),
+        ("[render]\nwidth = -5\n", &["render.width", "-5"]),
+        ("[render]\nwidth = 1000000\n", &["render.width", "1000000"]),
+        ("[render]\nwidth = 16384\nheight = 16384\n", &["16384"]),
+        ("[shadow]\ncells = 513\n", &["shadow.cells", "513"]),
+        ("[camera]\nfov_deg = 0\n", &["camera.fov_deg", "0"]),
+        ("[light]\ndirection = [nan, 1, 0]\n", &["light", "NaN"]),
+        ("[dynamics]\ntime_step = 5\n", &["dynamics.time_step", "5"]),
+        ("[animation]\nfps = 0\n", &["animation.fps", "0"]),
+        (
+            "[hair]\nstrands = [[[0, 0, 0], [0, nan, 0]]]\n",
+            &["hair.strands", "strand 0, point 1"],
+        ),
+        (
+            "[hair]\nstyle = \"smooth\"\nstrands = [[[0, 0, 0]]]\n",
+            &["hair.style", "hair.strands"],
+        ),
+        (
+            "[hair]\nfile = \"garbage.hair\"\n",
+            &["garbage.hair", "header"],
+        ),
+        ("[hair]\nfile = \"garbage.tfx\"\n", &["garbage.tfx"]),
+        ("[hair]\nfile = \"magic.hair\"\n", &["magic.hair", "magic"]),
+        (
+            "[hair]\nfile = \"counts.hair\"\n",
+            &["counts.hair", "add up"],
+        ),
+        ("[hair]\nfile = \"nan.hair\"\n", &["nan.hair", "not finite"]),
+        (
+            "[hair]\nfile = \"nowhere.hair\"\n",
+            &["nowhere.hair", "cannot read"],
+        ),
+        (
+            "[hair]\nfile = \"groom.obj\"\n",
+            &["groom.obj", "file type"],
+        ),
+    ];
+    for (text, words) in scene_cases {
+        let scene = write(&dir, "scene.toml", text);
+        for cmd in [
+            vec!["render", &scene, "-o", &d("out.png")],
+            vec!["probe", &scene, "--points", &points],
+        ] {
+            let o = wisplight(&cmd);
+            let e = stderr(&o);
+            assert_eq!(o.status.code(), Some(1), "{text:?} {cmd:?}: {e}");
+            assert_eq!(e.trim_end().lines().count(), 1, "{text:?}: one line: {e}");
+            assert!(e.starts_with("error: "), "{e}");
+            for w in *words {
+                assert!(e.contains(w), "{text:?}: {w:?} not in {e}");
+            }
+            assert!(
+                !dir.join("out.png").exists(),
+                "{text:?}: an output appeared"
+            );
+        }
+    }
+
+    // Files and arguments: (arguments, exit status, words).
+    let latin1 = d("latin1.toml");
+    let ok_scene = write(&dir, "ok.toml", SMALL);
+    let nan_points = write(&dir, "nan.csv", "x,y,z\n1,2,3\n1,inf,3\n");
+    let short_points = write(&dir, "short.csv", "x,y,z\n1,2\n");
+    let arg_cases: Vec<(Vec<String>, i32, Vec<&str>)> = vec![
+        (
+            vec!["render".into(), d("missing.toml")],
+            1,
+            vec!["missing.toml", "cannot read"],
+        ),
+        (
+            vec!["render".into(), latin1.clone()],
+            1,
+            vec!["latin1.toml", "UTF-8"],
+        ),
+        (
+            vec![
+                "probe".into(),
+                ok_scene.clone(),
+                "--points".into(),
+                nan_points,
+            ],
+            1,
+            vec!["nan.csv", "line 3", "inf"],
+        ),
+        (
+            vec![
+                "probe".into(),
+                ok_scene.clone(),
+                "--points".into(),
+                short_points,
+            ],
+            1,
+            vec!["short.csv", "line 2"],
+        ),
+        (
+            vec![
+                "probe".into(),
+                ok_scene.clone(),
+                "--points".into(),
+                d("none.csv"),
+            ],
+            1,
+            vec!["none.csv"],
+        ),
+        (
+            vec!["render".into(), "--threads".into(), "0".into()],
+            2,
+            vec!["--threads", "0"],
+        ),
+        (
+            vec!["render".into(), "--frames".into(), "0".into()],
+            2,
+            vec!["--frames", "0"],
+        ),
+        (
+            vec!["render".into(), "--frames".into(), "-3".into()],
+            2,
+            vec!["-3"],
+        ),
+        (
+            vec!["render".into(), "-o".into(), d("x.bmp")],
+            2,
+            vec!["x.bmp", ".png"],
+        ),
+        (
+            vec!["render".into(), "-o".into(), d("x%s.png")],
+            2,
+            vec!["x%s.png", "%d"],
+        ),
+        (
+            vec!["render".into(), "--method".into(), "ray-magic".into()],
+            2,
+            vec!["ray-magic"],
+        ),
+        (
+            vec!["bench".into(), "shadow".into(), "--runs".into(), "0".into()],
+            2,
+            vec!["--runs", "0"],
+        ),
+        (
+            vec![
+                "bench".into(),
+                "shadow".into(),
+                "--cells".into(),
+                "513".into(),
+            ],
+            2,
+            vec!["--cells", "513"],
+        ),
+    ];
+    for (args, code, words) in arg_cases {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = wisplight(&args);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(code), "{args:?}: {e}");
+        let first = e.lines().next().unwrap_or_default();
+        assert!(first.starts_with("error: "), "{args:?}: {e}");
+        for w in words {
+            assert!(first.contains(w), "{args:?}: {w:?} not in {first}");
+        }
+        assert!(
+            !e.contains("panicked") && !e.contains("RUST_BACKTRACE"),
+            "{e}"
+        );
+    }
+    assert!(!dir.join("x.bmp").exists());
 }

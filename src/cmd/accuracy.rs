@@ -26,8 +26,9 @@ pub struct AccuracyArgs {
     plot: Option<PathBuf>,
     /// Timed frames per setting, after one untimed frame; the median counts.
     /// The reference is rendered once.
-    #[arg(long, default_value_t = 3, value_name = "N")]
-    runs: usize,
+    #[arg(long, default_value_t = 3, value_name = "N",
+          value_parser = clap::value_parser!(u64).range(1..=100_000))]
+    runs: u64,
     /// Only these methods (comma separated); all by default.
     #[arg(long, value_delimiter = ',', value_name = "NAME,...",
           value_parser = clap::builder::PossibleValuesParser::new(MethodConfig::NAMES))]
@@ -96,7 +97,6 @@ struct Row {
 }
 
 pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
-    anyhow::ensure!(a.runs >= 1, "--runs {}: must be at least 1", a.runs);
     let scene = super::load_scene(a.scene.as_deref())?;
     let hair = super::build_hair(&scene)?;
     let (name, threads, cores) = super::bench::machine(a.scene.as_deref());
@@ -132,7 +132,7 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
     }];
     for c in configs {
         bar.set_message(format!("{} {}", c.name(), c.parameters()));
-        let (ms, t, img) = measure(&scene, c, &hair, a.runs, true)?;
+        let (ms, t, img) = measure(&scene, c, &hair, a.runs as usize, true)?;
         let (mean_abs, rms, max) = errors(&t, &ref_t);
         rows.push(Row {
             config: c,

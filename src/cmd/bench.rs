@@ -24,8 +24,9 @@ pub struct FrameArgs {
     /// Scene file (TOML); the built-in scene when omitted.
     scene: Option<PathBuf>,
     /// Timed frames (after 3 untimed frames: the first settles the hair).
-    #[arg(long, default_value_t = 20, value_name = "N")]
-    runs: usize,
+    #[arg(long, default_value_t = 20, value_name = "N",
+          value_parser = clap::value_parser!(u64).range(1..=100_000))]
+    runs: u64,
     /// Also print the result as one JSON object on the last stdout line.
     #[arg(long)]
     json: bool,
@@ -36,11 +37,13 @@ pub struct ShadowArgs {
     /// Scene file (TOML); the built-in scene when omitted.
     scene: Option<PathBuf>,
     /// Map cells a side, overriding the scene's `shadow.cells`.
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N",
+          value_parser = clap::value_parser!(u32).range(1..=shadow::MAX_CELLS as i64))]
     cells: Option<u32>,
     /// Timed runs (after 5 untimed warm-up runs).
-    #[arg(long, default_value_t = 30, value_name = "N")]
-    runs: usize,
+    #[arg(long, default_value_t = 30, value_name = "N",
+          value_parser = clap::value_parser!(u64).range(1..=100_000))]
+    runs: u64,
     /// Also print the result as one JSON object on the last stdout line.
     #[arg(long)]
     json: bool,
@@ -55,14 +58,8 @@ pub fn run(b: Bench) -> anyhow::Result<()> {
 }
 
 fn shadow(a: ShadowArgs) -> anyhow::Result<()> {
-    anyhow::ensure!(a.runs >= 1, "--runs {}: must be at least 1", a.runs);
     let mut scene = super::load_scene(a.scene.as_deref())?;
     if let Some(c) = a.cells {
-        anyhow::ensure!(
-            (1..=shadow::MAX_CELLS).contains(&c),
-            "--cells {c}: must be in 1..={}",
-            shadow::MAX_CELLS
-        );
         scene.shadow.set_cells(c);
     }
     let hair = super::build_hair(&scene)?;
@@ -76,7 +73,7 @@ fn shadow(a: ShadowArgs) -> anyhow::Result<()> {
         a.runs
     );
     let mut pipeline = ShadowPipeline::new(&scene)?;
-    let t = StageTimes::measure(&mut pipeline, &hair, 5, a.runs, |_| {})?;
+    let t = StageTimes::measure(&mut pipeline, &hair, 5, a.runs as usize, |_| {})?;
     println!("stage           median ms");
     println!("density         {:9.3}", t.density_ms);
     println!("transmittance   {:9.3}", t.transmittance_ms);
@@ -105,7 +102,6 @@ fn shadow(a: ShadowArgs) -> anyhow::Result<()> {
 }
 
 fn frame(a: FrameArgs) -> anyhow::Result<()> {
-    anyhow::ensure!(a.runs >= 1, "--runs {}: must be at least 1", a.runs);
     let scene = super::load_scene(a.scene.as_deref())?;
     let (name, threads, cores) = machine(a.scene.as_deref());
     let mut seq = engine::Sequence::new(&scene).context("cannot set up the scene")?;

@@ -10,10 +10,32 @@ use std::path::Path;
 use anyhow::Context;
 use engine::Scene;
 
+/// A mistake in the command line itself (an option's value, or options
+/// that do not go together): exit status 2, like clap's own usage errors.
+#[derive(Debug)]
+pub struct Usage(pub String);
+
+impl std::fmt::Display for Usage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for Usage {}
+
+/// A [`Usage`] error.
+pub fn usage(message: impl Into<String>) -> anyhow::Error {
+    Usage(message.into()).into()
+}
+
 /// Loads a scene file, or the built-in scene when none is given.
 pub fn load_scene(path: Option<&Path>) -> anyhow::Result<Scene> {
     match path {
-        Some(p) => Scene::load(p).context("invalid scene"),
+        Some(p) => Scene::load(p).map_err(|e| match e {
+            // "cannot read scene X: ..." says it all.
+            engine::SceneError::Io { .. } => e.into(),
+            _ => anyhow::Error::new(e).context("invalid scene"),
+        }),
         None => Ok(Scene::default()),
     }
 }

@@ -67,11 +67,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Output::Gif(w, out_path.clone())
     } else {
         let pattern = Pattern::parse(&out_path)?;
-        anyhow::ensure!(
-            n == 1 || pattern.numbered(),
-            "-o {}: {n} frames need a numbered name, like out/frame_%04d.png (or a .gif)",
-            out_path.display()
-        );
+        if !out_path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("png"))
+        {
+            return Err(super::usage(format!(
+                "-o {}: the output must be a .png (or a .gif)",
+                out_path.display()
+            )));
+        }
+        if n > 1 && !pattern.numbered() {
+            return Err(super::usage(format!(
+                "-o {}: {n} frames need a numbered name, like out/frame_%04d.png (or a .gif)",
+                out_path.display()
+            )));
+        }
         if pattern.numbered()
             && let Some(dir) = out_path.parent().filter(|d| !d.as_os_str().is_empty())
         {
@@ -192,8 +202,8 @@ impl Pattern {
     fn parse(path: &Path) -> anyhow::Result<Pattern> {
         let s = path
             .to_str()
-            .with_context(|| format!("-o {}: not valid UTF-8", path.display()))?;
-        let bad = |why: &str| anyhow::anyhow!("-o {s}: {why}");
+            .ok_or_else(|| super::usage(format!("-o {}: not valid UTF-8", path.display())))?;
+        let bad = |why: &str| super::usage(format!("-o {s}: {why}"));
         let mut before = String::new();
         let mut after = String::new();
         let mut width = None;

@@ -54,7 +54,7 @@ impl Animator {
         let pivot = match (&scene.head, &scene.hair) {
             (Some(h), _) => h.center,
             (None, HairSource::Style(p)) => p.head_center,
-            (None, HairSource::File { .. }) => {
+            (None, HairSource::File { .. } | HairSource::Inline(_)) => {
                 let b = rest.bounds();
                 if b.is_empty() { Vec3::ZERO } else { b.center() }
             }

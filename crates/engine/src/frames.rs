@@ -196,6 +196,11 @@ impl Sequence {
         &self.anim
     }
 
+    /// The renderer, with the last frame's transmittance and colours.
+    pub fn renderer(&self) -> &Renderer {
+        &self.renderer
+    }
+
     /// Renders the next frame: its picture and what each stage did.
     pub fn next_frame(&mut self) -> Result<(&image::RgbImage, FrameStats), EngineError> {
         let index = self.next;

@@ -39,6 +39,7 @@ pub fn build_hair(scene: &Scene) -> Result<Hair, EngineError> {
                 None => guides,
             }
         }
+        HairSource::Inline(hair) => hair.clone(),
     };
     check_size(control.segment_count() as u64 * u64::from(scene.subdivide))?;
     Ok(resample(&control, scene.subdivide))

@@ -86,6 +86,12 @@ impl Renderer {
         &self.trans
     }
 
+    /// The shaded colour of each drawn point in the last [`Self::shade`]
+    /// (linear RGB).
+    pub fn colors(&self) -> &[Vec3] {
+        &self.colors
+    }
+
     pub fn shadows(&self) -> &ShadowPipeline {
         &self.shadows
     }

@@ -2,7 +2,8 @@
 //!
 //! ```toml
 //! [hair]
-//! style = "smooth"          # or "curly"; or file = "groom.tfx" (.hair or .tfx, relative to the scene)
+//! style = "smooth"          # or "curly"; or file = "groom.tfx" (.hair or .tfx, relative to the scene);
+//!                           # or strands = [[[x, y, z], ...], ...] written out in the scene
 //! seed = 1                  # procedural styles
 //! strands_per_wisp = 25     # procedural styles: 134 wisps of this many drawn strands
 //! subdivide = 2             # Catmull-Rom pieces per input segment
@@ -38,7 +39,7 @@ use std::path::{Path, PathBuf};
 use glam::Vec3;
 use serde::Deserialize;
 use shadow::{Beyond, Fiber, Light, MethodConfig, OpacityMode};
-use strands::{FollowParams, Style, StyleParams};
+use strands::{FollowParams, Hair, Style, StyleParams};
 
 pub use motion::{
     Animation, BodySettings, Collision, DEFAULT_COLLISION_DENSITY, DEFAULT_FPS,
@@ -48,10 +49,10 @@ pub use motion::{
 /// A scene that could not be read, naming the file and the field.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
-    #[error("cannot read scene {}: {source}", path.display())]
+    #[error("cannot read scene {}: {cause}", path.display())]
     Io {
         path: PathBuf,
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     #[error("{}: {message}", path.display())]
     Parse { path: PathBuf, message: String },
@@ -142,6 +143,7 @@ enum OneOrMany<T> {
 struct RawHair {
     style: Option<String>,
     file: Option<PathBuf>,
+    strands: Option<Vec<Vec<[f32; 3]>>>,
     seed: Option<u64>,
     strands_per_wisp: Option<i64>,
     subdivide: Option<i64>,
@@ -190,7 +192,13 @@ pub enum HairSource {
         path: PathBuf,
         follow: Option<FollowParams>,
     },
+    /// Strands written out in the scene (`hair.strands`): small test
+    /// cases and bug reports that need no other file.
+    Inline(Hair),
 }
+
+/// At most this many points written out in `hair.strands`.
+pub const MAX_INLINE_POINTS: usize = 100_000;
 
 /// The shadow method and its settings (see [`MethodConfig`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -297,9 +305,9 @@ impl Scene {
     /// Reads and validates a scene file; relative paths inside it are
     /// relative to the file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+        let text = std::fs::read_to_string(path).map_err(|cause| SceneError::Io {
             path: path.to_owned(),
-            source,
+            cause,
         })?;
         Scene::from_toml_str(&text, path)
     }
@@ -505,11 +513,63 @@ impl Validator<'_> {
         }
     }
 
+    /// `hair.strands`: every coordinate finite, at most
+    /// [`MAX_INLINE_POINTS`] points. Strands of one point or none are kept
+    /// (they draw and shadow nothing).
+    fn inline_strands(&self, strands: &[Vec<[f32; 3]>]) -> Result<Hair, SceneError> {
+        let points: usize = strands.iter().map(Vec::len).sum();
+        if points > MAX_INLINE_POINTS {
+            return Err(self.invalid(
+                "hair.strands",
+                format!("({points} points)"),
+                format!("at most {MAX_INLINE_POINTS} points; use hair.file for larger hair"),
+            ));
+        }
+        let mut hair = Hair::new();
+        let mut buf = Vec::new();
+        for (s, st) in strands.iter().enumerate() {
+            buf.clear();
+            buf.extend(st.iter().map(|&p| Vec3::from_array(p)));
+            if let Some(i) = buf.iter().position(|p| !p.is_finite()) {
+                return Err(self.invalid(
+                    "hair.strands",
+                    format!("{:?}", st[i]),
+                    format!("strand {s}, point {i}: coordinates must be finite"),
+                ));
+            }
+            hair.push_strand(&buf).map_err(|e| {
+                self.invalid("hair.strands", format!("(strand {s})"), e.to_string())
+            })?;
+        }
+        Ok(hair)
+    }
+
     fn scene(&self, raw: RawScene) -> Result<Scene, SceneError> {
         let h = raw.hair;
         let subdivide = self.int("hair.subdivide", h.subdivide, DEFAULT_SUBDIVIDE, 1..=64)?;
         let seed = h.seed.unwrap_or(1);
+        let given = [h.style.is_some(), h.file.is_some(), h.strands.is_some()];
+        if given.iter().filter(|&&g| g).count() > 1 {
+            return Err(self.invalid(
+                "hair",
+                "(style, file, strands)",
+                "give one of hair.style, hair.file and hair.strands",
+            ));
+        }
         let hair = match (&h.style, &h.file) {
+            _ if h.strands.is_some() => {
+                for (field, set) in [
+                    ("hair.followers", h.followers.is_some()),
+                    ("hair.follow_radius", h.follow_radius.is_some()),
+                    ("hair.tip_spread", h.tip_spread.is_some()),
+                    ("hair.seed", h.seed.is_some()),
+                ] {
+                    if set {
+                        return Err(self.invalid(field, "(set)", "does not apply to hair.strands"));
+                    }
+                }
+                HairSource::Inline(self.inline_strands(h.strands.as_deref().unwrap_or_default())?)
+            }
             (Some(_), Some(_)) => {
                 return Err(self.invalid(
                     "hair.style",
@@ -570,7 +630,7 @@ impl Validator<'_> {
                 HairSource::Style(p)
             }
         };
-        if matches!(hair, HairSource::File { .. }) && h.strands_per_wisp.is_some() {
+        if !matches!(hair, HairSource::Style(_)) && h.strands_per_wisp.is_some() {
             return Err(self.invalid(
                 "hair.strands_per_wisp",
                 h.strands_per_wisp.unwrap_or_default(),
@@ -673,7 +733,7 @@ impl Validator<'_> {
         let hd = raw.head;
         let style_head = match &hair {
             HairSource::Style(p) => Some((p.head_center, p.head_radius)),
-            HairSource::File { .. } => None,
+            HairSource::File { .. } | HairSource::Inline(_) => None,
         };
         let visible = hd
             .visible
@@ -709,7 +769,7 @@ impl Validator<'_> {
             shininess: self.positive("shading.shininess", sh.shininess, d.shininess)?,
             specular_color: d.specular_color,
         };
-        let from_file = matches!(hair, HairSource::File { .. });
+        let from_file = !matches!(hair, HairSource::Style(_));
         let animation = self.animation(raw.animation)?;
         let dynamics = self.dynamics(raw.dynamics)?;
         self.steps_in_bounds(&animation, &dynamics)?;

@@ -32,10 +32,10 @@ pub enum RasterError {
     Size { width: u32, height: u32 },
     #[error("camera: {0}")]
     Camera(String),
-    #[error("cannot write {path}: {source}")]
+    #[error("cannot write {}: {cause}", path.display())]
     Write {
         path: std::path::PathBuf,
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     #[error("cannot encode {path}: {message}")]
     Encode {

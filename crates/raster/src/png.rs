@@ -43,9 +43,9 @@ fn encode_into(img: &image::RgbImage, out: impl std::io::Write) -> Result<(), St
 /// Writes `bytes` to `path` whole or not at all (see [`write_atomic`]).
 pub fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<(), RasterError> {
     write_atomic(path, |out| {
-        std::io::Write::write_all(out, bytes).map_err(|source| RasterError::Write {
+        std::io::Write::write_all(out, bytes).map_err(|cause| RasterError::Write {
             path: path.to_owned(),
-            source,
+            cause,
         })
     })
 }
@@ -75,9 +75,9 @@ pub struct AtomicFile {
 
 impl AtomicFile {
     pub fn create(path: &Path) -> Result<AtomicFile, RasterError> {
-        let write_err = |source| RasterError::Write {
+        let write_err = |cause| RasterError::Write {
             path: path.to_owned(),
-            source,
+            cause,
         };
         let dir = path
             .parent()
@@ -113,9 +113,9 @@ impl AtomicFile {
 
     /// Flushes, syncs and renames the file into place.
     pub fn commit(mut self) -> Result<(), RasterError> {
-        let write_err = |source| RasterError::Write {
+        let write_err = |cause| RasterError::Write {
             path: self.path.clone(),
-            source,
+            cause,
         };
         let out = self.out.take().expect("committed once");
         let file = out.into_inner().map_err(|e| write_err(e.into_error()))?;

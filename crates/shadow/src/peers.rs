@@ -491,7 +491,10 @@ impl ShadowMethod for PixelMethod {
                     let o = &omega[pix * slices..(pix + 1) * slices];
                     let u = (x - offset * delta - d0) / delta;
                     if u <= 0.0 {
-                        return o[0];
+                        // At or in front of the first plane: no hair lies
+                        // between the point and the light (plane 0 holds
+                        // hair at exactly `d0`, as in a sheet across it).
+                        return 0.0;
                     }
                     if u >= (slices - 1) as f32 {
                         return o[slices - 1];

@@ -14,8 +14,8 @@
 //! T(p) = prod_i (1 - alpha min(c_i, 1)) * prod_o (1 - c_o)
 //! ```
 //!
-//! The consecutive segments of one strand inside the footprint are one
-//! fiber. No density, no grid of values, no interpolation: for fibers much
+//! The segments of one strand inside the footprint are one fiber (so a
+//! strand's zero-length segments and repeated points change nothing). No density, no grid of values, no interpolation: for fibers much
 //! thinner than the footprint, `-ln T` is `alpha` times the number of
 //! fibers a ray crosses, and a slab of parallel fibers gives Beer-Lambert,
 //! `exp(-n w alpha sin(theta) x)`.
@@ -45,6 +45,8 @@ struct Built {
     frame: LightFrame,
     /// Drawn points in map cells.
     cells: Vec<Vec3>,
+    /// The strand of each point.
+    strand: Vec<u32>,
     /// Per column, the starts of the segments (`cells[s]` to `cells[s + 1]`)
     /// whose capsule's shadow reaches it, ascending.
     start: Vec<u32>,
@@ -76,6 +78,10 @@ impl ShadowMethod for Reference {
         let n = GRID as i32;
         let hair = input.hair;
         let cells: Vec<Vec3> = hair.points().iter().map(|&p| frame.to_cells(p)).collect();
+        let mut strand = Vec::with_capacity(cells.len());
+        for (s, st) in hair.strands().enumerate() {
+            strand.extend(std::iter::repeat_n(s as u32, st.len()));
+        }
         let radius = 0.5 * input.fiber.width() / frame.ds;
         let offsets_of_strands = hair.offsets();
         // Segment starts: every point but the last of each strand.
@@ -140,6 +146,7 @@ impl ShadowMethod for Reference {
         self.built = Some(Built {
             frame,
             cells,
+            strand,
             start,
             segs,
             radius,
@@ -189,20 +196,22 @@ impl ShadowMethod for Reference {
                 // wide, over the length of its projection inside the square.
                 let per_length = 2.0 * b.radius / (b.side * b.side);
                 let alpha = f64::from(1.0 - b.transmit);
-                let (mut cover, mut last) = (0.0f64, u32::MAX - 1);
+                let (mut cover, mut last) = (0.0f64, u32::MAX);
                 for &s in cand.iter() {
                     let (a, e) = (b.cells[s as usize], b.cells[s as usize + 1]);
                     let len = clipped_across(a, e, [y0, y1, z0, z1], before);
                     if len <= 0.0 {
                         continue;
                     }
-                    // Consecutive segments of one strand are one fiber.
-                    if s != last.wrapping_add(1) && cover > 0.0 {
+                    // The segments of one strand are one fiber (candidates
+                    // are in ascending order, so a strand's come together).
+                    let strand = b.strand[s as usize];
+                    if strand != last && cover > 0.0 {
                         t *= 1.0 - alpha * cover.min(1.0);
                         cover = 0.0;
                     }
                     cover += f64::from(per_length * len);
-                    last = s;
+                    last = strand;
                 }
                 t *= 1.0 - alpha * cover.min(1.0);
             });

@@ -192,3 +192,44 @@ fn bad_inputs_are_refused() {
         "one guide is not a wisp"
     );
 }
+
+/// A field with absurd pushes: 1e30 units/s^2 one way, then the other.
+struct Absurd;
+impl ForceField for Absurd {
+    fn acceleration(&self, p: Vec3) -> Vec3 {
+        if p.x > 0.0 {
+            Vec3::new(-1e30, 1e30, 0.0)
+        } else {
+            Vec3::new(1e30, 0.0, -1e30)
+        }
+    }
+}
+
+#[test]
+fn stiff_links_at_the_largest_time_step_and_absurd_forces_stay_finite() {
+    let g = guides(Style::Curly);
+    let reach = 10.0 + g.max_strand_length() + 1.0;
+    // The largest step a scene accepts (0.1 s, six times the default),
+    // the stiffest style, the most iterations, strong gravity, no damping.
+    let params = SimParams {
+        dt: 0.1,
+        gravity: Vec3::new(0.0, -1e5, 0.0),
+        damping: 0.0,
+        stiffness: 1.0,
+        iterations: 64,
+    };
+    for field in [None, Some(&Absurd as &dyn ForceField)] {
+        let mut sim = HairSim::new(&g, params).unwrap();
+        run(&mut sim, &Motion::Dance { amplitude: 1.0 }, 100, field);
+        for w in 0..sim.wisp_count() {
+            for p in &sim.wisp(w).pos {
+                assert!(p.is_finite() && p.length() < reach, "wisp {w} point {p}");
+            }
+        }
+        assert!(
+            sim.max_stretch() < 0.01,
+            "a link is off by {}",
+            sim.max_stretch()
+        );
+    }
+}

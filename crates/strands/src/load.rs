@@ -13,13 +13,13 @@ use crate::hair::{Hair, HairError};
 /// A file that could not be loaded, with its path.
 #[derive(Debug, thiserror::Error)]
 pub enum LoadError {
-    #[error("cannot read {}: {source}", path.display())]
+    #[error("cannot read {}: {cause}", path.display())]
     Io {
         path: PathBuf,
-        source: std::io::Error,
+        cause: std::io::Error,
     },
-    #[error("{}: {source}", path.display())]
-    Format { path: PathBuf, source: FormatError },
+    #[error("{}: {cause}", path.display())]
+    Format { path: PathBuf, cause: FormatError },
     #[error("{}: unknown hair file type (expected a .hair or .tfx file)", path.display())]
     UnknownExtension { path: PathBuf },
 }
@@ -50,7 +50,7 @@ pub enum FormatError {
     },
     #[error("header claims {points} points but sets no point array flag")]
     NoPointArray { points: u64 },
-    #[error("{0}")]
+    #[error(transparent)]
     Hair(#[from] HairError),
     #[error("colour of point {point} is not finite")]
     NonFiniteColor { point: usize },
@@ -73,13 +73,13 @@ pub fn load(path: &Path) -> Result<Hair, LoadError> {
             });
         }
     };
-    let bytes = std::fs::read(path).map_err(|source| LoadError::Io {
+    let bytes = std::fs::read(path).map_err(|cause| LoadError::Io {
         path: path.to_owned(),
-        source,
+        cause,
     })?;
-    parse(&bytes).map_err(|source| LoadError::Format {
+    parse(&bytes).map_err(|cause| LoadError::Format {
         path: path.to_owned(),
-        source,
+        cause,
     })
 }
 

@@ -156,7 +156,7 @@ impl Validator<'_> {
             return Err(self.invalid(
                 "effects.dynamics",
                 true,
-                "hair from files has no wisps of guide strands to simulate; \
+                "hair from a file or hair.strands has no wisps of guide strands to simulate; \
                  it moves rigidly with the head",
             ));
         }
