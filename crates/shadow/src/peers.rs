@@ -619,6 +619,14 @@ fn cluster_bins(fs: &[Frag], out: &mut [Bin]) {
         w[c] += f64::from(f.beta);
         wv[c] += f64::from(f.beta) * d * d;
     }
+    // A bin never reaches past the pixel's hair: a cluster with a wide
+    // spread would otherwise start in front of the nearest fragment and
+    // shadow points that have no hair between them and the light.
+    let (first, last) = fs
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), f| {
+            (a.min(f.z), b.max(f.z + f.len))
+        });
     let mut bins: Vec<Bin> = (0..m)
         .map(|c| {
             let sigma = if w[c] > 0.0 {
@@ -626,9 +634,10 @@ fn cluster_bins(fs: &[Frag], out: &mut [Bin]) {
             } else {
                 0.0
             };
+            let lo = (mu[c] - GAMMA * sigma).max(first);
             Bin {
-                lo: mu[c] - GAMMA * sigma,
-                hi: mu[c] + GAMMA * sigma,
+                lo,
+                hi: (mu[c] + GAMMA * sigma).min(last).max(lo),
                 b: 0.0,
             }
         })

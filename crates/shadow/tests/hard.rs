@@ -561,3 +561,34 @@ fn a_sheet_at_one_depth_gives_its_known_shadow_in_every_method() {
         }
     }
 }
+
+#[test]
+fn a_widely_spread_cluster_casts_nothing_in_front_of_its_hair() {
+    // Two sheets far apart along the light, one cluster per pixel: its
+    // histogram bin (mean +- sqrt(3) sigma) would start well in front of
+    // the first sheet.
+    let light = Light::directional(Vec3::NEG_Y).unwrap();
+    let mut hair = Hair::new();
+    for y in [0.0f32, -10.0] {
+        for a in 0..=20 {
+            let x = -1.0 + 0.1 * a as f32;
+            hair.push_strand(&[Vec3::new(x, y, -1.0), Vec3::new(x, y, 1.0)])
+                .unwrap();
+        }
+    }
+    let fiber = Fiber::new(0.01, 0.6).unwrap();
+    let c = MethodConfig::DensityClustering {
+        resolution: 16,
+        clusters: 1,
+        filter: true,
+    };
+    let m = build(&c, &hair, &light, &fiber);
+    for y in [3.0f32, 1.0, 0.05] {
+        assert_eq!(
+            m.transmittance(Vec3::new(0.05, y, 0.0)),
+            1.0,
+            "T < 1 at y = {y}, in front of all hair"
+        );
+    }
+    assert!(m.transmittance(Vec3::new(0.05, -11.0, 0.0)) < 1.0);
+}
