@@ -56,6 +56,8 @@ pub enum FormatError {
     NonFiniteColor { point: usize },
     #[error("unsupported TressFX version {0} (expected 4)")]
     TfxVersion(f32),
+    #[error("header claims {strands} strands of no vertices")]
+    EmptyStrands { strands: u64 },
 }
 
 /// Loads `.hair` or `.tfx` by extension.
@@ -261,6 +263,11 @@ pub fn parse_tfx(b: &[u8]) -> Result<Hair, FormatError> {
             offset,
             len,
         });
+    }
+    // Strands of no vertices take no bytes: without this check a header
+    // could claim 4 billion of them.
+    if per_strand == 0 && strands > 0 {
+        return Err(FormatError::EmptyStrands { strands });
     }
     // u32 * u32 fits u64; times 16 may not: saturate, the length check refuses it.
     let points = strands * per_strand;

@@ -1,0 +1,163 @@
+//! Fuzzing the loaders with proptest: arbitrary bytes, headers with
+//! arbitrary counts and flags over short bodies, and valid files with bytes
+//! flipped or cut off. Never a panic, never a hang, and never more points
+//! than the bytes present can hold (a header that claims billions of points
+//! gets an error, not an allocation).
+
+use proptest::prelude::*;
+use strands::{parse_hair_format, parse_tfx};
+
+/// A HAIR header (128 bytes): magic, counts, flags, defaults, then `body`.
+fn hair_header(
+    strands: u32,
+    points: u32,
+    flags: u32,
+    default_segments: u32,
+    body: &[u8],
+) -> Vec<u8> {
+    let mut b = Vec::with_capacity(128 + body.len());
+    b.extend_from_slice(b"HAIR");
+    for v in [strands, points, flags, default_segments] {
+        b.extend_from_slice(&v.to_le_bytes());
+    }
+    b.resize(128, 0);
+    b.extend_from_slice(body);
+    b
+}
+
+/// A TressFX 4 header (160 bytes): version, strands, vertices per strand,
+/// offset of the vertices, then `body`.
+fn tfx_header(strands: u32, per_strand: u32, offset: u32, body: &[u8]) -> Vec<u8> {
+    let mut b = Vec::with_capacity(160 + body.len());
+    b.extend_from_slice(&4.0f32.to_le_bytes());
+    for v in [strands, per_strand, offset] {
+        b.extend_from_slice(&v.to_le_bytes());
+    }
+    b.resize(160, 0);
+    b.extend_from_slice(body);
+    b
+}
+
+/// A valid HAIR file of `n` strands of 3 points with segments, points and
+/// colours.
+fn valid_hair(n: u16) -> Vec<u8> {
+    let points = 3 * u32::from(n);
+    let mut body = Vec::new();
+    for _ in 0..n {
+        body.extend_from_slice(&2u16.to_le_bytes());
+    }
+    for p in 0..points {
+        for c in [p as f32, 1.0, -2.0] {
+            body.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    for _ in 0..points {
+        for c in [0.5f32, 0.4, 0.3] {
+            body.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    hair_header(u32::from(n), points, 1 | 2 | 16, 0, &body)
+}
+
+fn valid_tfx(n: u32) -> Vec<u8> {
+    let mut body = Vec::new();
+    for p in 0..4 * n {
+        for c in [p as f32, 0.0, 1.0, 1.0] {
+            body.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    tfx_header(n, 4, 160, &body)
+}
+
+/// Parses with both loaders; whatever they accept fits in the bytes.
+fn check(bytes: &[u8]) -> Result<(), TestCaseError> {
+    if let Ok(h) = parse_hair_format(bytes) {
+        prop_assert!(
+            h.point_count() * 12 <= bytes.len(),
+            "{} points from {} bytes",
+            h.point_count(),
+            bytes.len()
+        );
+        prop_assert!(h.strand_count() * 2 <= bytes.len() || h.point_count() > 0);
+        prop_assert!(h.points().iter().all(|p| p.is_finite()));
+    }
+    if let Ok(h) = parse_tfx(bytes) {
+        prop_assert!(h.point_count() * 16 <= bytes.len());
+        prop_assert!(h.strand_count() <= h.point_count().max(1) * 4);
+        prop_assert!(h.points().iter().all(|p| p.is_finite()));
+    }
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(2000))]
+
+    #[test]
+    fn arbitrary_bytes(bytes in prop::collection::vec(any::<u8>(), 0..600)) {
+        check(&bytes)?;
+    }
+
+    #[test]
+    fn hair_headers_with_any_counts(
+        strands in prop_oneof![0u32..8, Just(u32::MAX), any::<u32>()],
+        points in prop_oneof![0u32..32, Just(u32::MAX), any::<u32>()],
+        flags in 0u32..64,
+        default_segments in prop_oneof![0u32..4, Just(u32::MAX), any::<u32>()],
+        body in prop::collection::vec(any::<u8>(), 0..400),
+    ) {
+        check(&hair_header(strands, points, flags, default_segments, &body))?;
+    }
+
+    #[test]
+    fn tfx_headers_with_any_counts(
+        strands in prop_oneof![0u32..8, Just(u32::MAX), any::<u32>()],
+        per_strand in prop_oneof![0u32..8, Just(u32::MAX), any::<u32>()],
+        offset in prop_oneof![Just(160u32), 0u32..400, any::<u32>()],
+        body in prop::collection::vec(any::<u8>(), 0..400),
+    ) {
+        check(&tfx_header(strands, per_strand, offset, &body))?;
+    }
+
+    #[test]
+    fn valid_files_with_bytes_flipped_or_cut(
+        n in 1u16..6,
+        flips in prop::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 0..6),
+        cut in any::<prop::sample::Index>(),
+        do_cut in any::<bool>(),
+    ) {
+        for mut bytes in [valid_hair(n), valid_tfx(u32::from(n))] {
+            for (at, v) in &flips {
+                let i = at.index(bytes.len());
+                bytes[i] = *v;
+            }
+            if do_cut {
+                bytes.truncate(cut.index(bytes.len()));
+            }
+            check(&bytes)?;
+        }
+    }
+}
+
+#[test]
+fn the_valid_files_of_the_fuzzer_load() {
+    let h = parse_hair_format(&valid_hair(4)).unwrap();
+    assert_eq!((h.strand_count(), h.point_count()), (4, 12));
+    let t = parse_tfx(&valid_tfx(4)).unwrap();
+    assert_eq!((t.strand_count(), t.point_count()), (4, 16));
+}
+
+#[test]
+fn headers_that_claim_billions_are_refused_at_once() {
+    for bytes in [
+        hair_header(u32::MAX, u32::MAX, 1 | 2, 0, &[]),
+        hair_header(u32::MAX, u32::MAX, 2, 0, &[]),
+        hair_header(1, u32::MAX, 2, u32::MAX - 1, &[0; 64]),
+        tfx_header(u32::MAX, 0, 160, &[]),
+        tfx_header(u32::MAX, u32::MAX, 160, &[0; 64]),
+        tfx_header(1, u32::MAX, 160, &[0; 64]),
+    ] {
+        assert!(parse_hair_format(&bytes).is_err() || parse_tfx(&bytes).is_err());
+        check(&bytes).unwrap();
+    }
+    assert!(parse_tfx(&tfx_header(u32::MAX, 0, 160, &[])).is_err());
+}
