@@ -66,10 +66,16 @@ pub fn write_atomic(
 /// beside its path and renamed into place by [`Self::commit`]. Dropped
 /// without a commit, it removes the temporary file and leaves the path as
 /// it was.
+///
+/// A symbolic link is followed: the file it points to is replaced, not the
+/// link. A path that names something other than a regular file (a device
+/// such as `/dev/stdout`, a pipe) is written directly, since it cannot be
+/// replaced by renaming; a directory is an error.
 #[derive(Debug)]
 pub struct AtomicFile {
     path: PathBuf,
-    tmp: PathBuf,
+    /// The temporary file, or `None` when writing directly.
+    tmp: Option<PathBuf>,
     out: Option<BufWriter<std::fs::File>>,
 }
 
@@ -79,6 +85,32 @@ impl AtomicFile {
             path: path.to_owned(),
             cause,
         };
+        // Where the bytes go: through links to an existing file.
+        let target = match std::fs::canonicalize(path) {
+            Ok(t) if path.is_symlink() => t,
+            _ => path.to_owned(),
+        };
+        if let Ok(meta) = std::fs::metadata(&target) {
+            if meta.is_dir() {
+                return Err(write_err(std::io::Error::new(
+                    std::io::ErrorKind::IsADirectory,
+                    "is a directory",
+                )));
+            }
+            if !meta.is_file() {
+                let file = std::fs::OpenOptions::new()
+                    .write(true)
+                    .truncate(true)
+                    .open(&target)
+                    .map_err(write_err)?;
+                return Ok(AtomicFile {
+                    path: path.to_owned(),
+                    tmp: None,
+                    out: Some(BufWriter::new(file)),
+                });
+            }
+        }
+        let path = target.as_path();
         let dir = path
             .parent()
             .filter(|d| !d.as_os_str().is_empty())
@@ -97,7 +129,7 @@ impl AtomicFile {
         let file = std::fs::File::create(&tmp).map_err(write_err)?;
         Ok(AtomicFile {
             path: path.to_owned(),
-            tmp,
+            tmp: Some(tmp),
             out: Some(BufWriter::new(file)),
         })
     }
@@ -119,16 +151,22 @@ impl AtomicFile {
         };
         let out = self.out.take().expect("committed once");
         let file = out.into_inner().map_err(|e| write_err(e.into_error()))?;
+        let Some(tmp) = &self.tmp else {
+            // Written directly (a device or pipe): flushed is done.
+            return Ok(());
+        };
         file.sync_all().map_err(write_err)?;
-        std::fs::rename(&self.tmp, &self.path).map_err(write_err)
+        std::fs::rename(tmp, &self.path).map_err(write_err)
     }
 }
 
 impl Drop for AtomicFile {
     fn drop(&mut self) {
         // Not committed, or the commit failed: no partial file stays.
-        if self.out.take().is_some() || self.tmp.exists() {
-            let _ = std::fs::remove_file(&self.tmp);
+        if let Some(tmp) = &self.tmp
+            && (self.out.take().is_some() || tmp.exists())
+        {
+            let _ = std::fs::remove_file(tmp);
         }
     }
 }
@@ -153,5 +191,35 @@ mod tests {
             .collect();
         assert_eq!(names, vec![std::ffi::OsString::from("a.png")]);
         assert!(write_png_atomic(&img, &dir.join("missing-dir/b.png")).is_err());
+    }
+
+    #[test]
+    fn links_are_followed_devices_written_directly_and_directories_refused() {
+        let dir = std::env::temp_dir().join(format!("wisplight-links-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(dir.join("sub")).unwrap();
+        let real = dir.join("sub/real.json");
+        std::fs::write(&real, b"old").unwrap();
+        let link = dir.join("link.json");
+        std::os::unix::fs::symlink(&real, &link).unwrap();
+        write_bytes_atomic(&link, b"new").unwrap();
+        assert!(link.is_symlink(), "the link is kept");
+        assert_eq!(std::fs::read(&real).unwrap(), b"new");
+        // A pipe (like /dev/stdout) is written into, not replaced.
+        let fifo = dir.join("pipe");
+        let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+        if made.is_ok_and(|s| s.success()) {
+            let reader = {
+                let fifo = fifo.clone();
+                std::thread::spawn(move || std::fs::read(fifo).unwrap())
+            };
+            write_bytes_atomic(&fifo, b"bytes").unwrap();
+            assert_eq!(reader.join().unwrap(), b"bytes");
+            let meta = std::fs::symlink_metadata(&fifo).unwrap();
+            assert!(!meta.is_file(), "the pipe was replaced by a file");
+        }
+        let e = write_bytes_atomic(&dir.join("sub"), b"x").unwrap_err();
+        assert!(e.to_string().contains("directory"), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }
