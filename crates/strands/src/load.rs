@@ -281,6 +281,11 @@ pub fn parse_tfx(b: &[u8]) -> Result<Hair, FormatError> {
             have,
         });
     }
+    if strands == 0 {
+        // No strands: whatever the vertex count per strand claims, nothing
+        // is read (nor allocated for it).
+        return Ok(Hair::new());
+    }
     let mut hair = Hair::with_capacity(strands as usize, points as usize);
     let mut strand_pts = Vec::with_capacity(per_strand as usize);
     for s in 0..strands as usize {
