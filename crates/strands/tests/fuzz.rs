@@ -160,5 +160,10 @@ fn headers_that_claim_billions_are_refused_at_once() {
         check(&bytes).unwrap();
     }
     assert!(parse_tfx(&tfx_header(u32::MAX, 0, 160, &[])).is_err());
-    assert_eq!(parse_tfx(&tfx_header(0, u32::MAX, 160, &[])).unwrap().strand_count(), 0);
+    assert_eq!(
+        parse_tfx(&tfx_header(0, u32::MAX, 160, &[]))
+            .unwrap()
+            .strand_count(),
+        0
+    );
 }
