@@ -34,6 +34,10 @@ enum Command {
     Render(cmd::render::Args),
     /// Prints how much light reaches given points: CSV `x,y,z` in, `x,y,z,transmittance` out.
     Probe(cmd::probe::Args),
+    /// Serves density filling and column sweeps to a coordinator (cluster mode).
+    Worker(cmd::cluster::WorkerArgs),
+    /// Renders like `render`, with the density map filled and swept by workers: the same bytes as one process.
+    Coordinator(cmd::cluster::CoordinatorArgs),
     /// Measures the speed of pipeline stages.
     #[command(subcommand)]
     Bench(cmd::bench::Bench),
@@ -70,6 +74,8 @@ fn main() -> ExitCode {
     let result = init_threads(cli.threads).and_then(|()| match cli.command {
         Command::Render(args) => cmd::render::run(args),
         Command::Probe(args) => cmd::probe::run(args),
+        Command::Worker(args) => cmd::cluster::worker(args),
+        Command::Coordinator(args) => cmd::cluster::coordinator(args),
         Command::Bench(b) => cmd::bench::run(b),
     });
     match result {

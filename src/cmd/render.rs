@@ -34,6 +34,13 @@ pub struct Args {
     method: super::MethodArg,
 }
 
+impl Args {
+    /// The scene file, if one was given.
+    pub fn scene(&self) -> Option<&Path> {
+        self.scene.as_deref()
+    }
+}
+
 /// Where the frames go.
 enum Output {
     /// One PNG per frame, named by the pattern.
@@ -42,6 +49,17 @@ enum Output {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    run_with(args, None)
+}
+
+/// Cluster mode: the density map's stages on workers.
+pub struct Remote {
+    pub executor: cluster::RemoteExecutor,
+}
+
+/// `render`, or with `remote` the same frames with the density map filled
+/// and swept by cluster workers (the coordinator).
+pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
     let start = Instant::now();
     let mut scene = super::load_scene(args.scene.as_deref())?;
     args.method.apply(&mut scene);
@@ -92,6 +110,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
 
     let mut seq = Sequence::new(&scene).context("cannot set up the scene")?;
+    let mut traffic = None;
+    let mut workers = 0;
+    if let Some(r) = remote {
+        if !matches!(scene.shadow.method, shadow::MethodConfig::DensityMap { .. }) {
+            tracing::warn!(
+                method = scene.shadow.method.name(),
+                "only the density map runs on workers; this method runs on the coordinator"
+            );
+        }
+        workers = r.executor.worker_count();
+        traffic = Some(r.executor.traffic());
+        seq.set_executor(Box::new(r.executor));
+    }
     // A progress bar on a terminal for more than one frame.
     let bar = if n > 1 {
         super::progress_bar(n, "{bar:30} frame {pos}/{len} [{elapsed} < {eta}]")
@@ -138,6 +169,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         write_stats(path, &all)?;
     }
 
+    if let Some(t) = traffic.and_then(|t| t.lock().ok().map(|t| *t)) {
+        let per = |b: u64| b as f64 / n as f64 / 1e6;
+        eprintln!(
+            "{workers} workers: {:.3} MB on the wire per frame (strands out {:.3}, density in {:.3}, density out {:.3}, slabs in {:.3})",
+            per(t.total()),
+            per(t.strands_sent),
+            per(t.density_received),
+            per(t.density_sent),
+            per(t.slabs_received)
+        );
+    }
     let mut frame_ms: Vec<f64> = all.iter().map(FrameStats::total_ms).collect();
     let hair = seq.hair();
     eprintln!(

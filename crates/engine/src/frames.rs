@@ -187,6 +187,12 @@ impl Sequence {
         })
     }
 
+    /// Runs the density map's fill and sweep through `executor` (cluster
+    /// workers) from the next frame on. The pictures are the same bytes.
+    pub fn set_executor(&mut self, executor: Box<dyn crate::Executor>) {
+        self.renderer.shadows_mut().set_executor(executor);
+    }
+
     /// The drawn hair of the last frame.
     pub fn hair(&self) -> &strands::Hair {
         self.anim.hair()
@@ -245,7 +251,7 @@ impl Sequence {
         if fx.self_shadow && self.shadow_at != Some(self.version) {
             let r = &mut self.renderer;
             stats.time(Stage::Density, || r.shadows_mut().density(hair))?;
-            stats.time(Stage::Transmittance, || r.shadows_mut().transmittance());
+            stats.time(Stage::Transmittance, || r.shadows_mut().transmittance())?;
             stats.time(Stage::Filter, || r.filter(hair));
             self.shadow_at = Some(self.version);
             if self.collision_map.is_none() {

@@ -20,7 +20,7 @@ pub mod scene;
 
 pub use animate::Animator;
 pub use frames::{FrameStats, Sequence, Stage, StageRecord};
-pub use pipeline::{ShadowPipeline, StageTimes, build_hair};
+pub use pipeline::{Executor, LocalExecutor, ShadowPipeline, StageTimes, build_hair};
 pub use render::{FrameTimes, Renderer};
 pub use scene::{
     Animation, BodySettings, Collision, Dynamics, Effects, HairSource, HeadSettings, Scene,
@@ -46,4 +46,7 @@ pub enum EngineError {
         bytes: u64,
         limit: u64,
     },
+    /// An executor that runs stages elsewhere (cluster mode) failed.
+    #[error("{0}")]
+    Executor(String),
 }

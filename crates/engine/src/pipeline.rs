@@ -58,11 +58,61 @@ fn check_size(segments: u64) -> Result<(), EngineError> {
 
 /// The three shadow stages for every light of a scene, by the scene's
 /// method. Each light owns its method's maps.
+///
+/// With the density-map method, the filling of the map and the sweep of its
+/// columns go through an [`Executor`]: in this process by default, or on
+/// cluster workers. Either gives the same bytes.
 #[derive(Debug)]
 pub struct ShadowPipeline {
     fiber: Fiber,
     occluders: Vec<Occluder>,
     lights: Vec<LightState>,
+    executor: Box<dyn Executor>,
+}
+
+/// Where the density map's two parallel stages run: the executor boundary
+/// between one process and a cluster. Implementations must give exactly
+/// the map and transmittance of [`LocalExecutor`].
+pub trait Executor: Send + Sync + std::fmt::Debug {
+    /// Adds the density of every strand of `hair` to `map` (empty, in its
+    /// frame) for light `light`.
+    fn fill(
+        &mut self,
+        light: usize,
+        map: &mut shadow::DensityMap,
+        hair: &Hair,
+        fiber: &Fiber,
+    ) -> Result<FillStats, EngineError>;
+    /// Sweeps every column of `map` (paper 4.2).
+    fn sweep(
+        &mut self,
+        light: usize,
+        map: &shadow::DensityMap,
+    ) -> Result<shadow::Transmittance, EngineError>;
+}
+
+/// Both stages in this process, on all threads.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct LocalExecutor;
+
+impl Executor for LocalExecutor {
+    fn fill(
+        &mut self,
+        _light: usize,
+        map: &mut shadow::DensityMap,
+        hair: &Hair,
+        fiber: &Fiber,
+    ) -> Result<FillStats, EngineError> {
+        Ok(map.deposit(hair, 0..hair.strand_count(), fiber))
+    }
+
+    fn sweep(
+        &mut self,
+        _light: usize,
+        map: &shadow::DensityMap,
+    ) -> Result<shadow::Transmittance, EngineError> {
+        Ok(shadow::Transmittance::compute(map))
+    }
 }
 
 #[derive(Debug)]
@@ -96,7 +146,13 @@ impl ShadowPipeline {
                 .into_iter()
                 .collect(),
             lights,
+            executor: Box::new(LocalExecutor),
         })
+    }
+
+    /// Runs the density map's fill and sweep through `executor`.
+    pub fn set_executor(&mut self, executor: Box<dyn Executor>) {
+        self.executor = executor;
     }
 
     /// Moves the occluder (the head) to `center`.
@@ -121,13 +177,19 @@ impl ShadowPipeline {
     /// over all lights.
     pub fn density(&mut self, hair: &Hair) -> Result<FillStats, EngineError> {
         let mut total = FillStats::default();
-        for l in &mut self.lights {
-            let stats = l.method.build(&ShadowInput {
+        for (i, l) in self.lights.iter_mut().enumerate() {
+            let input = ShadowInput {
                 light: &l.light,
                 hair,
                 fiber: &self.fiber,
                 occluders: &self.occluders,
-            })?;
+            };
+            let stats = match l.method.as_density_map_method() {
+                Some(m) => {
+                    m.build_with(&input, |map| self.executor.fill(i, map, hair, &self.fiber))?
+                }
+                None => l.method.build(&input)?,
+            };
             if stats.out_of_map > 0 {
                 tracing::warn!(
                     out_of_map = stats.out_of_map,
@@ -141,10 +203,14 @@ impl ShadowPipeline {
     }
 
     /// Stage 2: for the density map, sweeps every column of every light's map.
-    pub fn transmittance(&mut self) {
-        for l in &mut self.lights {
-            l.method.prepare();
+    pub fn transmittance(&mut self) -> Result<(), EngineError> {
+        for (i, l) in self.lights.iter_mut().enumerate() {
+            match l.method.as_density_map_method() {
+                Some(m) => m.prepare_with(|map| self.executor.sweep(i, map))?,
+                None => l.method.prepare(),
+            }
         }
+        Ok(())
     }
 
     /// Stage 3: transmittance of every light at every point; `out[l][p]`.
@@ -173,7 +239,7 @@ impl ShadowPipeline {
     /// All three stages: transmittance of each light at `points` for `hair`.
     pub fn run(&mut self, hair: &Hair, points: &[Vec3]) -> Result<Vec<Vec<f32>>, EngineError> {
         self.density(hair)?;
-        self.transmittance();
+        self.transmittance()?;
         let mut out = vec![Vec::new(); self.lights.len()];
         self.filter(points, &mut out);
         Ok(out)
@@ -212,7 +278,7 @@ impl StageTimes {
             let t0 = Instant::now();
             samples = pipeline.density(hair)?.samples;
             let t1 = Instant::now();
-            pipeline.transmittance();
+            pipeline.transmittance()?;
             let t2 = Instant::now();
             pipeline.filter(hair.points(), &mut out);
             let t3 = Instant::now();

@@ -180,7 +180,7 @@ impl Renderer {
             self.shadows.density(hair)?;
             times.density_ms = ms(t);
             let t = Instant::now();
-            self.shadows.transmittance();
+            self.shadows.transmittance()?;
             times.transmittance_ms = ms(t);
             let t = Instant::now();
             self.filter(hair);

@@ -107,6 +107,11 @@ pub trait ShadowMethod: Send + Sync + fmt::Debug {
     fn density_map(&self) -> Option<&DensityMap> {
         None
     }
+    /// The density-map method itself, for callers that fill and sweep its
+    /// map elsewhere (on other threads or machines).
+    fn as_density_map_method(&mut self) -> Option<&mut DensityMapMethod> {
+        None
+    }
 }
 
 /// Koster et al.'s two ways of turning accumulated opacity `Omega` into
@@ -478,8 +483,15 @@ pub struct DensityMapMethod {
     trans: Option<Transmittance>,
 }
 
-impl ShadowMethod for DensityMapMethod {
-    fn build(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
+impl DensityMapMethod {
+    /// Stage 1 with the hair's density filled by `fill`: fits the map and
+    /// empties it, lets `fill` add the density of every strand, then adds
+    /// the occluders.
+    pub fn build_with<E: From<ShadowError>>(
+        &mut self,
+        input: &ShadowInput,
+        fill: impl FnOnce(&mut DensityMap) -> Result<FillStats, E>,
+    ) -> Result<FillStats, E> {
         let frame = input.fit(self.cells)?;
         let map = match &mut self.map {
             Some(m) => {
@@ -488,17 +500,33 @@ impl ShadowMethod for DensityMapMethod {
             }
             None => self.map.insert(DensityMap::new(frame)),
         };
-        let stats = map.fill(input.hair, input.fiber);
+        self.trans = None;
+        let stats = fill(map)?;
         for o in input.occluders {
             map.deposit_sphere(o.center, o.radius, OPAQUE_DEPTH);
         }
-        self.trans = None;
         Ok(stats)
     }
 
-    fn prepare(&mut self) {
+    /// Stage 2 with the columns swept by `sweep`.
+    pub fn prepare_with<E>(
+        &mut self,
+        sweep: impl FnOnce(&DensityMap) -> Result<Transmittance, E>,
+    ) -> Result<(), E> {
         let map = self.map.as_ref().expect("build runs before prepare");
-        self.trans = Some(Transmittance::compute(map));
+        self.trans = Some(sweep(map)?);
+        Ok(())
+    }
+}
+
+impl ShadowMethod for DensityMapMethod {
+    fn build(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
+        self.build_with(input, |map| Ok(map.fill(input.hair, input.fiber)))
+    }
+
+    fn prepare(&mut self) {
+        self.prepare_with(|map| Ok::<_, std::convert::Infallible>(Transmittance::compute(map)))
+            .unwrap_or_else(|e| match e {});
     }
 
     fn transmittance(&self, p: Vec3) -> f32 {
@@ -521,6 +549,10 @@ impl ShadowMethod for DensityMapMethod {
 
     fn density_map(&self) -> Option<&DensityMap> {
         self.map.as_ref()
+    }
+
+    fn as_density_map_method(&mut self) -> Option<&mut DensityMapMethod> {
+        Some(self)
     }
 }
 

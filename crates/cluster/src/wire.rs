@@ -1,0 +1,313 @@
+//! What crosses the wire, and its checks: map frames, strands, occupied
+//! density columns and transmittance slabs, cut into chunks well under
+//! gRPC's 4 MiB default message size. Everything received is validated
+//! before use: a malformed message is an error, never a panic or a wrong
+//! map.
+
+use std::ops::Range;
+
+use glam::Vec3;
+use shadow::{ColumnMeta, ColumnSlab, DensityMap, LightFrame, MAX_CELLS, Span};
+use strands::Hair;
+
+use crate::pb;
+
+/// The protocol version this build speaks. A coordinator and a worker of
+/// different versions refuse each other.
+pub const PROTOCOL_VERSION: u32 = 1;
+
+/// Points per Deposit chunk: 3 floats each, 1.5 MB.
+pub const POINTS_PER_CHUNK: usize = 128 * 1024;
+
+/// Density cells or depths per column or slab chunk: at most about 1.3 MB.
+pub const CELLS_PER_CHUNK: usize = 256 * 1024;
+
+/// The largest message either side decodes. Chunks stay far below it; only
+/// a single strand of more than about 350,000 points would need more than
+/// the 4 MiB default.
+pub const MAX_MESSAGE_BYTES: usize = 64 << 20;
+
+/// The most points one worker takes in one Deposit call.
+pub const MAX_POINTS: usize = 200_000_000;
+
+/// A message that does not hold what the protocol says.
+#[derive(Debug, thiserror::Error)]
+#[error("malformed message: {0}")]
+pub struct Malformed(pub String);
+
+fn bad(what: impl Into<String>) -> Malformed {
+    Malformed(what.into())
+}
+
+pub fn frame_to_pb(f: &LightFrame) -> pb::MapFrame {
+    pb::MapFrame {
+        origin: f.origin.to_array().to_vec(),
+        axes: f.axes.iter().flat_map(|a| a.to_array()).collect(),
+        ds: f.ds,
+        n_cells: f.n_cells,
+    }
+}
+
+/// A frame as sent: finite, `1..=MAX_CELLS` cells, `ds > 0`, unit axes.
+pub fn frame_from_pb(m: Option<&pb::MapFrame>) -> Result<LightFrame, Malformed> {
+    let m = m.ok_or_else(|| bad("no map frame in the first chunk"))?;
+    if m.origin.len() != 3 || m.axes.len() != 9 {
+        return Err(bad(format!(
+            "map frame with {} origin and {} axis components (expected 3 and 9)",
+            m.origin.len(),
+            m.axes.len()
+        )));
+    }
+    if !(1..=MAX_CELLS).contains(&m.n_cells) {
+        return Err(bad(format!("map of {} cells a side", m.n_cells)));
+    }
+    if !(m.ds.is_finite() && m.ds > 0.0) {
+        return Err(bad(format!("map cell side {}", m.ds)));
+    }
+    let origin = Vec3::from_slice(&m.origin);
+    let axes = [0, 1, 2].map(|i| Vec3::from_slice(&m.axes[3 * i..3 * i + 3]));
+    if !origin.is_finite()
+        || axes
+            .iter()
+            .any(|a| !a.is_finite() || (a.length() - 1.0).abs() > 1e-3)
+    {
+        return Err(bad(
+            "map frame with a non-finite origin or an axis that is not a unit vector",
+        ));
+    }
+    Ok(LightFrame {
+        origin,
+        axes,
+        ds: m.ds,
+        n_cells: m.n_cells,
+    })
+}
+
+/// Strands `strands` of `hair` as Deposit chunks; the first carries the
+/// ids and the frame.
+pub fn deposit_chunks(
+    frame_id: u64,
+    light: u32,
+    frame: &LightFrame,
+    hair: &Hair,
+    strands: Range<usize>,
+) -> Vec<pb::DepositChunk> {
+    let mut out = Vec::new();
+    let mut chunk = pb::DepositChunk {
+        frame_id,
+        light,
+        map: Some(frame_to_pb(frame)),
+        ..Default::default()
+    };
+    let offsets = hair.offsets();
+    let points = hair.points();
+    for s in strands {
+        let pts = &points[offsets[s] as usize..offsets[s + 1] as usize];
+        if !chunk.strand_lengths.is_empty() && chunk.points.len() / 3 + pts.len() > POINTS_PER_CHUNK
+        {
+            out.push(std::mem::take(&mut chunk));
+        }
+        chunk.strand_lengths.push(pts.len() as u32);
+        chunk.points.extend(pts.iter().flat_map(|p| p.to_array()));
+    }
+    out.push(chunk);
+    out
+}
+
+/// Adds the strands of one Deposit chunk to `hair`.
+pub fn add_strands(hair: &mut Hair, c: &pb::DepositChunk) -> Result<(), Malformed> {
+    let total: u64 = c.strand_lengths.iter().map(|&l| u64::from(l)).sum();
+    if total * 3 != c.points.len() as u64 {
+        return Err(bad(format!(
+            "strand lengths add up to {total} points but {} coordinates came",
+            c.points.len()
+        )));
+    }
+    if hair.point_count() as u64 + total > MAX_POINTS as u64 {
+        return Err(bad(format!("more than {MAX_POINTS} points in one call")));
+    }
+    let mut at = 0usize;
+    let mut buf = Vec::new();
+    for &len in &c.strand_lengths {
+        let len = len as usize;
+        buf.clear();
+        buf.extend(
+            c.points[3 * at..3 * (at + len)]
+                .chunks_exact(3)
+                .map(Vec3::from_slice),
+        );
+        hair.push_strand(&buf).map_err(|e| bad(e.to_string()))?;
+        at += len;
+    }
+    Ok(())
+}
+
+/// The occupied columns of `map` among `columns`, as chunks.
+pub fn column_chunks(map: &DensityMap, columns: Range<usize>) -> Vec<pb::ColumnChunk> {
+    let mut out = Vec::new();
+    let mut chunk = pb::ColumnChunk::default();
+    for col in columns {
+        let meta = map.meta(col);
+        if meta.is_empty() {
+            continue;
+        }
+        let cells = map.column(col, meta.lo as usize..meta.hi as usize + 1);
+        if !chunk.columns.is_empty() && chunk.quanta.len() + cells.len() > CELLS_PER_CHUNK {
+            out.push(std::mem::take(&mut chunk));
+        }
+        chunk.columns.push(col as u32);
+        chunk.lo.push(u32::from(meta.lo));
+        chunk.hi.push(u32::from(meta.hi));
+        chunk.front.push(meta.front);
+        chunk.quanta.extend_from_slice(cells);
+    }
+    out.push(chunk);
+    out
+}
+
+/// Adds the columns of one chunk to `map`, after checking every index.
+pub fn merge_columns(map: &mut DensityMap, c: &pb::ColumnChunk) -> Result<(), Malformed> {
+    let n = map.frame().n_cells as usize;
+    let count = c.columns.len();
+    if c.lo.len() != count || c.hi.len() != count || c.front.len() != count {
+        return Err(bad(format!(
+            "{count} columns with {} lo, {} hi and {} front values",
+            c.lo.len(),
+            c.hi.len(),
+            c.front.len()
+        )));
+    }
+    // Check everything first, so that a bad chunk changes nothing.
+    let mut need = 0usize;
+    for i in 0..count {
+        let (col, lo, hi, front) = (
+            c.columns[i] as usize,
+            c.lo[i] as usize,
+            c.hi[i] as usize,
+            c.front[i],
+        );
+        if col >= n * n || lo > hi || hi >= n {
+            return Err(bad(format!(
+                "column {col} with cells {lo}..={hi} in a map of {n} a side"
+            )));
+        }
+        if !(front.is_finite() && front >= -1.0 && front <= n as f32 + 1.0) {
+            return Err(bad(format!("column {col} starts at slice {front}")));
+        }
+        need += hi - lo + 1;
+    }
+    if need != c.quanta.len() {
+        return Err(bad(format!(
+            "columns hold {need} cells but {} values came",
+            c.quanta.len()
+        )));
+    }
+    let mut at = 0;
+    for i in 0..count {
+        let (lo, hi) = (c.lo[i] as u16, c.hi[i] as u16);
+        let len = usize::from(hi - lo) + 1;
+        let meta = ColumnMeta {
+            lo,
+            hi,
+            front: c.front[i],
+        };
+        map.merge_column(c.columns[i] as usize, meta, &c.quanta[at..at + len]);
+        at += len;
+    }
+    Ok(())
+}
+
+/// A swept slab as chunks.
+pub fn slab_chunks(slab: &ColumnSlab) -> Vec<pb::SlabChunk> {
+    let mut out = Vec::new();
+    let mut chunk = pb::SlabChunk {
+        first_column: slab.columns.start,
+        ..Default::default()
+    };
+    for (i, s) in slab.spans.iter().enumerate() {
+        let len = s.len();
+        if !chunk.lo.is_empty() && chunk.depth.len() + len > CELLS_PER_CHUNK {
+            let next = slab.columns.start + i as u32;
+            out.push(std::mem::replace(
+                &mut chunk,
+                pb::SlabChunk {
+                    first_column: next,
+                    ..Default::default()
+                },
+            ));
+        }
+        chunk.lo.push(u32::from(s.lo));
+        chunk.hi.push(u32::from(s.hi));
+        chunk.front.push(s.front);
+        if len > 0 {
+            let start = s.start as usize;
+            chunk
+                .depth
+                .extend_from_slice(&slab.depth[start..start + len]);
+        }
+    }
+    out.push(chunk);
+    out
+}
+
+/// Appends one slab chunk to `slab` (which covers the columns before it).
+/// Spans are checked by [`shadow::Transmittance::assemble`] afterwards;
+/// here only what indexing needs.
+pub fn add_slab_chunk(
+    slab: &mut ColumnSlab,
+    c: &pb::SlabChunk,
+    n_cells: u32,
+) -> Result<(), Malformed> {
+    let count = c.lo.len();
+    if c.hi.len() != count || c.front.len() != count {
+        return Err(bad(format!(
+            "{count} spans with {} hi and {} front values",
+            c.hi.len(),
+            c.front.len()
+        )));
+    }
+    if c.first_column != slab.columns.end {
+        return Err(bad(format!(
+            "slab chunk starts at column {}, expected {}",
+            c.first_column, slab.columns.end
+        )));
+    }
+    let mut need = 0usize;
+    for i in 0..count {
+        if c.lo[i] <= c.hi[i] {
+            if c.hi[i] >= n_cells {
+                return Err(bad(format!(
+                    "span {}..={} in a map of {n_cells} a side",
+                    c.lo[i], c.hi[i]
+                )));
+            }
+            need += (c.hi[i] - c.lo[i]) as usize + 1;
+        }
+    }
+    if need != c.depth.len() {
+        return Err(bad(format!(
+            "spans hold {need} cells but {} depths came",
+            c.depth.len()
+        )));
+    }
+    // The chunk's depths follow the slab's, span by span.
+    let mut start = slab.depth.len();
+    for i in 0..count {
+        let span = if c.lo[i] > c.hi[i] {
+            Span::EMPTY
+        } else {
+            let s = Span {
+                lo: c.lo[i] as u16,
+                hi: c.hi[i] as u16,
+                start: start as u32,
+                front: c.front[i],
+            };
+            start += s.len();
+            s
+        };
+        slab.spans.push(span);
+    }
+    slab.depth.extend_from_slice(&c.depth);
+    slab.columns.end += count as u32;
+    Ok(())
+}

@@ -1,0 +1,60 @@
+//! `wisplight worker` and `wisplight coordinator`: cluster mode.
+
+use std::net::SocketAddr;
+use std::time::Duration;
+
+use anyhow::Context;
+
+#[derive(Debug, clap::Args)]
+pub struct WorkerArgs {
+    /// Address to listen on; port 0 picks a free port. The first line on
+    /// stdout names the bound address: `listening on 127.0.0.1:43125`.
+    #[arg(long, default_value = "127.0.0.1:0", value_name = "ADDR")]
+    listen: SocketAddr,
+}
+
+/// Serves until SIGTERM or Ctrl-C.
+pub fn worker(args: WorkerArgs) -> anyhow::Result<()> {
+    cluster::worker::run(args.listen, |addr| {
+        // println! flushes at the newline, even into a pipe.
+        println!("listening on {addr}");
+    })
+    .context("worker failed")
+}
+
+#[derive(Debug, clap::Args)]
+pub struct CoordinatorArgs {
+    /// Worker addresses, comma-separated: `127.0.0.1:43125,10.0.0.2:7000`.
+    #[arg(
+        long,
+        required = true,
+        value_delimiter = ',',
+        value_name = "ADDR,ADDR,..."
+    )]
+    workers: Vec<String>,
+    /// Seconds any one call to a worker may take, from the first byte sent
+    /// to the last received.
+    #[arg(long, default_value_t = 30.0, value_name = "SECONDS")]
+    deadline: f64,
+    #[command(flatten)]
+    render: super::render::Args,
+}
+
+/// `render` with the density map filled and swept by the workers: the same
+/// bytes as one process.
+pub fn coordinator(args: CoordinatorArgs) -> anyhow::Result<()> {
+    if !(args.deadline.is_finite() && args.deadline > 0.0 && args.deadline <= 86_400.0) {
+        return Err(super::usage(format!(
+            "--deadline {}: must be in (0, 86400] seconds",
+            args.deadline
+        )));
+    }
+    let scene = super::load_scene(args.render.scene())?;
+    let executor = cluster::RemoteExecutor::connect(
+        &args.workers,
+        &scene.fiber,
+        Duration::from_secs_f64(args.deadline),
+    )
+    .context("cannot start the cluster")?;
+    super::render::run_with(args.render, Some(super::render::Remote { executor }))
+}

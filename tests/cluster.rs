@@ -1,0 +1,161 @@
+//! Cluster mode as a user runs it: three worker processes on localhost
+//! (ephemeral ports), a coordinator, and the same bytes as `render`.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+
+fn bin() -> &'static str {
+    env!("CARGO_BIN_EXE_wisplight")
+}
+
+/// A worker process and the address it printed first.
+struct Worker {
+    child: Child,
+    addr: String,
+}
+
+impl Worker {
+    fn start() -> Worker {
+        let mut child = Command::new(bin())
+            .args(["worker", "--listen", "127.0.0.1:0"])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("the worker starts");
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().unwrap())
+            .read_line(&mut line)
+            .unwrap();
+        let addr = line
+            .trim()
+            .strip_prefix("listening on ")
+            .unwrap_or_else(|| panic!("first line {line:?}"))
+            .to_string();
+        Worker { child, addr }
+    }
+
+    /// SIGTERM, then the exit status.
+    fn stop(mut self) -> std::process::ExitStatus {
+        Command::new("kill")
+            .args(["-TERM", &self.child.id().to_string()])
+            .status()
+            .unwrap();
+        self.child.wait().unwrap()
+    }
+}
+
+impl Drop for Worker {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn run(args: &[&str]) -> Output {
+    Command::new(bin()).args(args).output().unwrap()
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("wisplight-cluster-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// The smooth style, small, on a dancing head.
+const SCENE: &str = "[hair]\nstyle = \"smooth\"\nstrands_per_wisp = 4\n\n[render]\nwidth = 160\nheight = 90\n\n[animation]\nmotion = \"dance\"\n\n[dynamics]\nsettle = 0.1\n";
+
+#[test]
+fn three_workers_render_the_same_bytes_as_one_process_and_stop_on_sigterm() {
+    let dir = scratch("same");
+    let scene = dir.join("scene.toml");
+    std::fs::write(&scene, SCENE).unwrap();
+    let workers: Vec<Worker> = (0..3).map(|_| Worker::start()).collect();
+    let list = workers
+        .iter()
+        .map(|w| w.addr.as_str())
+        .collect::<Vec<_>>()
+        .join(",");
+
+    // A still (frame 0) and a short animation.
+    for (frames, name) in [("1", "still_%d.png"), ("3", "anim_%d.png")] {
+        let local = dir.join(format!("local_{name}"));
+        let remote = dir.join(format!("remote_{name}"));
+        let o = run(&["render", s(&scene), "--frames", frames, "-o", s(&local)]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let o = run(&[
+            "coordinator",
+            s(&scene),
+            "--workers",
+            &list,
+            "--frames",
+            frames,
+            "-o",
+            s(&remote),
+        ]);
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{e}");
+        assert!(
+            e.contains("3 workers") && e.contains("MB on the wire per frame"),
+            "{e}"
+        );
+        for i in 0..frames.parse::<usize>().unwrap() {
+            let a = std::fs::read(local.to_str().unwrap().replace("%d", &i.to_string())).unwrap();
+            let b = std::fs::read(remote.to_str().unwrap().replace("%d", &i.to_string())).unwrap();
+            assert!(
+                a == b,
+                "frame {i} of {frames} differs between one process and three workers"
+            );
+        }
+    }
+    for w in workers {
+        let status = w.stop();
+        assert!(
+            status.success(),
+            "a worker stops cleanly on SIGTERM: {status}"
+        );
+    }
+}
+
+#[test]
+fn a_coordinator_without_reachable_workers_says_which_and_fails() {
+    let dir = scratch("dead");
+    let scene = dir.join("scene.toml");
+    std::fs::write(&scene, SCENE).unwrap();
+    // A port that was free a moment ago.
+    let free = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .to_string();
+    let o = run(&[
+        "coordinator",
+        s(&scene),
+        "--workers",
+        &free,
+        "--deadline",
+        "2",
+        "-o",
+        s(&dir.join("x.png")),
+    ]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(e.contains(&free) && e.lines().count() == 1, "{e}");
+    assert!(!dir.join("x.png").exists());
+    let o = run(&["coordinator", s(&scene), "-o", s(&dir.join("x.png"))]);
+    assert_eq!(o.status.code(), Some(2), "--workers is required");
+    let o = run(&[
+        "coordinator",
+        s(&scene),
+        "--workers",
+        &free,
+        "--deadline",
+        "0",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+}
