@@ -244,3 +244,29 @@ fn malformed_messages_get_an_error_and_the_worker_lives_on() {
         assert!(samples > 0);
     });
 }
+
+#[test]
+fn a_worker_answers_health_checks_for_itself_and_the_server() {
+    use tonic_health::pb::health_client::HealthClient;
+    use tonic_health::pb::{HealthCheckRequest, health_check_response::ServingStatus};
+    let addr = start_worker();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let channel = tonic::transport::Channel::from_shared(format!("http://{addr}"))
+            .unwrap()
+            .connect()
+            .await
+            .unwrap();
+        let mut h = HealthClient::new(channel);
+        for service in ["", "wisplight.v1.Worker"] {
+            let r = h
+                .check(HealthCheckRequest {
+                    service: service.into(),
+                })
+                .await
+                .unwrap()
+                .into_inner();
+            assert_eq!(r.status, ServingStatus::Serving as i32, "{service:?}");
+        }
+    });
+}
