@@ -177,6 +177,48 @@ fn split_by(
     out
 }
 
+/// Runs `call` on every worker at once, each bounded by `deadline`, and
+/// returns the results in worker order: the first error, if any, names
+/// its worker.
+fn fan_out<R, T, F, Fut>(
+    rt: &tokio::runtime::Runtime,
+    requests: Vec<(Remote, R)>,
+    stage: &'static str,
+    deadline: Duration,
+    call: F,
+) -> Result<Vec<T>, ClusterError>
+where
+    R: Send + 'static,
+    T: Send + 'static,
+    F: Fn(Remote, R) -> Fut,
+    Fut: std::future::Future<Output = Result<T, ClusterError>> + Send + 'static,
+{
+    rt.block_on(async {
+        let tasks: Vec<_> = requests
+            .into_iter()
+            .map(|(w, r)| {
+                let addr = w.addr.clone();
+                let fut = call(w, r);
+                tokio::spawn(async move {
+                    match tokio::time::timeout(deadline, fut).await {
+                        Ok(r) => r,
+                        Err(_) => Err(ClusterError::Deadline {
+                            addr,
+                            stage,
+                            secs: deadline.as_secs_f64(),
+                        }),
+                    }
+                })
+            })
+            .collect();
+        let mut out = Vec::with_capacity(tasks.len());
+        for t in tasks {
+            out.push(t.await.map_err(|e| ClusterError::Setup(e.to_string()))??);
+        }
+        Ok(out)
+    })
+}
+
 fn call_error(addr: &str, stage: &'static str, s: tonic::Status) -> ClusterError {
     ClusterError::Call {
         addr: addr.to_string(),
@@ -206,45 +248,29 @@ impl RemoteExecutor {
             sent += chunks.iter().map(|c| c.encoded_len() as u64).sum::<u64>();
             requests.push((w.clone(), chunks));
         }
-        let replies = self.rt.block_on(async move {
-            let tasks: Vec<_> = requests
-                .into_iter()
-                .map(|(mut w, chunks)| {
-                    tokio::spawn(async move {
-                        let call = async {
-                            let mut s = w
-                                .client
-                                .deposit(tokio_stream::iter(chunks))
-                                .await
-                                .map_err(|s| call_error(&w.addr, "deposit", s))?
-                                .into_inner();
-                            let mut got = Vec::new();
-                            while let Some(c) = s
-                                .message()
-                                .await
-                                .map_err(|s| call_error(&w.addr, "deposit", s))?
-                            {
-                                got.push(c);
-                            }
-                            Ok::<_, ClusterError>(got)
-                        };
-                        match tokio::time::timeout(deadline, call).await {
-                            Ok(r) => r.map(|got| (w.addr.clone(), got)),
-                            Err(_) => Err(ClusterError::Deadline {
-                                addr: w.addr.clone(),
-                                stage: "deposit",
-                                secs: deadline.as_secs_f64(),
-                            }),
-                        }
-                    })
-                })
-                .collect();
-            let mut out = Vec::with_capacity(tasks.len());
-            for t in tasks {
-                out.push(t.await.map_err(|e| ClusterError::Setup(e.to_string()))??);
-            }
-            Ok::<_, ClusterError>(out)
-        })?;
+        let replies = fan_out(
+            &self.rt,
+            requests,
+            "deposit",
+            deadline,
+            |mut w, chunks| async move {
+                let mut s = w
+                    .client
+                    .deposit(tokio_stream::iter(chunks))
+                    .await
+                    .map_err(|s| call_error(&w.addr, "deposit", s))?
+                    .into_inner();
+                let mut got = Vec::new();
+                while let Some(c) = s
+                    .message()
+                    .await
+                    .map_err(|s| call_error(&w.addr, "deposit", s))?
+                {
+                    got.push(c);
+                }
+                Ok((w.addr, got))
+            },
+        )?;
         // Merge in worker order (integer sums: any order gives the same map).
         let mut stats = FillStats::default();
         let mut received = 0u64;
@@ -293,68 +319,50 @@ impl RemoteExecutor {
             first.first_column = share.start as u32;
             first.end_column = share.end as u32;
             sent += chunks.iter().map(|c| c.encoded_len() as u64).sum::<u64>();
-            requests.push((w.clone(), chunks, share.clone()));
+            requests.push((w.clone(), (chunks, share.clone())));
         }
         let n_cells = frame.n_cells;
-        let replies = self.rt.block_on(async move {
-            let tasks: Vec<_> = requests
-                .into_iter()
-                .map(|(mut w, chunks, share)| {
-                    tokio::spawn(async move {
-                        let call = async {
-                            let mut s = w
-                                .client
-                                .sweep(tokio_stream::iter(chunks))
-                                .await
-                                .map_err(|s| call_error(&w.addr, "sweep", s))?
-                                .into_inner();
-                            let mut slab = ColumnSlab {
-                                columns: share.start as u32..share.start as u32,
-                                spans: Vec::new(),
-                                depth: Vec::new(),
-                            };
-                            let mut bytes = 0u64;
-                            while let Some(c) = s
-                                .message()
-                                .await
-                                .map_err(|s| call_error(&w.addr, "sweep", s))?
-                            {
-                                bytes += c.encoded_len() as u64;
-                                wire::add_slab_chunk(&mut slab, &c, n_cells).map_err(|e| {
-                                    ClusterError::Malformed {
-                                        addr: w.addr.clone(),
-                                        msg: e.to_string(),
-                                    }
-                                })?;
-                            }
-                            if slab.columns.end as usize != share.end {
-                                return Err(ClusterError::Malformed {
-                                    addr: w.addr.clone(),
-                                    msg: format!(
-                                        "slab ends at column {}, expected {}",
-                                        slab.columns.end, share.end
-                                    ),
-                                });
-                            }
-                            Ok::<_, ClusterError>((slab, bytes))
-                        };
-                        match tokio::time::timeout(deadline, call).await {
-                            Ok(r) => r,
-                            Err(_) => Err(ClusterError::Deadline {
-                                addr: w.addr.clone(),
-                                stage: "sweep",
-                                secs: deadline.as_secs_f64(),
-                            }),
-                        }
-                    })
-                })
-                .collect();
-            let mut out = Vec::with_capacity(tasks.len());
-            for t in tasks {
-                out.push(t.await.map_err(|e| ClusterError::Setup(e.to_string()))??);
-            }
-            Ok::<_, ClusterError>(out)
-        })?;
+        let replies = fan_out(
+            &self.rt,
+            requests,
+            "sweep",
+            deadline,
+            move |mut w, (chunks, share)| async move {
+                let mut s = w
+                    .client
+                    .sweep(tokio_stream::iter(chunks))
+                    .await
+                    .map_err(|s| call_error(&w.addr, "sweep", s))?
+                    .into_inner();
+                let start = share.start as u32;
+                let mut slab = ColumnSlab {
+                    columns: start..start,
+                    spans: Vec::new(),
+                    depth: Vec::new(),
+                };
+                let mut bytes = 0u64;
+                let malformed = |msg: String| ClusterError::Malformed {
+                    addr: w.addr.clone(),
+                    msg,
+                };
+                while let Some(c) = s
+                    .message()
+                    .await
+                    .map_err(|s| call_error(&w.addr, "sweep", s))?
+                {
+                    bytes += c.encoded_len() as u64;
+                    wire::add_slab_chunk(&mut slab, &c, n_cells)
+                        .map_err(|e| malformed(e.to_string()))?;
+                }
+                if slab.columns.end as usize != share.end {
+                    return Err(malformed(format!(
+                        "slab ends at column {}, expected {}",
+                        slab.columns.end, share.end
+                    )));
+                }
+                Ok((slab, bytes))
+            },
+        )?;
         let received: u64 = replies.iter().map(|(_, b)| b).sum();
         self.count(|t| {
             t.density_sent += sent;

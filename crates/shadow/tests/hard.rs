@@ -119,6 +119,22 @@ fn check_invariants_within(
     out
 }
 
+/// 400 points spread over the middle of `hair`'s bounds (seeded).
+fn points_in(hair: &Hair, seed: u64) -> Vec<Vec3> {
+    let b = hair.bounds();
+    let mut rng = Rng::new(seed);
+    (0..400)
+        .map(|_| {
+            let u = Vec3::new(
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+            );
+            b.center() + 0.5 * b.size() * u
+        })
+        .collect()
+}
+
 /// `count` straight fibers of two points, each through a random point of a
 /// ball of radius `r` around `c`, in random directions, `len` long.
 fn bundle(count: usize, c: Vec3, r: f32, len: f32, seed: u64) -> Hair {
@@ -396,20 +412,7 @@ fn hair_far_from_the_origin_shadows_like_hair_at_the_origin() {
     }
     let fiber = Fiber::new(0.01, 0.6).unwrap();
     let light = Light::directional(Vec3::new(0.4, -1.0, 0.3)).unwrap();
-    let b = hair.bounds();
-    let mut rng = Rng::new(9);
-    let points: Vec<Vec3> = (0..400)
-        .map(|_| {
-            b.center()
-                + 0.5
-                    * b.size()
-                    * Vec3::new(
-                        rng.range(-1.0, 1.0),
-                        rng.range(-1.0, 1.0),
-                        rng.range(-1.0, 1.0),
-                    )
-        })
-        .collect();
+    let points = points_in(&hair, 9);
     for c in every_method(32) {
         let near = build(&c, &hair, &light, &fiber);
         let m = build(&c, &far, &light, &fiber);
@@ -459,20 +462,7 @@ fn one_cell_and_512_cells_a_side_keep_every_invariant() {
 fn opacity_zero_casts_no_shadow_and_opacity_one_the_darkest() {
     let hair = small_curly(7);
     let light = Light::directional(Vec3::new(0.4, -1.0, 0.3)).unwrap();
-    let b = hair.bounds();
-    let mut rng = Rng::new(10);
-    let points: Vec<Vec3> = (0..400)
-        .map(|_| {
-            b.center()
-                + 0.5
-                    * b.size()
-                    * Vec3::new(
-                        rng.range(-1.0, 1.0),
-                        rng.range(-1.0, 1.0),
-                        rng.range(-1.0, 1.0),
-                    )
-        })
-        .collect();
+    let points = points_in(&hair, 10);
     for c in every_method(32) {
         let clear = build(&c, &hair, &light, &Fiber::new(0.01, 0.0).unwrap());
         let half = build(&c, &hair, &light, &Fiber::new(0.01, 0.5).unwrap());
