@@ -49,12 +49,9 @@ pub fn coordinator(args: CoordinatorArgs) -> anyhow::Result<()> {
             args.deadline
         )));
     }
-    let scene = super::load_scene(args.render.scene())?;
-    let executor = cluster::RemoteExecutor::connect(
-        &args.workers,
-        &scene.fiber,
-        Duration::from_secs_f64(args.deadline),
-    )
-    .context("cannot start the cluster")?;
-    super::render::run_with(args.render, Some(super::render::Remote { executor }))
+    let remote = super::render::Remote {
+        workers: args.workers,
+        deadline: Duration::from_secs_f64(args.deadline),
+    };
+    super::render::run_with(args.render, Some(remote))
 }

@@ -34,13 +34,6 @@ pub struct Args {
     method: super::MethodArg,
 }
 
-impl Args {
-    /// The scene file, if one was given.
-    pub fn scene(&self) -> Option<&Path> {
-        self.scene.as_deref()
-    }
-}
-
 /// Where the frames go.
 enum Output {
     /// One PNG per frame, named by the pattern.
@@ -52,9 +45,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     run_with(args, None)
 }
 
-/// Cluster mode: the density map's stages on workers.
+/// Cluster mode: the workers that fill and sweep the density map.
 pub struct Remote {
-    pub executor: cluster::RemoteExecutor,
+    pub workers: Vec<String>,
+    pub deadline: std::time::Duration,
 }
 
 /// `render`, or with `remote` the same frames with the density map filled
@@ -113,15 +107,17 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
     let mut traffic = None;
     let mut workers = 0;
     if let Some(r) = remote {
+        let executor = cluster::RemoteExecutor::connect(&r.workers, &scene.fiber, r.deadline)
+            .context("cannot start the cluster")?;
         if !matches!(scene.shadow.method, shadow::MethodConfig::DensityMap { .. }) {
             tracing::warn!(
                 method = scene.shadow.method.name(),
                 "only the density map runs on workers; this method runs on the coordinator"
             );
         }
-        workers = r.executor.worker_count();
-        traffic = Some(r.executor.traffic());
-        seq.set_executor(Box::new(r.executor));
+        workers = executor.worker_count();
+        traffic = Some(executor.traffic());
+        seq.set_executor(Box::new(executor));
     }
     // A progress bar on a terminal for more than one frame.
     let bar = if n > 1 {

@@ -149,16 +149,11 @@ impl Worker for WorkerService {
             )));
         }
         let maps = self.maps.clone();
+        // On an error the map is dropped (the pool makes another).
         let mut map = WorkerService::map_in(&maps, frame);
-        let mut result = wire::merge_columns(&mut map, &first).map_err(invalid);
-        while result.is_ok()
-            && let Some(c) = stream.message().await?
-        {
-            result = wire::merge_columns(&mut map, &c).map_err(invalid);
-        }
-        if let Err(e) = result {
-            WorkerService::give_back(&maps, map);
-            return Err(e);
+        wire::merge_columns(&mut map, &first).map_err(invalid)?;
+        while let Some(c) = stream.message().await? {
+            wire::merge_columns(&mut map, &c).map_err(invalid)?;
         }
         let chunks = tokio::task::spawn_blocking(move || {
             let slab: ColumnSlab = shadow::sweep(&map, lo..hi);

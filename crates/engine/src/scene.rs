@@ -513,6 +513,14 @@ impl Validator<'_> {
         }
     }
 
+    /// An error for the first of `fields` that the scene set, saying `why`.
+    fn refuse_set(&self, fields: &[(&'static str, bool)], why: &str) -> Result<(), SceneError> {
+        match fields.iter().find(|(_, set)| *set) {
+            Some((field, _)) => Err(self.invalid(field, "(set)", why)),
+            None => Ok(()),
+        }
+    }
+
     /// `hair.strands`: every coordinate finite, at most
     /// [`MAX_INLINE_POINTS`] points. Strands of one point or none are kept
     /// (they draw and shadow nothing).
@@ -556,28 +564,22 @@ impl Validator<'_> {
                 "give one of hair.style, hair.file and hair.strands",
             ));
         }
-        let hair = match (&h.style, &h.file) {
-            _ if h.strands.is_some() => {
-                for (field, set) in [
-                    ("hair.followers", h.followers.is_some()),
-                    ("hair.follow_radius", h.follow_radius.is_some()),
-                    ("hair.tip_spread", h.tip_spread.is_some()),
-                    ("hair.seed", h.seed.is_some()),
-                ] {
-                    if set {
-                        return Err(self.invalid(field, "(set)", "does not apply to hair.strands"));
-                    }
-                }
-                HairSource::Inline(self.inline_strands(h.strands.as_deref().unwrap_or_default())?)
+        // Keys of follow strands, which only hair from files grows.
+        let follow_keys = [
+            ("hair.followers", h.followers.is_some()),
+            ("hair.follow_radius", h.follow_radius.is_some()),
+            ("hair.tip_spread", h.tip_spread.is_some()),
+        ];
+        let hair = match (&h.strands, &h.file) {
+            (Some(strands), _) => {
+                self.refuse_set(&follow_keys, "does not apply to hair.strands")?;
+                self.refuse_set(
+                    &[("hair.seed", h.seed.is_some())],
+                    "does not apply to hair.strands",
+                )?;
+                HairSource::Inline(self.inline_strands(strands)?)
             }
-            (Some(_), Some(_)) => {
-                return Err(self.invalid(
-                    "hair.style",
-                    h.style.as_deref().unwrap_or_default(),
-                    "give either hair.style or hair.file, not both",
-                ));
-            }
-            (_, Some(file)) => {
+            (None, Some(file)) => {
                 let path = match self.path.parent() {
                     Some(dir) if file.is_relative() => dir.join(file),
                     _ => file.clone(),
@@ -601,8 +603,8 @@ impl Validator<'_> {
                 });
                 HairSource::File { path, follow }
             }
-            (style, None) => {
-                let name = style.as_deref().unwrap_or("smooth");
+            (None, None) => {
+                let name = h.style.as_deref().unwrap_or("smooth");
                 let style = Style::from_name(name).ok_or_else(|| {
                     self.invalid(
                         "hair.style",
@@ -610,15 +612,7 @@ impl Validator<'_> {
                         "expected \"smooth\" or \"curly\"",
                     )
                 })?;
-                for (field, set) in [
-                    ("hair.followers", h.followers.is_some()),
-                    ("hair.follow_radius", h.follow_radius.is_some()),
-                    ("hair.tip_spread", h.tip_spread.is_some()),
-                ] {
-                    if set {
-                        return Err(self.invalid(field, "(set)", "applies to hair.file only"));
-                    }
-                }
+                self.refuse_set(&follow_keys, "applies to hair.file only")?;
                 let mut p = StyleParams::new(style);
                 p.seed = seed;
                 p.strands_per_wisp = self.int(

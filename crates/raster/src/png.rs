@@ -86,9 +86,10 @@ impl AtomicFile {
             cause,
         };
         // Where the bytes go: through links to an existing file.
-        let target = match std::fs::canonicalize(path) {
-            Ok(t) if path.is_symlink() => t,
-            _ => path.to_owned(),
+        let target = if path.is_symlink() {
+            std::fs::canonicalize(path).unwrap_or_else(|_| path.to_owned())
+        } else {
+            path.to_owned()
         };
         if let Ok(meta) = std::fs::metadata(&target) {
             if meta.is_dir() {

@@ -485,8 +485,8 @@ pub struct DensityMapMethod {
 
 impl DensityMapMethod {
     /// Stage 1 with the hair's density filled by `fill`: fits the map and
-    /// empties it, lets `fill` add the density of every strand, then adds
-    /// the occluders.
+    /// empties it, lets `fill` add the density of every strand to the empty
+    /// map, then adds the occluders.
     pub fn build_with<E: From<ShadowError>>(
         &mut self,
         input: &ShadowInput,
@@ -521,12 +521,14 @@ impl DensityMapMethod {
 
 impl ShadowMethod for DensityMapMethod {
     fn build(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
-        self.build_with(input, |map| Ok(map.fill(input.hair, input.fiber)))
+        // The map is already empty: deposit, without clearing it again.
+        let all = 0..input.hair.strand_count();
+        self.build_with(input, |map| Ok(map.deposit(input.hair, all, input.fiber)))
     }
 
     fn prepare(&mut self) {
-        self.prepare_with(|map| Ok::<_, std::convert::Infallible>(Transmittance::compute(map)))
-            .unwrap_or_else(|e| match e {});
+        let map = self.map.as_ref().expect("build runs before prepare");
+        self.trans = Some(Transmittance::compute(map));
     }
 
     fn transmittance(&self, p: Vec3) -> f32 {

@@ -573,11 +573,24 @@ fn cluster_bins(fs: &[Frag], out: &mut [Bin]) {
         return;
     }
     let k = out.len();
-    let (near, far) = fs
-        .iter()
-        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), f| {
-            (a.min(f.mid()), b.max(f.mid()))
-        });
+    // The nearest and farthest fragment centres, and where the pixel's
+    // hair begins and ends.
+    let (near, far, first, last) = fs.iter().fold(
+        (
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+        ),
+        |(a, b, c, d), f| {
+            (
+                a.min(f.mid()),
+                b.max(f.mid()),
+                c.min(f.z),
+                d.max(f.z + f.len),
+            )
+        },
+    );
     let nearest = |centres: &[f32], m: f32| {
         let mut best = 0;
         for (i, &c) in centres.iter().enumerate() {
@@ -619,14 +632,10 @@ fn cluster_bins(fs: &[Frag], out: &mut [Bin]) {
         w[c] += f64::from(f.beta);
         wv[c] += f64::from(f.beta) * d * d;
     }
-    // A bin never reaches past the pixel's hair: a cluster with a wide
-    // spread would otherwise start in front of the nearest fragment and
-    // shadow points that have no hair between them and the light.
-    let (first, last) = fs
-        .iter()
-        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), f| {
-            (a.min(f.z), b.max(f.z + f.len))
-        });
+    // A bin never reaches past the pixel's hair (`first..last`): a cluster
+    // with a wide spread would otherwise start in front of the nearest
+    // fragment and shadow points that have no hair between them and the
+    // light.
     let mut bins: Vec<Bin> = (0..m)
         .map(|c| {
             let sigma = if w[c] > 0.0 {
