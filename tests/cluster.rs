@@ -1,5 +1,6 @@
 //! Cluster mode as a user runs it: three worker processes on localhost
-//! (ephemeral ports), a coordinator, and the same bytes as `render`.
+//! (ephemeral ports), a coordinator, and the same bytes as `render`, even
+//! when a worker dies mid-animation.
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
@@ -17,8 +18,13 @@ struct Worker {
 
 impl Worker {
     fn start() -> Worker {
+        Worker::start_with(&[])
+    }
+
+    fn start_with(extra: &[&str]) -> Worker {
         let mut child = Command::new(bin())
             .args(["worker", "--listen", "127.0.0.1:0"])
+            .args(extra)
             .stdout(Stdio::piped())
             .stderr(Stdio::null())
             .spawn()
@@ -100,10 +106,7 @@ fn three_workers_render_the_same_bytes_as_one_process_and_stop_on_sigterm() {
         ]);
         let e = String::from_utf8_lossy(&o.stderr);
         assert!(o.status.success(), "{e}");
-        assert!(
-            e.contains("3 workers") && e.contains("MB on the wire per frame"),
-            "{e}"
-        );
+        assert!(e.contains("3 workers, bytes on the wire: frame 0"), "{e}");
         for i in 0..frames.parse::<usize>().unwrap() {
             let a = std::fs::read(local.to_str().unwrap().replace("%d", &i.to_string())).unwrap();
             let b = std::fs::read(remote.to_str().unwrap().replace("%d", &i.to_string())).unwrap();
@@ -119,6 +122,51 @@ fn three_workers_render_the_same_bytes_as_one_process_and_stop_on_sigterm() {
             status.success(),
             "a worker stops cleanly on SIGTERM: {status}"
         );
+    }
+}
+
+#[test]
+fn a_worker_killed_mid_animation_changes_no_byte_and_is_reported() {
+    let dir = scratch("kill");
+    let scene = dir.join("scene.toml");
+    std::fs::write(&scene, SCENE).unwrap();
+    // The second worker exits, as if killed, at its fifth Step call: the
+    // settling of frame 0 takes three (0.1 s at 30 fps), so it dies in
+    // frame 2.
+    let workers = [
+        Worker::start(),
+        Worker::start_with(&["--exit-after-steps", "5"]),
+        Worker::start(),
+    ];
+    let list = workers
+        .iter()
+        .map(|w| w.addr.as_str())
+        .collect::<Vec<_>>()
+        .join(",");
+    let local = dir.join("local_%d.png");
+    let remote = dir.join("remote_%d.png");
+    let o = run(&["render", s(&scene), "--frames", "5", "-o", s(&local)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = run(&[
+        "coordinator",
+        s(&scene),
+        "--workers",
+        &list,
+        "--frames",
+        "5",
+        "-o",
+        s(&remote),
+    ]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{e}");
+    assert!(
+        e.contains("worker lost") && e.contains(&workers[1].addr),
+        "the loss is logged with the worker's address: {e}"
+    );
+    for i in 0..5 {
+        let a = std::fs::read(local.to_str().unwrap().replace("%d", &i.to_string())).unwrap();
+        let b = std::fs::read(remote.to_str().unwrap().replace("%d", &i.to_string())).unwrap();
+        assert!(a == b, "frame {i} differs after a worker died");
     }
 }
 

@@ -11,11 +11,19 @@ pub struct WorkerArgs {
     /// stdout names the bound address: `listening on 127.0.0.1:43125`.
     #[arg(long, default_value = "127.0.0.1:0", value_name = "ADDR")]
     listen: SocketAddr,
+    /// Fault injection for tests: exit, as if killed, when the N-th Step
+    /// call arrives.
+    #[arg(long, hide = true, value_name = "N")]
+    exit_after_steps: Option<u64>,
 }
 
 /// Serves until SIGTERM or Ctrl-C.
 pub fn worker(args: WorkerArgs) -> anyhow::Result<()> {
-    cluster::worker::run(args.listen, |addr| {
+    let service = match args.exit_after_steps {
+        Some(n) => cluster::worker::WorkerService::exiting_after_steps(n),
+        None => cluster::worker::WorkerService::default(),
+    };
+    cluster::worker::run(service, args.listen, |addr| {
         // println! flushes at the newline, even into a pipe.
         println!("listening on {addr}");
     })

@@ -107,8 +107,15 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
     let mut traffic = None;
     let mut workers = 0;
     if let Some(r) = remote {
-        let executor = cluster::RemoteExecutor::connect(&r.workers, &scene.fiber, r.deadline)
+        let mut executor = cluster::RemoteExecutor::connect(&r.workers, &scene.fiber, r.deadline)
             .context("cannot start the cluster")?;
+        // The workers build the same wisps from the scene's text.
+        let toml = match &args.scene {
+            Some(p) => std::fs::read_to_string(p)
+                .with_context(|| format!("cannot read scene {}", p.display()))?,
+            None => engine::scene::BUILT_IN_SCENE.to_string(),
+        };
+        executor.set_scene(toml);
         if !matches!(scene.shadow.method, shadow::MethodConfig::DensityMap { .. }) {
             tracing::warn!(
                 method = scene.shadow.method.name(),
@@ -129,8 +136,15 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
     // The last frame's PNG bytes: a frame that drew nothing new is the same
     // picture, written again without encoding it again.
     let mut png: Option<Vec<u8>> = None;
+    // Bytes on the wire of each frame (cluster mode).
+    let mut wire: Vec<cluster::Traffic> = Vec::new();
+    let mut counted = cluster::Traffic::default();
     for _ in 0..n {
         let (img, stats) = seq.next_frame().context("cannot render")?;
+        if let Some(t) = traffic.as_ref().and_then(|t| t.lock().ok().map(|t| *t)) {
+            wire.push(t.since(&counted));
+            counted = t;
+        }
         match &mut output {
             Output::Pngs(p) => {
                 let path = p.path(stats.index);
@@ -165,16 +179,17 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
         write_stats(path, &all)?;
     }
 
-    if let Some(t) = traffic.and_then(|t| t.lock().ok().map(|t| *t)) {
-        let per = |b: u64| b as f64 / n as f64 / 1e6;
+    if let Some(first) = wire.first() {
         eprintln!(
-            "{workers} workers: {:.3} MB on the wire per frame (strands out {:.3}, density in {:.3}, density out {:.3}, slabs in {:.3})",
-            per(t.total()),
-            per(t.strands_sent),
-            per(t.density_received),
-            per(t.density_sent),
-            per(t.slabs_received)
+            "{workers} workers, bytes on the wire: frame 0 {}",
+            first.summary()
         );
+        // The median later frame, by total bytes.
+        let mut later: Vec<_> = wire[1..].to_vec();
+        later.sort_by_key(cluster::Traffic::total);
+        if let Some(m) = later.get(later.len() / 2) {
+            eprintln!("  median later frame {}", m.summary());
+        }
     }
     let mut frame_ms: Vec<f64> = all.iter().map(FrameStats::total_ms).collect();
     let hair = seq.hair();

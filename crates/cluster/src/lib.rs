@@ -16,7 +16,7 @@ pub mod remote;
 pub mod wire;
 pub mod worker;
 
-pub use remote::{RemoteExecutor, Traffic};
+pub use remote::{RemoteExecutor, Timing, Traffic};
 
 use std::net::SocketAddr;
 
@@ -47,4 +47,18 @@ pub enum ClusterError {
     },
     #[error("worker {addr} sent a malformed reply: {msg}")]
     Malformed { addr: String, msg: String },
+}
+
+impl ClusterError {
+    /// The worker an error is about, when it is about one.
+    pub fn worker(&self) -> Option<&str> {
+        match self {
+            ClusterError::Connect { addr, .. }
+            | ClusterError::Version { addr, .. }
+            | ClusterError::Call { addr, .. }
+            | ClusterError::Deadline { addr, .. }
+            | ClusterError::Malformed { addr, .. } => Some(addr),
+            _ => None,
+        }
+    }
 }

@@ -1,11 +1,19 @@
-//! The coordinator's side: an [`engine::Executor`] that runs the density
-//! map's fill and sweep on workers over gRPC, with the same bytes as one
-//! process.
+//! The coordinator's side: an [`engine::Executor`] that runs the wisps'
+//! simulation, the density map's fill and its sweep on workers over gRPC,
+//! with the same bytes as one process.
+//!
+//! Each live worker owns a contiguous share of the wisps (weighted by their
+//! drawn strands) and, per sweep, a contiguous share of the columns
+//! (weighted by their occupied cells). When a worker fails a call (it died,
+//! missed the deadline, or sent something malformed) it is dropped: its
+//! wisps go to the survivors with the state the coordinator gathered last,
+//! and the stage is run again, so the frame comes out the same.
 
+use std::ops::Range;
 use std::sync::{Arc, Mutex};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
-use engine::{EngineError, Executor};
+use engine::{Animator, EngineError, Executor, FrameStats, Stage, StepPlan};
 use prost::Message;
 use shadow::{ColumnSlab, DensityMap, Fiber, FillStats, Transmittance};
 use strands::Hair;
@@ -14,9 +22,17 @@ use tonic::transport::{Channel, Endpoint};
 use crate::pb::worker_client::WorkerClient;
 use crate::{ClusterError, pb, wire};
 
-/// Bytes on the wire, by stage and direction.
+/// Bytes on the wire, by stage and direction (protobuf message bytes;
+/// HTTP/2 framing adds a little).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Traffic {
+    /// Wisp shares and their state sent (Assign), at the start and after
+    /// a worker is lost.
+    pub assign_sent: u64,
+    /// Step requests (head transforms, bodies, accelerations).
+    pub step_sent: u64,
+    /// Wisp states received (Step replies).
+    pub wisps_received: u64,
     /// Strands sent to workers (Deposit requests).
     pub strands_sent: u64,
     /// Partial density columns received.
@@ -29,8 +45,59 @@ pub struct Traffic {
 
 impl Traffic {
     pub fn total(&self) -> u64 {
-        self.strands_sent + self.density_received + self.density_sent + self.slabs_received
+        self.assign_sent
+            + self.step_sent
+            + self.wisps_received
+            + self.strands_sent
+            + self.density_received
+            + self.density_sent
+            + self.slabs_received
     }
+
+    /// The bytes counted since `earlier`.
+    pub fn since(&self, earlier: &Traffic) -> Traffic {
+        Traffic {
+            assign_sent: self.assign_sent - earlier.assign_sent,
+            step_sent: self.step_sent - earlier.step_sent,
+            wisps_received: self.wisps_received - earlier.wisps_received,
+            strands_sent: self.strands_sent - earlier.strands_sent,
+            density_received: self.density_received - earlier.density_received,
+            density_sent: self.density_sent - earlier.density_sent,
+            slabs_received: self.slabs_received - earlier.slabs_received,
+        }
+    }
+
+    /// One line: the total and each part, in MB.
+    pub fn summary(&self) -> String {
+        let mb = |b: u64| b as f64 / 1e6;
+        format!(
+            "{:.3} MB (wisps: assign {:.3}, steps {:.3}, states in {:.3}; strands out {:.3}; density in {:.3}, out {:.3}; slabs in {:.3})",
+            mb(self.total()),
+            mb(self.assign_sent),
+            mb(self.step_sent),
+            mb(self.wisps_received),
+            mb(self.strands_sent),
+            mb(self.density_received),
+            mb(self.density_sent),
+            mb(self.slabs_received),
+        )
+    }
+}
+
+/// Where the time of the remote stages went, summed over frames (for the
+/// scaling benchmark's critical path).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Timing {
+    /// Wall time of Step calls, as the coordinator waited for them.
+    pub step_wall_ms: f64,
+    /// The slowest worker's own compute time in each Step, summed.
+    pub step_compute_ms: f64,
+    /// Wall time of Deposit calls plus merging their partial densities.
+    pub fill_ms: f64,
+    /// Wall time of Sweep calls plus assembling their slabs.
+    pub sweep_ms: f64,
+    /// Workers lost and their work handed to the survivors.
+    pub workers_lost: u32,
 }
 
 #[derive(Debug, Clone)]
@@ -39,14 +106,24 @@ struct Remote {
     client: WorkerClient<Channel>,
 }
 
-/// Workers that fill and sweep the density map (see the module docs).
+/// Workers that simulate wisps and fill and sweep the density map (see
+/// the module docs).
 #[derive(Debug)]
 pub struct RemoteExecutor {
     rt: tokio::runtime::Runtime,
+    /// The live workers, in order.
     workers: Vec<Remote>,
     deadline: Duration,
-    frame_id: u64,
+    /// Ids calls that are not about a posed hair version (stills).
+    calls: u64,
     traffic: Arc<Mutex<Traffic>>,
+    timing: Arc<Mutex<Timing>>,
+    /// The scene's TOML text, for Assign (simulated hair only).
+    scene_toml: Option<String>,
+    /// Each live worker's wisps, once assigned.
+    shares: Option<Vec<Range<usize>>>,
+    /// The hair version the workers posed at their last Step.
+    posed: Option<u64>,
 }
 
 impl RemoteExecutor {
@@ -76,9 +153,31 @@ impl RemoteExecutor {
             rt,
             workers,
             deadline,
-            frame_id: 0,
+            calls: 0,
             traffic: Arc::new(Mutex::new(Traffic::default())),
+            timing: Arc::new(Mutex::new(Timing::default())),
+            scene_toml: None,
+            shares: None,
+            posed: None,
         })
+    }
+
+    /// The scene's TOML text: with it, simulated wisps are stepped on the
+    /// workers (each builds the same wisps from it); without it, the
+    /// coordinator simulates and sends the drawn strands.
+    pub fn set_scene(&mut self, toml: String) {
+        self.scene_toml = Some(toml);
+        self.shares = None;
+    }
+
+    /// A handle on where the remote stages' time went.
+    pub fn timing(&self) -> Arc<Mutex<Timing>> {
+        self.timing.clone()
+    }
+
+    /// The addresses of the live workers.
+    pub fn live_workers(&self) -> Vec<String> {
+        self.workers.iter().map(|w| w.addr.clone()).collect()
     }
 
     pub fn worker_count(&self) -> usize {
@@ -94,6 +193,37 @@ impl RemoteExecutor {
         if let Ok(mut t) = self.traffic.lock() {
             f(&mut t);
         }
+    }
+
+    fn clock(&self, f: impl FnOnce(&mut Timing)) {
+        if let Ok(mut t) = self.timing.lock() {
+            f(&mut t);
+        }
+    }
+
+    /// After `e`: drops the worker it names, when others are left, and
+    /// returns Ok so the caller runs its stage again on the survivors;
+    /// otherwise returns `e`.
+    fn lose_worker(&mut self, e: ClusterError) -> Result<(), ClusterError> {
+        let Some(addr) = e.worker() else {
+            return Err(e);
+        };
+        let Some(i) = self.workers.iter().position(|w| w.addr == addr) else {
+            return Err(e);
+        };
+        if self.workers.len() == 1 {
+            return Err(e);
+        }
+        self.workers.remove(i);
+        self.shares = None;
+        self.posed = None;
+        self.clock(|t| t.workers_lost += 1);
+        tracing::warn!(
+            error = %e,
+            survivors = self.workers.len(),
+            "worker lost; its wisps and columns go to the survivors"
+        );
+        Ok(())
     }
 }
 
@@ -227,68 +357,291 @@ fn call_error(addr: &str, stage: &'static str, s: tonic::Status) -> ClusterError
     }
 }
 
+/// Collects a server stream's messages.
+async fn collect<T>(
+    addr: &str,
+    stage: &'static str,
+    mut s: tonic::Streaming<T>,
+) -> Result<Vec<T>, ClusterError> {
+    let mut out = Vec::new();
+    while let Some(c) = s.message().await.map_err(|e| call_error(addr, stage, e))? {
+        out.push(c);
+    }
+    Ok(out)
+}
+
+fn malformed(addr: &str, e: impl ToString) -> ClusterError {
+    ClusterError::Malformed {
+        addr: addr.to_string(),
+        msg: e.to_string(),
+    }
+}
+
 impl RemoteExecutor {
+    /// Runs `attempt` until it succeeds, dropping a failed worker before
+    /// each new try while others are left.
+    fn with_survivors<T>(
+        &mut self,
+        mut attempt: impl FnMut(&mut Self) -> Result<T, ClusterError>,
+    ) -> Result<T, ClusterError> {
+        loop {
+            match attempt(self) {
+                Ok(t) => return Ok(t),
+                Err(e) => self.lose_worker(e)?,
+            }
+        }
+    }
+
+    /// Shares the wisps out over the live workers, with their state in
+    /// `anim` (the state gathered last).
+    fn assign(&mut self, anim: &Animator) -> Result<(), ClusterError> {
+        let toml = self
+            .scene_toml
+            .clone()
+            .ok_or_else(|| ClusterError::Setup("no scene to simulate".into()))?;
+        let weights = anim.strands_per_wisp();
+        let shares = split_by(weights.len(), self.workers.len(), |w| weights[w] + 1);
+        let mut requests = Vec::with_capacity(shares.len());
+        let mut sent = 0u64;
+        for (w, share) in self.workers.iter().zip(&shares) {
+            let states: Vec<_> = share
+                .clone()
+                .map(|i| anim.wisp_state(i).expect("simulated wisps"))
+                .collect();
+            let chunks: Vec<pb::AssignChunk> = wire::wisp_chunks(share.start, states)
+                .into_iter()
+                .enumerate()
+                .map(|(i, state)| pb::AssignChunk {
+                    scene_toml: if i == 0 { toml.clone() } else { String::new() },
+                    first_wisp: share.start as u32,
+                    end_wisp: share.end as u32,
+                    state: Some(state),
+                })
+                .collect();
+            sent += chunks.iter().map(|c| c.encoded_len() as u64).sum::<u64>();
+            requests.push((w.clone(), chunks));
+        }
+        let per = anim.points_per_wisp() as u32;
+        fan_out(
+            &self.rt,
+            requests,
+            "assign",
+            self.deadline,
+            move |mut w, chunks| async move {
+                let reply = w
+                    .client
+                    .assign(tokio_stream::iter(chunks))
+                    .await
+                    .map_err(|s| call_error(&w.addr, "assign", s))?
+                    .into_inner();
+                if reply.points_per_wisp != per {
+                    return Err(malformed(
+                        &w.addr,
+                        format!(
+                            "the worker's wisps have {} guide points, the coordinator's {per}",
+                            reply.points_per_wisp
+                        ),
+                    ));
+                }
+                Ok(())
+            },
+        )?;
+        tracing::info!(shares = ?shares, "wisps assigned");
+        self.count(|t| t.assign_sent += sent);
+        self.shares = Some(shares);
+        Ok(())
+    }
+
+    /// One Step on every worker; the new states go into `anim` only when
+    /// every worker answered.
+    fn step(&mut self, anim: &mut Animator, plan: &StepPlan) -> Result<(), ClusterError> {
+        if self.shares.is_none() {
+            self.assign(anim)?;
+        }
+        let shares = self.shares.clone().expect("assigned above");
+        let per = anim.points_per_wisp();
+        let mut base = pb::StepRequest {
+            frame_id: plan.version,
+            version: plan.version,
+            has_accel: plan.accel.is_some(),
+            ..Default::default()
+        };
+        for (h, b) in plan.heads.iter().zip(&plan.bodies) {
+            wire::affine_to_floats(h, &mut base.heads);
+            base.body_counts.push(b.len() as u32);
+            wire::bodies_to_floats(b, &mut base.bodies);
+        }
+        wire::bodies_to_floats(&plan.drawn_bodies, &mut base.drawn_bodies);
+        let mut requests = Vec::with_capacity(shares.len());
+        let mut sent = 0u64;
+        for (w, share) in self.workers.iter().zip(&shares) {
+            let mut r = base.clone();
+            if let Some(a) = &plan.accel {
+                (r.accel_skip, r.accel) = wire::accel_to_pb(&a[share.start * per..share.end * per]);
+            }
+            sent += r.encoded_len() as u64;
+            requests.push((w.clone(), (r, share.clone())));
+        }
+        let t = Instant::now();
+        let replies = fan_out(
+            &self.rt,
+            requests,
+            "step",
+            self.deadline,
+            move |mut w, (r, share)| async move {
+                let s = w
+                    .client
+                    .step(r)
+                    .await
+                    .map_err(|s| call_error(&w.addr, "step", s))?
+                    .into_inner();
+                let chunks = collect(&w.addr, "step", s).await?;
+                let mut states = Vec::with_capacity(share.len());
+                let (mut bytes, mut compute) = (0u64, 0.0f64);
+                for c in &chunks {
+                    bytes += c.encoded_len() as u64;
+                    compute += c.compute_ms;
+                    states.extend(
+                        wire::wisps_from_chunk(c, per, &share)
+                            .map_err(|e| malformed(&w.addr, e))?,
+                    );
+                }
+                let in_order = states.iter().map(|(i, _)| *i).eq(share.clone());
+                if !in_order {
+                    return Err(malformed(
+                        &w.addr,
+                        format!("the states of wisps {share:?} did not come whole and in order"),
+                    ));
+                }
+                Ok((w.addr, states, bytes, compute))
+            },
+        )?;
+        let wall = t.elapsed().as_secs_f64() * 1e3;
+        let mut received = 0u64;
+        let mut slowest = 0.0f64;
+        for (addr, states, bytes, compute) in replies {
+            received += bytes;
+            slowest = slowest.max(compute);
+            for (i, state) in states {
+                anim.set_wisp_state(i, state)
+                    .map_err(|e| malformed(&addr, e))?;
+            }
+        }
+        self.count(|t| {
+            t.step_sent += sent;
+            t.wisps_received += received;
+        });
+        self.clock(|t| {
+            t.step_wall_ms += wall;
+            t.step_compute_ms += slowest;
+        });
+        self.posed = Some(plan.version);
+        Ok(())
+    }
+
+    /// The Deposit requests of one fill: the workers' posed strands when
+    /// they hold hair `version`, else shares of `hair`'s strands.
+    fn deposit_requests(
+        &self,
+        id: u64,
+        light: u32,
+        frame: &shadow::LightFrame,
+        hair: &Hair,
+        version: Option<u64>,
+    ) -> Vec<(Remote, Vec<pb::DepositChunk>)> {
+        if version.is_some() && version == self.posed && self.shares.is_some() {
+            return self
+                .workers
+                .iter()
+                .map(|w| {
+                    let c = pb::DepositChunk {
+                        frame_id: id,
+                        light,
+                        map: Some(wire::frame_to_pb(frame)),
+                        posed: true,
+                        version: version.unwrap_or_default(),
+                        ..Default::default()
+                    };
+                    (w.clone(), vec![c])
+                })
+                .collect();
+        }
+        let offsets = hair.offsets();
+        let shares = split_by(hair.strand_count(), self.workers.len(), |s| {
+            u64::from(offsets[s + 1] - offsets[s]) + 1
+        });
+        self.workers
+            .iter()
+            .zip(shares)
+            .map(|(w, share)| {
+                (
+                    w.clone(),
+                    wire::deposit_chunks(id, light, frame, hair, share),
+                )
+            })
+            .collect()
+    }
+
     fn fill_remote(
         &mut self,
         light: usize,
         map: &mut DensityMap,
         hair: &Hair,
+        version: Option<u64>,
     ) -> Result<FillStats, ClusterError> {
-        self.frame_id += 1;
-        let frame = *map.frame();
-        let offsets = hair.offsets();
-        let shares = split_by(hair.strand_count(), self.workers.len(), |s| {
-            u64::from(offsets[s + 1] - offsets[s]) + 1
+        let id = version.unwrap_or_else(|| {
+            self.calls += 1;
+            self.calls
         });
-        let deadline = self.deadline;
-        let mut requests = Vec::with_capacity(shares.len());
-        let mut sent = 0u64;
-        for (w, share) in self.workers.iter().zip(shares) {
-            let chunks = wire::deposit_chunks(self.frame_id, light as u32, &frame, hair, share);
-            sent += chunks.iter().map(|c| c.encoded_len() as u64).sum::<u64>();
-            requests.push((w.clone(), chunks));
-        }
+        let frame = *map.frame();
+        let requests = self.deposit_requests(id, light as u32, &frame, hair, version);
+        let posed = requests.first().is_some_and(|(_, c)| c[0].posed);
+        let sent: u64 = requests
+            .iter()
+            .flat_map(|(_, c)| c)
+            .map(|c| c.encoded_len() as u64)
+            .sum();
+        let t = Instant::now();
         let replies = fan_out(
             &self.rt,
             requests,
             "deposit",
-            deadline,
+            self.deadline,
             |mut w, chunks| async move {
-                let mut s = w
+                let s = w
                     .client
                     .deposit(tokio_stream::iter(chunks))
                     .await
                     .map_err(|s| call_error(&w.addr, "deposit", s))?
                     .into_inner();
-                let mut got = Vec::new();
-                while let Some(c) = s
-                    .message()
-                    .await
-                    .map_err(|s| call_error(&w.addr, "deposit", s))?
-                {
-                    got.push(c);
-                }
+                let got = collect(&w.addr, "deposit", s).await?;
                 Ok((w.addr, got))
             },
         )?;
-        // Merge in worker order (integer sums: any order gives the same map).
+        // Merge in worker order (integer sums: any order gives the same
+        // map). Every reply is checked before the map changes.
         let mut stats = FillStats::default();
         let mut received = 0u64;
-        for (addr, chunks) in replies {
+        for (addr, chunks) in &replies {
+            for c in chunks {
+                wire::check_columns(&frame, c).map_err(|e| malformed(addr, e))?;
+            }
+        }
+        for (_, chunks) in replies {
             for c in &chunks {
                 received += c.encoded_len() as u64;
-                wire::merge_columns(map, c).map_err(|e| ClusterError::Malformed {
-                    addr: addr.clone(),
-                    msg: e.to_string(),
-                })?;
+                wire::merge_columns(map, c).expect("checked above");
                 stats.samples += c.samples;
                 stats.out_of_map += c.out_of_map;
             }
         }
+        tracing::debug!(frame_id = id, light, posed, "density gathered");
         self.count(|t| {
             t.strands_sent += sent;
             t.density_received += received;
         });
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        self.clock(|x| x.fill_ms += ms);
         Ok(stats)
     }
 
@@ -307,13 +660,14 @@ impl RemoteExecutor {
                 u64::from(m.hi - m.lo) + 2
             }
         });
-        let deadline = self.deadline;
+        self.calls += 1;
+        let id = self.calls;
         let mut requests = Vec::with_capacity(shares.len());
         let mut sent = 0u64;
         for (w, share) in self.workers.iter().zip(&shares) {
             let mut chunks = wire::column_chunks(map, share.clone());
             let first = &mut chunks[0];
-            first.frame_id = self.frame_id;
+            first.frame_id = id;
             first.light = light as u32;
             first.map = Some(wire::frame_to_pb(&frame));
             first.first_column = share.start as u32;
@@ -322,13 +676,14 @@ impl RemoteExecutor {
             requests.push((w.clone(), (chunks, share.clone())));
         }
         let n_cells = frame.n_cells;
+        let t = Instant::now();
         let replies = fan_out(
             &self.rt,
             requests,
             "sweep",
-            deadline,
+            self.deadline,
             move |mut w, (chunks, share)| async move {
-                let mut s = w
+                let s = w
                     .client
                     .sweep(tokio_stream::iter(chunks))
                     .await
@@ -341,57 +696,82 @@ impl RemoteExecutor {
                     depth: Vec::new(),
                 };
                 let mut bytes = 0u64;
-                let malformed = |msg: String| ClusterError::Malformed {
-                    addr: w.addr.clone(),
-                    msg,
-                };
-                while let Some(c) = s
-                    .message()
-                    .await
-                    .map_err(|s| call_error(&w.addr, "sweep", s))?
-                {
+                for c in collect(&w.addr, "sweep", s).await? {
                     bytes += c.encoded_len() as u64;
                     wire::add_slab_chunk(&mut slab, &c, n_cells)
-                        .map_err(|e| malformed(e.to_string()))?;
+                        .map_err(|e| malformed(&w.addr, e))?;
                 }
                 if slab.columns.end as usize != share.end {
-                    return Err(malformed(format!(
-                        "slab ends at column {}, expected {}",
-                        slab.columns.end, share.end
-                    )));
+                    return Err(malformed(
+                        &w.addr,
+                        format!(
+                            "slab ends at column {}, expected {}",
+                            slab.columns.end, share.end
+                        ),
+                    ));
                 }
-                Ok((slab, bytes))
+                Ok((w.addr, slab, bytes))
             },
         )?;
-        let received: u64 = replies.iter().map(|(_, b)| b).sum();
-        self.count(|t| {
-            t.density_sent += sent;
-            t.slabs_received += received;
+        let received: u64 = replies.iter().map(|(_, _, b)| b).sum();
+        // Check each worker's slab on its own, so that a bad one names its worker.
+        for (addr, slab, _) in &replies {
+            Transmittance::check_slab(&frame, slab).map_err(|e| malformed(addr, e))?;
+        }
+        let trans = Transmittance::assemble(frame, replies.into_iter().map(|(_, s, _)| s))
+            .map_err(|e| malformed("workers", e))?;
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        self.count(|x| {
+            x.density_sent += sent;
+            x.slabs_received += received;
         });
-        Transmittance::assemble(frame, replies.into_iter().map(|(s, _)| s)).map_err(|e| {
-            ClusterError::Malformed {
-                addr: "workers".into(),
-                msg: e.to_string(),
-            }
-        })
+        self.clock(|x| x.sweep_ms += ms);
+        tracing::debug!(frame_id = id, light, "transmittance gathered");
+        Ok(trans)
     }
 }
 
+fn engine_error(e: ClusterError) -> EngineError {
+    EngineError::Executor(e.to_string())
+}
+
 impl Executor for RemoteExecutor {
+    fn simulate(
+        &mut self,
+        anim: &mut Animator,
+        plan: &StepPlan,
+        stats: &mut FrameStats,
+    ) -> Result<(), EngineError> {
+        if self.scene_toml.is_none() {
+            // No scene to build wisps from: simulate here.
+            return engine::LocalExecutor.simulate(anim, plan, stats);
+        }
+        stats
+            .time(Stage::Simulate, || {
+                self.with_survivors(|ex| ex.step(anim, plan))
+            })
+            .map_err(engine_error)?;
+        stats.steps += plan.heads.len() as u32;
+        Ok(())
+    }
+
     fn fill(
         &mut self,
         light: usize,
         map: &mut DensityMap,
         hair: &Hair,
         _fiber: &Fiber,
+        version: Option<u64>,
     ) -> Result<FillStats, EngineError> {
-        self.fill_remote(light, map, hair)
-            .map_err(|e| EngineError::Executor(e.to_string()))
+        // After a loss the survivors lack the lost worker's posed strands:
+        // the retry sends strands (`posed` was cleared).
+        self.with_survivors(|ex| ex.fill_remote(light, map, hair, version))
+            .map_err(engine_error)
     }
 
     fn sweep(&mut self, light: usize, map: &DensityMap) -> Result<Transmittance, EngineError> {
-        self.sweep_remote(light, map)
-            .map_err(|e| EngineError::Executor(e.to_string()))
+        self.with_survivors(|ex| ex.sweep_remote(light, map))
+            .map_err(engine_error)
     }
 }
 

@@ -6,15 +6,16 @@
 
 use std::ops::Range;
 
-use glam::Vec3;
+use glam::{Affine3A, Vec3};
 use shadow::{ColumnMeta, ColumnSlab, DensityMap, LightFrame, MAX_CELLS, Span};
+use sim::{Body, WispState};
 use strands::Hair;
 
 use crate::pb;
 
 /// The protocol version this build speaks. A coordinator and a worker of
 /// different versions refuse each other.
-pub const PROTOCOL_VERSION: u32 = 1;
+pub const PROTOCOL_VERSION: u32 = 2;
 
 /// Points per Deposit chunk: 3 floats each, 1.5 MB.
 pub const POINTS_PER_CHUNK: usize = 128 * 1024;
@@ -165,9 +166,29 @@ pub fn column_chunks(map: &DensityMap, columns: Range<usize>) -> Vec<pb::ColumnC
     out
 }
 
-/// Adds the columns of one chunk to `map`, after checking every index.
+/// Adds the columns of one chunk to `map`, after checking every index
+/// ([`check_columns`]): a bad chunk changes nothing.
 pub fn merge_columns(map: &mut DensityMap, c: &pb::ColumnChunk) -> Result<(), Malformed> {
-    let n = map.frame().n_cells as usize;
+    check_columns(map.frame(), c)?;
+    let mut at = 0;
+    for i in 0..c.columns.len() {
+        let (lo, hi) = (c.lo[i] as u16, c.hi[i] as u16);
+        let len = usize::from(hi - lo) + 1;
+        let meta = ColumnMeta {
+            lo,
+            hi,
+            front: c.front[i],
+        };
+        map.merge_column(c.columns[i] as usize, meta, &c.quanta[at..at + len]);
+        at += len;
+    }
+    Ok(())
+}
+
+/// Checks that the columns of one chunk fit a map in `frame`: indices,
+/// spans, fronts and the number of values.
+pub fn check_columns(frame: &LightFrame, c: &pb::ColumnChunk) -> Result<(), Malformed> {
+    let n = frame.n_cells as usize;
     let count = c.columns.len();
     if c.lo.len() != count || c.hi.len() != count || c.front.len() != count {
         return Err(bad(format!(
@@ -177,7 +198,6 @@ pub fn merge_columns(map: &mut DensityMap, c: &pb::ColumnChunk) -> Result<(), Ma
             c.front.len()
         )));
     }
-    // Check everything first, so that a bad chunk changes nothing.
     let mut need = 0usize;
     for i in 0..count {
         let (col, lo, hi, front) = (
@@ -201,18 +221,6 @@ pub fn merge_columns(map: &mut DensityMap, c: &pb::ColumnChunk) -> Result<(), Ma
             "columns hold {need} cells but {} values came",
             c.quanta.len()
         )));
-    }
-    let mut at = 0;
-    for i in 0..count {
-        let (lo, hi) = (c.lo[i] as u16, c.hi[i] as u16);
-        let len = usize::from(hi - lo) + 1;
-        let meta = ColumnMeta {
-            lo,
-            hi,
-            front: c.front[i],
-        };
-        map.merge_column(c.columns[i] as usize, meta, &c.quanta[at..at + len]);
-        at += len;
     }
     Ok(())
 }
@@ -310,4 +318,173 @@ pub fn add_slab_chunk(
     slab.depth.extend_from_slice(&c.depth);
     slab.columns.end += count as u32;
     Ok(())
+}
+
+/// Guide points per wisp-state chunk: 6 floats each (now and one step
+/// ago), 1.5 MB.
+pub const GUIDE_POINTS_PER_CHUNK: usize = 64 * 1024;
+
+/// The most time steps one Step call may ask for.
+pub const MAX_STEPS: usize = 100_000;
+
+/// The most bodies one time step may hold.
+pub const MAX_BODIES: usize = 1024;
+
+/// A transform as 12 floats: the matrix's columns, then the translation.
+pub fn affine_to_floats(a: &Affine3A, out: &mut Vec<f32>) {
+    out.extend_from_slice(&a.to_cols_array());
+}
+
+/// The transforms of `f` (12 floats each), every one finite.
+pub fn affines_from_floats(f: &[f32]) -> Result<Vec<Affine3A>, Malformed> {
+    if !f.len().is_multiple_of(12) || f.len() / 12 > MAX_STEPS {
+        return Err(bad(format!(
+            "{} head transform values: not a whole number of 12-float transforms, or more than {MAX_STEPS} steps",
+            f.len()
+        )));
+    }
+    if f.iter().any(|v| !v.is_finite()) {
+        return Err(bad("a head transform is not finite"));
+    }
+    Ok(f.chunks_exact(12).map(Affine3A::from_cols_slice).collect())
+}
+
+pub fn bodies_to_floats(bodies: &[Body], out: &mut Vec<f32>) {
+    for b in bodies {
+        out.extend_from_slice(&[b.center.x, b.center.y, b.center.z, b.radius]);
+    }
+}
+
+/// Bodies as x, y, z, radius: finite, radius not negative.
+pub fn bodies_from_floats(f: &[f32]) -> Result<Vec<Body>, Malformed> {
+    if !f.len().is_multiple_of(4) || f.len() / 4 > MAX_BODIES * MAX_STEPS {
+        return Err(bad(format!(
+            "{} body values: not x, y, z, radius quadruples",
+            f.len()
+        )));
+    }
+    f.chunks_exact(4)
+        .map(|b| {
+            let body = Body {
+                center: Vec3::new(b[0], b[1], b[2]),
+                radius: b[3],
+            };
+            if body.center.is_finite() && body.radius.is_finite() && body.radius >= 0.0 {
+                Ok(body)
+            } else {
+                Err(bad(format!(
+                    "body at {} of radius {}",
+                    body.center, body.radius
+                )))
+            }
+        })
+        .collect()
+}
+
+/// Sparse accelerations: for each non-zero one, the count of zero ones
+/// skipped before it, then its x, y, z.
+pub fn accel_to_pb(accel: &[Vec3]) -> (Vec<u32>, Vec<f32>) {
+    let (mut skip, mut xyz) = (Vec::new(), Vec::new());
+    let mut zeros = 0u32;
+    for a in accel {
+        if *a == Vec3::ZERO {
+            zeros += 1;
+        } else {
+            skip.push(zeros);
+            xyz.extend_from_slice(&a.to_array());
+            zeros = 0;
+        }
+    }
+    (skip, xyz)
+}
+
+/// [`accel_to_pb`] undone, for `len` points; every value finite.
+pub fn accel_from_pb(skip: &[u32], xyz: &[f32], len: usize) -> Result<Vec<Vec3>, Malformed> {
+    if xyz.len() != 3 * skip.len() {
+        return Err(bad(format!(
+            "{} accelerations with {} components",
+            skip.len(),
+            xyz.len()
+        )));
+    }
+    let mut out = vec![Vec3::ZERO; len];
+    let mut at = 0usize;
+    for (i, &s) in skip.iter().enumerate() {
+        at = at.saturating_add(s as usize);
+        let a = Vec3::from_slice(&xyz[3 * i..3 * i + 3]);
+        if at >= len || !a.is_finite() {
+            return Err(bad(format!(
+                "acceleration {a} at guide point {at} of {len}"
+            )));
+        }
+        out[at] = a;
+        at += 1;
+    }
+    Ok(out)
+}
+
+/// The states of wisps `first..` in `states`, as chunks of whole wisps.
+pub fn wisp_chunks<'a>(
+    first: usize,
+    states: impl IntoIterator<Item = &'a WispState>,
+) -> Vec<pb::WispChunk> {
+    let mut out = Vec::new();
+    let mut chunk = pb::WispChunk {
+        first_wisp: first as u32,
+        ..Default::default()
+    };
+    for (i, s) in states.into_iter().enumerate() {
+        if !chunk.pos.is_empty() && chunk.pos.len() / 3 + s.pos.len() > GUIDE_POINTS_PER_CHUNK {
+            let next = pb::WispChunk {
+                first_wisp: (first + i) as u32,
+                ..Default::default()
+            };
+            out.push(std::mem::replace(&mut chunk, next));
+        }
+        chunk.pos.extend(s.pos.iter().flat_map(|p| p.to_array()));
+        chunk.prev.extend(s.prev.iter().flat_map(|p| p.to_array()));
+    }
+    out.push(chunk);
+    out
+}
+
+/// The wisps of one chunk, each of `per` guide points, all inside
+/// `wisps`: `(wisp, state)` pairs. Finiteness is checked where the state
+/// is set.
+pub fn wisps_from_chunk(
+    c: &pb::WispChunk,
+    per: usize,
+    wisps: &Range<usize>,
+) -> Result<Vec<(usize, WispState)>, Malformed> {
+    let floats = 3 * per;
+    if per == 0 || c.pos.len() != c.prev.len() || !c.pos.len().is_multiple_of(floats) {
+        return Err(bad(format!(
+            "wisp states of {} and {} values, not whole wisps of {per} points",
+            c.pos.len(),
+            c.prev.len()
+        )));
+    }
+    let first = c.first_wisp as usize;
+    let count = c.pos.len() / floats;
+    if first < wisps.start || first + count > wisps.end {
+        return Err(bad(format!(
+            "states of wisps {first}..{} outside wisps {}..{}",
+            first + count,
+            wisps.start,
+            wisps.end
+        )));
+    }
+    let points = |f: &[f32]| f.chunks_exact(3).map(Vec3::from_slice).collect::<Vec<_>>();
+    Ok((0..count)
+        .map(|i| {
+            let at = i * floats..(i + 1) * floats;
+            (
+                first + i,
+                WispState {
+                    pos: points(&c.pos[at.clone()]),
+                    prev: points(&c.prev[at]),
+                },
+            )
+        })
+        .collect())
 }

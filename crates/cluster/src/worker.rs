@@ -1,11 +1,15 @@
-//! The worker: fills partial density maps and sweeps column ranges for a
-//! coordinator, behind the `wisplight.v1.Worker` gRPC service, with
-//! grpc.health.v1 health and server reflection.
+//! The worker: simulates a share of the wisps, fills partial density maps
+//! and sweeps column ranges for a coordinator, behind the
+//! `wisplight.v1.Worker` gRPC service, with grpc.health.v1 health and
+//! server reflection.
 
 use std::net::SocketAddr;
 use std::pin::Pin;
 use std::sync::{Arc, Mutex};
 
+use std::ops::Range;
+
+use engine::{Animator, FrameStats, Scene, StepPlan};
 use shadow::{ColumnSlab, DensityMap, Fiber, LightFrame};
 use strands::Hair;
 use tokio_stream::Stream;
@@ -16,12 +20,30 @@ use crate::{ClusterError, pb, wire};
 
 type Chunks<T> = Pin<Box<dyn Stream<Item = Result<T, Status>> + Send>>;
 
-/// The worker's state: the fiber of the coordinator it serves, and density
-/// maps kept between calls (their memory, not their content).
+/// The worker's state: the fiber of the coordinator it serves, its share
+/// of a simulated scene's wisps, and density maps kept between calls
+/// (their memory, not their content).
 #[derive(Debug, Default)]
 pub struct WorkerService {
     fiber: Mutex<Option<Fiber>>,
     maps: Arc<Mutex<Vec<DensityMap>>>,
+    share: Arc<Mutex<Option<Share>>>,
+    /// Fault injection for tests: the process exits (as if killed) when
+    /// this many Step calls have arrived.
+    exit_after_steps: Option<u64>,
+    steps: std::sync::atomic::AtomicU64,
+}
+
+/// A share of a simulated scene's wisps.
+#[derive(Debug)]
+struct Share {
+    /// The scene's TOML text: a new Assign of the same scene keeps `anim`.
+    scene_toml: String,
+    anim: Box<Animator>,
+    wisps: Range<usize>,
+    /// The drawn strands of the share as posed at the last Step, and that
+    /// hair's version.
+    posed: Option<(u64, Hair)>,
 }
 
 fn invalid(e: wire::Malformed) -> Status {
@@ -33,6 +55,15 @@ fn stream_of<T: Send + 'static>(items: Vec<T>) -> Chunks<T> {
 }
 
 impl WorkerService {
+    /// A worker that exits its process, as if killed, when the `n`-th Step
+    /// call arrives (fault-injection tests of the coordinator).
+    pub fn exiting_after_steps(n: u64) -> WorkerService {
+        WorkerService {
+            exit_after_steps: Some(n),
+            ..WorkerService::default()
+        }
+    }
+
     fn fiber(&self) -> Result<Fiber, Status> {
         self.fiber
             .lock()
@@ -49,6 +80,23 @@ impl WorkerService {
                 m
             }
             None => DensityMap::new(frame),
+        }
+    }
+
+    /// The strands posed at the last Step, when they are hair `version`.
+    fn posed_hair(&self, version: u64) -> Result<Hair, Status> {
+        let share = self
+            .share
+            .lock()
+            .map_err(|_| Status::internal("worker state poisoned"))?;
+        match share.as_ref().and_then(|s| s.posed.as_ref()) {
+            Some((v, hair)) if *v == version => Ok(hair.clone()),
+            Some((v, _)) => Err(Status::failed_precondition(format!(
+                "the posed strands are hair version {v}, not {version}"
+            ))),
+            None => Err(Status::failed_precondition(
+                "no strands posed here: call Assign and Step first",
+            )),
         }
     }
 
@@ -102,9 +150,18 @@ impl Worker for WorkerService {
         let frame = wire::frame_from_pb(first.map.as_ref()).map_err(invalid)?;
         let (frame_id, light) = (first.frame_id, first.light);
         let mut hair = Hair::new();
+        let posed = first.posed;
         wire::add_strands(&mut hair, &first).map_err(invalid)?;
         while let Some(c) = stream.message().await? {
             wire::add_strands(&mut hair, &c).map_err(invalid)?;
+        }
+        if posed {
+            if hair.strand_count() > 0 {
+                return Err(Status::invalid_argument(
+                    "a posed Deposit carries no strands",
+                ));
+            }
+            hair = self.posed_hair(first.version)?;
         }
         let maps = self.maps.clone();
         let chunks = tokio::task::spawn_blocking(move || {
@@ -125,6 +182,91 @@ impl Worker for WorkerService {
         .await
         .map_err(|e| Status::internal(format!("deposit task failed: {e}")))?;
         tracing::debug!(frame_id, light, chunks = chunks.len(), "deposit done");
+        Ok(Response::new(stream_of(chunks)))
+    }
+
+    async fn assign(
+        &self,
+        req: Request<Streaming<pb::AssignChunk>>,
+    ) -> Result<Response<pb::AssignReply>, Status> {
+        self.fiber()?;
+        let mut stream = req.into_inner();
+        let first = stream
+            .message()
+            .await?
+            .ok_or_else(|| Status::invalid_argument("an empty Assign call"))?;
+        let wisps = first.first_wisp as usize..first.end_wisp as usize;
+        let mut chunks: Vec<pb::WispChunk> = first.state.into_iter().collect();
+        while let Some(c) = stream.message().await? {
+            chunks.extend(c.state);
+        }
+        let slot = self.share.clone();
+        let toml = first.scene_toml;
+        let points = tokio::task::spawn_blocking(move || {
+            let mut slot = slot
+                .lock()
+                .map_err(|_| Status::internal("worker state poisoned"))?;
+            let share = build_share(slot.take(), toml, wisps, chunks)?;
+            let per = share.anim.points_per_wisp();
+            tracing::info!(wisps = ?share.wisps, "wisps assigned");
+            *slot = Some(share);
+            Ok::<_, Status>(per)
+        })
+        .await
+        .map_err(|e| Status::internal(format!("assign task failed: {e}")))??;
+        Ok(Response::new(pb::AssignReply {
+            points_per_wisp: points as u32,
+        }))
+    }
+
+    type StepStream = Chunks<pb::WispChunk>;
+
+    async fn step(
+        &self,
+        req: Request<pb::StepRequest>,
+    ) -> Result<Response<Self::StepStream>, Status> {
+        self.fiber()?;
+        let n = 1 + self.steps.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+        if self.exit_after_steps.is_some_and(|k| n >= k) {
+            tracing::error!(step = n, "fault injection: exiting");
+            std::process::exit(3);
+        }
+        let r = req.into_inner();
+        let slot = self.share.clone();
+        let chunks = tokio::task::spawn_blocking(move || {
+            let start = std::time::Instant::now();
+            let mut slot = slot
+                .lock()
+                .map_err(|_| Status::internal("worker state poisoned"))?;
+            let share = slot
+                .as_mut()
+                .ok_or_else(|| Status::failed_precondition("no wisps here: call Assign first"))?;
+            let (plan, accel) = step_plan(&r, share).map_err(invalid)?;
+            let mut stats = FrameStats::new(r.frame_id, 0.0);
+            let wisps = share.wisps.clone();
+            engine::step_wisps(
+                &mut share.anim,
+                wisps.clone(),
+                &plan,
+                accel.as_deref(),
+                &mut stats,
+            );
+            let hair = share.anim.pose_share(wisps, &plan.drawn_bodies);
+            share.posed = Some((plan.version, hair));
+            let mut chunks = share_chunks(share)?;
+            if let Some(c) = chunks.last_mut() {
+                c.compute_ms = start.elapsed().as_secs_f64() * 1e3;
+            }
+            tracing::debug!(
+                frame_id = r.frame_id,
+                version = r.version,
+                steps = stats.steps,
+                "step done"
+            );
+            Ok::<_, Status>(chunks)
+        })
+        .await
+        .map_err(|e| Status::internal(format!("step task failed: {e}")))??;
         Ok(Response::new(stream_of(chunks)))
     }
 
@@ -172,10 +314,125 @@ impl Worker for WorkerService {
     }
 }
 
+/// The state of `first..first + count`'s guides from a share, as chunks.
+fn share_chunks(share: &Share) -> Result<Vec<pb::WispChunk>, Status> {
+    let states: Option<Vec<_>> = share
+        .wisps
+        .clone()
+        .map(|w| share.anim.wisp_state(w))
+        .collect();
+    let states = states.ok_or_else(|| Status::internal("a wisp of the share is missing"))?;
+    Ok(wire::wisp_chunks(share.wisps.start, states))
+}
+
+/// Builds the share an Assign call asks for (off the async threads: the
+/// scene's hair is generated here).
+fn build_share(
+    old: Option<Share>,
+    scene_toml: String,
+    wisps: Range<usize>,
+    chunks: Vec<pb::WispChunk>,
+) -> Result<Share, Status> {
+    let mut anim = match old {
+        Some(s) if s.scene_toml == scene_toml => s.anim,
+        _ => {
+            let scene = Scene::from_toml_str(&scene_toml, std::path::Path::new("<coordinator>"))
+                .map_err(|e| Status::invalid_argument(format!("the scene: {e}")))?;
+            Box::new(
+                Animator::new(&scene)
+                    .map_err(|e| Status::invalid_argument(format!("the scene's hair: {e}")))?,
+            )
+        }
+    };
+    if !anim.simulates() {
+        return Err(Status::invalid_argument(
+            "the scene's hair is not simulated (a procedural style with dynamics on a moving head)",
+        ));
+    }
+    if wisps.start > wisps.end || wisps.end > anim.wisp_count() {
+        return Err(Status::invalid_argument(format!(
+            "wisps {}..{} of a scene of {}",
+            wisps.start,
+            wisps.end,
+            anim.wisp_count()
+        )));
+    }
+    let mut seen = vec![false; wisps.len()];
+    for c in &chunks {
+        for (w, state) in
+            wire::wisps_from_chunk(c, anim.points_per_wisp(), &wisps).map_err(invalid)?
+        {
+            anim.set_wisp_state(w, state)
+                .map_err(|e| Status::invalid_argument(e.to_string()))?;
+            seen[w - wisps.start] = true;
+        }
+    }
+    if let Some(i) = seen.iter().position(|s| !s) {
+        return Err(Status::invalid_argument(format!(
+            "no state for wisp {}",
+            wisps.start + i
+        )));
+    }
+    Ok(Share {
+        scene_toml,
+        anim,
+        wisps,
+        posed: None,
+    })
+}
+
+/// A Step request as a plan for `share`: the worker's accelerations apart.
+fn step_plan(
+    r: &pb::StepRequest,
+    share: &Share,
+) -> Result<(StepPlan, Option<Vec<glam::Vec3>>), wire::Malformed> {
+    let heads = wire::affines_from_floats(&r.heads)?;
+    if r.body_counts.len() != heads.len() {
+        return Err(wire::Malformed(format!(
+            "{} steps with {} body counts",
+            heads.len(),
+            r.body_counts.len()
+        )));
+    }
+    let all = wire::bodies_from_floats(&r.bodies)?;
+    let total: u64 = r.body_counts.iter().map(|&c| u64::from(c)).sum();
+    if total != all.len() as u64 {
+        return Err(wire::Malformed(format!(
+            "body counts add up to {total}, {} bodies came",
+            all.len()
+        )));
+    }
+    let mut at = 0;
+    let bodies = r
+        .body_counts
+        .iter()
+        .map(|&c| {
+            let b = all[at..at + c as usize].to_vec();
+            at += c as usize;
+            b
+        })
+        .collect();
+    let points = share.wisps.len() * share.anim.points_per_wisp();
+    let accel = if r.has_accel {
+        Some(wire::accel_from_pb(&r.accel_skip, &r.accel, points)?)
+    } else {
+        None
+    };
+    let plan = StepPlan {
+        heads,
+        bodies,
+        accel: None,
+        drawn_bodies: wire::bodies_from_floats(&r.drawn_bodies)?,
+        version: r.version,
+    };
+    Ok((plan, accel))
+}
+
 /// Serves a worker on `addr` (port 0 picks a free port) until `shutdown`
 /// completes; `bound` is called with the address actually bound, before
 /// the first request is served.
 pub async fn serve(
+    service: WorkerService,
     addr: SocketAddr,
     bound: impl FnOnce(SocketAddr),
     shutdown: impl std::future::Future<Output = ()> + Send,
@@ -201,7 +458,7 @@ pub async fn serve(
         .register_encoded_file_descriptor_set(tonic_health::pb::FILE_DESCRIPTOR_SET)
         .build_v1alpha()
         .map_err(|e| ClusterError::Setup(e.to_string()))?;
-    let worker = WorkerServer::new(WorkerService::default())
+    let worker = WorkerServer::new(service)
         .max_decoding_message_size(wire::MAX_MESSAGE_BYTES)
         .max_encoding_message_size(wire::MAX_MESSAGE_BYTES);
     bound(local);
@@ -217,12 +474,16 @@ pub async fn serve(
 
 /// Runs a worker on `addr` until SIGTERM or SIGINT (Ctrl-C), then finishes
 /// the calls in flight and returns. `bound` gets the bound address.
-pub fn run(addr: SocketAddr, bound: impl FnOnce(SocketAddr)) -> Result<(), ClusterError> {
+pub fn run(
+    service: WorkerService,
+    addr: SocketAddr,
+    bound: impl FnOnce(SocketAddr),
+) -> Result<(), ClusterError> {
     let rt = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()
         .map_err(|e| ClusterError::Setup(format!("cannot start the network runtime: {e}")))?;
-    rt.block_on(serve(addr, bound, shutdown_signal()))
+    rt.block_on(serve(service, addr, bound, shutdown_signal()))
 }
 
 /// Completes on SIGTERM or SIGINT.

@@ -1,20 +1,29 @@
 //! The protocol in one process, over real sockets on localhost: identical
-//! bytes to the local executor, a worker of another version refused,
-//! malformed messages answered with an error while the worker lives on.
+//! bytes to the local executor (maps, slabs, simulated animations), a
+//! worker lost mid-animation replaced by the survivors with the same
+//! pictures, a worker of another version refused, malformed messages
+//! answered with an error while the worker lives on.
 
 use std::net::SocketAddr;
 use std::time::Duration;
 
 use cluster::pb::worker_client::WorkerClient;
 use cluster::{RemoteExecutor, pb, wire};
-use engine::{Executor, LocalExecutor};
+use engine::{Executor, LocalExecutor, Scene, Sequence};
 use glam::Vec3;
 use shadow::{DensityMap, Fiber, Light, LightFrame};
 use strands::{Style, StyleParams, WispModel};
 
 /// Starts a worker on a free port in a background runtime.
 fn start_worker() -> SocketAddr {
+    start_stoppable_worker().0
+}
+
+/// A worker, and a switch that stops it (the server closes; calls in
+/// flight finish, new ones find no server).
+fn start_stoppable_worker() -> (SocketAddr, tokio::sync::oneshot::Sender<()>) {
     let (tx, rx) = std::sync::mpsc::channel();
+    let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
     std::thread::spawn(move || {
         let rt = tokio::runtime::Builder::new_multi_thread()
             .worker_threads(2)
@@ -22,13 +31,45 @@ fn start_worker() -> SocketAddr {
             .build()
             .unwrap();
         rt.block_on(cluster::worker::serve(
+            cluster::worker::WorkerService::default(),
             "127.0.0.1:0".parse().unwrap(),
             move |a| tx.send(a).unwrap(),
-            std::future::pending(),
+            async {
+                // A dropped switch never stops the worker.
+                if stopped.await.is_err() {
+                    std::future::pending::<()>().await;
+                }
+            },
         ))
         .unwrap();
     });
-    rx.recv_timeout(Duration::from_secs(10)).unwrap()
+    (rx.recv_timeout(Duration::from_secs(10)).unwrap(), stop)
+}
+
+/// A small simulated scene: the smooth style, thinned, on a dancing head.
+const DANCE: &str = r#"
+[hair]
+style = "smooth"
+strands_per_wisp = 4
+
+[render]
+width = 160
+height = 90
+
+[animation]
+motion = "dance"
+fps = 30
+
+[dynamics]
+settle = 0.1
+"#;
+
+/// `frames` pictures of `scene` in one process.
+fn local_frames(scene: &Scene, frames: usize) -> Vec<image::RgbImage> {
+    let mut seq = Sequence::new(scene).unwrap();
+    (0..frames)
+        .map(|_| seq.next_frame().unwrap().0.clone())
+        .collect()
 }
 
 fn hair() -> strands::Hair {
@@ -47,8 +88,8 @@ fn three_workers_give_the_local_map_and_transmittance_bit_for_bit() {
     let mut local = LocalExecutor;
     let mut remote = RemoteExecutor::connect(&addrs, &fiber, Duration::from_secs(20)).unwrap();
     let (mut a, mut b) = (DensityMap::new(frame), DensityMap::new(frame));
-    let sa = local.fill(0, &mut a, &hair, &fiber).unwrap();
-    let sb = remote.fill(0, &mut b, &hair, &fiber).unwrap();
+    let sa = local.fill(0, &mut a, &hair, &fiber, None).unwrap();
+    let sb = remote.fill(0, &mut b, &hair, &fiber, None).unwrap();
     assert_eq!(sa, sb);
     for col in 0..frame.columns() {
         assert_eq!(a.meta(col), b.meta(col), "column {col}");
@@ -268,5 +309,207 @@ fn a_worker_answers_health_checks_for_itself_and_the_server() {
                 .into_inner();
             assert_eq!(r.status, ServingStatus::Serving as i32, "{service:?}");
         }
+    });
+}
+
+#[test]
+fn three_workers_simulating_the_wisps_give_the_local_animation_byte_for_byte() {
+    let scene = Scene::from_toml_str(DANCE, std::path::Path::new("dance.toml")).unwrap();
+    let want = local_frames(&scene, 4);
+    let addrs: Vec<String> = (0..3).map(|_| start_worker().to_string()).collect();
+    let mut remote =
+        RemoteExecutor::connect(&addrs, &scene.fiber, Duration::from_secs(20)).unwrap();
+    remote.set_scene(DANCE.to_string());
+    let traffic = remote.traffic();
+    let mut seq = Sequence::new(&scene).unwrap();
+    seq.set_executor(Box::new(remote));
+    let mut after_first = None;
+    for (i, w) in want.iter().enumerate() {
+        let (img, _) = seq.next_frame().unwrap();
+        assert!(img == w, "frame {i} differs from one process");
+        if i == 0 {
+            after_first = Some(*traffic.lock().unwrap());
+        }
+    }
+    let first = after_first.unwrap();
+    let t = traffic.lock().unwrap().since(&first);
+    // Later frames: the wisps are stepped on the workers, and the density
+    // filled from the strands they posed: the Deposit requests carry a map
+    // frame (about 70 bytes), no strand (a strand is 200+ bytes).
+    assert!(t.step_sent > 0 && t.wisps_received > 0, "{t:?}");
+    assert!(t.strands_sent <= 3 * 3 * 100, "{t:?}");
+    assert_eq!(t.assign_sent, 0, "assigned once: {t:?}");
+}
+
+#[test]
+fn a_worker_lost_mid_animation_hands_its_work_to_the_survivors() {
+    let scene = Scene::from_toml_str(DANCE, std::path::Path::new("dance.toml")).unwrap();
+    let want = local_frames(&scene, 6);
+    let (a, _keep_a) = start_stoppable_worker();
+    let (b, stop_b) = start_stoppable_worker();
+    let (c, _keep_c) = start_stoppable_worker();
+    let addrs = [a.to_string(), b.to_string(), c.to_string()];
+    let mut remote =
+        RemoteExecutor::connect(&addrs, &scene.fiber, Duration::from_secs(20)).unwrap();
+    remote.set_scene(DANCE.to_string());
+    let timing = remote.timing();
+    let mut seq = Sequence::new(&scene).unwrap();
+    seq.set_executor(Box::new(remote));
+    let mut stop_b = Some(stop_b);
+    for (i, w) in want.iter().enumerate() {
+        if i == 3 {
+            stop_b.take().unwrap().send(()).unwrap();
+            // Let the server close its listener.
+            std::thread::sleep(Duration::from_millis(300));
+        }
+        let (img, _) = seq.next_frame().unwrap();
+        assert!(img == w, "frame {i} differs from one process");
+    }
+    assert_eq!(timing.lock().unwrap().workers_lost, 1);
+}
+
+#[test]
+fn a_coordinator_with_no_worker_left_fails_naming_the_worker() {
+    let scene = Scene::from_toml_str(DANCE, std::path::Path::new("dance.toml")).unwrap();
+    let (a, stop) = start_stoppable_worker();
+    let mut remote =
+        RemoteExecutor::connect(&[a.to_string()], &scene.fiber, Duration::from_secs(5)).unwrap();
+    remote.set_scene(DANCE.to_string());
+    let mut seq = Sequence::new(&scene).unwrap();
+    seq.set_executor(Box::new(remote));
+    seq.next_frame().unwrap();
+    stop.send(()).unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    let e = seq.next_frame().unwrap_err().to_string();
+    assert!(e.contains(&a.to_string()), "{e}");
+}
+
+#[test]
+fn malformed_assign_and_step_calls_get_an_error_and_the_worker_lives_on() {
+    let addr = start_worker();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let mut c = WorkerClient::connect(format!("http://{addr}"))
+            .await
+            .unwrap();
+        c.hello(pb::HelloRequest {
+            protocol_version: wire::PROTOCOL_VERSION,
+            fiber_width: 0.1,
+            fiber_opacity: 0.5,
+        })
+        .await
+        .unwrap();
+        // Step before Assign.
+        let e = c.step(pb::StepRequest::default()).await.unwrap_err();
+        assert_eq!(e.code(), tonic::Code::FailedPrecondition, "{}", e.message());
+        let assign = |toml: &str, first: u32, end: u32| pb::AssignChunk {
+            scene_toml: toml.to_string(),
+            first_wisp: first,
+            end_wisp: end,
+            state: None,
+        };
+        let bad = [
+            (assign("[hair]\nstyle = \"wavy\"\n", 0, 1), "style"),
+            (
+                assign("[hair]\nstyle = \"smooth\"\n", 0, 1),
+                "not simulated",
+            ),
+            (assign(DANCE, 0, 500), "wisps 0..500"),
+            (assign(DANCE, 0, 1), "no state for wisp 0"),
+        ];
+        for (chunk, says) in bad {
+            let e = c.assign(tokio_stream::iter(vec![chunk])).await.unwrap_err();
+            assert_eq!(e.code(), tonic::Code::InvalidArgument, "{}", e.message());
+            assert!(e.message().contains(says), "{}", e.message());
+        }
+        // A good share of wisp 0: its rest state from the scene itself.
+        let scene = Scene::from_toml_str(DANCE, std::path::Path::new("d")).unwrap();
+        let anim = engine::Animator::new(&scene).unwrap();
+        let state = wire::wisp_chunks(0, [anim.wisp_state(0).unwrap()]);
+        let mut good = assign(DANCE, 0, 1);
+        good.state = Some(state[0].clone());
+        let r = c.assign(tokio_stream::iter(vec![good])).await.unwrap();
+        assert_eq!(
+            r.into_inner().points_per_wisp as usize,
+            anim.points_per_wisp()
+        );
+        let head = glam::Affine3A::IDENTITY.to_cols_array().to_vec();
+        let step = pb::StepRequest {
+            version: 7,
+            heads: head.clone(),
+            body_counts: vec![0],
+            ..Default::default()
+        };
+        let bad_steps = [
+            pb::StepRequest {
+                heads: vec![f32::NAN; 12],
+                ..step.clone()
+            },
+            pb::StepRequest {
+                heads: vec![1.0; 11],
+                ..step.clone()
+            },
+            pb::StepRequest {
+                body_counts: vec![2],
+                bodies: vec![0.0; 4],
+                ..step.clone()
+            },
+            pb::StepRequest {
+                body_counts: vec![1],
+                bodies: vec![0.0, 0.0, 0.0, -1.0],
+                ..step.clone()
+            },
+            pb::StepRequest {
+                has_accel: true,
+                accel_skip: vec![100_000],
+                accel: vec![1.0, 0.0, 0.0],
+                ..step.clone()
+            },
+            pb::StepRequest {
+                has_accel: true,
+                accel_skip: vec![0],
+                accel: vec![f32::INFINITY, 0.0, 0.0],
+                ..step.clone()
+            },
+        ];
+        for r in bad_steps {
+            let e = c.step(r.clone()).await.unwrap_err();
+            assert_eq!(
+                e.code(),
+                tonic::Code::InvalidArgument,
+                "{r:?}: {}",
+                e.message()
+            );
+        }
+        // A good step, then a posed deposit of another version is refused.
+        let mut s = c.step(step).await.unwrap().into_inner();
+        let mut got = 0;
+        while let Some(m) = s.message().await.unwrap() {
+            got += m.pos.len();
+        }
+        assert_eq!(got, 3 * anim.points_per_wisp());
+        let light = Light::directional(Vec3::NEG_Y).unwrap();
+        let frame = LightFrame::centered(&light, Vec3::ZERO, 80.0, 8).unwrap();
+        let posed = |version| pb::DepositChunk {
+            map: Some(wire::frame_to_pb(&frame)),
+            posed: true,
+            version,
+            ..Default::default()
+        };
+        let e = c
+            .deposit(tokio_stream::iter(vec![posed(6)]))
+            .await
+            .unwrap_err();
+        assert_eq!(e.code(), tonic::Code::FailedPrecondition, "{}", e.message());
+        let mut s = c
+            .deposit(tokio_stream::iter(vec![posed(7)]))
+            .await
+            .unwrap()
+            .into_inner();
+        let mut samples = 0;
+        while let Some(m) = s.message().await.unwrap() {
+            samples += m.samples;
+        }
+        assert!(samples > 0);
     });
 }

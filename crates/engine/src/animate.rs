@@ -1,9 +1,11 @@
 //! The hair of a scene over time: simulated wisps, or hair carried rigidly
 //! by the head.
 
+use std::ops::Range;
+
 use glam::{Affine3A, Vec3};
 use rayon::prelude::*;
-use sim::{Body, ForceField, HairSim, Motion, SimParams};
+use sim::{Body, ForceField, HairSim, Motion, SimParams, WispState};
 use strands::{Hair, WispModel, resample_into};
 
 use crate::{EngineError, HairSource, Scene, build_hair};
@@ -40,8 +42,6 @@ pub struct Animator {
     hair: Hair,
     /// The head transform the drawn hair is posed under.
     head: Affine3A,
-    /// Accelerations of the self-collision field at every guide point.
-    accel: Vec<Vec3>,
 }
 
 impl Animator {
@@ -88,7 +88,6 @@ impl Animator {
             settle_frames,
             source,
             hair: rest,
-            accel: Vec::new(),
         };
         a.pose();
         Ok(a)
@@ -134,33 +133,101 @@ impl Animator {
         self.head
     }
 
-    /// Samples `field` at every guide point for the next
-    /// [`Self::integrate`] (self-collisions).
-    pub fn sample_field(&mut self, field: &dyn ForceField) {
+    /// Wisps simulated (0 for rigid hair).
+    pub fn wisp_count(&self) -> usize {
+        match &self.source {
+            Source::Wisps { sim, .. } => sim.wisp_count(),
+            Source::Rigid { .. } => 0,
+        }
+    }
+
+    /// Guide points per wisp (0 for rigid hair).
+    pub fn points_per_wisp(&self) -> usize {
+        match &self.source {
+            Source::Wisps { sim, .. } => sim.points_per_wisp(),
+            Source::Rigid { .. } => 0,
+        }
+    }
+
+    /// Drawn strands of each wisp: the weights for sharing wisps out.
+    pub fn strands_per_wisp(&self) -> Vec<u64> {
+        match &self.source {
+            Source::Wisps { model, .. } => {
+                let mut n = vec![0u64; model.wisp_count()];
+                for m in &model.members {
+                    n[m.wisp as usize] += 1;
+                }
+                n
+            }
+            Source::Rigid { .. } => Vec::new(),
+        }
+    }
+
+    /// The acceleration of `field` at every guide point of every wisp,
+    /// wisp after wisp (self-collisions, sampled where the hair is now).
+    pub fn sample_field(&self, field: &dyn ForceField) -> Vec<Vec3> {
+        let mut accel = Vec::new();
         if let Source::Wisps { sim, .. } = &self.source {
-            sim.sample_field(0..sim.wisp_count(), field, &mut self.accel);
+            sim.sample_field(0..sim.wisp_count(), field, &mut accel);
         }
+        accel
     }
 
-    /// Drops the sampled field: the next step feels gravity only.
-    pub fn clear_field(&mut self) {
-        self.accel.clear();
-    }
-
-    /// One time step of the wisps with the roots on `head`, under the field
-    /// last sampled (if any).
-    pub fn integrate(&mut self, head: &Affine3A) {
+    /// One time step of wisps `wisps` with the roots on `head`, under
+    /// `accel` (one acceleration per guide point of those wisps) if given.
+    pub fn integrate(&mut self, wisps: Range<usize>, head: &Affine3A, accel: Option<&[Vec3]>) {
         if let Source::Wisps { sim, .. } = &mut self.source {
-            let accel = (!self.accel.is_empty()).then_some(self.accel.as_slice());
-            sim.integrate(0..sim.wisp_count(), head, accel);
+            sim.integrate(wisps, head, accel);
         }
     }
 
-    /// Keeps the wisps out of `bodies`.
-    pub fn collide(&mut self, head: &Affine3A, bodies: &[Body]) {
+    /// Keeps wisps `wisps` out of `bodies`.
+    pub fn collide(&mut self, wisps: Range<usize>, head: &Affine3A, bodies: &[Body]) {
         if let Source::Wisps { sim, .. } = &mut self.source {
-            sim.collide(0..sim.wisp_count(), head, bodies);
+            sim.collide(wisps, head, bodies);
         }
+    }
+
+    /// Wisp `w`'s state, when the wisps are simulated.
+    pub fn wisp_state(&self, w: usize) -> Option<&WispState> {
+        match &self.source {
+            Source::Wisps { sim, .. } if w < sim.wisp_count() => Some(sim.wisp(w)),
+            _ => None,
+        }
+    }
+
+    /// Replaces wisp `w`'s state (simulated on another machine). The drawn
+    /// hair changes at the next pose.
+    pub fn set_wisp_state(&mut self, w: usize, state: WispState) -> Result<(), EngineError> {
+        match &mut self.source {
+            Source::Wisps { sim, .. } if w < sim.wisp_count() => Ok(sim.set_wisp(w, state)?),
+            _ => Err(EngineError::Executor(format!(
+                "wisp {w} is not a simulated wisp of this scene"
+            ))),
+        }
+    }
+
+    /// The drawn strands of wisps `wisps` alone, posed from their guides and
+    /// pushed out of `bodies`: the very points [`Self::set_head`] and
+    /// [`Self::collide_drawn`] give those strands, for a share of the wisps
+    /// simulated away from the rest. Empty for rigid hair.
+    pub fn pose_share(&mut self, wisps: Range<usize>, bodies: &[Body]) -> Hair {
+        let Source::Wisps {
+            model,
+            sim,
+            subdivide,
+            ..
+        } = &mut self.source
+        else {
+            return Hair::new();
+        };
+        sim.write_guides(&mut model.guides);
+        let control = model.interpolate_members(model.member_range(wisps));
+        let mut hair = strands::resample(&control, *subdivide);
+        if !bodies.is_empty() {
+            push_out_all(&mut hair, bodies);
+        }
+        hair
     }
 
     /// Pushes the drawn points of simulated hair out of `bodies`: strands
@@ -170,10 +237,7 @@ impl Animator {
         if bodies.is_empty() || !self.simulates() {
             return;
         }
-        self.hair
-            .points_mut()
-            .par_chunks_mut(4096)
-            .for_each(|pts| pts.iter_mut().for_each(|p| sim::push_out(p, bodies)));
+        push_out_all(&mut self.hair, bodies);
     }
 
     /// Sets the head to `head` and poses the drawn hair: interpolated from
@@ -218,4 +282,11 @@ impl Animator {
             Source::Rigid { .. } => 0.0,
         }
     }
+}
+
+/// Pushes every point of `hair` out of `bodies`.
+fn push_out_all(hair: &mut Hair, bodies: &[Body]) {
+    hair.points_mut()
+        .par_chunks_mut(4096)
+        .for_each(|pts| pts.iter_mut().for_each(|p| sim::push_out(p, bodies)));
 }

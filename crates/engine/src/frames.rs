@@ -24,7 +24,7 @@ use sim::Body;
 
 use crate::animate::Animator;
 use crate::collide::DensityRepulsion;
-use crate::{EngineError, Renderer, Scene};
+use crate::{EngineError, Renderer, Scene, StepPlan};
 
 /// A stage of a frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -98,7 +98,7 @@ pub struct FrameStats {
 }
 
 impl FrameStats {
-    fn new(index: u64, time_s: f32) -> FrameStats {
+    pub fn new(index: u64, time_s: f32) -> FrameStats {
         FrameStats {
             index,
             time_s,
@@ -122,7 +122,7 @@ impl FrameStats {
     }
 
     /// Runs `f` as stage `s`, adding its time.
-    fn time<T>(&mut self, s: Stage, f: impl FnOnce() -> T) -> T {
+    pub fn time<T>(&mut self, s: Stage, f: impl FnOnce() -> T) -> T {
         let t = Instant::now();
         let out = f();
         let r = &mut self.stages[s.index()];
@@ -217,26 +217,31 @@ impl Sequence {
         // Motion: simulated steps, or a rigid move of the head.
         let head = self.anim.head_at(t);
         if self.anim.simulates() {
+            let n = self.anim.substeps() as usize;
+            let drawn = if fx.body_collision {
+                self.bodies(&head)
+            } else {
+                Vec::new()
+            };
             if index == 0 {
                 // Settle at the first pose: frames' worth of steps, the
                 // collision map refreshed once per such frame.
-                for _ in 0..self.anim.settle_frames() {
-                    self.steps(&mut stats, |_| head)?;
-                    self.pose(&mut stats, head);
+                let settle = self.anim.settle_frames();
+                for f in 0..settle {
+                    let last = f + 1 == settle;
+                    let d = if last { drawn.clone() } else { Vec::new() };
+                    self.advance(&mut stats, vec![head; n], head, d)?;
+                }
+                if settle == 0 && !drawn.is_empty() {
+                    stats.time(Stage::BodyCollide, || self.anim.collide_drawn(&drawn));
                 }
             } else {
                 let (t0, dt) = (t - self.anim.frame_dt(), self.anim.frame_dt());
-                let n = self.anim.substeps();
                 let anim = &self.anim;
                 let heads: Vec<Affine3A> = (1..=n)
                     .map(|s| anim.head_at(t0 + dt * s as f32 / n as f32))
                     .collect();
-                self.steps(&mut stats, |s| heads[s])?;
-                self.pose(&mut stats, head);
-            }
-            if fx.body_collision {
-                let bodies = self.bodies(&head);
-                stats.time(Stage::BodyCollide, || self.anim.collide_drawn(&bodies));
+                self.advance(&mut stats, heads, head, drawn)?;
             }
         } else if head != self.anim.head() {
             self.pose(&mut stats, head);
@@ -248,9 +253,10 @@ impl Sequence {
 
         // Shadows, only when the hair moved since the last result.
         let hair = self.anim.hair();
+        let version = Some(self.version);
         if fx.self_shadow && self.shadow_at != Some(self.version) {
             let r = &mut self.renderer;
-            stats.time(Stage::Density, || r.shadows_mut().density(hair))?;
+            stats.time(Stage::Density, || r.shadows_mut().density_of(hair, version))?;
             stats.time(Stage::Transmittance, || r.shadows_mut().transmittance())?;
             stats.time(Stage::Filter, || r.filter(hair));
             self.shadow_at = Some(self.version);
@@ -279,41 +285,47 @@ impl Sequence {
         self.version += 1;
     }
 
-    /// One frame's worth of simulation steps, the head at `head(s)` for
-    /// step `s`.
-    fn steps(
+    /// One frame's worth of simulation steps through the executor, under
+    /// the head transforms `heads`, then the pose of the drawn hair under
+    /// `head`, pushed out of `drawn_bodies`.
+    fn advance(
         &mut self,
         stats: &mut FrameStats,
-        head: impl Fn(usize) -> Affine3A,
+        heads: Vec<Affine3A>,
+        head: Affine3A,
+        drawn_bodies: Vec<Body>,
     ) -> Result<(), EngineError> {
         let fx = self.scene.effects;
         let c = self.scene.collision;
-        if fx.self_collision {
+        if fx.self_collision && self.collision_at != Some(self.version) {
             // The density map of the hair as it is now (the previous frame's).
-            if self.collision_at != Some(self.version) {
-                let hair = self.anim.hair();
-                match &mut self.collision_map {
-                    Some(m) => {
-                        let light = &self.scene.lights[0];
-                        let fiber = &self.scene.fiber;
-                        stats.time(Stage::Density, || {
-                            m.build(&ShadowInput {
-                                light,
-                                hair,
-                                fiber,
-                                occluders: &[],
-                            })
-                        })?;
-                    }
-                    None => {
-                        let r = &mut self.renderer;
-                        stats.time(Stage::Density, || r.shadows_mut().density(hair))?;
-                        // The shadow result now lags the map: recompute it.
-                        self.shadow_at = None;
-                    }
+            let hair = self.anim.hair();
+            let version = Some(self.version);
+            let shadows = self.renderer.shadows_mut();
+            match self
+                .collision_map
+                .as_mut()
+                .and_then(|m| m.as_density_map_method())
+            {
+                Some(m) => {
+                    let input = ShadowInput {
+                        light: &self.scene.lights[0],
+                        hair,
+                        fiber: &self.scene.fiber,
+                        occluders: &[],
+                    };
+                    let ex = shadows.executor_mut();
+                    stats.time(Stage::Density, || {
+                        m.build_with(&input, |map| ex.fill(0, map, hair, input.fiber, version))
+                    })?;
                 }
-                self.collision_at = Some(self.version);
+                None => {
+                    stats.time(Stage::Density, || shadows.density_of(hair, version))?;
+                    // The shadow result now lags the map: recompute it.
+                    self.shadow_at = None;
+                }
             }
+            self.collision_at = Some(self.version);
         }
         let map = match &self.collision_map {
             Some(m) => m.density_map(),
@@ -328,20 +340,30 @@ impl Sequence {
                 c.max_acceleration,
             )
         });
-        for s in 0..self.anim.substeps() as usize {
-            let h = head(s);
-            match &field {
-                Some(f) => stats.time(Stage::SelfCollide, || self.anim.sample_field(f)),
-                None => self.anim.clear_field(),
-            }
-            stats.time(Stage::Simulate, || self.anim.integrate(&h));
-            if fx.body_collision {
-                let bodies = self.bodies(&h);
-                if !bodies.is_empty() {
-                    stats.time(Stage::BodyCollide, || self.anim.collide(&h, &bodies));
+        let accel = field.map(|f| stats.time(Stage::SelfCollide, || self.anim.sample_field(&f)));
+        let bodies = heads
+            .iter()
+            .map(|h| {
+                if fx.body_collision {
+                    self.bodies(h)
+                } else {
+                    Vec::new()
                 }
-            }
-            stats.steps += 1;
+            })
+            .collect();
+        let plan = StepPlan {
+            heads,
+            bodies,
+            accel,
+            drawn_bodies,
+            version: self.version + 1,
+        };
+        let ex = self.renderer.shadows_mut().executor_mut();
+        ex.simulate(&mut self.anim, &plan, stats)?;
+        self.pose(stats, head);
+        if !plan.drawn_bodies.is_empty() {
+            let b = &plan.drawn_bodies;
+            stats.time(Stage::BodyCollide, || self.anim.collide_drawn(b));
         }
         Ok(())
     }

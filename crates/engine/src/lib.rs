@@ -13,14 +13,16 @@
 
 pub mod animate;
 pub mod collide;
+pub mod exec;
 pub mod frames;
 pub mod pipeline;
 pub mod render;
 pub mod scene;
 
 pub use animate::Animator;
+pub use exec::{Executor, LocalExecutor, StepPlan, step_wisps};
 pub use frames::{FrameStats, Sequence, Stage, StageRecord};
-pub use pipeline::{Executor, LocalExecutor, ShadowPipeline, StageTimes, build_hair};
+pub use pipeline::{ShadowPipeline, StageTimes, build_hair};
 pub use render::{FrameTimes, Renderer};
 pub use scene::{
     Animation, BodySettings, Collision, Dynamics, Effects, HairSource, HeadSettings, Scene,

@@ -6,7 +6,7 @@ use glam::Vec3;
 use shadow::{Fiber, FillStats, Light, Occluder, ShadowInput, ShadowMethod};
 use strands::{Hair, WispModel, grow_followers, resample};
 
-use crate::{EngineError, HairSource, Scene};
+use crate::{EngineError, Executor, HairSource, LocalExecutor, Scene};
 
 /// The most drawn segments one scene may ask for (about 1.6 GB of points):
 /// beyond this a typo in `strands_per_wisp` or `followers` is more likely
@@ -70,51 +70,6 @@ pub struct ShadowPipeline {
     executor: Box<dyn Executor>,
 }
 
-/// Where the density map's two parallel stages run: the executor boundary
-/// between one process and a cluster. Implementations must give exactly
-/// the map and transmittance of [`LocalExecutor`].
-pub trait Executor: Send + Sync + std::fmt::Debug {
-    /// Adds the density of every strand of `hair` to `map` (empty, in its
-    /// frame) for light `light`.
-    fn fill(
-        &mut self,
-        light: usize,
-        map: &mut shadow::DensityMap,
-        hair: &Hair,
-        fiber: &Fiber,
-    ) -> Result<FillStats, EngineError>;
-    /// Sweeps every column of `map` (paper 4.2).
-    fn sweep(
-        &mut self,
-        light: usize,
-        map: &shadow::DensityMap,
-    ) -> Result<shadow::Transmittance, EngineError>;
-}
-
-/// Both stages in this process, on all threads.
-#[derive(Debug, Default, Clone, Copy)]
-pub struct LocalExecutor;
-
-impl Executor for LocalExecutor {
-    fn fill(
-        &mut self,
-        _light: usize,
-        map: &mut shadow::DensityMap,
-        hair: &Hair,
-        fiber: &Fiber,
-    ) -> Result<FillStats, EngineError> {
-        Ok(map.deposit(hair, 0..hair.strand_count(), fiber))
-    }
-
-    fn sweep(
-        &mut self,
-        _light: usize,
-        map: &shadow::DensityMap,
-    ) -> Result<shadow::Transmittance, EngineError> {
-        Ok(shadow::Transmittance::compute(map))
-    }
-}
-
 #[derive(Debug)]
 struct LightState {
     light: Light,
@@ -155,6 +110,10 @@ impl ShadowPipeline {
         self.executor = executor;
     }
 
+    pub fn executor_mut(&mut self) -> &mut dyn Executor {
+        self.executor.as_mut()
+    }
+
     /// Moves the occluder (the head) to `center`.
     pub fn set_occluder_center(&mut self, center: Vec3) {
         for o in &mut self.occluders {
@@ -176,6 +135,16 @@ impl ShadowPipeline {
     /// density map, fits the map to them and fills it. Returns the samples
     /// over all lights.
     pub fn density(&mut self, hair: &Hair) -> Result<FillStats, EngineError> {
+        self.density_of(hair, None)
+    }
+
+    /// [`Self::density`] of hair whose pose counter is `version` (see
+    /// [`Executor::fill`]).
+    pub fn density_of(
+        &mut self,
+        hair: &Hair,
+        version: Option<u64>,
+    ) -> Result<FillStats, EngineError> {
         let mut total = FillStats::default();
         for (i, l) in self.lights.iter_mut().enumerate() {
             let input = ShadowInput {
@@ -185,9 +154,9 @@ impl ShadowPipeline {
                 occluders: &self.occluders,
             };
             let stats = match l.method.as_density_map_method() {
-                Some(m) => {
-                    m.build_with(&input, |map| self.executor.fill(i, map, hair, &self.fiber))?
-                }
+                Some(m) => m.build_with(&input, |map| {
+                    self.executor.fill(i, map, hair, &self.fiber, version)
+                })?,
                 None => l.method.build(&input)?,
             };
             if stats.out_of_map > 0 {

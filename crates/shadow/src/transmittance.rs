@@ -117,6 +117,45 @@ impl Transmittance {
         Transmittance::assemble(frame, slabs).expect("slabs cut from one map tile it")
     }
 
+    /// Checks one slab on its own: a span per column, each inside the
+    /// map and its depths, every depth finite and not negative.
+    pub fn check_slab(frame: &LightFrame, slab: &ColumnSlab) -> Result<(), ShadowError> {
+        let n = frame.n_cells as usize;
+        let bad = |detail: String| ShadowError::Slabs {
+            expected: frame.columns(),
+            detail,
+        };
+        if slab.spans.len() != slab.columns.len() || slab.columns.end as usize > frame.columns() {
+            return Err(bad(format!(
+                "slab {:?} has {} spans",
+                slab.columns,
+                slab.spans.len()
+            )));
+        }
+        for s in &slab.spans {
+            let front_ok =
+                s.front >= f32::from(s.lo) && s.front <= f32::from(s.lo) + 1.0 - Span::FRONT_GAP;
+            if !s.is_empty()
+                && (s.hi as usize >= n
+                    || s.start as usize + s.len() > slab.depth.len()
+                    || !front_ok)
+            {
+                return Err(bad(format!(
+                    "slab {:?} has span {s:?} outside its {} depths",
+                    slab.columns,
+                    slab.depth.len()
+                )));
+            }
+        }
+        if slab.depth.iter().any(|d| !(d.is_finite() && *d >= 0.0)) {
+            return Err(bad(format!(
+                "slab {:?} holds a negative or non-finite depth",
+                slab.columns
+            )));
+        }
+        Ok(())
+    }
+
     /// Joins slabs that together cover every column once, in order.
     pub fn assemble(
         frame: LightFrame,
@@ -127,51 +166,24 @@ impl Transmittance {
         let mut spans = Vec::with_capacity(expected);
         let mut depth = Vec::new();
         for slab in slabs {
-            let bad = |detail: String| ShadowError::Slabs { expected, detail };
             if slab.columns.start as usize != spans.len() {
-                return Err(bad(format!(
-                    "slab {:?} follows column {}",
-                    slab.columns,
-                    spans.len()
-                )));
+                return Err(ShadowError::Slabs {
+                    expected,
+                    detail: format!("slab {:?} follows column {}", slab.columns, spans.len()),
+                });
             }
-            if slab.spans.len() != slab.columns.len() {
-                return Err(bad(format!(
-                    "slab {:?} has {} spans",
-                    slab.columns,
-                    slab.spans.len()
-                )));
-            }
+            Transmittance::check_slab(&frame, &slab)?;
             let base = depth.len() as u32;
-            for s in &slab.spans {
-                let front_ok = s.front >= f32::from(s.lo)
-                    && s.front <= f32::from(s.lo) + 1.0 - Span::FRONT_GAP;
-                if !s.is_empty()
-                    && (s.hi as usize >= n
-                        || s.start as usize + s.len() > slab.depth.len()
-                        || !front_ok)
-                {
-                    return Err(bad(format!(
-                        "slab {:?} has span {s:?} outside its {} depths",
-                        slab.columns,
-                        slab.depth.len()
-                    )));
-                }
-                spans.push(if s.is_empty() {
+            spans.extend(slab.spans.iter().map(|s| {
+                if s.is_empty() {
                     Span::EMPTY
                 } else {
                     Span {
                         start: s.start + base,
                         ..*s
                     }
-                });
-            }
-            if slab.depth.iter().any(|d| !(d.is_finite() && *d >= 0.0)) {
-                return Err(bad(format!(
-                    "slab {:?} holds a negative or non-finite depth",
-                    slab.columns
-                )));
-            }
+                }
+            }));
             depth.extend_from_slice(&slab.depth);
         }
         if spans.len() != expected {

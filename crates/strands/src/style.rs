@@ -96,10 +96,25 @@ impl WispModel {
     /// The rendered strands' control points: each point is the weighted sum
     /// of the same point on the wisp's three guides.
     pub fn interpolate(&self) -> Hair {
+        let mut hair = self.interpolate_members(0..self.members.len());
+        hair.set_colors(self.colors.clone());
+        hair
+    }
+
+    /// The members (rendered strands) of wisps `wisps`: a contiguous range,
+    /// since members are sorted by wisp.
+    pub fn member_range(&self, wisps: std::ops::Range<usize>) -> std::ops::Range<usize> {
+        let at = |w: usize| self.members.partition_point(|m| (m.wisp as usize) < w);
+        at(wisps.start)..at(wisps.end)
+    }
+
+    /// [`Self::interpolate`] of members `members` only, without colours:
+    /// the same points, for a share of the wisps simulated elsewhere.
+    pub fn interpolate_members(&self, members: std::ops::Range<usize>) -> Hair {
         let per = self.guides.strand(0).len();
-        let mut hair = Hair::with_capacity(self.members.len(), self.members.len() * per);
+        let mut hair = Hair::with_capacity(members.len(), members.len() * per);
         let mut pts = Vec::with_capacity(per);
-        for m in &self.members {
+        for m in &self.members[members] {
             let g = m.wisp as usize * GUIDES_PER_WISP;
             let (a, b, c) = (
                 self.guides.strand(g),
@@ -107,13 +122,10 @@ impl WispModel {
                 self.guides.strand(g + 2),
             );
             pts.clear();
-            pts.extend(
-                (0..per).map(|k| m.weights[0] * a[k] + m.weights[1] * b[k] + m.weights[2] * c[k]),
-            );
+            pts.extend((0..per).map(|k| member_point(m, a[k], b[k], c[k])));
             hair.push_strand(&pts)
                 .expect("weighted sums of finite points are finite");
         }
-        hair.set_colors(self.colors.clone());
         hair
     }
 
@@ -138,7 +150,7 @@ impl WispModel {
                     self.guides.strand(g + 2),
                 );
                 for (k, p) in pts.iter_mut().enumerate() {
-                    *p = m.weights[0] * a[k] + m.weights[1] * b[k] + m.weights[2] * c[k];
+                    *p = member_point(m, a[k], b[k], c[k]);
                 }
             });
     }
@@ -199,6 +211,12 @@ impl WispModel {
             colors,
         }
     }
+}
+
+/// A member's point from the same point `a`, `b`, `c` of its wisp's guides.
+#[inline]
+fn member_point(m: &Member, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
+    m.weights[0] * a + m.weights[1] * b + m.weights[2] * c
 }
 
 struct WispShape {

@@ -1,0 +1,132 @@
+//! The protocol's checks over arbitrary input: any bytes decoded as any
+//! message, and messages of arbitrary field values, go through the same
+//! validation a worker or coordinator applies. Nothing panics; whatever
+//! passes is within bounds.
+
+use cluster::{pb, wire};
+use glam::Vec3;
+use proptest::prelude::*;
+use prost::Message;
+use shadow::{ColumnSlab, DensityMap, Light, LightFrame};
+
+fn frame() -> LightFrame {
+    let light = Light::directional(Vec3::new(0.3, -1.0, 0.2)).unwrap();
+    LightFrame::centered(&light, Vec3::ZERO, 2.0, 8).unwrap()
+}
+
+/// Every check a received message goes through, on `bytes` decoded as
+/// each message type that decodes.
+fn check_all(bytes: &[u8]) {
+    let f = frame();
+    if let Ok(m) = pb::DepositChunk::decode(bytes) {
+        if let Ok(fr) = wire::frame_from_pb(m.map.as_ref()) {
+            assert!(fr.n_cells >= 1 && fr.ds > 0.0);
+        }
+        let mut hair = strands::Hair::new();
+        if wire::add_strands(&mut hair, &m).is_ok() {
+            assert!(hair.points().iter().all(|p| p.is_finite()));
+        }
+    }
+    if let Ok(m) = pb::ColumnChunk::decode(bytes) {
+        let mut map = DensityMap::new(f);
+        let _ = wire::merge_columns(&mut map, &m);
+    }
+    if let Ok(m) = pb::SlabChunk::decode(bytes) {
+        let mut slab = ColumnSlab {
+            columns: m.first_column..m.first_column,
+            spans: Vec::new(),
+            depth: Vec::new(),
+        };
+        if wire::add_slab_chunk(&mut slab, &m, f.n_cells).is_ok() {
+            let _ = shadow::Transmittance::check_slab(&f, &slab);
+        }
+    }
+    if let Ok(m) = pb::StepRequest::decode(bytes) {
+        check_step(&m);
+    }
+    if let Ok(m) = pb::WispChunk::decode(bytes) {
+        for per in [1, 3, 96] {
+            if let Ok(states) = wire::wisps_from_chunk(&m, per, &(0..134)) {
+                assert!(states.iter().all(|(w, s)| *w < 134 && s.pos.len() == per));
+            }
+        }
+    }
+}
+
+fn check_step(m: &pb::StepRequest) {
+    if let Ok(heads) = wire::affines_from_floats(&m.heads) {
+        assert!(heads.iter().all(|h| h.is_finite()));
+    }
+    if let Ok(bodies) = wire::bodies_from_floats(&m.bodies) {
+        assert!(bodies.iter().all(|b| b.radius >= 0.0));
+    }
+    for len in [0, 1, 100] {
+        if let Ok(a) = wire::accel_from_pb(&m.accel_skip, &m.accel, len) {
+            assert_eq!(a.len(), len);
+            assert!(a.iter().all(|v| v.is_finite()));
+        }
+    }
+}
+
+/// Floats that are often special.
+fn float() -> impl Strategy<Value = f32> {
+    prop_oneof![
+        Just(f32::NAN),
+        Just(f32::INFINITY),
+        Just(-0.0f32),
+        Just(f32::MAX),
+        -10.0f32..10.0,
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 512, ..ProptestConfig::default() })]
+
+    #[test]
+    fn any_bytes_as_any_message(bytes in proptest::collection::vec(any::<u8>(), 0..512)) {
+        check_all(&bytes);
+    }
+
+    #[test]
+    fn valid_messages_with_bytes_flipped(
+        flips in proptest::collection::vec((any::<usize>(), any::<u8>()), 1..8),
+        cut in any::<usize>(),
+    ) {
+        // A real Deposit chunk and column chunk, damaged.
+        let f = frame();
+        let mut hair = strands::Hair::new();
+        hair.push_strand(&[Vec3::ZERO, Vec3::new(0.1, 0.2, 0.0), Vec3::new(0.2, 0.5, 0.1)]).unwrap();
+        let deposit = wire::deposit_chunks(1, 0, &f, &hair, 0..1).remove(0);
+        let mut map = DensityMap::new(f);
+        map.deposit(&hair, 0..1, &shadow::Fiber::new(0.1, 0.5).unwrap());
+        let columns = wire::column_chunks(&map, 0..f.columns()).remove(0);
+        for msg in [deposit.encode_to_vec(), columns.encode_to_vec()] {
+            let mut b = msg;
+            for &(at, x) in &flips {
+                if !b.is_empty() {
+                    let i = at % b.len();
+                    b[i] ^= x;
+                }
+            }
+            b.truncate(cut % (b.len() + 1));
+            check_all(&b);
+        }
+    }
+
+    #[test]
+    fn step_requests_of_arbitrary_values(
+        heads in proptest::collection::vec(float(), 0..40),
+        bodies in proptest::collection::vec(float(), 0..20),
+        skip in proptest::collection::vec(any::<u32>(), 0..8),
+        accel in proptest::collection::vec(float(), 0..30),
+    ) {
+        check_step(&pb::StepRequest {
+            heads,
+            bodies,
+            accel_skip: skip,
+            accel,
+            has_accel: true,
+            ..Default::default()
+        });
+    }
+}
