@@ -302,3 +302,46 @@ mod tests {
         assert_eq!(pareto_front(&pts), vec![3, 0, 2]);
     }
 }
+
+/// A bar chart: one bar per label, its value printed above it; the y axis
+/// starts at 0.
+pub fn bars(title: &str, y_label: &str, labels: &[String], values: &[f64]) -> RgbImage {
+    let mut img = RgbImage::from_pixel(W, H, Rgb([255, 255, 255]));
+    let (x0, x1) = (LEFT, W as i32 - 40);
+    let (y0, y1) = (H as i32 - BOTTOM, TOP);
+    let ymax = nice_ceiling(values.iter().copied().fold(0.0, f64::max).max(1e-6));
+    let py = |y: f64| y0 - (y / ymax * f64::from(y0 - y1)) as i32;
+    let (grid, ink) = (Rgb([225, 225, 225]), Rgb([40, 40, 40]));
+    for i in 0..=5 {
+        let v = ymax * f64::from(i) / 5.0;
+        let y = py(v);
+        line(&mut img, (x0, y), (x1, y), grid);
+        let label = format!("{v:.1}");
+        text(
+            &mut img,
+            x0 - 8 - 12 * label.len() as i32,
+            y - 7,
+            &label,
+            ink,
+        );
+    }
+    let n = labels.len().max(1) as i32;
+    let slot = (x1 - x0) / n;
+    for (i, (label, &v)) in labels.iter().zip(values).enumerate() {
+        let cx = x0 + slot * i as i32 + slot / 2;
+        let half = (slot / 3).max(2);
+        let top = py(v);
+        let c = Rgb(COLORS[i % COLORS.len()]);
+        for x in cx - half..=cx + half {
+            line(&mut img, (x, y0), (x, top), c);
+        }
+        let value = format!("{v:.1}");
+        text(&mut img, cx - 6 * value.len() as i32, top - 20, &value, ink);
+        text(&mut img, cx - 6 * label.len() as i32, y0 + 10, label, ink);
+    }
+    line(&mut img, (x0, y0), (x1, y0), ink);
+    line(&mut img, (x0, y0), (x0, y1), ink);
+    text(&mut img, x0, 4, title, ink);
+    text(&mut img, 8, TOP - 27, y_label, ink);
+    img
+}

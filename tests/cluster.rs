@@ -207,3 +207,40 @@ fn a_coordinator_without_reachable_workers_says_which_and_fails() {
     ]);
     assert_eq!(o.status.code(), Some(2));
 }
+
+#[test]
+fn bench_scaling_reports_every_configuration_and_writes_its_plot() {
+    let dir = scratch("scaling");
+    let scene = dir.join("scene.toml");
+    std::fs::write(&scene, SCENE).unwrap();
+    let plot = dir.join("scaling.png");
+    let o = run(&[
+        "bench",
+        "scaling",
+        s(&scene),
+        "--workers",
+        "1,2",
+        "--frames",
+        "2",
+        "--plot",
+        s(&plot),
+        "--json",
+    ]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: serde_json::Value = serde_json::from_str(out.lines().last().unwrap()).unwrap();
+    let configs = j["configs"].as_array().unwrap();
+    assert_eq!(configs.len(), 2);
+    for (c, k) in configs.iter().zip([1, 2]) {
+        assert_eq!(c["workers"], k);
+        assert_eq!(c["identical"], true);
+        assert!(c["frame_ms"].as_f64().unwrap() > 0.0);
+        assert!(c["wire_mb_per_frame"].as_f64().unwrap() > 0.0);
+    }
+    assert_eq!(
+        j["cores"].as_u64().unwrap() as usize,
+        std::thread::available_parallelism().unwrap().get()
+    );
+    let img = image::open(&plot).unwrap();
+    assert_eq!((img.width(), img.height()), (960, 600));
+}

@@ -17,6 +17,11 @@ pub enum Bench {
     /// Every shadow method at a range of settings against the exact
     /// reference: time and error at every drawn point and in the picture.
     Accuracy(super::accuracy::AccuracyArgs),
+    /// The same animated frames in one process and on 1, 2, 3, ... local
+    /// worker processes: median frame time, speedups, where the time went
+    /// (workers' steps, density fill, sweep, the coordinator's own work),
+    /// bytes on the wire; writes a plot.
+    Scaling(super::scaling::ScalingArgs),
 }
 
 #[derive(Debug, clap::Args)]
@@ -54,6 +59,7 @@ pub fn run(b: Bench) -> anyhow::Result<()> {
         Bench::Shadow(a) => shadow(a),
         Bench::Frame(a) => frame(a),
         Bench::Accuracy(a) => super::accuracy::run(a),
+        Bench::Scaling(a) => super::scaling::run(a),
     }
 }
 

@@ -5,6 +5,7 @@ pub mod bench;
 pub mod cluster;
 pub mod probe;
 pub mod render;
+pub mod scaling;
 
 use std::path::Path;
 

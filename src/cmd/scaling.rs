@@ -1,0 +1,279 @@
+//! `wisplight bench scaling`: the same frames in one process and on 1, 2,
+//! 3, ... local worker processes, with where each frame's time and bytes
+//! went.
+
+use std::io::{BufRead, BufReader};
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, bail};
+use engine::pipeline::median;
+
+#[derive(Debug, clap::Args)]
+pub struct ScalingArgs {
+    /// Scene file (TOML); the built-in scene (the smooth style on a dancing
+    /// head) when omitted.
+    scene: Option<PathBuf>,
+    /// Worker counts to measure, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "1,2,3", value_name = "N,N,...",
+          value_parser = clap::value_parser!(u32).range(1..=64))]
+    workers: Vec<u32>,
+    /// Timed frames per configuration (after 2 untimed frames: the first
+    /// settles the hair).
+    #[arg(long, default_value_t = 10, value_name = "N",
+          value_parser = clap::value_parser!(u64).range(1..=10_000))]
+    frames: u64,
+    /// The plot of median frame times.
+    #[arg(long, default_value = "scaling.png", value_name = "FILE.png")]
+    plot: PathBuf,
+    /// Also print the result as one JSON object on the last stdout line.
+    #[arg(long)]
+    json: bool,
+}
+
+/// A worker process on a free localhost port.
+struct WorkerProcess {
+    child: Child,
+    addr: String,
+}
+
+impl WorkerProcess {
+    fn start() -> anyhow::Result<WorkerProcess> {
+        let exe = std::env::current_exe().context("cannot find this program to start workers")?;
+        let mut child = Command::new(exe)
+            .args(["worker", "--listen", "127.0.0.1:0"])
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .context("cannot start a worker process")?;
+        let mut line = String::new();
+        let out = child.stdout.take().context("no worker stdout")?;
+        BufReader::new(out)
+            .read_line(&mut line)
+            .context("cannot read the worker's address")?;
+        let Some(addr) = line.trim().strip_prefix("listening on ") else {
+            let _ = child.kill();
+            bail!("a worker printed {line:?} instead of its address");
+        };
+        Ok(WorkerProcess {
+            addr: addr.to_string(),
+            child,
+        })
+    }
+}
+
+impl Drop for WorkerProcess {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Medians of one configuration.
+#[derive(Debug, Clone)]
+struct Row {
+    label: String,
+    workers: u32,
+    frame_ms: f64,
+    step_ms: f64,
+    slowest_worker_ms: f64,
+    fill_ms: f64,
+    sweep_ms: f64,
+    coordinator_ms: f64,
+    wire_mb: f64,
+    identical: bool,
+}
+
+pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
+    let scene = super::load_scene(a.scene.as_deref())?;
+    let toml = match &a.scene {
+        Some(p) => std::fs::read_to_string(p)
+            .with_context(|| format!("cannot read scene {}", p.display()))?,
+        None => engine::scene::BUILT_IN_SCENE.to_string(),
+    };
+    if !a
+        .plot
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"))
+    {
+        return Err(super::usage(format!(
+            "--plot {}: the plot is a .png",
+            a.plot.display()
+        )));
+    }
+    let (name, threads, cores) = super::bench::machine(a.scene.as_deref());
+    eprintln!(
+        "bench scaling: {name}: {} timed frames per configuration; this process and every worker share this machine's {cores} cores ({threads} threads each); no CPU or bandwidth limits applied",
+        a.frames
+    );
+    let warm = 2;
+    let total = warm + a.frames;
+    let bar = super::progress_bar(
+        total * (1 + a.workers.len() as u64),
+        "{bar:30} {pos}/{len} frames [{elapsed} < {eta}]",
+    );
+
+    // One process: the reference times and pictures.
+    let mut seq = engine::Sequence::new(&scene).context("cannot set up the scene")?;
+    let mut pictures = Vec::new();
+    let mut times = Vec::new();
+    for f in 0..total {
+        let t = Instant::now();
+        let (img, _) = seq.next_frame().context("cannot render")?;
+        if f >= warm {
+            times.push(t.elapsed().as_secs_f64() * 1e3);
+            pictures.push(img.clone());
+        }
+        bar.inc(1);
+    }
+    let mut rows = vec![Row {
+        label: "1 process".into(),
+        workers: 0,
+        frame_ms: median(&mut times),
+        step_ms: 0.0,
+        slowest_worker_ms: 0.0,
+        fill_ms: 0.0,
+        sweep_ms: 0.0,
+        coordinator_ms: 0.0,
+        wire_mb: 0.0,
+        identical: true,
+    }];
+
+    for &k in &a.workers {
+        let procs = (0..k)
+            .map(|_| WorkerProcess::start())
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        let addrs: Vec<String> = procs.iter().map(|p| p.addr.clone()).collect();
+        let mut ex =
+            cluster::RemoteExecutor::connect(&addrs, &scene.fiber, Duration::from_secs(120))
+                .context("cannot start the cluster")?;
+        ex.set_scene(toml.clone());
+        let (traffic, timing) = (ex.traffic(), ex.timing());
+        let mut seq = engine::Sequence::new(&scene).context("cannot set up the scene")?;
+        seq.set_executor(Box::new(ex));
+        let mut v: [Vec<f64>; 7] = Default::default();
+        let mut identical = true;
+        for f in 0..total {
+            let (b0, c0) = (*lock(&traffic)?, *lock(&timing)?);
+            let t = Instant::now();
+            let (img, _) = seq.next_frame().context("cannot render")?;
+            let ms = t.elapsed().as_secs_f64() * 1e3;
+            if f >= warm {
+                identical &= *img == pictures[(f - warm) as usize];
+                let (b1, c1) = (*lock(&traffic)?, *lock(&timing)?);
+                let step = c1.step_wall_ms - c0.step_wall_ms;
+                let fill = c1.fill_ms - c0.fill_ms;
+                let sweep = c1.sweep_ms - c0.sweep_ms;
+                for (v, x) in v.iter_mut().zip([
+                    ms,
+                    step,
+                    c1.step_compute_ms - c0.step_compute_ms,
+                    fill,
+                    sweep,
+                    ms - step - fill - sweep,
+                    b1.since(&b0).total() as f64 / 1e6,
+                ]) {
+                    v.push(x);
+                }
+            }
+            bar.inc(1);
+        }
+        let m: Vec<f64> = v.iter_mut().map(|x| median(x)).collect();
+        rows.push(Row {
+            label: format!("{k} worker{}", if k == 1 { "" } else { "s" }),
+            workers: k,
+            frame_ms: m[0],
+            step_ms: m[1],
+            slowest_worker_ms: m[2],
+            fill_ms: m[3],
+            sweep_ms: m[4],
+            coordinator_ms: m[5],
+            wire_mb: m[6],
+            identical,
+        });
+    }
+    bar.finish_and_clear();
+
+    let single = rows[0].frame_ms;
+    let one_worker = rows.iter().find(|r| r.workers == 1).map(|r| r.frame_ms);
+    println!(
+        "{:<11} {:>9} {:>8} {:>8} {:>9} {:>9} {:>8} {:>8} {:>9} {:>8} {:>9}",
+        "config",
+        "frame ms",
+        "vs 1 w",
+        "vs proc",
+        "step ms",
+        "slowest",
+        "fill ms",
+        "sweep",
+        "coord ms",
+        "MB",
+        "same"
+    );
+    for r in &rows {
+        let vs1 = one_worker.map_or("-".into(), |o| format!("{:.2}x", o / r.frame_ms));
+        println!(
+            "{:<11} {:>9.1} {:>8} {:>7.2}x {:>9.1} {:>9.1} {:>8.1} {:>8.1} {:>9.1} {:>8.3} {:>9}",
+            r.label,
+            r.frame_ms,
+            if r.workers == 0 { "-".into() } else { vs1 },
+            single / r.frame_ms,
+            r.step_ms,
+            r.slowest_worker_ms,
+            r.fill_ms,
+            r.sweep_ms,
+            r.coordinator_ms,
+            r.wire_mb,
+            if r.identical { "yes" } else { "NO" }
+        );
+    }
+    eprintln!(
+        "bench scaling: step = wall time of the wisps' Step calls (slowest = the slowest worker's own compute), fill = Deposit calls and merging, sweep = Sweep calls and assembling, coord = the rest of the frame on the coordinator (pose, self-collision field, filter, shade, draw); MB = bytes on the wire per frame; same = pictures identical to one process"
+    );
+    let labels: Vec<String> = rows.iter().map(|r| r.label.clone()).collect();
+    let values: Vec<f64> = rows.iter().map(|r| r.frame_ms).collect();
+    let img = crate::plot::bars(
+        &format!("median frame ms, {name}, {cores} cores"),
+        "ms",
+        &labels,
+        &values,
+    );
+    raster::write_png_atomic(&img, &a.plot).context("cannot save the plot")?;
+    eprintln!("bench scaling: wrote {}", a.plot.display());
+    if rows.iter().any(|r| !r.identical) {
+        bail!("a cluster configuration drew different pictures from one process");
+    }
+    if a.json {
+        let j = serde_json::json!({
+            "scene": name,
+            "cores": cores,
+            "threads": threads,
+            "frames": a.frames,
+            "cpu_limits": false,
+            "bandwidth_limits": false,
+            "single_process_ms": single,
+            "configs": rows.iter().skip(1).map(|r| serde_json::json!({
+                "workers": r.workers,
+                "frame_ms": r.frame_ms,
+                "speedup_vs_one_worker": one_worker.map(|o| o / r.frame_ms),
+                "speedup_vs_single_process": single / r.frame_ms,
+                "step_ms": r.step_ms,
+                "slowest_worker_ms": r.slowest_worker_ms,
+                "fill_ms": r.fill_ms,
+                "sweep_ms": r.sweep_ms,
+                "coordinator_ms": r.coordinator_ms,
+                "wire_mb_per_frame": r.wire_mb,
+                "identical": r.identical,
+            })).collect::<Vec<_>>(),
+        });
+        println!("{j}");
+    }
+    Ok(())
+}
+
+fn lock<T>(m: &std::sync::Mutex<T>) -> anyhow::Result<std::sync::MutexGuard<'_, T>> {
+    m.lock()
+        .map_err(|_| anyhow::anyhow!("a counter's lock was poisoned"))
+}
