@@ -285,24 +285,6 @@ fn glyph(c: char) -> [u8; 7] {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_front_keeps_only_points_no_other_point_beats() {
-        let p = |x_ms, y| Point { x_ms, y, series: 0 };
-        let pts = [
-            p(1.0, 0.5),
-            p(2.0, 0.6),
-            p(3.0, 0.1),
-            p(0.5, 0.9),
-            p(10.0, 0.1),
-        ];
-        assert_eq!(pareto_front(&pts), vec![3, 0, 2]);
-    }
-}
-
 /// A bar chart: one bar per label, its value printed above it; the y axis
 /// starts at 0.
 pub fn bars(title: &str, y_label: &str, labels: &[String], values: &[f64]) -> RgbImage {
@@ -344,4 +326,22 @@ pub fn bars(title: &str, y_label: &str, labels: &[String], values: &[f64]) -> Rg
     text(&mut img, x0, 4, title, ink);
     text(&mut img, 8, TOP - 27, y_label, ink);
     img
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_front_keeps_only_points_no_other_point_beats() {
+        let p = |x_ms, y| Point { x_ms, y, series: 0 };
+        let pts = [
+            p(1.0, 0.5),
+            p(2.0, 0.6),
+            p(3.0, 0.1),
+            p(0.5, 0.9),
+            p(10.0, 0.1),
+        ];
+        assert_eq!(pareto_front(&pts), vec![3, 0, 2]);
+    }
 }
