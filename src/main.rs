@@ -34,10 +34,12 @@ enum Command {
     Render(cmd::render::Args),
     /// Prints how much light reaches given points: CSV `x,y,z` in, `x,y,z,transmittance` out.
     Probe(cmd::probe::Args),
-    /// Serves density filling and column sweeps to a coordinator (cluster mode).
+    /// Serves a coordinator (cluster mode): simulates a share of the wisps, fills their density, sweeps a share of the map's columns.
     Worker(cmd::cluster::WorkerArgs),
-    /// Renders like `render`, with the density map filled and swept by workers: the same bytes as one process.
+    /// Renders like `render` with workers simulating the wisps and filling and sweeping the density map: the same bytes as one process.
     Coordinator(cmd::cluster::CoordinatorArgs),
+    /// Checks that a worker answers SERVING to a gRPC health check (exit 0), for container health checks.
+    Health(cmd::cluster::HealthArgs),
     /// Measures the speed of pipeline stages.
     #[command(subcommand)]
     Bench(cmd::bench::Bench),
@@ -76,6 +78,7 @@ fn main() -> ExitCode {
         Command::Probe(args) => cmd::probe::run(args),
         Command::Worker(args) => cmd::cluster::worker(args),
         Command::Coordinator(args) => cmd::cluster::coordinator(args),
+        Command::Health(args) => cmd::cluster::health(args),
         Command::Bench(b) => cmd::bench::run(b),
     });
     match result {

@@ -63,3 +63,30 @@ pub fn coordinator(args: CoordinatorArgs) -> anyhow::Result<()> {
     };
     super::render::run_with(args.render, Some(remote))
 }
+
+#[derive(Debug, clap::Args)]
+pub struct HealthArgs {
+    /// The worker's address, e.g. `127.0.0.1:7000`.
+    #[arg(value_name = "ADDR")]
+    addr: String,
+    /// Seconds to wait for the answer.
+    #[arg(long, default_value_t = 5.0, value_name = "SECONDS")]
+    deadline: f64,
+}
+
+/// Exits 0 when the worker at ADDR answers SERVING (container health checks).
+pub fn health(args: HealthArgs) -> anyhow::Result<()> {
+    if !(args.deadline.is_finite() && args.deadline > 0.0 && args.deadline <= 3600.0) {
+        return Err(super::usage(format!(
+            "--deadline {}: must be in (0, 3600] seconds",
+            args.deadline
+        )));
+    }
+    let serving = cluster::check_health(&args.addr, Duration::from_secs_f64(args.deadline))
+        .context("health check failed")?;
+    if !serving {
+        anyhow::bail!("worker {} is not serving", args.addr);
+    }
+    println!("{} SERVING", args.addr);
+    Ok(())
+}

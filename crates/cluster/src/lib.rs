@@ -62,3 +62,35 @@ impl ClusterError {
         }
     }
 }
+
+/// Asks the worker at `addr` for its grpc.health.v1 status (the overall
+/// server, service ""): Ok(true) when it is SERVING.
+pub fn check_health(addr: &str, deadline: std::time::Duration) -> Result<bool, ClusterError> {
+    use tonic_health::pb::health_check_response::ServingStatus;
+    use tonic_health::pb::{HealthCheckRequest, health_client::HealthClient};
+    let err = |msg: String| ClusterError::Connect {
+        addr: addr.to_string(),
+        msg,
+    };
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .map_err(|e| ClusterError::Setup(format!("cannot start the network runtime: {e}")))?;
+    rt.block_on(async {
+        let channel = tonic::transport::Endpoint::from_shared(format!("http://{addr}"))
+            .map_err(|e| err(e.to_string()))?
+            .connect_timeout(deadline)
+            .timeout(deadline)
+            .connect()
+            .await
+            .map_err(|e| err(remote::root_cause(&e)))?;
+        let reply = HealthClient::new(channel)
+            .check(HealthCheckRequest {
+                service: String::new(),
+            })
+            .await
+            .map_err(|s| err(s.message().to_string()))?
+            .into_inner();
+        Ok(reply.status == ServingStatus::Serving as i32)
+    })
+}

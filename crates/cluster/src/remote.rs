@@ -275,7 +275,7 @@ async fn hello(addr: &str, fiber: &Fiber, deadline: Duration) -> Result<Remote, 
 
 /// The innermost cause: "Connection refused (os error 111)" rather than
 /// three layers of "transport error".
-fn root_cause(e: &dyn std::error::Error) -> String {
+pub(crate) fn root_cause(e: &dyn std::error::Error) -> String {
     let mut last = e.to_string();
     let mut s = e.source();
     while let Some(x) = s {
