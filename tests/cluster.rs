@@ -160,7 +160,9 @@ fn a_worker_killed_mid_animation_changes_no_byte_and_is_reported() {
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{e}");
     assert!(
-        e.contains("worker lost") && e.contains(&workers[1].addr),
+        e.contains("worker lost")
+            && e.contains(&workers[1].addr)
+            && e.contains("1 lost on the way"),
         "the loss is logged with the worker's address: {e}"
     );
     for i in 0..5 {

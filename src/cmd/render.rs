@@ -105,6 +105,7 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
 
     let mut seq = Sequence::new(&scene).context("cannot set up the scene")?;
     let mut traffic = None;
+    let mut timing = None;
     let mut workers = 0;
     if let Some(r) = remote {
         let mut executor = cluster::RemoteExecutor::connect(&r.workers, &scene.fiber, r.deadline)
@@ -124,6 +125,7 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
         }
         workers = executor.worker_count();
         traffic = Some(executor.traffic());
+        timing = Some(executor.timing());
         seq.set_executor(Box::new(executor));
     }
     // A progress bar on a terminal for more than one frame.
@@ -180,8 +182,17 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
     }
 
     if let Some(first) = wire.first() {
+        let lost = timing
+            .as_ref()
+            .and_then(|t| t.lock().ok().map(|t| t.workers_lost))
+            .unwrap_or(0);
+        let lost = if lost > 0 {
+            format!(" ({lost} lost on the way)")
+        } else {
+            String::new()
+        };
         eprintln!(
-            "{workers} workers, bytes on the wire: frame 0 {}",
+            "{workers} workers{lost}, bytes on the wire: frame 0 {}",
             first.summary()
         );
         // The median later frame, by total bytes.

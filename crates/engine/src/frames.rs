@@ -210,6 +210,9 @@ impl Sequence {
     /// Renders the next frame: its picture and what each stage did.
     pub fn next_frame(&mut self) -> Result<(&image::RgbImage, FrameStats), EngineError> {
         let index = self.next;
+        // Every log line of the frame (here and in an executor) names it,
+        // warnings included.
+        let _span = tracing::warn_span!("frame", index).entered();
         let t = index as f32 * self.anim.frame_dt();
         let mut stats = FrameStats::new(index, t);
         let fx = self.scene.effects;
