@@ -91,19 +91,7 @@ pub fn scatter(
         }
         d += 1;
     }
-    for i in 0..=5 {
-        let v = ymax * f64::from(i) / 5.0;
-        let y = py(v);
-        line(&mut img, (x0, y), (x1, y), grid);
-        let label = format!("{v:.3}");
-        text(
-            &mut img,
-            x0 - 8 - 12 * label.len() as i32,
-            y - 7,
-            &label,
-            ink,
-        );
-    }
+    y_grid(&mut img, (x0, x1), ymax, 3, &py);
     line(&mut img, (x0, y0), (x1, y0), ink);
     line(&mut img, (x0, y0), (x0, y1), ink);
     text(&mut img, x0, 4, title, ink);
@@ -156,6 +144,25 @@ fn format_ms(v: f64) -> String {
 }
 
 /// The smallest of 1, 2, 5 times a power of ten at or above `v`.
+/// Six horizontal grid lines from 0 to `ymax` across `x0..x1`, labelled
+/// with `decimals` digits on the left.
+fn y_grid(
+    img: &mut RgbImage,
+    (x0, x1): (i32, i32),
+    ymax: f64,
+    decimals: usize,
+    py: &dyn Fn(f64) -> i32,
+) {
+    let (grid, ink) = (Rgb([225, 225, 225]), Rgb([40, 40, 40]));
+    for i in 0..=5 {
+        let v = ymax * f64::from(i) / 5.0;
+        let y = py(v);
+        line(img, (x0, y), (x1, y), grid);
+        let label = format!("{v:.decimals$}");
+        text(img, x0 - 8 - 12 * label.len() as i32, y - 7, &label, ink);
+    }
+}
+
 fn nice_ceiling(v: f64) -> f64 {
     let p = 10f64.powf(v.log10().floor());
     [1.0, 2.0, 5.0, 10.0]
@@ -293,20 +300,8 @@ pub fn bars(title: &str, y_label: &str, labels: &[String], values: &[f64]) -> Rg
     let (y0, y1) = (H as i32 - BOTTOM, TOP);
     let ymax = nice_ceiling(values.iter().copied().fold(0.0, f64::max).max(1e-6));
     let py = |y: f64| y0 - (y / ymax * f64::from(y0 - y1)) as i32;
-    let (grid, ink) = (Rgb([225, 225, 225]), Rgb([40, 40, 40]));
-    for i in 0..=5 {
-        let v = ymax * f64::from(i) / 5.0;
-        let y = py(v);
-        line(&mut img, (x0, y), (x1, y), grid);
-        let label = format!("{v:.1}");
-        text(
-            &mut img,
-            x0 - 8 - 12 * label.len() as i32,
-            y - 7,
-            &label,
-            ink,
-        );
-    }
+    let ink = Rgb([40, 40, 40]);
+    y_grid(&mut img, (x0, x1), ymax, 1, &py);
     let n = labels.len().max(1) as i32;
     let slot = (x1 - x0) / n;
     for (i, (label, &v)) in labels.iter().zip(values).enumerate() {

@@ -73,6 +73,23 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
+/// `frames` frames of `scene` by `render` into `local` (which must work)
+/// and by a coordinator of `workers` into `remote`: the coordinator's output.
+fn render_both(scene: &Path, workers: &str, frames: &str, local: &Path, remote: &Path) -> Output {
+    let o = run(&["render", s(scene), "--frames", frames, "-o", s(local)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    run(&[
+        "coordinator",
+        s(scene),
+        "--workers",
+        workers,
+        "--frames",
+        frames,
+        "-o",
+        s(remote),
+    ])
+}
+
 /// The smooth style, small, on a dancing head.
 const SCENE: &str = "[hair]\nstyle = \"smooth\"\nstrands_per_wisp = 4\n\n[render]\nwidth = 160\nheight = 90\n\n[animation]\nmotion = \"dance\"\n\n[dynamics]\nsettle = 0.1\n";
 
@@ -92,18 +109,7 @@ fn three_workers_render_the_same_bytes_as_one_process_and_stop_on_sigterm() {
     for (frames, name) in [("1", "still_%d.png"), ("3", "anim_%d.png")] {
         let local = dir.join(format!("local_{name}"));
         let remote = dir.join(format!("remote_{name}"));
-        let o = run(&["render", s(&scene), "--frames", frames, "-o", s(&local)]);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let o = run(&[
-            "coordinator",
-            s(&scene),
-            "--workers",
-            &list,
-            "--frames",
-            frames,
-            "-o",
-            s(&remote),
-        ]);
+        let o = render_both(&scene, &list, frames, &local, &remote);
         let e = String::from_utf8_lossy(&o.stderr);
         assert!(o.status.success(), "{e}");
         assert!(e.contains("3 workers, bytes on the wire: frame 0"), "{e}");
@@ -145,18 +151,7 @@ fn a_worker_killed_mid_animation_changes_no_byte_and_is_reported() {
         .join(",");
     let local = dir.join("local_%d.png");
     let remote = dir.join("remote_%d.png");
-    let o = run(&["render", s(&scene), "--frames", "5", "-o", s(&local)]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let o = run(&[
-        "coordinator",
-        s(&scene),
-        "--workers",
-        &list,
-        "--frames",
-        "5",
-        "-o",
-        s(&remote),
-    ]);
+    let o = render_both(&scene, &list, "5", &local, &remote);
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{e}");
     assert!(

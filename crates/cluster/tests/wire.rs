@@ -46,6 +46,21 @@ fn start_stoppable_worker() -> (SocketAddr, tokio::sync::oneshot::Sender<()>) {
     (rx.recv_timeout(Duration::from_secs(10)).unwrap(), stop)
 }
 
+/// A client of the worker at `addr` that has said Hello.
+async fn greeted_client(addr: SocketAddr) -> WorkerClient<tonic::transport::Channel> {
+    let mut c = WorkerClient::connect(format!("http://{addr}"))
+        .await
+        .unwrap();
+    c.hello(pb::HelloRequest {
+        protocol_version: wire::PROTOCOL_VERSION,
+        fiber_width: 0.1,
+        fiber_opacity: 0.5,
+    })
+    .await
+    .unwrap();
+    c
+}
+
 /// A small simulated scene: the smooth style, thinned, on a dancing head.
 const DANCE: &str = r#"
 [hair]
@@ -150,16 +165,7 @@ fn malformed_messages_get_an_error_and_the_worker_lives_on() {
     let light = Light::directional(Vec3::NEG_Y).unwrap();
     let frame = LightFrame::centered(&light, Vec3::ZERO, 2.0, 8).unwrap();
     rt.block_on(async {
-        let mut c = WorkerClient::connect(format!("http://{addr}"))
-            .await
-            .unwrap();
-        c.hello(pb::HelloRequest {
-            protocol_version: wire::PROTOCOL_VERSION,
-            fiber_width: 0.1,
-            fiber_opacity: 0.5,
-        })
-        .await
-        .unwrap();
+        let mut c = greeted_client(addr).await;
         let good = wire::frame_to_pb(&frame);
         let cases: Vec<pb::DepositChunk> = vec![
             // No frame.
@@ -389,16 +395,7 @@ fn malformed_assign_and_step_calls_get_an_error_and_the_worker_lives_on() {
     let addr = start_worker();
     let rt = tokio::runtime::Runtime::new().unwrap();
     rt.block_on(async {
-        let mut c = WorkerClient::connect(format!("http://{addr}"))
-            .await
-            .unwrap();
-        c.hello(pb::HelloRequest {
-            protocol_version: wire::PROTOCOL_VERSION,
-            fiber_width: 0.1,
-            fiber_opacity: 0.5,
-        })
-        .await
-        .unwrap();
+        let mut c = greeted_client(addr).await;
         // Step before Assign.
         let e = c.step(pb::StepRequest::default()).await.unwrap_err();
         assert_eq!(e.code(), tonic::Code::FailedPrecondition, "{}", e.message());
