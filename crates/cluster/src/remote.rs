@@ -114,7 +114,7 @@ pub struct RemoteExecutor {
     /// The live workers, in order.
     workers: Vec<Remote>,
     deadline: Duration,
-    /// Ids calls that are not about a posed hair version (stills).
+    /// Counts calls, for the ids of those not about a posed hair version.
     calls: u64,
     traffic: Arc<Mutex<Traffic>>,
     timing: Arc<Mutex<Timing>>,
@@ -173,11 +173,6 @@ impl RemoteExecutor {
     /// A handle on where the remote stages' time went.
     pub fn timing(&self) -> Arc<Mutex<Timing>> {
         self.timing.clone()
-    }
-
-    /// The addresses of the live workers.
-    pub fn live_workers(&self) -> Vec<String> {
-        self.workers.iter().map(|w| w.addr.clone()).collect()
     }
 
     pub fn worker_count(&self) -> usize {
@@ -630,7 +625,7 @@ impl RemoteExecutor {
         for (_, chunks) in replies {
             for c in &chunks {
                 received += c.encoded_len() as u64;
-                wire::merge_columns(map, c).expect("checked above");
+                wire::add_columns(map, c);
                 stats.samples += c.samples;
                 stats.out_of_map += c.out_of_map;
             }

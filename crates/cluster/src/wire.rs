@@ -170,6 +170,13 @@ pub fn column_chunks(map: &DensityMap, columns: Range<usize>) -> Vec<pb::ColumnC
 /// ([`check_columns`]): a bad chunk changes nothing.
 pub fn merge_columns(map: &mut DensityMap, c: &pb::ColumnChunk) -> Result<(), Malformed> {
     check_columns(map.frame(), c)?;
+    add_columns(map, c);
+    Ok(())
+}
+
+/// [`merge_columns`] of a chunk [`check_columns`] already accepted for
+/// this map's frame (panics on one it would refuse).
+pub(crate) fn add_columns(map: &mut DensityMap, c: &pb::ColumnChunk) {
     let mut at = 0;
     for i in 0..c.columns.len() {
         let (lo, hi) = (c.lo[i] as u16, c.hi[i] as u16);
@@ -182,7 +189,6 @@ pub fn merge_columns(map: &mut DensityMap, c: &pb::ColumnChunk) -> Result<(), Ma
         map.merge_column(c.columns[i] as usize, meta, &c.quanta[at..at + len]);
         at += len;
     }
-    Ok(())
 }
 
 /// Checks that the columns of one chunk fit a map in `frame`: indices,

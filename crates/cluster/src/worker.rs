@@ -41,9 +41,10 @@ struct Share {
     scene_toml: String,
     anim: Box<Animator>,
     wisps: Range<usize>,
-    /// The drawn strands of the share as posed at the last Step, and that
-    /// hair's version.
-    posed: Option<(u64, Hair)>,
+    /// The drawn strands of the share as posed at the last Step (shared
+    /// with the Deposit calls of every light, not copied), and that hair's
+    /// version.
+    posed: Option<(u64, Arc<Hair>)>,
 }
 
 fn invalid(e: wire::Malformed) -> Status {
@@ -84,13 +85,13 @@ impl WorkerService {
     }
 
     /// The strands posed at the last Step, when they are hair `version`.
-    fn posed_hair(&self, version: u64) -> Result<Hair, Status> {
+    fn posed_hair(&self, version: u64) -> Result<Arc<Hair>, Status> {
         let share = self
             .share
             .lock()
             .map_err(|_| Status::internal("worker state poisoned"))?;
         match share.as_ref().and_then(|s| s.posed.as_ref()) {
-            Some((v, hair)) if *v == version => Ok(hair.clone()),
+            Some((v, hair)) if *v == version => Ok(Arc::clone(hair)),
             Some((v, _)) => Err(Status::failed_precondition(format!(
                 "the posed strands are hair version {v}, not {version}"
             ))),
@@ -155,14 +156,16 @@ impl Worker for WorkerService {
         while let Some(c) = stream.message().await? {
             wire::add_strands(&mut hair, &c).map_err(invalid)?;
         }
-        if posed {
+        let hair = if posed {
             if hair.strand_count() > 0 {
                 return Err(Status::invalid_argument(
                     "a posed Deposit carries no strands",
                 ));
             }
-            hair = self.posed_hair(first.version)?;
-        }
+            self.posed_hair(first.version)?
+        } else {
+            Arc::new(hair)
+        };
         let maps = self.maps.clone();
         let chunks = tokio::task::spawn_blocking(move || {
             let mut map = WorkerService::map_in(&maps, frame);
@@ -252,7 +255,7 @@ impl Worker for WorkerService {
                 &mut stats,
             );
             let hair = share.anim.pose_share(wisps, &plan.drawn_bodies);
-            share.posed = Some((plan.version, hair));
+            share.posed = Some((plan.version, Arc::new(hair)));
             let mut chunks = share_chunks(share)?;
             if let Some(c) = chunks.last_mut() {
                 c.compute_ms = start.elapsed().as_secs_f64() * 1e3;
