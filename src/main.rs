@@ -40,6 +40,8 @@ enum Command {
     Coordinator(cmd::cluster::CoordinatorArgs),
     /// Checks that a worker answers SERVING to a gRPC health check (exit 0), for container health checks.
     Health(cmd::cluster::HealthArgs),
+    /// Makes a certificate authority and certificates for mutual TLS between a coordinator and its workers.
+    Certs(cmd::cluster::CertsArgs),
     /// Measures the speed of pipeline stages.
     #[command(subcommand)]
     Bench(cmd::bench::Bench),
@@ -80,6 +82,7 @@ fn main() -> ExitCode {
         Command::Worker(args) => cmd::cluster::worker(args),
         Command::Coordinator(args) => cmd::cluster::coordinator(args),
         Command::Health(args) => cmd::cluster::health(args),
+        Command::Certs(args) => cmd::cluster::certs(args),
         Command::Bench(b) => cmd::bench::run(b),
     });
     match result {

@@ -241,3 +241,96 @@ fn bench_scaling_reports_every_configuration_and_writes_its_plot() {
     let img = image::open(&plot).unwrap();
     assert_eq!((img.width(), img.height()), (960, 600));
 }
+
+#[test]
+fn with_mutual_tls_only_the_clusters_coordinator_gets_work_done() {
+    let dir = scratch("tls");
+    let pki = dir.join("pki");
+    let o = run(&["certs", s(&pki)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // Run again: refuses to overwrite the keys, exit 1, files unchanged.
+    let key = std::fs::read(pki.join("ca.key")).unwrap();
+    let o = run(&["certs", s(&pki)]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("already exists"));
+    assert_eq!(std::fs::read(pki.join("ca.key")).unwrap(), key);
+
+    let f = |n: &str| pki.join(n).to_str().unwrap().to_string();
+    // A free port for the plain health port (bound, learnt, released).
+    let health = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .to_string();
+    let w = Worker::start_with(&[
+        "--health-listen",
+        &health,
+        "--tls-ca",
+        &f("ca.pem"),
+        "--tls-cert",
+        &f("worker.pem"),
+        "--tls-key",
+        &f("worker.key"),
+    ]);
+    let scene = dir.join("scene.toml");
+    std::fs::write(&scene, SCENE).unwrap();
+    let local = dir.join("local.png");
+    let o = run(&["render", s(&scene), "-o", s(&local)]);
+    assert!(o.status.success());
+    let remote = dir.join("remote.png");
+    let coordinator = |cert: &str, key: &str| {
+        run(&[
+            "coordinator",
+            s(&scene),
+            "--workers",
+            &w.addr,
+            "--tls-ca",
+            &f("ca.pem"),
+            "--tls-cert",
+            &f(cert),
+            "--tls-key",
+            &f(key),
+            "-o",
+            s(&remote),
+        ])
+    };
+    let o = coordinator("coordinator.pem", "coordinator.key");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(std::fs::read(&local).unwrap() == std::fs::read(&remote).unwrap());
+    std::fs::remove_file(&remote).unwrap();
+
+    // Without credentials: refused, with a hint, and no picture.
+    let o = run(&[
+        "coordinator",
+        s(&scene),
+        "--workers",
+        &w.addr,
+        "-o",
+        s(&remote),
+    ]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(e.contains(&w.addr) && e.contains("--tls-ca"), "{e}");
+    assert!(!remote.exists());
+    // A worker's certificate is not a coordinator's.
+    let o = coordinator("worker.pem", "worker.key");
+    assert_eq!(o.status.code(), Some(1));
+    // Half the options is a usage error.
+    let o = run(&["health", &w.addr, "--tls-ca", &f("ca.pem")]);
+    assert_eq!(o.status.code(), Some(2));
+    let o = run(&[
+        "health",
+        &w.addr,
+        "--tls-ca",
+        &f("ca.pem"),
+        "--tls-cert",
+        &f("coordinator.pem"),
+        "--tls-key",
+        &f("coordinator.key"),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // Probes without credentials use the plain health port.
+    let o = run(&["health", &health]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(w.stop().success());
+}

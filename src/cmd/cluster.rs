@@ -1,6 +1,7 @@
 //! `wisplight worker` and `wisplight coordinator`: cluster mode.
 
 use std::net::SocketAddr;
+use std::path::PathBuf;
 use std::time::Duration;
 
 use anyhow::Context;
@@ -15,6 +16,60 @@ pub struct WorkerArgs {
     /// call arrives.
     #[arg(long, hide = true, value_name = "N")]
     exit_after_steps: Option<u64>,
+    #[command(flatten)]
+    tls: TlsArgs,
+    /// Also serve grpc.health.v1 alone, in plain gRPC, on this address: for
+    /// probes that cannot present a certificate when TLS is on.
+    #[arg(long, value_name = "ADDR")]
+    health_listen: Option<SocketAddr>,
+}
+
+/// Mutual TLS (all three files, or none: plain gRPC, for loopback and
+/// private networks only).
+#[derive(Debug, clap::Args)]
+pub struct TlsArgs {
+    /// Mutual TLS: the CA certificate (PEM) that signed the other side's
+    /// certificates. A worker then serves only clients presenting one.
+    #[arg(long, value_name = "PEM", requires_all = ["tls_cert", "tls_key"])]
+    tls_ca: Option<PathBuf>,
+    /// Mutual TLS: this side's certificate chain (PEM).
+    #[arg(long, value_name = "PEM", requires = "tls_ca")]
+    tls_cert: Option<PathBuf>,
+    /// Mutual TLS: this side's private key (PEM, PKCS#8, PKCS#1 or SEC1).
+    #[arg(long, value_name = "PEM", requires = "tls_ca")]
+    tls_key: Option<PathBuf>,
+}
+
+impl TlsArgs {
+    /// The credentials, when TLS is on.
+    pub fn load(&self) -> anyhow::Result<Option<cluster::Tls>> {
+        match (&self.tls_ca, &self.tls_cert, &self.tls_key) {
+            (Some(ca), Some(cert), Some(key)) => Ok(Some(cluster::Tls::load(ca, cert, key)?)),
+            _ => Ok(None),
+        }
+    }
+}
+
+/// `--tls-*` for a client (coordinator, health), with the name to expect
+/// in the workers' certificates.
+#[derive(Debug, clap::Args)]
+pub struct ClientTlsArgs {
+    #[command(flatten)]
+    files: TlsArgs,
+    /// Mutual TLS: the name the workers' certificates must carry, when it
+    /// is not the host part of their addresses.
+    #[arg(long, value_name = "NAME", requires = "tls_ca")]
+    tls_domain: Option<String>,
+}
+
+impl ClientTlsArgs {
+    pub fn load(&self) -> anyhow::Result<Option<cluster::Tls>> {
+        let tls = self.files.load()?;
+        Ok(match (tls, &self.tls_domain) {
+            (Some(t), Some(d)) => Some(t.with_domain(d)),
+            (t, _) => t,
+        })
+    }
 }
 
 /// Serves until SIGTERM or Ctrl-C.
@@ -23,7 +78,19 @@ pub fn worker(args: WorkerArgs) -> anyhow::Result<()> {
         Some(n) => cluster::worker::WorkerService::exiting_after_steps(n),
         None => cluster::worker::WorkerService::default(),
     };
-    cluster::worker::run(service, args.listen, |addr| {
+    let tls = args.tls.load()?;
+    if tls.is_none() && !args.listen.ip().is_loopback() {
+        tracing::warn!(
+            listen = %args.listen,
+            "serving plain gRPC beyond loopback: anyone who reaches this port can send work; \
+             use --tls-ca/--tls-cert/--tls-key on untrusted networks"
+        );
+    }
+    let listen = cluster::worker::Listen {
+        tls,
+        health: args.health_listen,
+    };
+    cluster::worker::run(service, args.listen, &listen, |addr| {
         // println! flushes at the newline, even into a pipe.
         println!("listening on {addr}");
     })
@@ -45,6 +112,8 @@ pub struct CoordinatorArgs {
     #[arg(long, default_value_t = 30.0, value_name = "SECONDS")]
     deadline: f64,
     #[command(flatten)]
+    tls: ClientTlsArgs,
+    #[command(flatten)]
     render: super::render::Args,
 }
 
@@ -60,6 +129,7 @@ pub fn coordinator(args: CoordinatorArgs) -> anyhow::Result<()> {
     let remote = super::render::Remote {
         workers: args.workers,
         deadline: Duration::from_secs_f64(args.deadline),
+        tls: args.tls.load()?,
     };
     super::render::run_with(args.render, Some(remote))
 }
@@ -72,6 +142,8 @@ pub struct HealthArgs {
     /// Seconds to wait for the answer.
     #[arg(long, default_value_t = 5.0, value_name = "SECONDS")]
     deadline: f64,
+    #[command(flatten)]
+    tls: ClientTlsArgs,
 }
 
 /// Exits 0 when the worker at ADDR answers SERVING (container health checks).
@@ -82,11 +154,79 @@ pub fn health(args: HealthArgs) -> anyhow::Result<()> {
             args.deadline
         )));
     }
-    let serving = cluster::check_health(&args.addr, Duration::from_secs_f64(args.deadline))
-        .context("health check failed")?;
+    let tls = args.tls.load()?;
+    let serving = cluster::check_health(
+        &args.addr,
+        Duration::from_secs_f64(args.deadline),
+        tls.as_ref(),
+    )
+    .context("health check failed")?;
     if !serving {
         anyhow::bail!("worker {} is not serving", args.addr);
     }
     println!("{} SERVING", args.addr);
+    Ok(())
+}
+
+#[derive(Debug, clap::Args)]
+pub struct CertsArgs {
+    /// Directory to write ca.pem, ca.key, worker.pem, worker.key,
+    /// coordinator.pem and coordinator.key into (created if missing; no
+    /// file in it is overwritten).
+    #[arg(value_name = "DIR")]
+    dir: PathBuf,
+    /// The DNS names and IP addresses the workers are dialled by, comma-
+    /// separated: every worker gets the same certificate, valid for all.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "localhost,127.0.0.1,::1",
+        value_name = "NAME,..."
+    )]
+    names: Vec<String>,
+}
+
+/// Writes a fresh CA and the worker and coordinator credentials.
+pub fn certs(args: CertsArgs) -> anyhow::Result<()> {
+    use std::io::Write;
+    use std::os::unix::fs::OpenOptionsExt;
+
+    let pki = cluster::tls::Pki::generate(&args.names)?;
+    std::fs::create_dir_all(&args.dir)
+        .with_context(|| format!("cannot create the directory {}", args.dir.display()))?;
+    let files = pki.files();
+    if let Some((name, _, _)) = files.iter().find(|(n, _, _)| args.dir.join(n).exists()) {
+        anyhow::bail!(
+            "{} already exists; not overwriting credentials (choose another directory)",
+            args.dir.join(name).display()
+        );
+    }
+    // Each file appears whole: written beside its name, then renamed.
+    for (name, pem, secret) in files {
+        let path = args.dir.join(name);
+        let tmp = args.dir.join(format!(".{name}.tmp"));
+        let write = || -> std::io::Result<()> {
+            let mut f = std::fs::OpenOptions::new()
+                .write(true)
+                .create(true)
+                .truncate(true)
+                .mode(if secret { 0o600 } else { 0o644 })
+                .open(&tmp)?;
+            f.write_all(pem.as_bytes())?;
+            f.sync_all()?;
+            std::fs::rename(&tmp, &path)
+        };
+        if let Err(e) = write() {
+            let _ = std::fs::remove_file(&tmp);
+            return Err(e).with_context(|| format!("cannot write {}", path.display()));
+        }
+    }
+    println!(
+        "wrote {} (workers: --tls-ca ca.pem --tls-cert worker.pem --tls-key worker.key; \
+         coordinator: --tls-ca ca.pem --tls-cert coordinator.pem --tls-key coordinator.key); \
+         workers are valid for: {}",
+        args.dir.display(),
+        args.names.join(", ")
+    );
     Ok(())
 }

@@ -49,6 +49,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 pub struct Remote {
     pub workers: Vec<String>,
     pub deadline: std::time::Duration,
+    /// Mutual TLS credentials, when on.
+    pub tls: Option<cluster::Tls>,
 }
 
 /// `render`, or with `remote` the same frames with the density map filled
@@ -108,8 +110,9 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
     let mut timing = None;
     let mut workers = 0;
     if let Some(r) = remote {
-        let mut executor = cluster::RemoteExecutor::connect(&r.workers, &scene.fiber, r.deadline)
-            .context("cannot start the cluster")?;
+        let mut executor =
+            cluster::RemoteExecutor::connect(&r.workers, &scene.fiber, r.deadline, r.tls.as_ref())
+                .context("cannot start the cluster")?;
         // The workers build the same wisps from the scene's text.
         let toml = match &args.scene {
             Some(p) => std::fs::read_to_string(p)

@@ -147,7 +147,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
             .collect::<anyhow::Result<Vec<_>>>()?;
         let addrs: Vec<String> = procs.iter().map(|p| p.addr.clone()).collect();
         let mut ex =
-            cluster::RemoteExecutor::connect(&addrs, &scene.fiber, Duration::from_secs(120))
+            cluster::RemoteExecutor::connect(&addrs, &scene.fiber, Duration::from_secs(120), None)
                 .context("cannot start the cluster")?;
         ex.set_scene(toml.clone());
         let (traffic, timing) = (ex.traffic(), ex.timing());

@@ -13,10 +13,12 @@ pub mod pb {
 }
 
 pub mod remote;
+pub mod tls;
 pub mod wire;
 pub mod worker;
 
 pub use remote::{RemoteExecutor, Timing, Traffic};
+pub use tls::Tls;
 
 use std::net::SocketAddr;
 
@@ -27,6 +29,8 @@ pub enum ClusterError {
     Bind(SocketAddr, std::io::Error),
     #[error("{0}")]
     Setup(String),
+    #[error("TLS: {0}")]
+    Tls(String),
     #[error("the worker server stopped: {0}")]
     Serve(String),
     #[error("cannot reach worker {addr}: {msg}")]
@@ -64,23 +68,25 @@ impl ClusterError {
 }
 
 /// Asks the worker at `addr` for its grpc.health.v1 status (the overall
-/// server, service ""): Ok(true) when it is SERVING.
-pub fn check_health(addr: &str, deadline: std::time::Duration) -> Result<bool, ClusterError> {
+/// server, service ""): Ok(true) when it is SERVING. With `tls`, over
+/// mutual TLS.
+pub fn check_health(
+    addr: &str,
+    deadline: std::time::Duration,
+    tls: Option<&Tls>,
+) -> Result<bool, ClusterError> {
     use tonic_health::pb::health_check_response::ServingStatus;
     use tonic_health::pb::{HealthCheckRequest, health_client::HealthClient};
     let err = |msg: String| ClusterError::Connect {
         addr: addr.to_string(),
-        msg,
+        msg: tls::explain(tls, msg),
     };
     let rt = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
         .map_err(|e| ClusterError::Setup(format!("cannot start the network runtime: {e}")))?;
     rt.block_on(async {
-        let channel = tonic::transport::Endpoint::from_shared(format!("http://{addr}"))
-            .map_err(|e| err(e.to_string()))?
-            .connect_timeout(deadline)
-            .timeout(deadline)
+        let channel = remote::endpoint(addr, deadline, tls)?
             .connect()
             .await
             .map_err(|e| err(remote::root_cause(&e)))?;

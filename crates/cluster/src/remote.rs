@@ -20,7 +20,7 @@ use strands::Hair;
 use tonic::transport::{Channel, Endpoint};
 
 use crate::pb::worker_client::WorkerClient;
-use crate::{ClusterError, pb, wire};
+use crate::{ClusterError, Tls, pb, tls, wire};
 
 /// Bytes on the wire, by stage and direction (protobuf message bytes;
 /// HTTP/2 framing adds a little).
@@ -129,10 +129,12 @@ pub struct RemoteExecutor {
 impl RemoteExecutor {
     /// Connects to every worker and checks its protocol version. `deadline`
     /// bounds every call, from its first byte sent to its last received.
+    /// With `tls`, every connection is mutual TLS.
     pub fn connect(
         addrs: &[String],
         fiber: &Fiber,
         deadline: Duration,
+        tls: Option<&Tls>,
     ) -> Result<RemoteExecutor, ClusterError> {
         if addrs.is_empty() {
             return Err(ClusterError::Setup("no workers given".into()));
@@ -145,7 +147,7 @@ impl RemoteExecutor {
         let workers = rt.block_on(async {
             let mut out = Vec::with_capacity(addrs.len());
             for addr in addrs {
-                out.push(hello(addr, fiber, deadline).await?);
+                out.push(hello(addr, fiber, deadline, tls).await?);
             }
             Ok::<_, ClusterError>(out)
         })?;
@@ -222,17 +224,45 @@ impl RemoteExecutor {
     }
 }
 
-async fn hello(addr: &str, fiber: &Fiber, deadline: Duration) -> Result<Remote, ClusterError> {
+/// The endpoint of the worker at `addr`: connect and call timeouts of
+/// `deadline`, TLS when `tls` is given.
+pub(crate) fn endpoint(
+    addr: &str,
+    deadline: Duration,
+    tls: Option<&Tls>,
+) -> Result<Endpoint, ClusterError> {
     let err = |msg: String| ClusterError::Connect {
         addr: addr.to_string(),
         msg,
     };
-    let endpoint = Endpoint::from_shared(format!("http://{addr}"))
+    let endpoint = Endpoint::from_shared(format!("{}://{addr}", tls::scheme(tls)))
         .map_err(|e| err(e.to_string()))?
         .connect_timeout(deadline)
         .timeout(deadline)
         .tcp_nodelay(true);
-    let channel = endpoint.connect().await.map_err(|e| err(root_cause(&e)))?;
+    match tls {
+        Some(t) => endpoint
+            .tls_config(t.client_config(addr))
+            .map_err(|e| t.refused(&e)),
+        None => Ok(endpoint),
+    }
+}
+
+async fn hello(
+    addr: &str,
+    fiber: &Fiber,
+    deadline: Duration,
+    tls: Option<&Tls>,
+) -> Result<Remote, ClusterError> {
+    let err = |msg: String| ClusterError::Connect {
+        addr: addr.to_string(),
+        msg,
+    };
+    let err = |msg: String| err(tls::explain(tls, msg));
+    let channel = endpoint(addr, deadline, tls)?
+        .connect()
+        .await
+        .map_err(|e| err(root_cause(&e)))?;
     let mut client = WorkerClient::new(channel)
         .max_decoding_message_size(wire::MAX_MESSAGE_BYTES)
         .max_encoding_message_size(wire::MAX_MESSAGE_BYTES);
@@ -248,6 +278,12 @@ async fn hello(addr: &str, fiber: &Fiber, deadline: Duration) -> Result<Remote, 
                 addr: addr.to_string(),
                 msg: s.message().to_string(),
             },
+            tonic::Code::Unimplemented => ClusterError::Connect {
+                addr: addr.to_string(),
+                msg: "this address serves no wisplight worker (unimplemented: a health port?)"
+                    .into(),
+            },
+            _ if s.message().is_empty() => err(s.code().description().to_string()),
             _ => err(s.message().to_string()),
         })?
         .into_inner();

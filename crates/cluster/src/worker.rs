@@ -16,7 +16,7 @@ use tokio_stream::Stream;
 use tonic::{Request, Response, Status, Streaming};
 
 use crate::pb::worker_server::{Worker, WorkerServer};
-use crate::{ClusterError, pb, wire};
+use crate::{ClusterError, Tls, pb, wire};
 
 type Chunks<T> = Pin<Box<dyn Stream<Item = Result<T, Status>> + Send>>;
 
@@ -431,12 +431,24 @@ fn step_plan(
     Ok((plan, accel))
 }
 
+/// How a worker listens, besides its address.
+#[derive(Debug, Clone, Default)]
+pub struct Listen {
+    /// Mutual TLS: only clients presenting a certificate signed by its CA
+    /// get through the handshake.
+    pub tls: Option<Tls>,
+    /// A second address serving grpc.health.v1 alone, without TLS, for
+    /// probes that cannot present a certificate (Kubernetes, Docker).
+    pub health: Option<SocketAddr>,
+}
+
 /// Serves a worker on `addr` (port 0 picks a free port) until `shutdown`
 /// completes; `bound` is called with the address actually bound, before
 /// the first request is served.
 pub async fn serve(
     service: WorkerService,
     addr: SocketAddr,
+    listen: &Listen,
     bound: impl FnOnce(SocketAddr),
     shutdown: impl std::future::Future<Output = ()> + Send,
 ) -> Result<(), ClusterError> {
@@ -464,15 +476,52 @@ pub async fn serve(
     let worker = WorkerServer::new(service)
         .max_decoding_message_size(wire::MAX_MESSAGE_BYTES)
         .max_encoding_message_size(wire::MAX_MESSAGE_BYTES);
+    let mut server = tonic::transport::Server::builder();
+    if let Some(t) = &listen.tls {
+        server = server
+            .tls_config(t.server_config())
+            .map_err(|e| t.refused(&e))?;
+    }
+    // The health port stops with the worker.
+    let (stop, stopped) = tokio::sync::watch::channel(false);
+    let health_server = match listen.health {
+        Some(h) => {
+            let incoming = tonic::transport::server::TcpIncoming::bind(h)
+                .map_err(|e| ClusterError::Bind(h, e))?;
+            let mut stopped = stopped.clone();
+            let probe = health_service.clone();
+            Some(tokio::spawn(async move {
+                tonic::transport::Server::builder()
+                    .add_service(probe)
+                    .serve_with_incoming_shutdown(incoming, async move {
+                        let _ = stopped.changed().await;
+                    })
+                    .await
+            }))
+        }
+        None => None,
+    };
     bound(local);
-    tonic::transport::Server::builder()
+    let served = server
         .add_service(health_service)
         .add_service(reflection_v1)
         .add_service(reflection_v1alpha)
         .add_service(worker)
-        .serve_with_incoming_shutdown(incoming, shutdown)
+        .serve_with_incoming_shutdown(incoming, async {
+            shutdown.await;
+            let _ = stop.send(true);
+        })
         .await
-        .map_err(|e| ClusterError::Serve(e.to_string()))
+        .map_err(|e| ClusterError::Serve(e.to_string()));
+    let _ = stop.send(true);
+    if let Some(h) = health_server {
+        match h.await {
+            Ok(Err(e)) => tracing::warn!(error = %e, "the health port stopped with an error"),
+            Err(e) => tracing::warn!(error = %e, "the health port's task failed"),
+            Ok(Ok(())) => {}
+        }
+    }
+    served
 }
 
 /// Runs a worker on `addr` until SIGTERM or SIGINT (Ctrl-C), then finishes
@@ -480,13 +529,14 @@ pub async fn serve(
 pub fn run(
     service: WorkerService,
     addr: SocketAddr,
+    listen: &Listen,
     bound: impl FnOnce(SocketAddr),
 ) -> Result<(), ClusterError> {
     let rt = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()
         .map_err(|e| ClusterError::Setup(format!("cannot start the network runtime: {e}")))?;
-    rt.block_on(serve(service, addr, bound, shutdown_signal()))
+    rt.block_on(serve(service, addr, listen, bound, shutdown_signal()))
 }
 
 /// Completes on SIGTERM or SIGINT.

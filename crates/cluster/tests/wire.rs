@@ -33,6 +33,7 @@ fn start_stoppable_worker() -> (SocketAddr, tokio::sync::oneshot::Sender<()>) {
         rt.block_on(cluster::worker::serve(
             cluster::worker::WorkerService::default(),
             "127.0.0.1:0".parse().unwrap(),
+            &cluster::worker::Listen::default(),
             move |a| tx.send(a).unwrap(),
             async {
                 // A dropped switch never stops the worker.
@@ -101,7 +102,8 @@ fn three_workers_give_the_local_map_and_transmittance_bit_for_bit() {
     let light = Light::directional(Vec3::new(0.9, -0.35, -0.25)).unwrap();
     let frame = LightFrame::fit(&light, hair.points(), 96).unwrap();
     let mut local = LocalExecutor;
-    let mut remote = RemoteExecutor::connect(&addrs, &fiber, Duration::from_secs(20)).unwrap();
+    let mut remote =
+        RemoteExecutor::connect(&addrs, &fiber, Duration::from_secs(20), None).unwrap();
     let (mut a, mut b) = (DensityMap::new(frame), DensityMap::new(frame));
     let sa = local.fill(0, &mut a, &hair, &fiber, None).unwrap();
     let sb = remote.fill(0, &mut b, &hair, &fiber, None).unwrap();
@@ -154,7 +156,7 @@ fn a_worker_refuses_another_protocol_version_and_calls_before_hello() {
     });
     // And the coordinator says so, naming the worker.
     let fiber = Fiber::new(0.1, 0.5).unwrap();
-    let ok = RemoteExecutor::connect(&[addr.to_string()], &fiber, Duration::from_secs(5));
+    let ok = RemoteExecutor::connect(&[addr.to_string()], &fiber, Duration::from_secs(5), None);
     assert!(ok.is_ok());
 }
 
@@ -324,7 +326,7 @@ fn three_workers_simulating_the_wisps_give_the_local_animation_byte_for_byte() {
     let want = local_frames(&scene, 4);
     let addrs: Vec<String> = (0..3).map(|_| start_worker().to_string()).collect();
     let mut remote =
-        RemoteExecutor::connect(&addrs, &scene.fiber, Duration::from_secs(20)).unwrap();
+        RemoteExecutor::connect(&addrs, &scene.fiber, Duration::from_secs(20), None).unwrap();
     remote.set_scene(DANCE.to_string());
     let traffic = remote.traffic();
     let mut seq = Sequence::new(&scene).unwrap();
@@ -356,7 +358,7 @@ fn a_worker_lost_mid_animation_hands_its_work_to_the_survivors() {
     let (c, _keep_c) = start_stoppable_worker();
     let addrs = [a.to_string(), b.to_string(), c.to_string()];
     let mut remote =
-        RemoteExecutor::connect(&addrs, &scene.fiber, Duration::from_secs(20)).unwrap();
+        RemoteExecutor::connect(&addrs, &scene.fiber, Duration::from_secs(20), None).unwrap();
     remote.set_scene(DANCE.to_string());
     let timing = remote.timing();
     let mut seq = Sequence::new(&scene).unwrap();
@@ -379,7 +381,8 @@ fn a_coordinator_with_no_worker_left_fails_naming_the_worker() {
     let scene = Scene::from_toml_str(DANCE, std::path::Path::new("dance.toml")).unwrap();
     let (a, stop) = start_stoppable_worker();
     let mut remote =
-        RemoteExecutor::connect(&[a.to_string()], &scene.fiber, Duration::from_secs(5)).unwrap();
+        RemoteExecutor::connect(&[a.to_string()], &scene.fiber, Duration::from_secs(5), None)
+            .unwrap();
     remote.set_scene(DANCE.to_string());
     let mut seq = Sequence::new(&scene).unwrap();
     seq.set_executor(Box::new(remote));

@@ -1,0 +1,284 @@
+//! Mutual TLS between the coordinator and its workers (rustls, through
+//! tonic).
+//!
+//! Both sides hold the same three PEM files' roles: a CA certificate that
+//! signed the *other* side's certificate, their own certificate chain, and
+//! their own private key. With TLS on, a worker accepts a connection only
+//! from a client whose certificate chains to its CA, and the coordinator
+//! talks only to a worker whose certificate chains to its CA and names the
+//! host it dialled (or `--tls-domain`).
+
+use std::path::{Path, PathBuf};
+
+use tonic::transport::{Certificate, ClientTlsConfig, Identity, ServerTlsConfig};
+
+use crate::ClusterError;
+
+/// One side's credentials for mutual TLS, read and checked from PEM files.
+#[derive(Debug, Clone)]
+pub struct Tls {
+    ca: Certificate,
+    identity: Identity,
+    /// The name the coordinator expects in a worker's certificate instead
+    /// of the host part of its address.
+    domain: Option<String>,
+    /// Where the credentials came from, for error messages.
+    origin: String,
+}
+
+impl Tls {
+    /// Reads the CA certificate that signs the peers' certificates, this
+    /// side's certificate (chain) and its private key, all PEM. Errors name
+    /// the file and what is missing from it.
+    pub fn load(ca: &Path, cert: &Path, key: &Path) -> Result<Tls, ClusterError> {
+        let read = |p: &Path| {
+            std::fs::read(p)
+                .map_err(|e| ClusterError::Tls(format!("cannot read {}: {e}", p.display())))
+        };
+        let (ca_pem, cert_pem, key_pem) = (read(ca)?, read(cert)?, read(key)?);
+        check_pem(&ca_pem, ca, "CERTIFICATE", "a CA certificate")?;
+        check_pem(&cert_pem, cert, "CERTIFICATE", "a certificate")?;
+        check_pem(&key_pem, key, "PRIVATE KEY", "a private key")?;
+        let mut tls = Tls::from_pem(&ca_pem, &cert_pem, &key_pem);
+        tls.origin = format!(
+            "--tls-ca {}, --tls-cert {}, --tls-key {}",
+            ca.display(),
+            cert.display(),
+            key.display()
+        );
+        Ok(tls)
+    }
+
+    /// Credentials from PEM text already in memory (tests, embedding).
+    pub fn from_pem(ca: &[u8], cert: &[u8], key: &[u8]) -> Tls {
+        Tls {
+            ca: Certificate::from_pem(ca),
+            identity: Identity::from_pem(cert, key),
+            domain: None,
+            origin: "the TLS credentials".into(),
+        }
+    }
+
+    /// The name to expect in a worker's certificate, instead of the host
+    /// part of the address dialled.
+    pub fn with_domain(mut self, domain: impl Into<String>) -> Tls {
+        self.domain = Some(domain.into());
+        self
+    }
+
+    /// A worker's server side: its own identity, and client certificates
+    /// required and checked against the CA.
+    pub(crate) fn server_config(&self) -> ServerTlsConfig {
+        ServerTlsConfig::new()
+            .identity(self.identity.clone())
+            .client_ca_root(self.ca.clone())
+            .client_auth_optional(false)
+    }
+
+    /// The coordinator's side towards the worker at `addr` (host:port).
+    pub(crate) fn client_config(&self, addr: &str) -> ClientTlsConfig {
+        let domain = self.domain.clone().unwrap_or_else(|| host_of(addr));
+        ClientTlsConfig::new()
+            .ca_certificate(self.ca.clone())
+            .identity(self.identity.clone())
+            .domain_name(domain)
+    }
+
+    /// Says which files were at fault when rustls refuses them.
+    pub(crate) fn refused(&self, e: &dyn std::error::Error) -> ClusterError {
+        ClusterError::Tls(format!(
+            "{} were refused: {}",
+            self.origin,
+            crate::remote::root_cause(e)
+        ))
+    }
+}
+
+/// A failed connection's message, with a hint when TLS on one side only
+/// (or a refused certificate) is the likely cause: a worker that refuses a
+/// handshake just closes the connection, which reads as a broken pipe.
+pub(crate) fn explain(tls: Option<&Tls>, msg: String) -> String {
+    const NETWORK: [&str; 6] = [
+        "refused",
+        "timed out",
+        "deadline",
+        "lookup",
+        "No route",
+        "unreachable",
+    ];
+    if NETWORK.iter().any(|n| msg.contains(n)) {
+        return msg;
+    }
+    match tls {
+        None => format!(
+            "{msg} (if the worker serves mutual TLS, pass --tls-ca, --tls-cert and --tls-key)"
+        ),
+        Some(_) if !msg.contains("certificate") => format!(
+            "{msg} (the worker may have refused this side's certificate: is it signed by the \
+             CA the worker trusts, for client authentication? does the worker serve TLS?)"
+        ),
+        Some(_) => msg,
+    }
+}
+
+/// The URI scheme to dial with.
+pub(crate) fn scheme(tls: Option<&Tls>) -> &'static str {
+    if tls.is_some() { "https" } else { "http" }
+}
+
+/// "10.0.0.2:7000" -> "10.0.0.2", "[::1]:7000" -> "::1", "w0.svc:7000" ->
+/// "w0.svc".
+fn host_of(addr: &str) -> String {
+    let host = match addr.rsplit_once(':') {
+        Some((h, port)) if port.bytes().all(|b| b.is_ascii_digit()) => h,
+        _ => addr,
+    };
+    host.trim_start_matches('[')
+        .trim_end_matches(']')
+        .to_string()
+}
+
+/// Checks that `pem` holds a `-----BEGIN ...<label>-----` block, so a
+/// swapped or empty file is named before any handshake.
+fn check_pem(pem: &[u8], path: &Path, label: &str, what: &str) -> Result<(), ClusterError> {
+    let text = String::from_utf8_lossy(pem);
+    let found = text
+        .lines()
+        .any(|l| l.starts_with("-----BEGIN ") && l.trim_end().ends_with(&format!("{label}-----")));
+    if found {
+        Ok(())
+    } else {
+        Err(ClusterError::Tls(format!(
+            "{} holds no PEM block `{label}`: expected {what}",
+            PathBuf::from(path).display()
+        )))
+    }
+}
+
+/// A small certificate authority for one cluster: a CA, one certificate
+/// for every worker (server authentication, valid for `names`) and one for
+/// the coordinator (client authentication). All PEM.
+#[derive(Debug, Clone)]
+pub struct Pki {
+    pub ca_cert: String,
+    pub ca_key: String,
+    pub worker_cert: String,
+    pub worker_key: String,
+    pub coordinator_cert: String,
+    pub coordinator_key: String,
+}
+
+impl Pki {
+    /// Generates fresh ECDSA P-256 keys and certificates. `names` are the
+    /// DNS names and IP addresses the workers are dialled by
+    /// (`localhost`, `10.0.0.2`, `wisplight-worker-0.wisplight`).
+    pub fn generate(names: &[String]) -> Result<Pki, ClusterError> {
+        use rcgen::{
+            BasicConstraints, CertificateParams, DnType, ExtendedKeyUsagePurpose, IsCa, Issuer,
+            KeyPair, KeyUsagePurpose,
+        };
+        let err = |e: rcgen::Error| ClusterError::Tls(format!("cannot make certificates: {e}"));
+        if names.is_empty() {
+            return Err(ClusterError::Tls(
+                "the workers' certificate needs at least one name".into(),
+            ));
+        }
+        let mut ca = CertificateParams::new(Vec::<String>::new()).map_err(err)?;
+        ca.is_ca = IsCa::Ca(BasicConstraints::Constrained(0));
+        ca.distinguished_name
+            .push(DnType::CommonName, "wisplight cluster CA");
+        ca.key_usages = vec![KeyUsagePurpose::KeyCertSign, KeyUsagePurpose::CrlSign];
+        let ca_key = KeyPair::generate().map_err(err)?;
+        let ca_cert = ca.self_signed(&ca_key).map_err(err)?;
+        let issuer = Issuer::new(ca, ca_key);
+
+        let leaf = |sans: Vec<String>, cn: &str, purpose: ExtendedKeyUsagePurpose| {
+            let mut p = CertificateParams::new(sans).map_err(err)?;
+            p.distinguished_name.push(DnType::CommonName, cn);
+            p.key_usages = vec![KeyUsagePurpose::DigitalSignature];
+            p.extended_key_usages = vec![purpose];
+            p.use_authority_key_identifier_extension = true;
+            let key = KeyPair::generate().map_err(err)?;
+            let cert = p.signed_by(&key, &issuer).map_err(err)?;
+            Ok::<_, ClusterError>((cert.pem(), key.serialize_pem()))
+        };
+        let (worker_cert, worker_key) = leaf(
+            names.to_vec(),
+            "wisplight worker",
+            ExtendedKeyUsagePurpose::ServerAuth,
+        )?;
+        let (coordinator_cert, coordinator_key) = leaf(
+            vec!["wisplight-coordinator".into()],
+            "wisplight coordinator",
+            ExtendedKeyUsagePurpose::ClientAuth,
+        )?;
+        Ok(Pki {
+            ca_cert: ca_cert.pem(),
+            ca_key: issuer.key().serialize_pem(),
+            worker_cert,
+            worker_key,
+            coordinator_cert,
+            coordinator_key,
+        })
+    }
+
+    /// The worker's credentials.
+    pub fn worker(&self) -> Tls {
+        Tls::from_pem(
+            self.ca_cert.as_bytes(),
+            self.worker_cert.as_bytes(),
+            self.worker_key.as_bytes(),
+        )
+    }
+
+    /// The coordinator's credentials.
+    pub fn coordinator(&self) -> Tls {
+        Tls::from_pem(
+            self.ca_cert.as_bytes(),
+            self.coordinator_cert.as_bytes(),
+            self.coordinator_key.as_bytes(),
+        )
+    }
+
+    /// The files of a PKI directory: name, PEM text, and whether it is secret.
+    pub fn files(&self) -> [(&'static str, &str, bool); 6] {
+        [
+            ("ca.pem", &self.ca_cert, false),
+            ("ca.key", &self.ca_key, true),
+            ("worker.pem", &self.worker_cert, false),
+            ("worker.key", &self.worker_key, true),
+            ("coordinator.pem", &self.coordinator_cert, false),
+            ("coordinator.key", &self.coordinator_key, true),
+        ]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn host_of_strips_the_port_and_brackets() {
+        assert_eq!(host_of("10.0.0.2:7000"), "10.0.0.2");
+        assert_eq!(host_of("[::1]:7000"), "::1");
+        assert_eq!(
+            host_of("wisplight-worker-0.wisplight:7000"),
+            "wisplight-worker-0.wisplight"
+        );
+        assert_eq!(host_of("localhost"), "localhost");
+    }
+
+    #[test]
+    fn pem_blocks_are_checked_by_label() {
+        let p = Path::new("x.pem");
+        let cert = b"-----BEGIN CERTIFICATE-----\nAAAA\n-----END CERTIFICATE-----\n";
+        let key = b"-----BEGIN PRIVATE KEY-----\nAAAA\n-----END PRIVATE KEY-----\n";
+        let ec = b"-----BEGIN EC PRIVATE KEY-----\nAAAA\n-----END EC PRIVATE KEY-----\n";
+        assert!(check_pem(cert, p, "CERTIFICATE", "a certificate").is_ok());
+        assert!(check_pem(key, p, "PRIVATE KEY", "a key").is_ok());
+        assert!(check_pem(ec, p, "PRIVATE KEY", "a key").is_ok());
+        let e = check_pem(key, p, "CERTIFICATE", "a certificate").unwrap_err();
+        assert!(e.to_string().contains("x.pem"), "{e}");
+        assert!(check_pem(b"", p, "PRIVATE KEY", "a key").is_err());
+    }
+}

@@ -1,0 +1,215 @@
+//! Mutual TLS over real sockets on localhost: a coordinator with the
+//! cluster's credentials gets the same bytes as one process; a client with
+//! no certificate, a certificate from another CA or a worker's certificate
+//! is refused by the worker; a coordinator refuses a worker whose
+//! certificate another CA signed or that does not name the host dialled.
+
+use std::net::SocketAddr;
+use std::sync::OnceLock;
+use std::time::Duration;
+
+use cluster::tls::Pki;
+use cluster::worker::Listen;
+use cluster::{ClusterError, RemoteExecutor, Tls};
+use engine::{Executor, LocalExecutor};
+use glam::Vec3;
+use shadow::{DensityMap, Fiber, Light, LightFrame};
+use strands::{Style, StyleParams, WispModel};
+
+/// The cluster's credentials (workers valid for 127.0.0.1 and localhost).
+fn pki() -> &'static Pki {
+    static PKI: OnceLock<Pki> = OnceLock::new();
+    PKI.get_or_init(|| Pki::generate(&["127.0.0.1".into(), "localhost".into()]).unwrap())
+}
+
+/// Another cluster's credentials.
+fn other() -> &'static Pki {
+    static PKI: OnceLock<Pki> = OnceLock::new();
+    PKI.get_or_init(|| Pki::generate(&["127.0.0.1".into()]).unwrap())
+}
+
+/// A worker serving mutual TLS with `tls`, on a free port.
+fn start_worker(tls: Tls) -> SocketAddr {
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let rt = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(2)
+            .enable_all()
+            .build()
+            .unwrap();
+        rt.block_on(cluster::worker::serve(
+            cluster::worker::WorkerService::default(),
+            "127.0.0.1:0".parse().unwrap(),
+            &Listen {
+                tls: Some(tls),
+                health: None,
+            },
+            move |a| tx.send(a).unwrap(),
+            std::future::pending(),
+        ))
+        .unwrap();
+    });
+    rx.recv_timeout(Duration::from_secs(10)).unwrap()
+}
+
+fn fiber() -> Fiber {
+    Fiber::new(0.1, 0.5).unwrap()
+}
+
+fn connect(addr: SocketAddr, tls: Option<&Tls>) -> Result<RemoteExecutor, ClusterError> {
+    RemoteExecutor::connect(&[addr.to_string()], &fiber(), Duration::from_secs(5), tls)
+}
+
+#[test]
+fn a_coordinator_with_the_clusters_credentials_gets_the_local_bytes() {
+    let addrs: Vec<String> = (0..2)
+        .map(|_| start_worker(pki().worker()).to_string())
+        .collect();
+    let mut p = StyleParams::new(Style::Smooth);
+    p.strands_per_wisp = 3;
+    let hair = WispModel::generate(&p).interpolate();
+    let light = Light::directional(Vec3::new(0.9, -0.35, -0.25)).unwrap();
+    let frame = LightFrame::fit(&light, hair.points(), 64).unwrap();
+    let tls = pki().coordinator();
+    let mut remote =
+        RemoteExecutor::connect(&addrs, &fiber(), Duration::from_secs(20), Some(&tls)).unwrap();
+    let (mut a, mut b) = (DensityMap::new(frame), DensityMap::new(frame));
+    LocalExecutor
+        .fill(0, &mut a, &hair, &fiber(), None)
+        .unwrap();
+    remote.fill(0, &mut b, &hair, &fiber(), None).unwrap();
+    let ta = LocalExecutor.sweep(0, &a).unwrap();
+    let tb = remote.sweep(0, &b).unwrap();
+    let mut checked = 0;
+    for p in hair.points().iter().step_by(7) {
+        let (x, y) = (ta.optical_depth(*p, true), tb.optical_depth(*p, true));
+        assert_eq!(x.to_bits(), y.to_bits(), "at {p}");
+        checked += usize::from(x > 0.0);
+    }
+    assert!(checked > 100, "only {checked} shadowed points compared");
+    // And the health check, over the same credentials.
+    assert!(cluster::check_health(&addrs[0], Duration::from_secs(5), Some(&tls)).unwrap());
+}
+
+#[test]
+fn a_worker_refuses_clients_without_the_clusters_certificate() {
+    let addr = start_worker(pki().worker());
+    // No TLS at all.
+    let e = connect(addr, None).unwrap_err();
+    assert!(matches!(e, ClusterError::Connect { .. }), "{e}");
+    assert!(e.to_string().contains("--tls-ca"), "no hint: {e}");
+    // A client certificate from another CA (trusting the right server).
+    let rogue = Tls::from_pem(
+        pki().ca_cert.as_bytes(),
+        other().coordinator_cert.as_bytes(),
+        other().coordinator_key.as_bytes(),
+    );
+    let e = connect(addr, Some(&rogue)).unwrap_err();
+    assert!(matches!(e, ClusterError::Connect { .. }), "{e}");
+    assert!(e.to_string().contains(&addr.to_string()), "{e}");
+    // A certificate of the right CA made for serving, not for clients.
+    let e = connect(addr, Some(&pki().worker())).unwrap_err();
+    assert!(matches!(e, ClusterError::Connect { .. }), "{e}");
+    // Health checks are refused the same way.
+    assert!(cluster::check_health(&addr.to_string(), Duration::from_secs(5), None).is_err());
+    // The worker still serves the right coordinator afterwards.
+    assert!(connect(addr, Some(&pki().coordinator())).is_ok());
+}
+
+#[test]
+fn a_coordinator_refuses_a_worker_it_cannot_verify() {
+    // A worker whose certificate another CA signed.
+    let stranger = start_worker(Tls::from_pem(
+        pki().ca_cert.as_bytes(),
+        other().worker_cert.as_bytes(),
+        other().worker_key.as_bytes(),
+    ));
+    let e = connect(stranger, Some(&pki().coordinator())).unwrap_err();
+    assert!(e.to_string().contains("certificate"), "{e}");
+    // A worker of the cluster, dialled under a name its certificate lacks.
+    let addr = start_worker(pki().worker());
+    let wrong = pki().coordinator().with_domain("worker.example.org");
+    let e = connect(addr, Some(&wrong)).unwrap_err();
+    assert!(e.to_string().contains("certificate"), "{e}");
+    let right = pki().coordinator().with_domain("localhost");
+    assert!(connect(addr, Some(&right)).is_ok());
+}
+
+#[test]
+fn credentials_that_are_not_pem_are_named() {
+    let dir = std::env::temp_dir().join(format!("wisplight-tls-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let write = |name: &str, text: &str| {
+        let p = dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    };
+    let ca = write("ca.pem", &pki().ca_cert);
+    let cert = write("c.pem", &pki().coordinator_cert);
+    let key = write("c.key", &pki().coordinator_key);
+    let junk = write("junk.pem", "not a certificate\n");
+    assert!(Tls::load(&ca, &cert, &key).is_ok());
+    // Swapped certificate and key.
+    let e = Tls::load(&ca, &key, &cert).unwrap_err().to_string();
+    assert!(e.contains("c.key") && e.contains("certificate"), "{e}");
+    let e = Tls::load(&junk, &cert, &key).unwrap_err().to_string();
+    assert!(e.contains("junk.pem"), "{e}");
+    let e = Tls::load(&ca, &cert, &dir.join("missing.key"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("missing.key"), "{e}");
+    // A PEM block with a label but garbage inside: rustls refuses it when
+    // the worker starts, and the error says which files.
+    let bad_key = write(
+        "bad.key",
+        "-----BEGIN PRIVATE KEY-----\nAAAA\n-----END PRIVATE KEY-----\n",
+    );
+    let tls = Tls::load(&ca, &cert, &bad_key).unwrap();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let e = rt
+        .block_on(cluster::worker::serve(
+            cluster::worker::WorkerService::default(),
+            "127.0.0.1:0".parse().unwrap(),
+            &Listen {
+                tls: Some(tls),
+                health: None,
+            },
+            |_| {},
+            std::future::pending(),
+        ))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("bad.key"), "{e}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn the_plain_health_port_answers_probes_and_nothing_else() {
+    // A free port for the health server (bound, learnt, released).
+    let health: SocketAddr = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap();
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let rt = tokio::runtime::Runtime::new().unwrap();
+        rt.block_on(cluster::worker::serve(
+            cluster::worker::WorkerService::default(),
+            "127.0.0.1:0".parse().unwrap(),
+            &Listen {
+                tls: Some(pki().worker()),
+                health: Some(health),
+            },
+            move |a| tx.send(a).unwrap(),
+            std::future::pending(),
+        ))
+        .unwrap();
+    });
+    let addr = rx.recv_timeout(Duration::from_secs(10)).unwrap();
+    let deadline = Duration::from_secs(5);
+    assert!(cluster::check_health(&health.to_string(), deadline, None).unwrap());
+    assert!(cluster::check_health(&addr.to_string(), deadline, None).is_err());
+    // The health port serves no work.
+    let e = connect(health, None).unwrap_err();
+    assert!(e.to_string().contains("serves no wisplight worker"), "{e}");
+}
