@@ -243,6 +243,75 @@ fn bench_scaling_reports_every_configuration_and_writes_its_plot() {
 }
 
 #[test]
+fn bench_scaling_emulates_nodes_when_permitted_and_leaves_nothing_behind() {
+    let dir = scratch("nodes");
+    let scene = dir.join("scene.toml");
+    std::fs::write(&scene, SCENE).unwrap();
+    let child = Command::new(bin())
+        .args([
+            "bench",
+            "scaling",
+            s(&scene),
+            "--workers",
+            "1,2",
+            "--frames",
+            "1",
+        ])
+        .args([
+            "--node-cpus",
+            "0.5",
+            "--link-mbit",
+            "100",
+            "--json",
+            "--plot",
+        ])
+        .arg(dir.join("p.png"))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let pid = child.id();
+    let o = child.wait_with_output().unwrap();
+    let (out, err) = (
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr),
+    );
+    assert!(o.status.success(), "{err}");
+    let j: serde_json::Value = serde_json::from_str(out.lines().last().unwrap()).unwrap();
+    // Applied or not, it says which, on stderr and in the JSON.
+    let notes: Vec<&str> = j["limits"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|n| n.as_str().unwrap())
+        .collect();
+    assert_eq!(notes.len(), 2, "{notes:?}");
+    for (note, key) in notes.iter().zip(["cpu_limits", "bandwidth_limits"]) {
+        assert!(err.contains(note), "{err}");
+        let applied = j[key].as_bool().unwrap();
+        assert_eq!(applied, !note.contains("NOT applied"), "{note}");
+    }
+    for c in j["configs"].as_array().unwrap() {
+        assert_eq!(c["identical"], true);
+    }
+    // Nothing of this run is left: no namespace, bridge or cgroup.
+    let tag = format!("wisplight-{pid}-");
+    let netns = Command::new("ip").args(["netns", "list"]).output();
+    if let Ok(n) = netns {
+        assert!(!String::from_utf8_lossy(&n.stdout).contains(&tag));
+    }
+    let links = Command::new("ip").args(["-o", "link"]).output();
+    if let Ok(l) = links {
+        assert!(!String::from_utf8_lossy(&l.stdout).contains(&format!("wl{pid}")));
+    }
+    if let Ok(d) = std::fs::read_dir("/sys/fs/cgroup/cpu") {
+        for e in d.flatten() {
+            assert!(!e.file_name().to_string_lossy().starts_with(&tag));
+        }
+    }
+}
+
+#[test]
 fn with_mutual_tls_only_the_clusters_coordinator_gets_work_done() {
     let dir = scratch("tls");
     let pki = dir.join("pki");

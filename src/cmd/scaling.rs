@@ -4,11 +4,13 @@
 
 use std::io::{BufRead, BufReader};
 use std::path::PathBuf;
-use std::process::{Child, Command, Stdio};
+use std::process::{Child, Stdio};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
 use engine::pipeline::median;
+
+use super::nodes::{Nodes, Request};
 
 #[derive(Debug, clap::Args)]
 pub struct ScalingArgs {
@@ -30,6 +32,18 @@ pub struct ScalingArgs {
     /// Also print the result as one JSON object on the last stdout line.
     #[arg(long)]
     json: bool,
+    /// Give every node (the coordinator, which also runs the single-process
+    /// frames, and each worker) this many cores of CPU time: a cgroup v1
+    /// quota, and pinning with taskset. Needs root; skipped (and said so)
+    /// otherwise.
+    #[arg(long, value_name = "CORES")]
+    node_cpus: Option<f64>,
+    /// Put every worker in its own network namespace behind a link of this
+    /// many Mbit/s each way (veth on a bridge, tc tbf). Needs root; skipped
+    /// (and said so) otherwise.
+    #[arg(long, value_name = "MBIT",
+          value_parser = clap::value_parser!(u32).range(1..=400_000))]
+    link_mbit: Option<u32>,
 }
 
 /// A worker process on a free localhost port.
@@ -39,15 +53,21 @@ struct WorkerProcess {
 }
 
 impl WorkerProcess {
-    fn start() -> anyhow::Result<WorkerProcess> {
+    /// Worker `node` (1-based), on its emulated node when there are any.
+    fn start(nodes: &Nodes, node: u32) -> anyhow::Result<WorkerProcess> {
         let exe = std::env::current_exe().context("cannot find this program to start workers")?;
-        let mut child = Command::new(exe)
-            .args(["worker", "--listen", "127.0.0.1:0"])
+        let (_, mut cmd) = nodes.worker_command(&exe, node);
+        let mut child = cmd
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::null())
             .spawn()
             .context("cannot start a worker process")?;
+        if let Err(e) = nodes.place(child.id(), node) {
+            let _ = child.kill();
+            let _ = child.wait();
+            return Err(e.context(format!("cannot place worker {node} on its node")));
+        }
         let mut line = String::new();
         let out = child.stdout.take().context("no worker stdout")?;
         BufReader::new(out)
@@ -104,10 +124,31 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
         )));
     }
     let (name, threads, cores) = super::bench::machine(a.scene.as_deref());
-    eprintln!(
-        "bench scaling: {name}: {} timed frames per configuration; this process and every worker share this machine's {cores} cores ({threads} threads each); no CPU or bandwidth limits applied",
-        a.frames
+    if let Some(c) = a.node_cpus
+        && !(c.is_finite() && c >= 0.01 && c <= cores as f64)
+    {
+        return Err(super::usage(format!(
+            "--node-cpus {c}: must be between 0.01 and this machine's {cores} cores"
+        )));
+    }
+    let nodes = Nodes::new(
+        Request {
+            node_cpus: a.node_cpus,
+            link_mbit: a.link_mbit,
+            workers: a.workers.iter().copied().max().unwrap_or(1),
+        },
+        cores,
     );
+    eprintln!(
+        "bench scaling: {name}: {} timed frames per configuration on this machine's {cores} cores ({threads} threads in this process{})",
+        a.frames,
+        nodes
+            .worker_threads()
+            .map_or(String::new(), |t| format!(", {t} in each worker"))
+    );
+    for n in &nodes.notes {
+        eprintln!("bench scaling: {n}");
+    }
     let warm = 2;
     let total = warm + a.frames;
     let bar = super::progress_bar(
@@ -142,8 +183,8 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
     }];
 
     for &k in &a.workers {
-        let procs = (0..k)
-            .map(|_| WorkerProcess::start())
+        let procs = (1..=k)
+            .map(|i| WorkerProcess::start(&nodes, i))
             .collect::<anyhow::Result<Vec<_>>>()?;
         let addrs: Vec<String> = procs.iter().map(|p| p.addr.clone()).collect();
         let mut ex =
@@ -234,8 +275,18 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
     );
     let labels: Vec<String> = rows.iter().map(|r| r.label.clone()).collect();
     let values: Vec<f64> = rows.iter().map(|r| r.frame_ms).collect();
+    let limits = match (nodes.cpu_limited(), nodes.bandwidth_limited()) {
+        (true, true) => format!(
+            ", {} cores/node, {} Mbit/s",
+            a.node_cpus.unwrap_or(0.0),
+            a.link_mbit.unwrap_or(0)
+        ),
+        (true, false) => format!(", {} cores/node", a.node_cpus.unwrap_or(0.0)),
+        (false, true) => format!(", {} Mbit/s links", a.link_mbit.unwrap_or(0)),
+        (false, false) => String::new(),
+    };
     let img = crate::plot::bars(
-        &format!("median frame ms, {name}, {cores} cores"),
+        &format!("median frame ms, {name}, {cores} cores{limits}"),
         "ms",
         &labels,
         &values,
@@ -251,8 +302,11 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
             "cores": cores,
             "threads": threads,
             "frames": a.frames,
-            "cpu_limits": false,
-            "bandwidth_limits": false,
+            "cpu_limits": nodes.cpu_limited(),
+            "node_cpus": a.node_cpus.filter(|_| nodes.cpu_limited()),
+            "bandwidth_limits": nodes.bandwidth_limited(),
+            "link_mbit": a.link_mbit.filter(|_| nodes.bandwidth_limited()),
+            "limits": nodes.notes,
             "single_process_ms": single,
             "configs": rows.iter().skip(1).map(|r| serde_json::json!({
                 "workers": r.workers,
