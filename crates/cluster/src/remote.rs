@@ -653,18 +653,17 @@ impl RemoteExecutor {
         // map). Every reply is checked before the map changes.
         let mut stats = FillStats::default();
         let mut received = 0u64;
+        let mut decoded = Vec::with_capacity(replies.len());
         for (addr, chunks) in &replies {
             for c in chunks {
-                wire::check_columns(&frame, c).map_err(|e| malformed(addr, e))?;
-            }
-        }
-        for (_, chunks) in replies {
-            for c in &chunks {
+                decoded.push(wire::decode_columns(&frame, c).map_err(|e| malformed(addr, e))?);
                 received += c.encoded_len() as u64;
-                wire::add_columns(map, c);
                 stats.samples += c.samples;
                 stats.out_of_map += c.out_of_map;
             }
+        }
+        for d in &decoded {
+            wire::add_columns(map, d);
         }
         tracing::debug!(frame_id = id, light, posed, "density gathered");
         self.count(|t| {

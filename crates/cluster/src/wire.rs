@@ -15,7 +15,7 @@ use crate::pb;
 
 /// The protocol version this build speaks. A coordinator and a worker of
 /// different versions refuse each other.
-pub const PROTOCOL_VERSION: u32 = 2;
+pub const PROTOCOL_VERSION: u32 = 3;
 
 /// Points per Deposit chunk: 3 floats each, 1.5 MB.
 pub const POINTS_PER_CHUNK: usize = 128 * 1024;
@@ -147,55 +147,72 @@ pub fn add_strands(hair: &mut Hair, c: &pb::DepositChunk) -> Result<(), Malforme
 pub fn column_chunks(map: &DensityMap, columns: Range<usize>) -> Vec<pb::ColumnChunk> {
     let mut out = Vec::new();
     let mut chunk = pb::ColumnChunk::default();
+    let (mut cells, mut last) = (0usize, 0u32);
+    let mut runs = Runs::default();
     for col in columns {
         let meta = map.meta(col);
         if meta.is_empty() {
             continue;
         }
-        let cells = map.column(col, meta.lo as usize..meta.hi as usize + 1);
-        if !chunk.columns.is_empty() && chunk.quanta.len() + cells.len() > CELLS_PER_CHUNK {
+        let column = map.column(col, meta.lo as usize..meta.hi as usize + 1);
+        if !chunk.column_steps.is_empty() && cells + column.len() > CELLS_PER_CHUNK {
+            runs.finish(&mut chunk.cells);
             out.push(std::mem::take(&mut chunk));
+            cells = 0;
         }
-        chunk.columns.push(col as u32);
+        let step = if chunk.column_steps.is_empty() {
+            col as u32
+        } else {
+            col as u32 - last
+        };
+        last = col as u32;
+        chunk.column_steps.push(step);
         chunk.lo.push(u32::from(meta.lo));
         chunk.hi.push(u32::from(meta.hi));
         chunk.front.push(meta.front);
-        chunk.quanta.extend_from_slice(cells);
+        for &q in column {
+            runs.push(q, &mut chunk.cells);
+        }
+        cells += column.len();
     }
+    runs.finish(&mut chunk.cells);
     out.push(chunk);
     out
 }
 
-/// Adds the columns of one chunk to `map`, after checking every index
-/// ([`check_columns`]): a bad chunk changes nothing.
+/// The columns of one [`pb::ColumnChunk`], decoded and checked against a
+/// map frame: what [`add_columns`] adds.
+#[derive(Debug, Clone, Default)]
+pub struct Columns {
+    columns: Vec<u32>,
+    metas: Vec<ColumnMeta>,
+    cells: Vec<u32>,
+}
+
+/// Adds the columns of one chunk to `map`, after decoding and checking
+/// them all ([`decode_columns`]): a bad chunk changes nothing.
 pub fn merge_columns(map: &mut DensityMap, c: &pb::ColumnChunk) -> Result<(), Malformed> {
-    check_columns(map.frame(), c)?;
-    add_columns(map, c);
+    let d = decode_columns(map.frame(), c)?;
+    add_columns(map, &d);
     Ok(())
 }
 
-/// [`merge_columns`] of a chunk [`check_columns`] already accepted for
-/// this map's frame (panics on one it would refuse).
-pub(crate) fn add_columns(map: &mut DensityMap, c: &pb::ColumnChunk) {
+/// Adds decoded columns to a map of the frame they were checked against.
+pub fn add_columns(map: &mut DensityMap, d: &Columns) {
     let mut at = 0;
-    for i in 0..c.columns.len() {
-        let (lo, hi) = (c.lo[i] as u16, c.hi[i] as u16);
-        let len = usize::from(hi - lo) + 1;
-        let meta = ColumnMeta {
-            lo,
-            hi,
-            front: c.front[i],
-        };
-        map.merge_column(c.columns[i] as usize, meta, &c.quanta[at..at + len]);
+    for (&col, &meta) in d.columns.iter().zip(&d.metas) {
+        let len = usize::from(meta.hi - meta.lo) + 1;
+        map.merge_column(col as usize, meta, &d.cells[at..at + len]);
         at += len;
     }
 }
 
-/// Checks that the columns of one chunk fit a map in `frame`: indices,
-/// spans, fronts and the number of values.
-pub fn check_columns(frame: &LightFrame, c: &pb::ColumnChunk) -> Result<(), Malformed> {
+/// Decodes the columns of one chunk and checks that they fit a map in
+/// `frame`: ascending indices in range, spans, fronts, and exactly the
+/// cells the spans hold.
+pub fn decode_columns(frame: &LightFrame, c: &pb::ColumnChunk) -> Result<Columns, Malformed> {
     let n = frame.n_cells as usize;
-    let count = c.columns.len();
+    let count = c.column_steps.len();
     if c.lo.len() != count || c.hi.len() != count || c.front.len() != count {
         return Err(bad(format!(
             "{count} columns with {} lo, {} hi and {} front values",
@@ -204,15 +221,20 @@ pub fn check_columns(frame: &LightFrame, c: &pb::ColumnChunk) -> Result<(), Malf
             c.front.len()
         )));
     }
+    let mut out = Columns {
+        columns: Vec::with_capacity(count),
+        metas: Vec::with_capacity(count),
+        cells: Vec::new(),
+    };
     let mut need = 0usize;
+    let mut col = 0u64;
     for i in 0..count {
-        let (col, lo, hi, front) = (
-            c.columns[i] as usize,
-            c.lo[i] as usize,
-            c.hi[i] as usize,
-            c.front[i],
-        );
-        if col >= n * n || lo > hi || hi >= n {
+        if i > 0 && c.column_steps[i] == 0 {
+            return Err(bad(format!("column {col} comes twice")));
+        }
+        col += u64::from(c.column_steps[i]);
+        let (lo, hi, front) = (c.lo[i] as usize, c.hi[i] as usize, c.front[i]);
+        if col >= (n * n) as u64 || lo > hi || hi >= n {
             return Err(bad(format!(
                 "column {col} with cells {lo}..={hi} in a map of {n} a side"
             )));
@@ -221,14 +243,15 @@ pub fn check_columns(frame: &LightFrame, c: &pb::ColumnChunk) -> Result<(), Malf
             return Err(bad(format!("column {col} starts at slice {front}")));
         }
         need += hi - lo + 1;
+        out.columns.push(col as u32);
+        out.metas.push(ColumnMeta {
+            lo: lo as u16,
+            hi: hi as u16,
+            front,
+        });
     }
-    if need != c.quanta.len() {
-        return Err(bad(format!(
-            "columns hold {need} cells but {} values came",
-            c.quanta.len()
-        )));
-    }
-    Ok(())
+    unpack_runs(&c.cells, need, &mut out.cells)?;
+    Ok(out)
 }
 
 /// A swept slab as chunks.
@@ -238,9 +261,11 @@ pub fn slab_chunks(slab: &ColumnSlab) -> Vec<pb::SlabChunk> {
         first_column: slab.columns.start,
         ..Default::default()
     };
+    let (mut cells, mut runs) = (0usize, Runs::default());
     for (i, s) in slab.spans.iter().enumerate() {
         let len = s.len();
-        if !chunk.lo.is_empty() && chunk.depth.len() + len > CELLS_PER_CHUNK {
+        if !chunk.lo.is_empty() && cells + len > CELLS_PER_CHUNK {
+            runs.finish(&mut chunk.depth_steps);
             let next = slab.columns.start + i as u32;
             out.push(std::mem::replace(
                 &mut chunk,
@@ -249,17 +274,23 @@ pub fn slab_chunks(slab: &ColumnSlab) -> Vec<pb::SlabChunk> {
                     ..Default::default()
                 },
             ));
+            cells = 0;
         }
         chunk.lo.push(u32::from(s.lo));
         chunk.hi.push(u32::from(s.hi));
         chunk.front.push(s.front);
         if len > 0 {
             let start = s.start as usize;
-            chunk
-                .depth
-                .extend_from_slice(&slab.depth[start..start + len]);
+            let mut prev = 0u32;
+            for d in &slab.depth[start..start + len] {
+                let bits = d.to_bits();
+                runs.push(bits.wrapping_sub(prev), &mut chunk.depth_steps);
+                prev = bits;
+            }
+            cells += len;
         }
     }
+    runs.finish(&mut chunk.depth_steps);
     out.push(chunk);
     out
 }
@@ -298,14 +329,12 @@ pub fn add_slab_chunk(
             need += (c.hi[i] - c.lo[i]) as usize + 1;
         }
     }
-    if need != c.depth.len() {
-        return Err(bad(format!(
-            "spans hold {need} cells but {} depths came",
-            c.depth.len()
-        )));
-    }
+    let mut steps = Vec::new();
+    unpack_runs(&c.depth_steps, need, &mut steps)?;
     // The chunk's depths follow the slab's, span by span.
     let mut start = slab.depth.len();
+    slab.depth.reserve(need);
+    let mut at = 0;
     for i in 0..count {
         let span = if c.lo[i] > c.hi[i] {
             Span::EMPTY
@@ -316,13 +345,119 @@ pub fn add_slab_chunk(
                 start: start as u32,
                 front: c.front[i],
             };
+            let mut bits = 0u32;
+            for &step in &steps[at..at + s.len()] {
+                bits = bits.wrapping_add(step);
+                slab.depth.push(f32::from_bits(bits));
+            }
+            at += s.len();
             start += s.len();
             s
         };
         slab.spans.push(span);
     }
-    slab.depth.extend_from_slice(&c.depth);
     slab.columns.end += count as u32;
+    Ok(())
+}
+
+/// Zero-run varint packing of 32-bit values: each nonzero value `v` is
+/// the LEB128 varint of `v << 1`, each run of `r` zeros the varint of
+/// `r << 1 | 1`. Most cells of a column's span are empty (about 60 % in
+/// the built-in scene), so runs save most of them.
+#[derive(Debug, Default)]
+struct Runs {
+    zeros: u64,
+}
+
+impl Runs {
+    fn push(&mut self, v: u32, out: &mut Vec<u8>) {
+        if v == 0 {
+            self.zeros += 1;
+        } else {
+            self.finish(out);
+            put_varint(u64::from(v) << 1, out);
+        }
+    }
+
+    /// Writes the pending run of zeros.
+    fn finish(&mut self, out: &mut Vec<u8>) {
+        if self.zeros > 0 {
+            put_varint(self.zeros << 1 | 1, out);
+            self.zeros = 0;
+        }
+    }
+}
+
+/// `values` packed as zero-run varints (the `cells` and `depth_steps`
+/// fields).
+pub fn pack(values: &[u32]) -> Vec<u8> {
+    let mut out = Vec::new();
+    let mut runs = Runs::default();
+    for &v in values {
+        runs.push(v, &mut out);
+    }
+    runs.finish(&mut out);
+    out
+}
+
+fn put_varint(mut x: u64, out: &mut Vec<u8>) {
+    while x >= 0x80 {
+        out.push((x as u8) | 0x80);
+        x >>= 7;
+    }
+    out.push(x as u8);
+}
+
+/// Unpacks exactly `count` values packed by [`Runs`] into `out`: a
+/// truncated or overlong varint, a value past 32 bits, an empty run, more
+/// or fewer values than `count`, or bytes left over are refused. Never
+/// allocates more than `count` values.
+fn unpack_runs(bytes: &[u8], count: usize, out: &mut Vec<u32>) -> Result<(), Malformed> {
+    // A value takes at least one byte, a run can stand for many.
+    out.reserve(count.min(bytes.len().saturating_mul(64)));
+    let end = out.len() + count;
+    let mut i = 0;
+    while i < bytes.len() {
+        let mut x = 0u64;
+        let mut shift = 0;
+        loop {
+            let Some(&b) = bytes.get(i) else {
+                return Err(bad("a packed varint is cut short"));
+            };
+            i += 1;
+            if shift == 63 && b > 1 {
+                return Err(bad("a packed varint exceeds 64 bits"));
+            }
+            x |= u64::from(b & 0x7f) << shift;
+            if b & 0x80 == 0 {
+                break;
+            }
+            shift += 7;
+        }
+        let left = (end - out.len()) as u64;
+        if x & 1 == 1 {
+            let run = x >> 1;
+            if run == 0 || run > left {
+                return Err(bad(format!(
+                    "a run of {run} zeros where {left} values remain"
+                )));
+            }
+            out.resize(out.len() + run as usize, 0);
+        } else {
+            let v = u32::try_from(x >> 1)
+                .map_err(|_| bad(format!("packed value {} exceeds 32 bits", x >> 1)))?;
+            if left == 0 {
+                return Err(bad(format!("more than {count} packed values")));
+            }
+            out.push(v);
+        }
+    }
+    if out.len() != end {
+        return Err(bad(format!(
+            "{count} packed values expected, {} came",
+            count - (end - out.len())
+        )));
+    }
     Ok(())
 }
 
@@ -493,4 +628,84 @@ pub fn wisps_from_chunk(
             )
         })
         .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn packed_values_round_trip_and_runs_shrink_zeros() {
+        let values: Vec<u32> = (0..5000u32)
+            .map(|i| match i % 7 {
+                0..=3 => 0,
+                4 => u32::MAX,
+                5 => i * 977,
+                _ => 1,
+            })
+            .chain([0; 300])
+            .collect();
+        let packed = pack(&values);
+        let mut back = vec![42];
+        unpack_runs(&packed, values.len(), &mut back).unwrap();
+        assert_eq!(back[0], 42, "appends after what is there");
+        assert_eq!(&back[1..], &values[..]);
+        // 300 trailing zeros are one two-byte token.
+        assert_eq!(pack(&[0; 300]), vec![0xd9, 0x04]);
+        assert_eq!(pack(&[5, 0, 0]), vec![10, 5]);
+        assert!(pack(&[]).is_empty());
+    }
+
+    #[test]
+    fn malformed_packings_are_refused_without_allocating_what_they_claim() {
+        let mut out = Vec::new();
+        // Too few, too many, a run past the end, an empty run.
+        assert!(unpack_runs(&pack(&[1, 2]), 3, &mut out).is_err());
+        assert!(unpack_runs(&pack(&[1, 2, 3]), 2, &mut out).is_err());
+        assert!(unpack_runs(&[0xff, 0xff, 0xff, 0xff, 0x0f], 10, &mut out).is_err());
+        assert!(unpack_runs(&[1], 10, &mut out).is_err());
+        // Cut short, past 64 bits, past 32 bits.
+        assert!(unpack_runs(&[0x80], 1, &mut out).is_err());
+        assert!(unpack_runs(&[0xff; 11], 1, &mut out).is_err());
+        assert!(unpack_runs(&[0x80, 0x80, 0x80, 0x80, 0x40], 1, &mut out).is_err());
+        // A claimed count of a billion from three bytes reserves little.
+        let mut small = Vec::new();
+        assert!(unpack_runs(&[2, 2, 2], 1_000_000_000, &mut small).is_err());
+        assert!(small.capacity() < 1000);
+    }
+
+    #[test]
+    fn slabs_round_trip_bit_for_bit() {
+        let slab = ColumnSlab {
+            columns: 4..7,
+            spans: vec![
+                Span {
+                    lo: 2,
+                    hi: 5,
+                    start: 0,
+                    front: 2.25,
+                },
+                Span::EMPTY,
+                Span {
+                    lo: 0,
+                    hi: 1,
+                    start: 4,
+                    front: 0.5,
+                },
+            ],
+            depth: vec![0.0, 0.1, 0.1, 7.5, 1e-30, f32::MAX],
+        };
+        let mut back = ColumnSlab {
+            columns: 4..4,
+            spans: Vec::new(),
+            depth: Vec::new(),
+        };
+        for c in slab_chunks(&slab) {
+            add_slab_chunk(&mut back, &c, 8).unwrap();
+        }
+        assert_eq!(back.columns, slab.columns);
+        assert_eq!(back.spans, slab.spans);
+        let bits = |d: &[f32]| d.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&back.depth), bits(&slab.depth));
+    }
 }

@@ -233,32 +233,32 @@ fn malformed_messages_get_an_error_and_the_worker_lives_on() {
             pb::ColumnChunk {
                 map: Some(good.clone()),
                 end_column: 64,
-                columns: vec![3],
+                column_steps: vec![3],
                 lo: vec![1],
                 hi: vec![4],
                 front: vec![1.0],
-                quanta: vec![1, 2],
+                cells: wire::pack(&[1, 2]),
                 ..Default::default()
             },
             // A column outside the map.
             pb::ColumnChunk {
                 map: Some(good.clone()),
                 end_column: 64,
-                columns: vec![640],
+                column_steps: vec![640],
                 lo: vec![1],
                 hi: vec![1],
                 front: vec![1.0],
-                quanta: vec![1],
+                cells: wire::pack(&[1]),
                 ..Default::default()
             },
             pb::ColumnChunk {
                 map: Some(good.clone()),
                 end_column: 64,
-                columns: vec![3],
+                column_steps: vec![3],
                 lo: vec![1],
                 hi: vec![9],
                 front: vec![1.0],
-                quanta: vec![1; 9],
+                cells: wire::pack(&[1; 9]),
                 ..Default::default()
             },
         ];
