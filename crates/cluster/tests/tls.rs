@@ -4,6 +4,8 @@
 //! is refused by the worker; a coordinator refuses a worker whose
 //! certificate another CA signed or that does not name the host dialled.
 
+mod common;
+
 use std::net::SocketAddr;
 use std::sync::OnceLock;
 use std::time::Duration;
@@ -30,26 +32,11 @@ fn other() -> &'static Pki {
 
 /// A worker serving mutual TLS with `tls`, on a free port.
 fn start_worker(tls: Tls) -> SocketAddr {
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        let rt = tokio::runtime::Builder::new_multi_thread()
-            .worker_threads(2)
-            .enable_all()
-            .build()
-            .unwrap();
-        rt.block_on(cluster::worker::serve(
-            cluster::worker::WorkerService::default(),
-            "127.0.0.1:0".parse().unwrap(),
-            &Listen {
-                tls: Some(tls),
-                health: None,
-            },
-            move |a| tx.send(a).unwrap(),
-            std::future::pending(),
-        ))
-        .unwrap();
-    });
-    rx.recv_timeout(Duration::from_secs(10)).unwrap()
+    common::start_worker_with(Listen {
+        tls: Some(tls),
+        health: None,
+    })
+    .0
 }
 
 fn fiber() -> Fiber {
@@ -190,22 +177,10 @@ fn the_plain_health_port_answers_probes_and_nothing_else() {
         .unwrap()
         .local_addr()
         .unwrap();
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        let rt = tokio::runtime::Runtime::new().unwrap();
-        rt.block_on(cluster::worker::serve(
-            cluster::worker::WorkerService::default(),
-            "127.0.0.1:0".parse().unwrap(),
-            &Listen {
-                tls: Some(pki().worker()),
-                health: Some(health),
-            },
-            move |a| tx.send(a).unwrap(),
-            std::future::pending(),
-        ))
-        .unwrap();
+    let (addr, _keep) = common::start_worker_with(Listen {
+        tls: Some(pki().worker()),
+        health: Some(health),
     });
-    let addr = rx.recv_timeout(Duration::from_secs(10)).unwrap();
     let deadline = Duration::from_secs(5);
     assert!(cluster::check_health(&health.to_string(), deadline, None).unwrap());
     assert!(cluster::check_health(&addr.to_string(), deadline, None).is_err());

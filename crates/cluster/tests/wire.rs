@@ -4,6 +4,8 @@
 //! pictures, a worker of another version refused, malformed messages
 //! answered with an error while the worker lives on.
 
+mod common;
+
 use std::net::SocketAddr;
 use std::time::Duration;
 
@@ -19,32 +21,9 @@ fn start_worker() -> SocketAddr {
     start_stoppable_worker().0
 }
 
-/// A worker, and a switch that stops it (the server closes; calls in
-/// flight finish, new ones find no server).
+/// A worker, and a switch that stops it.
 fn start_stoppable_worker() -> (SocketAddr, tokio::sync::oneshot::Sender<()>) {
-    let (tx, rx) = std::sync::mpsc::channel();
-    let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
-    std::thread::spawn(move || {
-        let rt = tokio::runtime::Builder::new_multi_thread()
-            .worker_threads(2)
-            .enable_all()
-            .build()
-            .unwrap();
-        rt.block_on(cluster::worker::serve(
-            cluster::worker::WorkerService::default(),
-            "127.0.0.1:0".parse().unwrap(),
-            &cluster::worker::Listen::default(),
-            move |a| tx.send(a).unwrap(),
-            async {
-                // A dropped switch never stops the worker.
-                if stopped.await.is_err() {
-                    std::future::pending::<()>().await;
-                }
-            },
-        ))
-        .unwrap();
-    });
-    (rx.recv_timeout(Duration::from_secs(10)).unwrap(), stop)
+    common::start_worker_with(cluster::worker::Listen::default())
 }
 
 /// A client of the worker at `addr` that has said Hello.
