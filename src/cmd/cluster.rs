@@ -175,8 +175,9 @@ pub struct CertsArgs {
     /// file in it is overwritten).
     #[arg(value_name = "DIR")]
     dir: PathBuf,
-    /// The DNS names and IP addresses the workers are dialled by, comma-
-    /// separated: every worker gets the same certificate, valid for all.
+    /// The DNS names and IP addresses the workers are dialled by,
+    /// comma-separated: every worker gets the same certificate, valid for
+    /// all of them.
     #[arg(
         long,
         value_delimiter = ',',
