@@ -38,8 +38,9 @@ pub struct Nodes {
     bridge: Option<String>,
     /// The worker namespaces, in node order (node 1 first).
     namespaces: Vec<String>,
-    link_mbit: Option<u32>,
     subnet: u8,
+    /// Whether `taskset` pins the nodes to cores.
+    taskset: bool,
     /// Human-readable notes: what was applied, or why not.
     pub notes: Vec<String>,
 }
@@ -59,41 +60,52 @@ impl Nodes {
             );
             return nodes;
         }
-        let root = is_root();
+        if !is_root() {
+            if req.node_cpus.is_some() {
+                nodes
+                    .notes
+                    .push("CPU limits NOT applied: cgroups need root".into());
+            }
+            if req.link_mbit.is_some() {
+                nodes
+                    .notes
+                    .push("bandwidth limits NOT applied: network namespaces need root".into());
+            }
+            return nodes;
+        }
         sweep_stale();
         if let Some(c) = req.node_cpus {
-            match (root, nodes.cpu_limits(c, req.workers)) {
-                (false, _) => nodes
-                    .notes
-                    .push("CPU limits NOT applied: cgroups need root".into()),
-                (true, Err(e)) => {
+            nodes.taskset = has("taskset");
+            let note = match nodes.cpu_limits(c, req.workers) {
+                Err(e) => {
                     nodes.remove_cgroups();
-                    nodes.notes.push(format!("CPU limits NOT applied: {e}"))
+                    format!("CPU limits NOT applied: {e}")
                 }
-                (true, Ok(())) => nodes.notes.push(format!(
+                Ok(()) => format!(
                     "CPU limits applied: {} nodes (coordinator + {} workers) of {c} cores each (cgroup v1 quota {} us per {PERIOD_US} us){}",
                     req.workers + 1,
                     req.workers,
                     quota_us(c),
-                    if has("taskset") { ", pinned with taskset" } else { "" }
-                )),
-            }
+                    if nodes.taskset {
+                        ", pinned with taskset"
+                    } else {
+                        ""
+                    }
+                ),
+            };
+            nodes.notes.push(note);
         }
         if let Some(m) = req.link_mbit {
-            match (root, nodes.links(m, req.workers)) {
-                (false, _) => nodes
-                    .notes
-                    .push("bandwidth limits NOT applied: network namespaces need root".into()),
-                (true, Err(e)) => {
+            let note = match nodes.links(m, req.workers) {
+                Err(e) => {
                     nodes.remove_links();
-                    nodes
-                        .notes
-                        .push(format!("bandwidth limits NOT applied: {e}"))
+                    format!("bandwidth limits NOT applied: {e}")
                 }
-                (true, Ok(())) => nodes.notes.push(format!(
+                Ok(()) => format!(
                     "bandwidth limits applied: each worker in its own network namespace behind a {m} Mbit/s link each way (veth, tc tbf); no added latency"
-                )),
-            }
+                ),
+            };
+            nodes.notes.push(note);
         }
         nodes
     }
@@ -113,9 +125,9 @@ impl Nodes {
             .map(|c| c.ceil().max(1.0) as u32)
     }
 
-    /// Where worker `i` (1-based) listens, and the command that starts it:
-    /// inside its namespace when links are limited.
-    pub fn worker_command(&self, exe: &Path, i: u32) -> (String, Command) {
+    /// The command that starts worker `i` (1-based): inside its namespace
+    /// when links are limited.
+    pub fn worker_command(&self, exe: &Path, i: u32) -> Command {
         let (listen, mut cmd) = match self.namespaces.get(i as usize - 1) {
             Some(ns) => {
                 let mut c = Command::new("ip");
@@ -128,7 +140,7 @@ impl Nodes {
         if let Some(t) = self.worker_threads() {
             cmd.args(["--threads", &t.to_string()]);
         }
-        (listen, cmd)
+        cmd
     }
 
     /// Puts process `pid` on node `node` (0 = the coordinator): its
@@ -138,7 +150,7 @@ impl Nodes {
             return Ok(());
         };
         write(&cg.join("cgroup.procs"), &pid.to_string())?;
-        if has("taskset") {
+        if self.taskset {
             let mask = self.cpu_mask(node);
             run(
                 "taskset",
@@ -219,7 +231,6 @@ impl Nodes {
             args.extend(from_worker);
             run("ip", &args)?;
         }
-        self.link_mbit = Some(mbit);
         Ok(())
     }
 
@@ -244,7 +255,7 @@ impl Nodes {
             &Path::new(CPU_ROOT).join("cgroup.procs"),
             &self.pid.to_string(),
         );
-        if has("taskset") {
+        if self.taskset {
             let all = (0..self.cores.clamp(1, 64)).fold(0u64, |m, k| m | (1 << k));
             let _ = run(
                 "taskset",

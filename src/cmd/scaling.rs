@@ -56,7 +56,7 @@ impl WorkerProcess {
     /// Worker `node` (1-based), on its emulated node when there are any.
     fn start(nodes: &Nodes, node: u32) -> anyhow::Result<WorkerProcess> {
         let exe = std::env::current_exe().context("cannot find this program to start workers")?;
-        let (_, mut cmd) = nodes.worker_command(&exe, node);
+        let mut cmd = nodes.worker_command(&exe, node);
         let mut child = cmd
             .stdin(Stdio::null())
             .stdout(Stdio::piped())

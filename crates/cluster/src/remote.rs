@@ -256,9 +256,8 @@ async fn hello(
 ) -> Result<Remote, ClusterError> {
     let err = |msg: String| ClusterError::Connect {
         addr: addr.to_string(),
-        msg,
+        msg: tls::explain(tls, msg),
     };
-    let err = |msg: String| err(tls::explain(tls, msg));
     let channel = endpoint(addr, deadline, tls)?
         .connect()
         .await

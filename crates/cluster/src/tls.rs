@@ -8,7 +8,7 @@
 //! talks only to a worker whose certificate chains to its CA and names the
 //! host it dialled (or `--tls-domain`).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use tonic::transport::{Certificate, ClientTlsConfig, Identity, ServerTlsConfig};
 
@@ -142,15 +142,16 @@ fn host_of(addr: &str) -> String {
 /// swapped or empty file is named before any handshake.
 fn check_pem(pem: &[u8], path: &Path, label: &str, what: &str) -> Result<(), ClusterError> {
     let text = String::from_utf8_lossy(pem);
-    let found = text
+    let end = format!("{label}-----");
+    if text
         .lines()
-        .any(|l| l.starts_with("-----BEGIN ") && l.trim_end().ends_with(&format!("{label}-----")));
-    if found {
+        .any(|l| l.starts_with("-----BEGIN ") && l.trim_end().ends_with(&end))
+    {
         Ok(())
     } else {
         Err(ClusterError::Tls(format!(
             "{} holds no PEM block `{label}`: expected {what}",
-            PathBuf::from(path).display()
+            path.display()
         )))
     }
 }

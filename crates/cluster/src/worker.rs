@@ -482,7 +482,7 @@ pub async fn serve(
             .tls_config(t.server_config())
             .map_err(|e| t.refused(&e))?;
     }
-    // The health port stops with the worker.
+    // The health port stops when the worker has.
     let (stop, stopped) = tokio::sync::watch::channel(false);
     let health_server = match listen.health {
         Some(h) => {
@@ -507,10 +507,7 @@ pub async fn serve(
         .add_service(reflection_v1)
         .add_service(reflection_v1alpha)
         .add_service(worker)
-        .serve_with_incoming_shutdown(incoming, async {
-            shutdown.await;
-            let _ = stop.send(true);
-        })
+        .serve_with_incoming_shutdown(incoming, shutdown)
         .await
         .map_err(|e| ClusterError::Serve(e.to_string()));
     let _ = stop.send(true);
