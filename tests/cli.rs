@@ -672,3 +672,69 @@ fn every_bad_input_gets_one_line_naming_it_and_the_right_exit_status() {
     }
     assert!(!dir.join("x.bmp").exists());
 }
+
+#[test]
+fn a_head_mesh_renders_and_a_bad_one_is_named_with_its_line() {
+    let dir = scratch("mesh-head");
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
+    // The shipped mesh scene, made small.
+    let obj = repo.join("scenes/head.obj");
+    let scene = write(
+        &dir,
+        "mesh.toml",
+        &format!(
+            "{SMALL}\n[render]\nwidth = 160\nheight = 90\n\n[head]\nmesh = {:?}\n",
+            obj.display().to_string()
+        ),
+    );
+    let out = dir.join("mesh.png");
+    let o = wisplight(&["render", &scene, "-o", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let img = image::open(&out).unwrap().to_rgb8();
+    // The neck hangs below the hair: straight under the head's centre,
+    // 3/4 of the way down the picture, is head colour, not background.
+    let background = img.get_pixel(2, 2);
+    let neck = (60..88)
+        .filter(|&y| img.get_pixel(80, y) != background)
+        .count();
+    assert!(neck > 5, "{neck} rows of neck");
+
+    // A broken mesh: named, with its line; the old picture stays.
+    std::fs::write(dir.join("bad.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n").unwrap();
+    let bad = write(
+        &dir,
+        "bad.toml",
+        &format!("{SMALL}\n[head]\nmesh = \"bad.obj\"\n"),
+    );
+    let o = wisplight(&["render", &bad, "-o", out.to_str().unwrap()]);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(
+        e.contains("bad.obj") && e.contains("line 4") && e.contains("face index 9"),
+        "{e}"
+    );
+    assert!(!e.contains("panicked"), "{e}");
+    assert_eq!(image::open(&out).unwrap().to_rgb8(), img);
+    let missing = write(
+        &dir,
+        "missing.toml",
+        &format!("{SMALL}\n[head]\nmesh = \"nope.obj\"\n"),
+    );
+    let e = stderr(&wisplight(&[
+        "probe",
+        &missing,
+        "--points",
+        &write(&dir, "p.csv", "x,y,z\n0,0,0\n"),
+    ]));
+    assert!(e.contains("nope.obj"), "{e}");
+    let stray = write(
+        &dir,
+        "stray.toml",
+        &format!("{SMALL}\n[head]\nmesh_scale = 2\n"),
+    );
+    let e = stderr(&wisplight(&["render", &stray, "-o", out.to_str().unwrap()]));
+    assert!(
+        e.contains("head.mesh_scale") && e.contains("needs head.mesh"),
+        "{e}"
+    );
+}

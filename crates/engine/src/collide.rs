@@ -153,7 +153,10 @@ mod tests {
         let (i, j, k) = (c.x as usize, c.y as usize, c.z as usize);
         let hair_only = map.cell_depth(i, j, k);
         // A head whose lit surface lies in the bundle's cell.
-        map.deposit_sphere(Vec3::new(0.5, -1.4, 0.5), 2.0, shadow::OPAQUE_DEPTH);
+        map.deposit_body(
+            &shadow::Occluder::sphere(Vec3::new(0.5, -1.4, 0.5), 2.0),
+            shadow::OPAQUE_DEPTH,
+        );
         assert!(
             map.cell_depth(i, j, k) > hair_only + 1.0,
             "the sphere's deposit is in the bundle's cell"

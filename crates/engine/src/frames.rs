@@ -249,10 +249,7 @@ impl Sequence {
         } else if head != self.anim.head() {
             self.pose(&mut stats, head);
         }
-        if let Some(h) = &self.scene.head {
-            self.renderer
-                .set_head_center(head.transform_point3(h.center));
-        }
+        self.renderer.set_head_pose(head);
 
         // Shadows, only when the hair moved since the last result.
         let hair = self.anim.hair();
@@ -375,6 +372,7 @@ impl Sequence {
     fn bodies(&self, head: &Affine3A) -> Vec<Body> {
         let s = &self.scene;
         s.head
+            .as_ref()
             .map(|h| Body {
                 center: head.transform_point3(h.center),
                 radius: h.radius,

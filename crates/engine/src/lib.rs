@@ -15,6 +15,7 @@ pub mod animate;
 pub mod collide;
 pub mod exec;
 pub mod frames;
+pub mod head;
 pub mod pipeline;
 pub mod render;
 pub mod scene;
@@ -22,11 +23,12 @@ pub mod scene;
 pub use animate::Animator;
 pub use exec::{Executor, LocalExecutor, StepPlan, step_wisps};
 pub use frames::{FrameStats, Sequence, Stage, StageRecord};
+pub use head::Head;
 pub use pipeline::{ShadowPipeline, StageTimes, build_hair};
 pub use render::{FrameTimes, Renderer};
 pub use scene::{
-    Animation, BodySettings, Collision, Dynamics, Effects, HairSource, HeadSettings, Scene,
-    SceneError, ShadowSettings,
+    Animation, BodySettings, Collision, Dynamics, Effects, HairSource, HeadMesh, HeadSettings,
+    Scene, SceneError, ShadowSettings,
 };
 
 /// Errors of the engine, each naming what is wrong and where.
@@ -36,6 +38,8 @@ pub enum EngineError {
     Scene(#[from] SceneError),
     #[error(transparent)]
     Load(#[from] strands::LoadError),
+    #[error(transparent)]
+    Mesh(#[from] strands::MeshLoadError),
     #[error(transparent)]
     Shadow(#[from] shadow::ShadowError),
     #[error(transparent)]

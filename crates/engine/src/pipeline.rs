@@ -2,11 +2,11 @@
 
 use std::time::Instant;
 
-use glam::Vec3;
+use glam::{Affine3A, Vec3};
 use shadow::{Fiber, FillStats, Light, Occluder, ShadowInput, ShadowMethod};
 use strands::{Hair, WispModel, grow_followers, resample};
 
-use crate::{EngineError, Executor, HairSource, LocalExecutor, Scene};
+use crate::{EngineError, Executor, HairSource, Head, LocalExecutor, Scene};
 
 /// The most drawn segments one scene may ask for (about 1.6 GB of points):
 /// beyond this a typo in `strands_per_wisp` or `followers` is more likely
@@ -65,6 +65,10 @@ fn check_size(segments: u64) -> Result<(), EngineError> {
 #[derive(Debug)]
 pub struct ShadowPipeline {
     fiber: Fiber,
+    /// The head, drawn by the renderer; with head shadows on, also the
+    /// one occluder.
+    head: Option<Head>,
+    head_shadow: bool,
     occluders: Vec<Occluder>,
     lights: Vec<LightState>,
     executor: Box<dyn Executor>,
@@ -88,21 +92,18 @@ impl ShadowPipeline {
                 })
             })
             .collect::<Result<_, EngineError>>()?;
-        Ok(ShadowPipeline {
+        let head = scene.head.as_ref().map(Head::load).transpose()?;
+        let mut p = ShadowPipeline {
             fiber: scene.fiber,
+            head,
             // A head casts shadow on hair only with head shadows on.
-            occluders: scene
-                .head
-                .filter(|_| scene.effects.head_shadow)
-                .map(|h| Occluder {
-                    center: h.center,
-                    radius: h.radius,
-                })
-                .into_iter()
-                .collect(),
+            head_shadow: scene.effects.head_shadow,
+            occluders: Vec::new(),
             lights,
             executor: Box::new(LocalExecutor),
-        })
+        };
+        p.set_head_pose(Affine3A::IDENTITY);
+        Ok(p)
     }
 
     /// Runs the density map's fill and sweep through `executor`.
@@ -114,11 +115,21 @@ impl ShadowPipeline {
         self.executor.as_mut()
     }
 
-    /// Moves the occluder (the head) to `center`.
-    pub fn set_occluder_center(&mut self, center: Vec3) {
-        for o in &mut self.occluders {
-            o.center = center;
+    /// Moves the head (drawn, and as an occluder when it is one) to
+    /// `pose`, the head motion's transform.
+    pub fn set_head_pose(&mut self, pose: Affine3A) {
+        if let Some(h) = &mut self.head {
+            h.set_pose(pose);
+            self.occluders.clear();
+            if self.head_shadow {
+                self.occluders.push(h.occluder());
+            }
         }
+    }
+
+    /// The head as it stands now.
+    pub fn head(&self) -> Option<&Head> {
+        self.head.as_ref()
     }
 
     /// The density map of the first light, when the method fills one and

@@ -46,8 +46,6 @@ pub struct Renderer {
     /// The camera, framed on the first frame and then fixed, so that an
     /// animation does not shake.
     view: Option<View>,
-    /// Where the head is now (it moves with the scene's motion).
-    head_center: Option<Vec3>,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -72,7 +70,6 @@ impl Renderer {
         Ok(Renderer {
             trans: vec![Vec::new(); shadows.light_count()],
             shadows,
-            head_center: scene.head.map(|h| h.center),
             scene,
             colors: Vec::new(),
             canvas: None,
@@ -102,12 +99,10 @@ impl Renderer {
         &mut self.shadows
     }
 
-    /// Moves the head (drawn, and as an occluder) to `center`.
-    pub fn set_head_center(&mut self, center: Vec3) {
-        if self.head_center.is_some() {
-            self.head_center = Some(center);
-            self.shadows.set_occluder_center(center);
-        }
+    /// Moves the head (drawn, and as an occluder) to `pose`, the head
+    /// motion's transform.
+    pub fn set_head_pose(&mut self, pose: glam::Affine3A) {
+        self.shadows.set_head_pose(pose);
     }
 
     /// The fixed view, framed on `hair` the first time.
@@ -128,9 +123,8 @@ impl Renderer {
     fn framing(&self, hair_bounds: Bounds) -> Result<View, EngineError> {
         let s = &self.scene;
         let mut b = hair_bounds;
-        if let (Some(h), Some(c)) = (&s.head, self.head_center) {
-            b.include(c - Vec3::splat(h.radius));
-            b.include(c + Vec3::splat(h.radius));
+        if let Some(h) = self.shadows.head() {
+            b = b.union(h.bounds());
         }
         let (center, size) = if b.is_empty() {
             (Vec3::ZERO, 1.0)
@@ -275,33 +269,41 @@ impl Renderer {
                 .canvas
                 .insert(Canvas::new(s.render.width, s.render.height)?),
         };
-        if let (Some(h), Some(center)) = (&s.head, self.head_center) {
+        if let Some(head) = self.shadows.head() {
             let head_shadow = shadows && s.effects.head_shadow;
             let pipeline = &self.shadows;
             let ambient = s.shading.ambient;
-            canvas.draw_sphere(
-                &camera,
-                &Sphere {
-                    center,
-                    radius: h.radius,
-                },
-                |p, n| {
-                    let mut c = ambient * h.color;
-                    for (l, &to_light) in to_lights.iter().enumerate() {
-                        let lambert = n.dot(to_light).max(0.0);
-                        if lambert > 0.0 {
-                            // 1.5 cells towards the light: past the head's own deposit.
-                            let tr = if head_shadow {
-                                pipeline.transmittance_at(l, p, 1.5)
-                            } else {
-                                1.0
-                            };
-                            c += tr * lambert * (1.0 - ambient) * h.color;
-                        }
+            let color = head.settings().color;
+            // Lambert under the hair's shadow: Phi = k_a C + T (1 - k_a) C max(n.l, 0).
+            let shade = |p: Vec3, n: Vec3| {
+                let mut c = ambient * color;
+                for (l, &to_light) in to_lights.iter().enumerate() {
+                    let lambert = n.dot(to_light).max(0.0);
+                    if lambert > 0.0 {
+                        // 1.5 cells towards the light: past the head's own deposit.
+                        let tr = if head_shadow {
+                            pipeline.transmittance_at(l, p, 1.5)
+                        } else {
+                            1.0
+                        };
+                        c += tr * lambert * (1.0 - ambient) * color;
                     }
-                    c
-                },
-            );
+                }
+                c
+            };
+            match head.mesh() {
+                Some(m) => {
+                    canvas.draw_mesh(&camera, m.positions(), m.normals(), m.triangles(), shade)
+                }
+                None => canvas.draw_sphere(
+                    &camera,
+                    &Sphere {
+                        center: head.center(),
+                        radius: head.settings().radius,
+                    },
+                    shade,
+                ),
+            }
         }
         let look = raster::HairLook {
             fiber_width: s.fiber.width(),

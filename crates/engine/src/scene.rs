@@ -120,6 +120,9 @@ struct RawHead {
     center: Option<[f32; 3]>,
     radius: Option<f32>,
     color: Option<[f32; 3]>,
+    mesh: Option<PathBuf>,
+    mesh_scale: Option<f32>,
+    mesh_offset: Option<[f32; 3]>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -244,16 +247,28 @@ pub struct RenderSettings {
     pub hair_alpha: f32,
 }
 
-/// The head: an opaque sphere that receives the hair's shadow and blocks
-/// light for the hair behind it (with `effects.head_shadow`), and that
-/// hair collides with (with `effects.body_collision`). It moves with the
-/// scene's motion, turning about its centre.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// The head: an opaque sphere, or a triangle mesh, that receives the
+/// hair's shadow and blocks light for the hair behind it (with
+/// `effects.head_shadow`). Hair collides with the sphere (with
+/// `effects.body_collision`), mesh or not. It moves with the scene's
+/// motion, turning about its centre.
+#[derive(Debug, Clone, PartialEq)]
 pub struct HeadSettings {
     pub center: Vec3,
     pub radius: f32,
     /// Linear RGB.
     pub color: Vec3,
+    /// Drawn and casting shadow instead of the sphere.
+    pub mesh: Option<HeadMesh>,
+}
+
+/// A head mesh: an OBJ file whose vertex `v` stands at `offset + scale * v`
+/// (scene units) before the head moves.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HeadMesh {
+    pub path: PathBuf,
+    pub scale: f32,
+    pub offset: Vec3,
 }
 
 /// A validated scene.
@@ -729,9 +744,9 @@ impl Validator<'_> {
             HairSource::Style(p) => Some((p.head_center, p.head_radius)),
             HairSource::File { .. } | HairSource::Inline(_) => None,
         };
-        let visible = hd
-            .visible
-            .unwrap_or(style_head.is_some() || hd.center.is_some() || hd.radius.is_some());
+        let visible = hd.visible.unwrap_or(
+            style_head.is_some() || hd.center.is_some() || hd.radius.is_some() || hd.mesh.is_some(),
+        );
         let head = if visible {
             let center = vec3("head.center", hd.center)?.or(style_head.map(|h| h.0));
             let radius = hd.radius.or(style_head.map(|h| h.1));
@@ -745,10 +760,41 @@ impl Validator<'_> {
             if !(radius.is_finite() && radius > 0.0) {
                 return Err(self.invalid("head.radius", radius, "must be a finite number > 0"));
             }
+            let mesh = match hd.mesh {
+                Some(file) => {
+                    let scale = hd.mesh_scale.unwrap_or(1.0);
+                    if !(scale.is_finite() && scale > 0.0) {
+                        return Err(self.invalid(
+                            "head.mesh_scale",
+                            scale,
+                            "must be a finite number > 0",
+                        ));
+                    }
+                    Some(HeadMesh {
+                        path: match self.path.parent() {
+                            Some(dir) if file.is_relative() => dir.join(file),
+                            _ => file,
+                        },
+                        scale,
+                        offset: vec3("head.mesh_offset", hd.mesh_offset)?.unwrap_or(Vec3::ZERO),
+                    })
+                }
+                None => {
+                    self.refuse_set(
+                        &[
+                            ("head.mesh_scale", hd.mesh_scale.is_some()),
+                            ("head.mesh_offset", hd.mesh_offset.is_some()),
+                        ],
+                        "needs head.mesh",
+                    )?;
+                    None
+                }
+            };
             Some(HeadSettings {
                 center,
                 radius,
                 color: self.color("head.color", hd.color, DEFAULT_HEAD_COLOR)?,
+                mesh,
             })
         } else {
             None

@@ -68,10 +68,6 @@ fn opacity_zero_lets_all_light_through_but_the_head_still_blocks_it() {
     let path = scene("opacity0.toml");
     let s = Scene::load(&path).unwrap();
     let head = s.head.unwrap();
-    let head = shadow::Occluder {
-        center: head.center,
-        radius: head.radius,
-    };
     let dir = s.lights[0].direction();
     let seq = run(&path, 1);
     let t = &seq.renderer().transmittance()[0];
@@ -80,14 +76,8 @@ fn opacity_zero_lets_all_light_through_but_the_head_still_blocks_it() {
         // Points within a cell or so of the head's silhouette are blurred by
         // the map; away from it T is exact.
         let near = (p.distance(head.center) - head.radius).abs() < 1.0;
-        let grown = shadow::Occluder {
-            radius: head.radius + 1.5,
-            ..head
-        };
-        let shrunk = shadow::Occluder {
-            radius: head.radius - 1.5,
-            ..head
-        };
+        let grown = shadow::Occluder::sphere(head.center, head.radius + 1.5);
+        let shrunk = shadow::Occluder::sphere(head.center, head.radius - 1.5);
         if !grown.blocks(*p, dir) && !near {
             assert_eq!(t, 1.0, "T = {t} at {p}, in the open");
         } else if shrunk.blocks(*p, dir) && !near {

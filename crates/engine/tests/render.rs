@@ -124,3 +124,81 @@ fn the_same_scene_gives_the_same_bytes_on_any_number_of_threads() {
     assert!(one == on(2));
     assert!(one == on(5));
 }
+
+/// Writes a UV sphere of `rings` x `segments` (centre 0, radius `r`) as OBJ.
+fn write_uv_sphere(path: &Path, r: f32, rings: u32, segments: u32) {
+    use std::fmt::Write;
+    let mut obj = String::new();
+    writeln!(obj, "v 0 {r} 0\nv 0 {} 0", -r).unwrap();
+    for i in 1..rings {
+        let theta = std::f32::consts::PI * i as f32 / rings as f32;
+        for j in 0..segments {
+            let phi = std::f32::consts::TAU * j as f32 / segments as f32;
+            let (x, y, z) = (
+                theta.sin() * phi.cos(),
+                theta.cos(),
+                theta.sin() * phi.sin(),
+            );
+            writeln!(obj, "v {} {} {}", r * x, r * y, r * z).unwrap();
+        }
+    }
+    // 1-based indices.
+    let at = |i: u32, j: u32| 3 + (i - 1) * segments + j % segments;
+    for j in 0..segments {
+        writeln!(obj, "f 1 {} {}", at(1, j + 1), at(1, j)).unwrap();
+        writeln!(obj, "f 2 {} {}", at(rings - 1, j), at(rings - 1, j + 1)).unwrap();
+        for i in 1..rings - 1 {
+            let (a, b, c, d) = (at(i, j), at(i, j + 1), at(i + 1, j + 1), at(i + 1, j));
+            writeln!(obj, "f {a} {b} {c} {d}").unwrap();
+        }
+    }
+    std::fs::write(path, obj).unwrap();
+}
+
+fn mean_abs_diff(a: &image::RgbImage, b: &image::RgbImage) -> f64 {
+    let sum: u64 = a
+        .as_raw()
+        .iter()
+        .zip(b.as_raw())
+        .map(|(&x, &y)| u64::from(x.abs_diff(y)))
+        .sum();
+    sum as f64 / a.as_raw().len() as f64
+}
+
+#[test]
+fn a_head_mesh_of_the_sphere_draws_and_shadows_like_the_sphere() {
+    let dir = std::env::temp_dir().join(format!("wisplight-mesh-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let obj = dir.join("sphere.obj");
+    // The styles' head: radius 10 at the origin.
+    write_uv_sphere(&obj, 10.0, 48, 96);
+    let size = "\n[render]\nwidth = 192\nheight = 128\n";
+    let text = |head: &str| {
+        format!("[hair]\nstrands_per_wisp = 4\n\n[shadow]\ncells = 64\n{size}\n[head]\n{head}\n")
+    };
+    let scene = |head: &str| Scene::from_toml_str(&text(head), &dir.join("s.toml")).unwrap();
+    let sphere = scene("");
+    let mesh = scene("mesh = \"sphere.obj\"");
+    let hidden = scene("visible = false");
+    let hair = build_hair(&sphere).unwrap();
+    let frame = |s: &Scene| {
+        let mut r = Renderer::new(s).unwrap();
+        let img = r.render(&hair, true).unwrap().0;
+        (img, r.transmittance()[0].clone())
+    };
+    let (img_s, t_s) = frame(&sphere);
+    let (img_m, t_m) = frame(&mesh);
+    let (img_h, t_h) = frame(&hidden);
+    std::fs::remove_dir_all(&dir).unwrap();
+    // The picture: nearly the same with the mesh, clearly not without a head.
+    let (near, far) = (mean_abs_diff(&img_s, &img_m), mean_abs_diff(&img_s, &img_h));
+    assert!(near < 0.1, "mean difference {near} of 255 to the sphere");
+    assert!(far > 4.0 * near && far > 1.0, "without a head only {far}");
+    // The head's shadow on the hair: nearly the same transmittance.
+    let mean = |a: &[f32], b: &[f32]| {
+        a.iter().zip(b).map(|(x, y)| (x - y).abs()).sum::<f32>() / a.len() as f32
+    };
+    let (near, far) = (mean(&t_s, &t_m), mean(&t_s, &t_h));
+    assert!(near < 0.003, "mean |dT| {near} to the sphere");
+    assert!(far > 0.05, "without a head's shadow only {far}");
+}

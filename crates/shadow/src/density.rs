@@ -6,7 +6,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 use strands::Hair;
 
-use crate::{Fiber, LightFrame};
+use crate::{Fiber, LightFrame, Occluder};
 
 /// Optical depth of one fixed-point unit in a cell: 2^-20.
 ///
@@ -35,9 +35,9 @@ pub struct DensityMap {
     n: usize,
     cells: Vec<u32>,
     meta: Vec<ColumnMeta>,
-    /// Opaque spheres deposited since the last clear: centre and radius in
-    /// cells, and the quanta each put in its entry cells.
-    spheres: Vec<(Vec3, f32, u32)>,
+    /// Opaque bodies' deposits since the last clear: `(column, slice,
+    /// quanta)`, sorted.
+    bodies: Vec<(u32, u16, u32)>,
 }
 
 /// What a column knows of its hair: the occupied cells `lo..=hi`, and
@@ -119,7 +119,7 @@ impl DensityMap {
             n,
             cells: vec![0; n * n * n],
             meta: vec![ColumnMeta::EMPTY; n * n],
-            spheres: Vec::new(),
+            bodies: Vec::new(),
         }
     }
 
@@ -140,7 +140,7 @@ impl DensityMap {
 
     /// Empties the map, touching only the occupied spans.
     pub fn clear(&mut self) {
-        self.spheres.clear();
+        self.bodies.clear();
         let n = self.n;
         self.cells
             .par_chunks_mut(n * n)
@@ -250,37 +250,36 @@ impl DensityMap {
         lists.iter().map(|(_, s)| *s).sum()
     }
 
-    /// Adds an opaque sphere (a head) to the map: every column whose centre
-    /// line crosses the sphere gets optical depth `depth` in the cell where
-    /// the line enters it, starting exactly at the entry point. Hair behind
-    /// the sphere is then in its shadow. Returns the columns it covers.
-    pub fn deposit_sphere(&mut self, center: Vec3, radius: f32, depth: f32) -> usize {
+    /// Adds an opaque body (a head) to the map: every column whose centre
+    /// line enters the body inside the map gets optical depth `depth` in
+    /// the cell where the line enters it, starting exactly at the entry
+    /// point. Hair behind the body is then in its shadow. Returns the
+    /// columns it covers.
+    pub fn deposit_body(&mut self, body: &Occluder, depth: f32) -> usize {
         let n = self.n;
-        let c = self.frame.to_cells(center);
-        let r = radius / self.frame.ds;
         let q = (f64::from(depth) / DEPTH_QUANTUM).min(f64::from(u32::MAX)) as u32;
         let mut covered = 0;
-        for k in 0..n {
-            for j in 0..n {
-                if let Some(entry) = sphere_entry(c, r, n, j, k) {
-                    self.add_cell(entry as usize, j, k, q, entry);
-                    covered += 1;
-                }
+        for (col, entry) in body.entries(&self.frame) {
+            if entry >= 0.0 && entry < n as f32 {
+                let (j, k) = (col as usize % n, col as usize / n);
+                self.add_cell(entry as usize, j, k, q, entry);
+                self.bodies.push((col, entry as u16, q));
+                covered += 1;
             }
         }
-        self.spheres.push((c, r, q));
+        self.bodies.sort_unstable();
         covered
     }
 
     /// The quanta of cell `(i, j, k)` that hair deposited: the cell's
-    /// quanta without those of the opaque spheres (a self-collision must
+    /// quanta without those of the opaque bodies (a self-collision must
     /// not mistake the head's shadow for dense hair).
     pub fn hair_quanta(&self, i: usize, j: usize, k: usize) -> u32 {
         let mut q = self.quanta(i, j, k);
-        for &(c, r, sq) in &self.spheres {
-            if sphere_entry(c, r, self.n, j, k).is_some_and(|e| e as usize == i) {
-                q = q.saturating_sub(sq);
-            }
+        let key = ((k * self.n + j) as u32, i as u16);
+        let from = self.bodies.partition_point(|b| (b.0, b.1) < key);
+        for b in self.bodies[from..].iter().take_while(|b| (b.0, b.1) == key) {
+            q = q.saturating_sub(b.2);
         }
         q
     }
@@ -350,19 +349,6 @@ impl DensityMap {
     pub fn cell_depth(&self, i: usize, j: usize, k: usize) -> f64 {
         f64::from(self.quanta(i, j, k)) * DEPTH_QUANTUM
     }
-}
-
-/// Where the centre line of column `(j, k)` enters a sphere of centre `c`
-/// and radius `r` (in cells), as a slice coordinate inside the map.
-fn sphere_entry(c: Vec3, r: f32, n: usize, j: usize, k: usize) -> Option<f32> {
-    // Squared distance across the light from the column's centre line.
-    let (dy, dz) = (j as f32 + 0.5 - c.y, k as f32 + 0.5 - c.z);
-    let h2 = r * r - dy * dy - dz * dz;
-    if h2 < 0.0 {
-        return None;
-    }
-    let entry = c.x - h2.sqrt();
-    (entry >= 0.0 && entry < n as f32).then_some(entry)
 }
 
 /// Cuts one strand into pieces no longer than a cell and hands each

@@ -19,6 +19,7 @@ mod density;
 mod fiber;
 mod frame;
 mod method;
+mod occluder;
 mod peers;
 pub mod reference;
 mod transmittance;
@@ -27,9 +28,9 @@ pub use density::{ColumnMeta, DEPTH_QUANTUM, DensityMap, FillStats, MAX_CELLS};
 pub use fiber::Fiber;
 pub use frame::{Light, LightFrame};
 pub use method::{
-    Beyond, DensityMapMethod, MethodConfig, OPAQUE_DEPTH, Occluder, OpacityMode, ShadowInput,
-    ShadowMethod,
+    Beyond, DensityMapMethod, MethodConfig, OPAQUE_DEPTH, OpacityMode, ShadowInput, ShadowMethod,
 };
+pub use occluder::{Occluder, OccluderView};
 pub use transmittance::{ColumnSlab, Span, Transmittance, sweep};
 
 /// Errors of the shadow stages.

@@ -19,48 +19,13 @@ use rayon::prelude::*;
 use strands::Hair;
 
 use crate::{
-    DensityMap, Fiber, FillStats, Light, LightFrame, ShadowError, Transmittance, peers, reference,
+    DensityMap, Fiber, FillStats, Light, LightFrame, Occluder, ShadowError, Transmittance, peers,
+    reference,
 };
 
 /// Optical depth of an opaque body (a head) along any ray through it:
 /// `exp(-30)` is 1e-13, no light.
 pub const OPAQUE_DEPTH: f32 = 30.0;
-
-/// An opaque sphere that blocks light (a head).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Occluder {
-    pub center: Vec3,
-    pub radius: f32,
-}
-
-impl Occluder {
-    /// The corners of the sphere's bounding box, so that maps fitted to the
-    /// hair hold the sphere too.
-    pub fn corners(&self) -> [Vec3; 8] {
-        let mut c = [Vec3::ZERO; 8];
-        for (i, c) in c.iter_mut().enumerate() {
-            let s = |b: usize| if i & b == 0 { -1.0 } else { 1.0 };
-            *c = self.center + self.radius * Vec3::new(s(1), s(2), s(4));
-        }
-        c
-    }
-
-    /// Whether the ray from `p` towards the light (against `dir`, the
-    /// direction light travels) passes through the sphere.
-    pub fn blocks(&self, p: Vec3, dir: Vec3) -> bool {
-        // |p - t dir - c|^2 = r^2 for some t > 0.
-        let m = p - self.center;
-        let b = m.dot(dir);
-        let c = m.length_squared() - self.radius * self.radius;
-        if c <= 0.0 {
-            // Inside the sphere: in its shadow, except on its lit surface
-            // itself, which the caller offsets from.
-            return true;
-        }
-        // Roots of t^2 - 2 b t + c = 0 are positive when b > 0.
-        b > 0.0 && b * b >= c
-    }
-}
 
 /// What one light's shadow method works from in one frame.
 #[derive(Debug, Clone, Copy)]
@@ -503,7 +468,7 @@ impl DensityMapMethod {
         self.trans = None;
         let stats = fill(map)?;
         for o in input.occluders {
-            map.deposit_sphere(o.center, o.radius, OPAQUE_DEPTH);
+            map.deposit_body(o, OPAQUE_DEPTH);
         }
         Ok(stats)
     }
@@ -561,22 +526,6 @@ impl ShadowMethod for DensityMapMethod {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn a_sphere_blocks_rays_towards_the_light_only() {
-        let o = Occluder {
-            center: Vec3::ZERO,
-            radius: 1.0,
-        };
-        let down = Vec3::NEG_Y;
-        assert!(
-            o.blocks(Vec3::new(0.0, -3.0, 0.0), down),
-            "below, in shadow"
-        );
-        assert!(!o.blocks(Vec3::new(0.0, 3.0, 0.0), down), "above, lit");
-        assert!(!o.blocks(Vec3::new(1.5, -3.0, 0.0), down), "beside");
-        assert!(o.blocks(Vec3::new(0.99, -3.0, 0.0), down));
-    }
 
     #[test]
     fn every_name_has_defaults_that_validate_and_round_trip() {

@@ -89,25 +89,16 @@ fn rasterize(frame: &LightFrame, input: &ShadowInput) -> (Fragments, FillStats) 
     // Occluders: one opaque fragment where each pixel's centre line enters.
     let mut opaque = Vec::new();
     for o in input.occluders {
-        let c = frame.to_cells(o.center);
-        let r = o.radius / frame.ds;
-        for k in 0..n {
-            for j in 0..n {
-                let (dy, dz) = (j as f32 + 0.5 - c.y, k as f32 + 0.5 - c.z);
-                let h2 = r * r - dy * dy - dz * dz;
-                if h2 >= 0.0 {
-                    let entry = c.x - h2.sqrt();
-                    opaque.push((
-                        (k * n + j) as u32,
-                        Frag {
-                            z: entry,
-                            len: 0.0,
-                            beta: OPAQUE_DEPTH,
-                        },
-                    ));
-                }
-            }
-        }
+        opaque.extend(o.entries(frame).into_iter().map(|(col, entry)| {
+            (
+                col,
+                Frag {
+                    z: entry,
+                    len: 0.0,
+                    beta: OPAQUE_DEPTH,
+                },
+            )
+        }));
     }
     // Counting sort by pixel, stable: the order within a pixel is fixed.
     let mut start = vec![0u32; n * n + 1];

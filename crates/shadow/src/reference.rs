@@ -26,7 +26,8 @@
 
 use glam::Vec3;
 
-use crate::method::{Occluder, ShadowInput, ShadowMethod};
+use crate::method::{ShadowInput, ShadowMethod};
+use crate::occluder::OccluderView;
 use crate::{FillStats, LightFrame, ShadowError};
 
 /// Columns of the acceleration grid per side.
@@ -58,8 +59,8 @@ struct Built {
     side: f32,
     /// Sample offsets across the light for occluders, in cells.
     offsets: Vec<(f32, f32)>,
-    occluders: Vec<Occluder>,
-    light: Vec3,
+    /// The opaque bodies, if any, prepared for queries along the light.
+    occluders: Option<OccluderView>,
 }
 
 impl Reference {
@@ -153,8 +154,8 @@ impl ShadowMethod for Reference {
             side: a,
             transmit: 1.0 - input.fiber.opacity(),
             offsets,
-            occluders: input.occluders.to_vec(),
-            light: input.light.direction(),
+            occluders: (!input.occluders.is_empty())
+                .then(|| OccluderView::new(frame, input.occluders)),
         });
         Ok(stats)
     }
@@ -216,13 +217,13 @@ impl ShadowMethod for Reference {
                 t *= 1.0 - alpha * cover.min(1.0);
             });
         }
-        if !b.occluders.is_empty() {
+        if let Some(view) = &b.occluders {
             let blocked = b
                 .offsets
                 .iter()
                 .filter(|&&(oy, oz)| {
                     let q = b.frame.to_world(Vec3::new(c.x, c.y + oy, c.z + oz));
-                    b.occluders.iter().any(|o| o.blocks(q, b.light))
+                    view.blocks(q)
                 })
                 .count();
             t *= 1.0 - blocked as f64 / b.offsets.len() as f64;

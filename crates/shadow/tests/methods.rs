@@ -280,10 +280,7 @@ fn every_method_keeps_t_in_unit_range_and_non_increasing_along_the_light() {
         ..StyleParams::new(Style::Curly)
     })
     .interpolate();
-    let head = Occluder {
-        center: Vec3::ZERO,
-        radius: 10.0,
-    };
+    let head = Occluder::sphere(Vec3::ZERO, 10.0);
     let mut rng = Rng::new(5);
     for dir in [Vec3::new(0.9, -0.35, -0.25), Vec3::NEG_Y, Vec3::X] {
         let light = Light::directional(dir).unwrap();
@@ -325,7 +322,7 @@ fn every_method_keeps_t_in_unit_range_and_non_increasing_along_the_light() {
                 }
             }
             for c in &configs {
-                let m = run(c, &hair, &light, &[head]);
+                let m = run(c, &hair, &light, std::slice::from_ref(&head));
                 for &s in &starts {
                     let mut prev = 1.0f32;
                     for i in 0..40 {
@@ -358,10 +355,7 @@ fn every_method_gives_the_same_bytes_on_any_number_of_threads() {
         ..StyleParams::new(Style::Smooth)
     })
     .interpolate();
-    let head = [Occluder {
-        center: Vec3::ZERO,
-        radius: 10.0,
-    }];
+    let head = [Occluder::sphere(Vec3::ZERO, 10.0)];
     let light = Light::directional(Vec3::new(0.9, -0.35, -0.25)).unwrap();
     let points: Vec<Vec3> = hair.points().iter().step_by(7).copied().collect();
     for name in MethodConfig::NAMES {

@@ -79,7 +79,7 @@ proptest! {
         head in prop::option::of((point(), 0.1f32..1.0)),
     ) {
         let fiber = Fiber::new(width, opacity).unwrap();
-        let occluders: Vec<Occluder> = head.map(|(center, radius)| Occluder { center, radius }).into_iter().collect();
+        let occluders: Vec<Occluder> = head.map(|(center, radius)| Occluder::sphere(center, radius)).into_iter().collect();
         let mut m = config.create().unwrap();
         let stats = m.build(&ShadowInput { light: &light, hair: &hair, fiber: &fiber, occluders: &occluders }).unwrap();
         prop_assert_eq!(stats.out_of_map, 0);

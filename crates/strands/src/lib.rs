@@ -4,7 +4,8 @@
 //! `.hair`, TressFX `.tfx`), growing it procedurally (the `smooth` and `curly`
 //! styles of 134 wisps on a spherical head), growing follow strands around
 //! guide strands, and Catmull-Rom resampling of every strand into the points
-//! that are both filled into the density map and drawn.
+//! that are both filled into the density map and drawn. It also reads the
+//! triangle meshes (Wavefront OBJ) of heads the hair grows on.
 //!
 //! It knows nothing of light, shadows, cameras or simulation, and does no I/O
 //! beyond reading the one file a loader is given.
@@ -13,6 +14,7 @@ mod catmull_rom;
 mod follow;
 mod hair;
 mod load;
+mod mesh;
 mod rng;
 mod style;
 
@@ -20,5 +22,6 @@ pub use catmull_rom::{resample, resample_into};
 pub use follow::{FollowParams, grow_followers};
 pub use hair::{Bounds, Hair, HairError};
 pub use load::{FormatError, LoadError, load, parse_hair_format, parse_tfx};
+pub use mesh::{MAX_MESH_ELEMENTS, Mesh, MeshError, MeshLoadError, load_obj, parse_obj};
 pub use rng::Rng;
 pub use style::{GUIDES_PER_WISP, Member, Style, StyleParams, WispModel};

@@ -1,0 +1,83 @@
+//! The head as it stands in a frame: a sphere, or a mesh read from OBJ.
+
+use std::sync::Arc;
+
+use glam::{Affine3A, Vec3};
+use shadow::Occluder;
+use strands::{Bounds, Mesh};
+
+use crate::{EngineError, HeadSettings};
+
+/// The scene's head, moved by the head's motion.
+#[derive(Debug, Clone)]
+pub struct Head {
+    settings: HeadSettings,
+    /// The mesh at rest, in scene units (`offset + scale * v`).
+    rest: Option<Arc<Mesh>>,
+    /// Where the head stands now: its centre, and its mesh.
+    center: Vec3,
+    posed: Option<Arc<Mesh>>,
+}
+
+impl Head {
+    /// The head of `settings` at rest; reads its mesh file, if any.
+    pub fn load(settings: &HeadSettings) -> Result<Head, EngineError> {
+        let rest = match &settings.mesh {
+            Some(m) => {
+                let mesh = strands::load_obj(&m.path)?;
+                let place = Affine3A::from_scale_rotation_translation(
+                    Vec3::splat(m.scale),
+                    glam::Quat::IDENTITY,
+                    m.offset,
+                );
+                Some(Arc::new(mesh.transformed(place)))
+            }
+            None => None,
+        };
+        Ok(Head {
+            settings: settings.clone(),
+            center: settings.center,
+            posed: rest.clone(),
+            rest,
+        })
+    }
+
+    /// Moves the head to `pose` (the head motion's transform).
+    pub fn set_pose(&mut self, pose: Affine3A) {
+        self.center = pose.transform_point3(self.settings.center);
+        self.posed = self.rest.as_ref().map(|m| {
+            if pose == Affine3A::IDENTITY {
+                m.clone()
+            } else {
+                Arc::new(m.transformed(pose))
+            }
+        });
+    }
+
+    pub fn settings(&self) -> &HeadSettings {
+        &self.settings
+    }
+
+    /// The collision sphere's centre now.
+    pub fn center(&self) -> Vec3 {
+        self.center
+    }
+
+    /// The mesh as it stands now, if the head is one.
+    pub fn mesh(&self) -> Option<&Mesh> {
+        self.posed.as_deref()
+    }
+
+    /// The head as an opaque body for the shadow methods.
+    pub fn occluder(&self) -> Occluder {
+        match &self.posed {
+            Some(m) => Occluder::Mesh(m.clone()),
+            None => Occluder::sphere(self.center, self.settings.radius),
+        }
+    }
+
+    /// What the drawn head covers.
+    pub fn bounds(&self) -> Bounds {
+        self.occluder().bounds()
+    }
+}
