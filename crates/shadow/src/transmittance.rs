@@ -65,24 +65,14 @@ pub fn sweep(density: &DensityMap, columns: Range<u32>) -> ColumnSlab {
     let mut spans = Vec::with_capacity(columns.len());
     let mut depth = Vec::new();
     for col in columns.clone() {
-        let meta = density.meta(col as usize);
+        let s = span_of(density, col as usize, depth.len() as u32);
+        spans.push(s);
         match density.span(col as usize) {
-            None => spans.push(Span::EMPTY),
+            None => {}
             Some((lo, hi)) => {
-                let front = meta
-                    .front
-                    .clamp(lo as f32, lo as f32 + 1.0 - Span::FRONT_GAP);
-                spans.push(Span {
-                    lo: lo as u16,
-                    hi: hi as u16,
-                    start: depth.len() as u32,
-                    front,
-                });
-                let mut cum: u64 = 0;
-                depth.extend(density.column(col as usize, lo..hi + 1).iter().map(|&q| {
-                    cum += u64::from(q);
-                    (cum as f64 * DEPTH_QUANTUM) as f32
-                }));
+                let at = depth.len();
+                depth.resize(at + hi + 1 - lo, 0.0);
+                sweep_column(density.column(col as usize, lo..hi + 1), &mut depth[at..]);
             }
         }
     }
@@ -90,6 +80,37 @@ pub fn sweep(density: &DensityMap, columns: Range<u32>) -> ColumnSlab {
         columns,
         spans,
         depth,
+    }
+}
+
+/// The span of column `col` of `density` whose depths start at `start`.
+#[inline]
+fn span_of(density: &DensityMap, col: usize, start: u32) -> Span {
+    match density.span(col) {
+        None => Span::EMPTY,
+        Some((lo, hi)) => Span {
+            lo: lo as u16,
+            hi: hi as u16,
+            start,
+            front: density
+                .meta(col)
+                .front
+                .clamp(lo as f32, lo as f32 + 1.0 - Span::FRONT_GAP),
+        },
+    }
+}
+
+/// One column's sweep: `depth[i]` is the optical depth at the back face of
+/// cell `i`, the sum of `quanta[..=i]` in units of [`DEPTH_QUANTUM`].
+/// Summed as integers (exact, whatever the split), converted once per cell.
+#[inline]
+fn sweep_column(quanta: &[u32], depth: &mut [f32]) {
+    // i64, not u64: a signed conversion is one instruction on x86-64, and a
+    // column of at most 512 cells of u32 cannot reach 2^63.
+    let mut cum: i64 = 0;
+    for (d, &q) in depth.iter_mut().zip(quanta) {
+        cum += i64::from(q);
+        *d = (cum as f64 * DEPTH_QUANTUM) as f32;
     }
 }
 
@@ -103,18 +124,51 @@ pub struct Transmittance {
 }
 
 impl Transmittance {
-    /// Sweeps every column of `density`, in parallel slabs.
+    /// Sweeps every column of `density`, in parallel, straight into the
+    /// result: the same values as [`sweep`] over any split, [`Self::assemble`]d,
+    /// without the copies and checks that slabs from elsewhere need.
     pub fn compute(density: &DensityMap) -> Transmittance {
         let frame = *density.frame();
-        let cols = frame.columns() as u32;
-        // Slabs of a few thousand columns: enough to balance threads, few
-        // enough that joining them costs nothing next to the sweep.
-        let slab = (cols / 64).max(256);
-        let slabs: Vec<ColumnSlab> = (0..cols.div_ceil(slab))
-            .into_par_iter()
-            .map(|s| sweep(density, s * slab..((s + 1) * slab).min(cols)))
-            .collect();
-        Transmittance::assemble(frame, slabs).expect("slabs cut from one map tile it")
+        let n = frame.n_cells as usize;
+        let cols = frame.columns();
+        // Where each column's depths start: a running sum of span lengths.
+        let mut spans = Vec::with_capacity(cols);
+        let mut total = 0u32;
+        for col in 0..cols {
+            let s = span_of(density, col, total);
+            total += s.len() as u32;
+            spans.push(s);
+        }
+        let mut depth = vec![0.0f32; total as usize];
+        // Groups of columns, each sweeping into its own part of `depth`.
+        let group = cols.div_ceil(64).max(256);
+        let mut parts = Vec::with_capacity(cols.div_ceil(group));
+        let mut rest: &mut [f32] = &mut depth;
+        let mut base = 0;
+        for g in (0..cols).step_by(group) {
+            let end = (g + group).min(cols);
+            let len = spans[g..end].iter().map(Span::len).sum::<usize>();
+            let (part, tail) = rest.split_at_mut(len);
+            parts.push((g..end, base, part));
+            rest = tail;
+            base += len;
+        }
+        parts.into_par_iter().for_each(|(range, base, part)| {
+            for col in range {
+                let s = spans[col];
+                if !s.is_empty() {
+                    let at = s.start as usize - base;
+                    let cells = density.column(col, s.lo as usize..s.hi as usize + 1);
+                    sweep_column(cells, &mut part[at..at + cells.len()]);
+                }
+            }
+        });
+        Transmittance {
+            frame,
+            n,
+            spans,
+            depth,
+        }
     }
 
     /// Checks one slab on its own: a span per column, each inside the
@@ -348,6 +402,16 @@ mod tests {
             ])
             .unwrap();
         }
+        // Many column groups for compute, some starting with empty columns.
+        let big = LightFrame::fit(&light, hair.points(), 96).unwrap();
+        let mut map = DensityMap::new(big);
+        map.fill(&hair, &Fiber::new(0.05, 0.7).unwrap());
+        let cuts = [0, 1, 5000, 5001, 9216];
+        let slabs = cuts.windows(2).map(|c| sweep(&map, c[0]..c[1]));
+        let split = Transmittance::assemble(big, slabs).unwrap();
+        assert_eq!(Transmittance::compute(&map), split);
+        assert!(map.span(0).is_none() && split.stored_cells() > 1000);
+
         let frame = LightFrame::fit(&light, hair.points(), 16).unwrap();
         let mut map = DensityMap::new(frame);
         map.fill(&hair, &Fiber::new(0.05, 0.7).unwrap());
