@@ -862,7 +862,14 @@ mod tests {
         ];
         let positions: Vec<Vec3> = back.iter().chain(&front).copied().collect();
         let normals = vec![Vec3::Z; positions.len()];
-        let tris = [[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7], [4, 7, 8], [4, 8, 5]];
+        let tris = [
+            [0, 1, 2],
+            [0, 2, 3],
+            [4, 5, 6],
+            [4, 6, 7],
+            [4, 7, 8],
+            [4, 8, 5],
+        ];
         let draw = || {
             let mut c = Canvas::new(96, 96).unwrap();
             // Colour by depth: the front square white, the back one grey.

@@ -38,6 +38,10 @@ pub struct DensityMap {
     /// Opaque bodies' deposits since the last clear: `(column, slice,
     /// quanta)`, sorted.
     bodies: Vec<(u32, u16, u32)>,
+    /// The parallel deposit's lists (task, then slab of `k`), kept empty
+    /// between fills so that their memory is not allocated and faulted in
+    /// again for every frame.
+    scratch: Vec<Vec<Vec<Deposit>>>,
 }
 
 /// What a column knows of its hair: the occupied cells `lo..=hi`, and
@@ -120,6 +124,7 @@ impl DensityMap {
             cells: vec![0; n * n * n],
             meta: vec![ColumnMeta::EMPTY; n * n],
             bodies: Vec::new(),
+            scratch: Vec::new(),
         }
     }
 
@@ -212,12 +217,15 @@ impl DensityMap {
         let tasks = (threads * 4).min(strands.len());
         let per_task = strands.len().div_ceil(tasks);
         let frame = self.frame;
-        let lists: Vec<(Vec<Vec<Deposit>>, FillStats)> = (0..tasks)
-            .into_par_iter()
-            .map(|t| {
+        let mut lists = std::mem::take(&mut self.scratch);
+        lists.resize_with(tasks, Vec::new);
+        let stats: FillStats = lists
+            .par_iter_mut()
+            .enumerate()
+            .map(|(t, buckets)| {
                 let lo = strands.start + t * per_task;
                 let hi = (lo + per_task).min(strands.end);
-                let mut buckets: Vec<Vec<Deposit>> = vec![Vec::new(); slabs];
+                buckets.resize_with(slabs, Vec::new);
                 let mut stats = FillStats::default();
                 for s in lo..hi {
                     stats = stats
@@ -225,9 +233,9 @@ impl DensityMap {
                             buckets[k / slab_k].push(d)
                         });
                 }
-                (buckets, stats)
+                stats
             })
-            .collect();
+            .sum();
         // Phase 2: each slab of k applies its deposits, which also reach the
         // first row of the next slab (k + 1). Even slabs first, then odd
         // ones, each together with its successor: no two tasks share a cell.
@@ -240,14 +248,18 @@ impl DensityMap {
                 .for_each(|(pair, (cells, meta))| {
                     let b = 2 * pair + parity;
                     let base = b * n * slab_k;
-                    for (buckets, _) in &lists {
+                    for buckets in &lists {
                         for &d in &buckets[b] {
                             apply(cells, meta, n, base, d);
                         }
                     }
                 });
         }
-        lists.iter().map(|(_, s)| *s).sum()
+        for buckets in &mut lists {
+            buckets.iter_mut().for_each(Vec::clear);
+        }
+        self.scratch = lists;
+        stats
     }
 
     /// Adds an opaque body (a head) to the map: every column whose centre
