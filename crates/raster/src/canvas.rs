@@ -108,6 +108,14 @@ pub struct Canvas {
     looks: Vec<(u32, HairLook)>,
 }
 
+/// The smallest pixel rectangle `[x0, x1, y0, y1]` holding `a` (if any) and `b`.
+fn union(a: Option<[usize; 4]>, b: [usize; 4]) -> [usize; 4] {
+    match a {
+        Some([a0, a1, b0, b1]) => [a0.min(b[0]), a1.max(b[1]), b0.min(b[2]), b1.max(b[3])],
+        None => b,
+    }
+}
+
 /// A triangle's corners on screen, if all three are in front of the camera.
 #[inline]
 fn screen_corners(tri: [u32; 3], screen: &[Option<Vec3>]) -> Option<[Vec3; 3]> {
@@ -216,6 +224,18 @@ impl Canvas {
         [x0, x1, y0, y1]
     }
 
+    /// Runs `f(y, depth, colour)` on the rows `y0..y1` of the opaque layer
+    /// in parallel, and marks the rectangle `[x0, x1, y0, y1]` drawn.
+    fn opaque_rows(&mut self, rect: [usize; 4], f: impl Fn(usize, &mut [f32], &mut [Vec3]) + Sync) {
+        let (w, y0, y1) = (self.width, rect[2], rect[3]);
+        self.dirty = Some(union(self.dirty, rect));
+        self.depth[y0 * w..y1 * w]
+            .par_chunks_mut(w)
+            .zip(self.opaque[y0 * w..y1 * w].par_chunks_mut(w))
+            .enumerate()
+            .for_each(|(row, (depth, color))| f(y0 + row, depth, color));
+    }
+
     /// Draws an opaque sphere, one ray per pixel centre; `shade(point,
     /// normal)` gives the linear colour of a visible surface point.
     pub fn draw_sphere(
@@ -224,34 +244,24 @@ impl Canvas {
         sphere: &Sphere,
         shade: impl Fn(Vec3, Vec3) -> Vec3 + Sync,
     ) {
-        let w = self.width;
         let [x0, x1, y0, y1] = self.sphere_rect(camera, sphere);
         if x0 >= x1 || y0 >= y1 {
             return;
         }
-        self.dirty = Some(match self.dirty {
-            Some([a0, a1, b0, b1]) => [a0.min(x0), a1.max(x1), b0.min(y0), b1.max(y1)],
-            None => [x0, x1, y0, y1],
-        });
-        self.depth[y0 * w..y1 * w]
-            .par_chunks_mut(w)
-            .zip(self.opaque[y0 * w..y1 * w].par_chunks_mut(w))
-            .enumerate()
-            .for_each(|(row, (depth, color))| {
-                let y = y0 + row;
-                for x in x0..x1 {
-                    let d = camera.ray(x as f32 + 0.5, y as f32 + 0.5);
-                    if let Some(t) = sphere.hit(camera.position, d) {
-                        let p = camera.position + t * d;
-                        // View depth, comparable with the camera's projection.
-                        let z = camera.project(p).map_or(f32::INFINITY, |s| s.z);
-                        if z < depth[x] {
-                            depth[x] = z;
-                            color[x] = shade(p, (p - sphere.center) / sphere.radius);
-                        }
+        self.opaque_rows([x0, x1, y0, y1], |y, depth, color| {
+            for x in x0..x1 {
+                let d = camera.ray(x as f32 + 0.5, y as f32 + 0.5);
+                if let Some(t) = sphere.hit(camera.position, d) {
+                    let p = camera.position + t * d;
+                    // View depth, comparable with the camera's projection.
+                    let z = camera.project(p).map_or(f32::INFINITY, |s| s.z);
+                    if z < depth[x] {
+                        depth[x] = z;
+                        color[x] = shade(p, (p - sphere.center) / sphere.radius);
                     }
                 }
-            });
+            }
+        });
     }
 
     /// Draws an opaque triangle mesh (`positions`, unit vertex `normals`,
@@ -304,10 +314,7 @@ impl Canvas {
             if x0 >= x1 || y0 >= y1 {
                 continue;
             }
-            rect = Some(match rect {
-                Some([a0, a1, b0, b1]) => [a0.min(x0), a1.max(x1), b0.min(y0), b1.max(y1)],
-                None => [x0, x1, y0, y1],
-            });
+            rect = Some(union(rect, [x0, x1, y0, y1]));
             for bin in &mut bins[y0 / BAND..=(y1 - 1) / BAND] {
                 bin.push(t as u32);
             }
@@ -315,69 +322,60 @@ impl Canvas {
         let Some([x0, x1, y0, y1]) = rect else {
             return;
         };
-        self.dirty = Some(match self.dirty {
-            Some([a0, a1, b0, b1]) => [a0.min(x0), a1.max(x1), b0.min(y0), b1.max(y1)],
-            None => [x0, x1, y0, y1],
+        self.opaque_rows([x0, x1, y0, y1], |y, depth, color| {
+            let py = y as f32 + 0.5;
+            // Per pixel of the row: the nearest surface so far, as its
+            // triangle and perspective-correct barycentric weights.
+            let mut best: Vec<(f32, u32, [f32; 3])> =
+                vec![(f32::INFINITY, u32::MAX, [0.0; 3]); x1 - x0];
+            for &t in &bins[y / BAND] {
+                let tri = triangles[t as usize];
+                let Some([a, b, c]) = screen_corners(tri, &screen) else {
+                    continue;
+                };
+                let area = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+                if area.abs() < 1e-12 {
+                    continue;
+                }
+                let inv = 1.0 / area;
+                // Columns where the row's centre line crosses the triangle.
+                let (lo, hi) = (a.min(b).min(c), a.max(b).max(c));
+                if py < lo.y || py > hi.y {
+                    continue;
+                }
+                let xa = ((lo.x - 0.5).ceil().max(x0 as f32) as usize).max(x0);
+                let xb = (((hi.x - 0.5).floor() + 1.0).clamp(0.0, x1 as f32) as usize).min(x1);
+                for x in xa..xb {
+                    let px = x as f32 + 0.5;
+                    // Screen-space barycentric weights of the pixel centre.
+                    let l1 = ((px - a.x) * (c.y - a.y) - (py - a.y) * (c.x - a.x)) * inv;
+                    let l2 = ((b.x - a.x) * (py - a.y) - (b.y - a.y) * (px - a.x)) * inv;
+                    let l0 = 1.0 - l1 - l2;
+                    const EDGE: f32 = -1e-6;
+                    if l0 < EDGE || l1 < EDGE || l2 < EDGE {
+                        continue;
+                    }
+                    // Perspective-correct: weights over view depth.
+                    let (q0, q1, q2) = (l0 / a.z, l1 / b.z, l2 / c.z);
+                    let sum = q0 + q1 + q2;
+                    let z = 1.0 / sum;
+                    let slot = &mut best[x - x0];
+                    if z < slot.0 {
+                        *slot = (z, t, [q0 * z, q1 * z, q2 * z]);
+                    }
+                }
+            }
+            for (x, &(z, t, wt)) in (x0..x1).zip(&best) {
+                if t != u32::MAX && z < depth[x] {
+                    let [i, j, k] = triangles[t as usize].map(|v| v as usize);
+                    let p = wt[0] * positions[i] + wt[1] * positions[j] + wt[2] * positions[k];
+                    let n = (wt[0] * normals[i] + wt[1] * normals[j] + wt[2] * normals[k])
+                        .normalize_or_zero();
+                    depth[x] = z;
+                    color[x] = shade(p, n);
+                }
+            }
         });
-        self.depth[y0 * w..y1 * w]
-            .par_chunks_mut(w)
-            .zip(self.opaque[y0 * w..y1 * w].par_chunks_mut(w))
-            .enumerate()
-            .for_each(|(row, (depth, color))| {
-                let y = y0 + row;
-                let py = y as f32 + 0.5;
-                // Per pixel of the row: the nearest surface so far, as its
-                // triangle and perspective-correct barycentric weights.
-                let mut best: Vec<(f32, u32, [f32; 3])> =
-                    vec![(f32::INFINITY, u32::MAX, [0.0; 3]); x1 - x0];
-                for &t in &bins[y / BAND] {
-                    let tri = triangles[t as usize];
-                    let Some([a, b, c]) = screen_corners(tri, &screen) else {
-                        continue;
-                    };
-                    let area = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
-                    if area.abs() < 1e-12 {
-                        continue;
-                    }
-                    let inv = 1.0 / area;
-                    // Columns where the row's centre line crosses the triangle.
-                    let (lo, hi) = (a.min(b).min(c), a.max(b).max(c));
-                    if py < lo.y || py > hi.y {
-                        continue;
-                    }
-                    let xa = ((lo.x - 0.5).ceil().max(x0 as f32) as usize).max(x0);
-                    let xb = (((hi.x - 0.5).floor() + 1.0).clamp(0.0, x1 as f32) as usize).min(x1);
-                    for x in xa..xb {
-                        let px = x as f32 + 0.5;
-                        // Screen-space barycentric weights of the pixel centre.
-                        let l1 = ((px - a.x) * (c.y - a.y) - (py - a.y) * (c.x - a.x)) * inv;
-                        let l2 = ((b.x - a.x) * (py - a.y) - (b.y - a.y) * (px - a.x)) * inv;
-                        let l0 = 1.0 - l1 - l2;
-                        const EDGE: f32 = -1e-6;
-                        if l0 < EDGE || l1 < EDGE || l2 < EDGE {
-                            continue;
-                        }
-                        // Perspective-correct: weights over view depth.
-                        let (q0, q1, q2) = (l0 / a.z, l1 / b.z, l2 / c.z);
-                        let sum = q0 + q1 + q2;
-                        let z = 1.0 / sum;
-                        let slot = &mut best[x - x0];
-                        if z < slot.0 {
-                            *slot = (z, t, [q0 * z, q1 * z, q2 * z]);
-                        }
-                    }
-                }
-                for (x, &(z, t, wt)) in (x0..x1).zip(&best) {
-                    if t != u32::MAX && z < depth[x] {
-                        let [i, j, k] = triangles[t as usize].map(|v| v as usize);
-                        let p = wt[0] * positions[i] + wt[1] * positions[j] + wt[2] * positions[k];
-                        let n = (wt[0] * normals[i] + wt[1] * normals[j] + wt[2] * normals[k])
-                            .normalize_or_zero();
-                        depth[x] = z;
-                        color[x] = shade(p, n);
-                    }
-                }
-            });
     }
 
     /// Draws hair: line strips through `points` (strand `s` is
