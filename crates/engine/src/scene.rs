@@ -23,6 +23,7 @@
 //! cells = 128               # map cells a side, 1..=512
 //! filter = true             # trilinear filtering of transmittance
 //!
+//! [head]                    # visible, center, radius, color; mesh = "head.obj", mesh_scale, mesh_offset
 //! [effects]                 # dynamics, self_collision, body_collision, self_shadow, specular, head_shadow
 //! [animation]               # motion = "still" | "dance" | "keyframes" ([[animation.key]]), fps = 30
 //! [dynamics]                # time_step, gravity, damping, stiffness, iterations, settle
