@@ -14,7 +14,8 @@ pub struct Head {
     settings: HeadSettings,
     /// The mesh at rest, in scene units (`offset + scale * v`).
     rest: Option<Arc<Mesh>>,
-    /// Where the head stands now: its centre, and its mesh.
+    /// Where the head stands now: its transform, centre and mesh.
+    pose: Affine3A,
     center: Vec3,
     posed: Option<Arc<Mesh>>,
 }
@@ -36,14 +37,20 @@ impl Head {
         };
         Ok(Head {
             settings: settings.clone(),
+            pose: Affine3A::IDENTITY,
             center: settings.center,
             posed: rest.clone(),
             rest,
         })
     }
 
-    /// Moves the head to `pose` (the head motion's transform).
+    /// Moves the head to `pose` (the head motion's transform); a mesh is
+    /// transformed only when the pose changed.
     pub fn set_pose(&mut self, pose: Affine3A) {
+        if pose == self.pose {
+            return;
+        }
+        self.pose = pose;
         self.center = pose.transform_point3(self.settings.center);
         self.posed = self.rest.as_ref().map(|m| {
             if pose == Affine3A::IDENTITY {

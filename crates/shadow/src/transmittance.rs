@@ -66,15 +66,9 @@ pub fn sweep(density: &DensityMap, columns: Range<u32>) -> ColumnSlab {
     let mut depth = Vec::new();
     for col in columns.clone() {
         let s = span_of(density, col as usize, depth.len() as u32);
+        depth.resize(depth.len() + s.len(), 0.0);
+        sweep_span(density, col as usize, s, &mut depth, 0);
         spans.push(s);
-        match density.span(col as usize) {
-            None => {}
-            Some((lo, hi)) => {
-                let at = depth.len();
-                depth.resize(at + hi + 1 - lo, 0.0);
-                sweep_column(density.column(col as usize, lo..hi + 1), &mut depth[at..]);
-            }
-        }
     }
     ColumnSlab {
         columns,
@@ -97,6 +91,17 @@ fn span_of(density: &DensityMap, col: usize, start: u32) -> Span {
                 .front
                 .clamp(lo as f32, lo as f32 + 1.0 - Span::FRONT_GAP),
         },
+    }
+}
+
+/// Sweeps column `col`, whose span is `s`, into `depth`, a buffer whose
+/// first value is depth number `base` (spans count from the whole buffer).
+#[inline]
+fn sweep_span(density: &DensityMap, col: usize, s: Span, depth: &mut [f32], base: usize) {
+    if !s.is_empty() {
+        let at = s.start as usize - base;
+        let cells = density.column(col, s.lo as usize..s.hi as usize + 1);
+        sweep_column(cells, &mut depth[at..at + cells.len()]);
     }
 }
 
@@ -155,12 +160,7 @@ impl Transmittance {
         }
         parts.into_par_iter().for_each(|(range, base, part)| {
             for col in range {
-                let s = spans[col];
-                if !s.is_empty() {
-                    let at = s.start as usize - base;
-                    let cells = density.column(col, s.lo as usize..s.hi as usize + 1);
-                    sweep_column(cells, &mut part[at..at + cells.len()]);
-                }
+                sweep_span(density, col, spans[col], part, base);
             }
         });
         Transmittance {
