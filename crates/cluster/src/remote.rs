@@ -702,43 +702,30 @@ impl RemoteExecutor {
             first.first_column = share.start as u32;
             first.end_column = share.end as u32;
             sent += chunks.iter().map(|c| c.encoded_len() as u64).sum::<u64>();
-            requests.push((w.clone(), (chunks, share.clone())));
+            // The spans the slab will have: those of the density sent.
+            let range = share.start as u32..share.end as u32;
+            requests.push((w.clone(), (chunks, ColumnSlab::layout(map, range))));
         }
-        let n_cells = frame.n_cells;
         let t = Instant::now();
         let replies = fan_out(
             &self.rt,
             requests,
             "sweep",
             self.deadline,
-            move |mut w, (chunks, share)| async move {
+            move |mut w, (chunks, layout)| async move {
                 let s = w
                     .client
                     .sweep(tokio_stream::iter(chunks))
                     .await
                     .map_err(|s| call_error(&w.addr, "sweep", s))?
                     .into_inner();
-                let start = share.start as u32;
-                let mut slab = ColumnSlab {
-                    columns: start..start,
-                    spans: Vec::new(),
-                    depth: Vec::new(),
-                };
+                let mut reader = wire::SlabReader::new(layout);
                 let mut bytes = 0u64;
                 for c in collect(&w.addr, "sweep", s).await? {
                     bytes += c.encoded_len() as u64;
-                    wire::add_slab_chunk(&mut slab, &c, n_cells)
-                        .map_err(|e| malformed(&w.addr, e))?;
+                    reader.add(&c).map_err(|e| malformed(&w.addr, e))?;
                 }
-                if slab.columns.end as usize != share.end {
-                    return Err(malformed(
-                        &w.addr,
-                        format!(
-                            "slab ends at column {}, expected {}",
-                            slab.columns.end, share.end
-                        ),
-                    ));
-                }
+                let slab = reader.finish().map_err(|e| malformed(&w.addr, e))?;
                 Ok((w.addr, slab, bytes))
             },
         )?;

@@ -7,7 +7,7 @@
 use std::ops::Range;
 
 use glam::{Affine3A, Vec3};
-use shadow::{ColumnMeta, ColumnSlab, DensityMap, LightFrame, MAX_CELLS, Span};
+use shadow::{ColumnMeta, ColumnSlab, DensityMap, LightFrame, MAX_CELLS};
 use sim::{Body, WispState};
 use strands::Hair;
 
@@ -15,7 +15,7 @@ use crate::pb;
 
 /// The protocol version this build speaks. A coordinator and a worker of
 /// different versions refuse each other.
-pub const PROTOCOL_VERSION: u32 = 3;
+pub const PROTOCOL_VERSION: u32 = 4;
 
 /// Points per Deposit chunk: 3 floats each, 1.5 MB.
 pub const POINTS_PER_CHUNK: usize = 128 * 1024;
@@ -254,38 +254,43 @@ pub fn decode_columns(frame: &LightFrame, c: &pb::ColumnChunk) -> Result<Columns
     Ok(out)
 }
 
-/// A swept slab as chunks.
+/// A swept slab as chunks, each the depths of whole columns
+/// `first_column..end_column`: per occupied cell, the growth of the
+/// column's depth (in steps) since the cell before, from 0 at the column's
+/// first cell. The spans do not travel: the receiver knows them, as it
+/// sent the density they were swept from.
 pub fn slab_chunks(slab: &ColumnSlab) -> Vec<pb::SlabChunk> {
     let mut out = Vec::new();
+    let start = slab.columns.start;
     let mut chunk = pb::SlabChunk {
-        first_column: slab.columns.start,
+        first_column: start,
+        end_column: start,
         ..Default::default()
     };
     let (mut cells, mut runs) = (0usize, Runs::default());
     for (i, s) in slab.spans.iter().enumerate() {
         let len = s.len();
-        if !chunk.lo.is_empty() && cells + len > CELLS_PER_CHUNK {
+        if cells > 0 && cells + len > CELLS_PER_CHUNK {
             runs.finish(&mut chunk.depth_steps);
-            let next = slab.columns.start + i as u32;
+            let next = start + i as u32;
             out.push(std::mem::replace(
                 &mut chunk,
                 pb::SlabChunk {
                     first_column: next,
+                    end_column: next,
                     ..Default::default()
                 },
             ));
             cells = 0;
         }
-        chunk.lo.push(u32::from(s.lo));
-        chunk.hi.push(u32::from(s.hi));
-        chunk.front.push(s.front);
+        chunk.end_column += 1;
         if len > 0 {
-            let start = s.start as usize;
+            let first = s.start as usize;
             let mut prev = 0u32;
-            for d in &slab.depth[start..start + len] {
-                let bits = d.to_bits();
-                runs.push(bits.wrapping_sub(prev), &mut chunk.depth_steps);
-                prev = bits;
+            for &d in &slab.depth[first..first + len] {
+                // Depths never decrease along a column.
+                runs.push(d - prev, &mut chunk.depth_steps);
+                prev = d;
             }
             cells += len;
         }
@@ -295,69 +300,67 @@ pub fn slab_chunks(slab: &ColumnSlab) -> Vec<pb::SlabChunk> {
     out
 }
 
-/// Appends one slab chunk to `slab` (which covers the columns before it).
-/// Spans are checked by [`shadow::Transmittance::assemble`] afterwards;
-/// here only what indexing needs.
-pub fn add_slab_chunk(
-    slab: &mut ColumnSlab,
-    c: &pb::SlabChunk,
-    n_cells: u32,
-) -> Result<(), Malformed> {
-    let count = c.lo.len();
-    if c.hi.len() != count || c.front.len() != count {
-        return Err(bad(format!(
-            "{count} spans with {} hi and {} front values",
-            c.hi.len(),
-            c.front.len()
-        )));
+/// Receives a slab's chunks into the spans the receiver expects
+/// ([`ColumnSlab::layout`] of the density it sent): each chunk must
+/// continue where the last ended, carry exactly the depths of its
+/// columns' spans, and keep every depth within 32 bits.
+#[derive(Debug)]
+pub struct SlabReader {
+    slab: ColumnSlab,
+    next: u32,
+}
+
+impl SlabReader {
+    /// Expects the depths of `layout`'s spans (any depths it holds are
+    /// dropped).
+    pub fn new(mut layout: ColumnSlab) -> SlabReader {
+        layout.depth.clear();
+        let next = layout.columns.start;
+        SlabReader { slab: layout, next }
     }
-    if c.first_column != slab.columns.end {
-        return Err(bad(format!(
-            "slab chunk starts at column {}, expected {}",
-            c.first_column, slab.columns.end
-        )));
-    }
-    let mut need = 0usize;
-    for i in 0..count {
-        if c.lo[i] <= c.hi[i] {
-            if c.hi[i] >= n_cells {
-                return Err(bad(format!(
-                    "span {}..={} in a map of {n_cells} a side",
-                    c.lo[i], c.hi[i]
-                )));
-            }
-            need += (c.hi[i] - c.lo[i]) as usize + 1;
+
+    pub fn add(&mut self, c: &pb::SlabChunk) -> Result<(), Malformed> {
+        let cols = &self.slab.columns;
+        if c.first_column != self.next || c.end_column < c.first_column || c.end_column > cols.end {
+            return Err(bad(format!(
+                "slab chunk of columns {}..{}, expected {}.. up to {}",
+                c.first_column, c.end_column, self.next, cols.end
+            )));
         }
-    }
-    let mut steps = Vec::new();
-    unpack_runs(&c.depth_steps, need, &mut steps)?;
-    // The chunk's depths follow the slab's, span by span.
-    let mut start = slab.depth.len();
-    slab.depth.reserve(need);
-    let mut at = 0;
-    for i in 0..count {
-        let span = if c.lo[i] > c.hi[i] {
-            Span::EMPTY
-        } else {
-            let s = Span {
-                lo: c.lo[i] as u16,
-                hi: c.hi[i] as u16,
-                start: start as u32,
-                front: c.front[i],
-            };
-            let mut bits = 0u32;
+        let spans = &self.slab.spans
+            [(c.first_column - cols.start) as usize..(c.end_column - cols.start) as usize];
+        let need: usize = spans.iter().map(|s| s.len()).sum();
+        let mut steps = Vec::new();
+        unpack_runs(&c.depth_steps, need, &mut steps)?;
+        self.slab.depth.reserve(need);
+        let mut at = 0;
+        for s in spans {
+            let mut depth = 0u32;
             for &step in &steps[at..at + s.len()] {
-                bits = bits.wrapping_add(step);
-                slab.depth.push(f32::from_bits(bits));
+                depth = depth.checked_add(step).ok_or_else(|| {
+                    bad(format!(
+                        "a depth past 2^32 steps in the slab chunk of columns {}..{}",
+                        c.first_column, c.end_column
+                    ))
+                })?;
+                self.slab.depth.push(depth);
             }
             at += s.len();
-            start += s.len();
-            s
-        };
-        slab.spans.push(span);
+        }
+        self.next = c.end_column;
+        Ok(())
     }
-    slab.columns.end += count as u32;
-    Ok(())
+
+    /// The slab, once every column came.
+    pub fn finish(self) -> Result<ColumnSlab, Malformed> {
+        if self.next != self.slab.columns.end {
+            return Err(bad(format!(
+                "slab ends at column {}, expected {}",
+                self.next, self.slab.columns.end
+            )));
+        }
+        Ok(self.slab)
+    }
 }
 
 /// Zero-run varint packing of 32-bit values: each nonzero value `v` is
@@ -674,38 +677,82 @@ mod tests {
         assert!(small.capacity() < 1000);
     }
 
-    #[test]
-    fn slabs_round_trip_bit_for_bit() {
-        let slab = ColumnSlab {
-            columns: 4..7,
-            spans: vec![
-                Span {
-                    lo: 2,
-                    hi: 5,
-                    start: 0,
-                    front: 2.25,
-                },
-                Span::EMPTY,
-                Span {
-                    lo: 0,
-                    hi: 1,
-                    start: 4,
-                    front: 0.5,
-                },
-            ],
-            depth: vec![0.0, 0.1, 0.1, 7.5, 1e-30, f32::MAX],
-        };
-        let mut back = ColumnSlab {
-            columns: 4..4,
-            spans: Vec::new(),
-            depth: Vec::new(),
-        };
-        for c in slab_chunks(&slab) {
-            add_slab_chunk(&mut back, &c, 8).unwrap();
+    /// A map of 8 a side with a few occupied columns, one of them
+    /// saturating its cells.
+    fn swept_map() -> DensityMap {
+        let light = shadow::Light::directional(Vec3::X).unwrap();
+        let frame = LightFrame::centered(&light, Vec3::ZERO, 8.0, 8).unwrap();
+        let mut map = DensityMap::new(frame);
+        map.add_quanta(2, 1, 0, 1000);
+        map.add_quanta(5, 1, 0, 77);
+        map.add_quanta(0, 6, 0, 3 << 20);
+        for i in 0..8 {
+            map.add_quanta(i, 3, 2, u32::MAX);
         }
-        assert_eq!(back.columns, slab.columns);
-        assert_eq!(back.spans, slab.spans);
-        let bits = |d: &[f32]| d.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-        assert_eq!(bits(&back.depth), bits(&slab.depth));
+        map
+    }
+
+    fn read(layout: ColumnSlab, chunks: &[pb::SlabChunk]) -> Result<ColumnSlab, Malformed> {
+        let mut r = SlabReader::new(layout);
+        for c in chunks {
+            r.add(c)?;
+        }
+        r.finish()
+    }
+
+    #[test]
+    fn slabs_round_trip_exactly_into_the_senders_spans() {
+        let map = swept_map();
+        for cols in [0..64, 0..7, 7..64, 20..20] {
+            let slab = shadow::sweep(&map, cols.clone());
+            let back = read(ColumnSlab::layout(&map, cols), &slab_chunks(&slab)).unwrap();
+            assert_eq!(back, slab);
+        }
+        // The saturated column: 8 cells of 2^32 - 1 quanta reach 2^27
+        // steps; 3 * 2^20 quanta are 3 * 2^12 steps.
+        let slab = shadow::sweep(&map, 0..64);
+        let saturated = ((8 * u64::from(u32::MAX) + 128) >> 8) as u32;
+        assert_eq!(slab.depth.last(), Some(&saturated));
+        assert!(slab.depth.contains(&(3 << 12)));
+    }
+
+    #[test]
+    fn slab_chunks_out_of_place_or_overflowing_are_refused() {
+        let map = swept_map();
+        let layout = || ColumnSlab::layout(&map, 0..64);
+        let chunks = slab_chunks(&shadow::sweep(&map, 0..64));
+        assert_eq!(chunks.len(), 1);
+        let mut c = chunks[0].clone();
+        c.first_column = 1;
+        assert!(read(layout(), &[c]).is_err(), "a gap before the chunk");
+        // Columns 0..10 hold fewer depths than the chunk carries.
+        let mut c = chunks[0].clone();
+        c.end_column = 10;
+        assert!(read(layout(), &[c]).is_err(), "depths left over");
+        let mut c = chunks[0].clone();
+        c.end_column = 65;
+        assert!(read(layout(), &[c]).is_err(), "past the slab");
+        // Two halves are fine; one half is not the whole slab.
+        let slab = shadow::sweep(&map, 0..64);
+        let halves: Vec<_> = [0..20, 20..64]
+            .into_iter()
+            .flat_map(|r| slab_chunks(&shadow::sweep(&map, r)))
+            .collect();
+        assert_eq!(read(layout(), &halves).unwrap(), slab);
+        let e = read(layout(), &halves[..1]).unwrap_err().to_string();
+        assert!(e.contains("slab ends at column 20, expected 64"), "{e}");
+        // Growth past 32 bits within a column.
+        let big = pb::SlabChunk {
+            first_column: 0,
+            end_column: 64,
+            depth_steps: {
+                let n = layout().cells();
+                let mut v = vec![1u32; n];
+                v[n - 1] = u32::MAX;
+                pack(&v)
+            },
+        };
+        let e = read(layout(), &[big]).unwrap_err().to_string();
+        assert!(e.contains("past 2^32"), "{e}");
     }
 }

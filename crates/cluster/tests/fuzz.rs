@@ -14,6 +14,15 @@ fn frame() -> LightFrame {
     LightFrame::centered(&light, Vec3::ZERO, 2.0, 8).unwrap()
 }
 
+/// A map of frame `f` with hair in a few columns.
+fn occupied_map(f: &LightFrame) -> DensityMap {
+    let mut map = DensityMap::new(*f);
+    for (i, j, k) in [(0, 0, 0), (3, 0, 0), (7, 5, 2), (2, 7, 7)] {
+        map.add_quanta(i, j, k, 1 << 20);
+    }
+    map
+}
+
 /// Every check a received message goes through, on `bytes` decoded as
 /// each message type that decodes.
 fn check_all(bytes: &[u8]) {
@@ -32,13 +41,13 @@ fn check_all(bytes: &[u8]) {
         let _ = wire::merge_columns(&mut map, &m);
     }
     if let Ok(m) = pb::SlabChunk::decode(bytes) {
-        let mut slab = ColumnSlab {
-            columns: m.first_column..m.first_column,
-            spans: Vec::new(),
-            depth: Vec::new(),
-        };
-        if wire::add_slab_chunk(&mut slab, &m, f.n_cells).is_ok() {
-            let _ = shadow::Transmittance::check_slab(&f, &slab);
+        let map = occupied_map(&f);
+        let layout = ColumnSlab::layout(&map, 0..f.columns() as u32);
+        let mut reader = wire::SlabReader::new(layout);
+        if reader.add(&m).is_ok()
+            && let Ok(slab) = reader.finish()
+        {
+            shadow::Transmittance::check_slab(&f, &slab).unwrap();
         }
     }
     if let Ok(m) = pb::StepRequest::decode(bytes) {
@@ -92,7 +101,7 @@ proptest! {
         flips in proptest::collection::vec((any::<usize>(), any::<u8>()), 1..8),
         cut in any::<usize>(),
     ) {
-        // A real Deposit chunk and column chunk, damaged.
+        // A real Deposit chunk, column chunk and slab chunk, damaged.
         let f = frame();
         let mut hair = strands::Hair::new();
         hair.push_strand(&[Vec3::ZERO, Vec3::new(0.1, 0.2, 0.0), Vec3::new(0.2, 0.5, 0.1)]).unwrap();
@@ -100,7 +109,9 @@ proptest! {
         let mut map = DensityMap::new(f);
         map.deposit(&hair, 0..1, &shadow::Fiber::new(0.1, 0.5).unwrap());
         let columns = wire::column_chunks(&map, 0..f.columns()).remove(0);
-        for msg in [deposit.encode_to_vec(), columns.encode_to_vec()] {
+        let full = 0..f.columns() as u32;
+        let slab = wire::slab_chunks(&shadow::sweep(&occupied_map(&f), full)).remove(0);
+        for msg in [deposit.encode_to_vec(), columns.encode_to_vec(), slab.encode_to_vec()] {
             let mut b = msg;
             for &(at, x) in &flips {
                 if !b.is_empty() {

@@ -31,7 +31,7 @@ pub use method::{
     Beyond, DensityMapMethod, MethodConfig, OPAQUE_DEPTH, OpacityMode, ShadowInput, ShadowMethod,
 };
 pub use occluder::{Occluder, OccluderView};
-pub use transmittance::{ColumnSlab, Span, Transmittance, sweep};
+pub use transmittance::{ColumnSlab, DEPTH_STEP, Span, Transmittance, sweep};
 
 /// Errors of the shadow stages.
 #[derive(Debug, thiserror::Error, PartialEq)]

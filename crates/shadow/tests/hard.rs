@@ -184,7 +184,13 @@ fn extremely_dense_hair_keeps_optical_depth_finite_and_leaves_no_light() {
         d.is_finite() && d > 100.0,
         "optical depth {d} behind the core"
     );
-    assert_eq!(t.optical_depth(behind + light.direction(), true), d);
+    // Further along the light the across-light coordinates (the filter's
+    // weights) may differ in their last bit, nothing more.
+    let further = t.optical_depth(behind + light.direction(), true);
+    assert!(
+        (further - d).abs() <= 1e-6 * d,
+        "optical depth {further} further on, {d} behind the core"
+    );
 }
 
 #[test]
