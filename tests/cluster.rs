@@ -233,6 +233,29 @@ fn bench_scaling_reports_every_configuration_and_writes_its_plot() {
         assert_eq!(c["identical"], true);
         assert!(c["frame_ms"].as_f64().unwrap() > 0.0);
         assert!(c["wire_mb_per_frame"].as_f64().unwrap() > 0.0);
+        // The median frame's bytes by stage add up to its total; an
+        // animated, self-shadowed frame steps wisps, fills and sweeps.
+        let w = &c["wire_bytes_median_frame"];
+        let part = |k: &str| w[k].as_u64().unwrap();
+        let parts = [
+            "assign_sent",
+            "step_sent",
+            "wisps_received",
+            "strands_sent",
+            "density_received",
+            "density_sent",
+            "slabs_received",
+        ];
+        assert_eq!(parts.iter().map(|k| part(k)).sum::<u64>(), part("total"));
+        for k in [
+            "step_sent",
+            "wisps_received",
+            "density_received",
+            "density_sent",
+            "slabs_received",
+        ] {
+            assert!(part(k) > 0, "{k} in {w}");
+        }
     }
     assert_eq!(
         j["cores"].as_u64().unwrap() as usize,

@@ -103,6 +103,8 @@ struct Row {
     sweep_ms: f64,
     coordinator_ms: f64,
     wire_mb: f64,
+    /// The bytes of the timed frame with the median total, by stage.
+    wire: cluster::Traffic,
     identical: bool,
 }
 
@@ -179,6 +181,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
         sweep_ms: 0.0,
         coordinator_ms: 0.0,
         wire_mb: 0.0,
+        wire: cluster::Traffic::default(),
         identical: true,
     }];
 
@@ -195,6 +198,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
         let mut seq = engine::Sequence::new(&scene).context("cannot set up the scene")?;
         seq.set_executor(Box::new(ex));
         let mut v: [Vec<f64>; 7] = Default::default();
+        let mut frames_traffic = Vec::new();
         let mut identical = true;
         for f in 0..total {
             let (b0, c0) = (*lock(&traffic)?, *lock(&timing)?);
@@ -207,6 +211,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
                 let step = c1.step_wall_ms - c0.step_wall_ms;
                 let fill = c1.fill_ms - c0.fill_ms;
                 let sweep = c1.sweep_ms - c0.sweep_ms;
+                frames_traffic.push(b1.since(&b0));
                 for (v, x) in v.iter_mut().zip([
                     ms,
                     step,
@@ -222,6 +227,11 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
             bar.inc(1);
         }
         let m: Vec<f64> = v.iter_mut().map(|x| median(x)).collect();
+        frames_traffic.sort_by_key(cluster::Traffic::total);
+        let wire = frames_traffic
+            .get(frames_traffic.len() / 2)
+            .copied()
+            .unwrap_or_default();
         rows.push(Row {
             label: format!("{k} worker{}", if k == 1 { "" } else { "s" }),
             workers: k,
@@ -232,6 +242,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
             sweep_ms: m[4],
             coordinator_ms: m[5],
             wire_mb: m[6],
+            wire,
             identical,
         });
     }
@@ -273,6 +284,13 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
     eprintln!(
         "bench scaling: step = wall time of the wisps' Step calls (slowest = the slowest worker's own compute), fill = Deposit calls and merging, sweep = Sweep calls and assembling, coord = the rest of the frame on the coordinator (pose, self-collision field, filter, shade, draw); MB = bytes on the wire per frame; same = pictures identical to one process"
     );
+    for r in rows.iter().skip(1) {
+        eprintln!(
+            "bench scaling: {}, bytes of the median frame: {}",
+            r.label,
+            r.wire.summary()
+        );
+    }
     let labels: Vec<String> = rows.iter().map(|r| r.label.clone()).collect();
     let values: Vec<f64> = rows.iter().map(|r| r.frame_ms).collect();
     let limits = match (nodes.cpu_limited(), nodes.bandwidth_limited()) {
@@ -319,6 +337,16 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
                 "sweep_ms": r.sweep_ms,
                 "coordinator_ms": r.coordinator_ms,
                 "wire_mb_per_frame": r.wire_mb,
+                "wire_bytes_median_frame": {
+                    "total": r.wire.total(),
+                    "assign_sent": r.wire.assign_sent,
+                    "step_sent": r.wire.step_sent,
+                    "wisps_received": r.wire.wisps_received,
+                    "strands_sent": r.wire.strands_sent,
+                    "density_received": r.wire.density_received,
+                    "density_sent": r.wire.density_sent,
+                    "slabs_received": r.wire.slabs_received,
+                },
                 "identical": r.identical,
             })).collect::<Vec<_>>(),
         });
