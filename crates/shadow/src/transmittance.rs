@@ -105,9 +105,9 @@ impl ColumnSlab {
 }
 
 /// Sweeps columns `columns` of `density` (paper 4.2): along each column from
-/// the slice nearest the light, accumulate optical depth. Integer
-/// accumulation (then one rounding per cell) makes the result exact and
-/// independent of how columns are split.
+/// the slice nearest the light, accumulate optical depth. Exact integer
+/// sums, each rounded once to a step, make the result independent of how
+/// columns are split.
 pub fn sweep(density: &DensityMap, columns: Range<u32>) -> ColumnSlab {
     let mut slab = ColumnSlab::layout(density, columns.clone());
     slab.depth = vec![0; slab.cells()];
@@ -449,6 +449,28 @@ mod tests {
             0.0,
             "a neighbouring column is empty"
         );
+    }
+
+    #[test]
+    fn the_sweep_rounds_each_cumulative_depth_once_to_the_nearest_step() {
+        let light = Light::directional(Vec3::X).unwrap();
+        let frame = LightFrame::centered(&light, Vec3::ZERO, 8.0, 8).unwrap();
+        let mut map = DensityMap::new(frame);
+        // A step is 256 quanta. Cells of 100, 100, 100, 27, 1 quanta:
+        // cumulative 100, 200, 300, 327, 328, i.e. 0.39, 0.78, 1.17, 1.28,
+        // 1.28 steps (128 quanta is half a step and rounds up).
+        for (i, q) in [100, 100, 100, 27, 1].into_iter().enumerate() {
+            map.add_quanta(i + 1, 4, 4, q);
+        }
+        let slab = sweep(&map, 36..37);
+        assert_eq!(slab.depth, vec![0, 1, 1, 1, 1]);
+        // Rounding each cell on its own would give 0, 0, 0, 0, 0.
+        let mut map = DensityMap::new(frame);
+        map.add_quanta(2, 4, 4, 128);
+        map.add_quanta(3, 4, 4, 127);
+        assert_eq!(sweep(&map, 36..37).depth, vec![1, 1]);
+        let t = Transmittance::compute(&map);
+        assert_eq!(t.column_depth(4, 4, 100.0) as f64, DEPTH_STEP);
     }
 
     #[test]
