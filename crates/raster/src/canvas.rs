@@ -457,15 +457,19 @@ impl Canvas {
             |acc: &mut Vec<Acc>, (band, out)| {
                 let y0 = band * BAND;
                 let rows = out.len() / (3 * w);
-                acc.clear();
-                acc.resize(rows * w, Acc::EMPTY);
+                // Empty between bands: compositing empties each sum as it
+                // reads it, so no separate pass clears the buffer.
+                if acc.len() < rows * w {
+                    acc.resize(rows * w, Acc::EMPTY);
+                }
+                let acc = &mut acc[..rows * w];
                 for &(a, b, look) in chunks.iter().flat_map(|c| &c[band]) {
                     self.rasterize(a, b, &self.looks[look as usize].1, y0, rows, acc);
                 }
                 let depth = &self.depth[y0 * w..(y0 + rows) * w];
                 let opaque = &self.opaque[y0 * w..(y0 + rows) * w];
                 for (i, px) in out.chunks_exact_mut(3).enumerate() {
-                    let a = acc[i];
+                    let a = std::mem::replace(&mut acc[i], Acc::EMPTY);
                     let covered = depth[i].is_finite();
                     if a.weight == 0.0 && !covered {
                         px.copy_from_slice(&bg);
@@ -505,30 +509,62 @@ impl Canvas {
         let (wa, wb) = (weight(a.p.z), weight(b.p.z));
         let depth = &self.depth[y0 * w..(y0 + rows) * w];
         let clip = [0, w as i32, y0 as i32, (y0 + rows) as i32];
-        line_steps(a, b, clip, |steep, s| {
-            // What the step's two pixels share: depth, colour, weight.
-            let t = s.t;
-            let z = a.p.z + t * (b.p.z - a.p.z);
-            let c = (a.color + t * (b.color - a.color)).max(Vec3::ZERO);
-            let wt = wa + t * (wb - wa);
-            let step_alpha = opacity * s.cov;
-            for (r, share) in [(s.minor, s.shares[0]), (s.minor + 1, s.shares[1])] {
-                let alpha = (step_alpha * share).min(MAX_ALPHA);
-                if alpha <= 0.0 {
-                    continue;
-                }
-                let (x, y) = if steep { (r, s.major) } else { (s.major, r) };
-                let px = (y as usize - y0) * w + x as usize;
-                if z >= depth[px] {
-                    continue;
-                }
-                let aw = alpha * wt;
-                let cell = &mut acc[px];
-                cell.rgb += c * aw;
-                cell.weight += aw;
-                cell.reveal *= 1.0 - alpha;
+        let band = Band {
+            w,
+            y0,
+            depth,
+            opacity,
+            wa,
+            wb,
+        };
+        // One copy of the loop per major axis, with no per-fragment test of
+        // which axis is which.
+        if is_steep(a, b) {
+            line_steps::<true>(a, b, clip, |s| band.add::<true>(a, b, s, acc));
+        } else {
+            line_steps::<false>(a, b, clip, |s| band.add::<false>(a, b, s, acc));
+        }
+    }
+}
+
+/// What every step of one segment in one band shares.
+struct Band<'a> {
+    w: usize,
+    y0: usize,
+    /// The band's rows of the opaque layer's depth.
+    depth: &'a [f32],
+    opacity: f32,
+    /// Depth weights at the segment's ends.
+    wa: f32,
+    wb: f32,
+}
+
+impl Band<'_> {
+    /// Adds one step's two fragments to `acc`; `STEEP`: y is the major axis.
+    #[inline(always)]
+    fn add<const STEEP: bool>(&self, a: ScreenVertex, b: ScreenVertex, s: Step, acc: &mut [Acc]) {
+        // What the step's two pixels share: depth, colour, weight.
+        let t = s.t;
+        let z = a.p.z + t * (b.p.z - a.p.z);
+        let c = (a.color + t * (b.color - a.color)).max(Vec3::ZERO);
+        let wt = self.wa + t * (self.wb - self.wa);
+        let step_alpha = self.opacity * s.cov;
+        for (r, share) in [(s.minor, s.shares[0]), (s.minor + 1, s.shares[1])] {
+            let alpha = (step_alpha * share).min(MAX_ALPHA);
+            if alpha <= 0.0 {
+                continue;
             }
-        });
+            let (x, y) = if STEEP { (r, s.major) } else { (s.major, r) };
+            let px = (y as usize - self.y0) * self.w + x as usize;
+            if z >= self.depth[px] {
+                continue;
+            }
+            let aw = alpha * wt;
+            let cell = &mut acc[px];
+            cell.rgb += c * aw;
+            cell.weight += aw;
+            cell.reveal *= 1.0 - alpha;
+        }
     }
 }
 
@@ -562,7 +598,8 @@ fn encode(lut: &[u8], c: Vec3) -> [u8; 3] {
         } else {
             0.0
         };
-        *p = lut[(v * SRGB_STEPS as f32 + 0.5) as usize];
+        // v in [0, 1]: the index fits i32 (a cheaper conversion than to usize).
+        *p = lut[(v * SRGB_STEPS as f32 + 0.5) as i32 as usize];
     }
     px
 }
@@ -592,14 +629,20 @@ fn srgb8(v: f32) -> u8 {
 #[cfg(test)]
 fn line_fragments(a: ScreenVertex, b: ScreenVertex, mut emit: impl FnMut(i32, i32, f32, f32)) {
     let all = [i32::MIN, i32::MAX, i32::MIN, i32::MAX];
-    line_steps(a, b, all, |steep, s| {
+    let steep = is_steep(a, b);
+    let mut each = |s: Step| {
         for (r, share) in [(s.minor, s.shares[0]), (s.minor + 1, s.shares[1])] {
             if share > 0.0 {
                 let (x, y) = if steep { (r, s.major) } else { (s.major, r) };
                 emit(x, y, s.t, s.cov * share);
             }
         }
-    });
+    };
+    if steep {
+        line_steps::<true>(a, b, all, &mut each);
+    } else {
+        line_steps::<false>(a, b, all, &mut each);
+    }
 }
 
 /// `ceil(x)` as an integer, by truncation (`ceil` is a libm call on
@@ -627,14 +670,27 @@ struct Step {
     shares: [f32; 2],
 }
 
-/// [`line_fragments`] restricted to the pixels `x0..x1`, `y0..y1` of
-/// `clip`, a step at a time: `emit(steep, step)`, where a steep line's
-/// major axis is y. The same fragments inside the clip, and no work spent
-/// outside (a segment that reaches far off screen costs only its visible
-/// steps).
-fn line_steps(a: ScreenVertex, b: ScreenVertex, clip: [i32; 4], mut emit: impl FnMut(bool, Step)) {
+/// Whether y is the major axis of the line from `a` to `b`.
+#[inline]
+fn is_steep(a: ScreenVertex, b: ScreenVertex) -> bool {
     let d = b.p - a.p;
-    let steep = d.y.abs() > d.x.abs();
+    d.y.abs() > d.x.abs()
+}
+
+/// [`line_fragments`] restricted to the pixels `x0..x1`, `y0..y1` of
+/// `clip`, a step at a time: `emit(step)`, along y when `STEEP` (which
+/// must be [`is_steep`]), else along x. The same fragments inside the clip,
+/// and no work spent outside (a segment that reaches far off screen costs
+/// only its visible steps).
+#[inline(always)]
+fn line_steps<const STEEP: bool>(
+    a: ScreenVertex,
+    b: ScreenVertex,
+    clip: [i32; 4],
+    mut emit: impl FnMut(Step),
+) {
+    let d = b.p - a.p;
+    let steep = STEEP;
     // Major axis u, minor axis v, and the clip along each.
     let (ua, va, du, dv, (u_lo, u_hi), (v_lo, v_hi)) = if steep {
         (
@@ -701,16 +757,13 @@ fn line_steps(a: ScreenVertex, b: ScreenVertex, clip: [i32; 4], mut emit: impl F
             if inside(r0.saturating_add(1)) { f } else { 0.0 },
         ];
         if shares[0] > 0.0 || shares[1] > 0.0 {
-            emit(
-                steep,
-                Step {
-                    major: k,
-                    t,
-                    cov,
-                    minor: r0,
-                    shares,
-                },
-            );
+            emit(Step {
+                major: k,
+                t,
+                cov,
+                minor: r0,
+                shares,
+            });
         }
     }
 }

@@ -72,7 +72,11 @@ impl ColumnMeta {
     fn include(&mut self, i: u16, front: f32) {
         self.lo = self.lo.min(i);
         self.hi = self.hi.max(i);
-        self.front = self.front.min(front);
+        // `min` without `f32::min`'s NaN handling (a NaN front changes
+        // nothing either way, and `self.front` starts infinite, never NaN).
+        if front < self.front {
+            self.front = front;
+        }
     }
 }
 

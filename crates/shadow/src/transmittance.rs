@@ -174,8 +174,53 @@ fn sweep_column<T>(quanta: &[u32], depth: &mut [T], store: impl Fn(u32) -> T) {
 pub struct Transmittance {
     frame: LightFrame,
     n: usize,
-    spans: Vec<Span>,
+    /// Columns as the filter reads them, on a grid padded by
+    /// [`COL_PAD`] columns on each side (see [`Col`]).
+    cols: Vec<Col>,
     depth: Vec<f32>,
+}
+
+/// Padding columns on each side of [`Transmittance::cols`]: lookups reach
+/// columns -2 to n + 2 (points outside the map are clamped to 2 cells
+/// beyond it), and those outside the map are empty, with no bounds tests.
+const COL_PAD: usize = 2;
+
+/// One column's span in the form the filter reads fastest: no hair in
+/// front of `front` (infinite for an empty column), depths of cells
+/// `lo..=lo + last` from `start` on.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Col {
+    front: f32,
+    lo: f32,
+    start: u32,
+    last: u32,
+}
+
+impl Col {
+    const EMPTY: Col = Col {
+        front: f32::INFINITY,
+        lo: 0.0,
+        start: 0,
+        last: 0,
+    };
+}
+
+/// The padded column table of a map of `n^2` columns with `spans`.
+fn col_table(n: usize, spans: &[Span]) -> Vec<Col> {
+    let side = n + 2 * COL_PAD + 1;
+    let mut cols = vec![Col::EMPTY; side * side];
+    for (col, s) in spans.iter().enumerate() {
+        if !s.is_empty() {
+            let (j, k) = (col % n, col / n);
+            cols[(k + COL_PAD) * side + j + COL_PAD] = Col {
+                front: s.front,
+                lo: f32::from(s.lo),
+                start: s.start,
+                last: u32::from(s.hi - s.lo),
+            };
+        }
+    }
+    cols
 }
 
 impl Transmittance {
@@ -216,7 +261,7 @@ impl Transmittance {
         Transmittance {
             frame,
             n,
-            spans,
+            cols: col_table(n, &spans),
             depth,
         }
     }
@@ -311,7 +356,7 @@ impl Transmittance {
         Ok(Transmittance {
             frame,
             n,
-            spans,
+            cols: col_table(n, &spans),
             depth,
         })
     }
@@ -327,24 +372,24 @@ impl Transmittance {
     /// the back face. Exactly 0 in front of the column's hair.
     #[inline(always)]
     fn column_depth(&self, j: i32, k: i32, x: f32) -> f32 {
-        let n = self.n as i32;
-        if j < 0 || k < 0 || j >= n || k >= n {
+        // j, k >= -2 (see COL_PAD); past n + 2 the index fails loudly.
+        let side = self.n + 2 * COL_PAD + 1;
+        let c = self.cols[(k + COL_PAD as i32) as usize * side + (j + COL_PAD as i32) as usize];
+        if x <= c.front {
             return 0.0;
         }
-        let s = self.spans[(k * n + j) as usize];
-        if s.is_empty() || x <= s.front {
-            return 0.0;
+        let rel = x - c.lo;
+        // The same as `rel as usize` (truncating, saturating at 0), but
+        // float-to-i32 is one instruction and a check, float-to-usize a
+        // branchy sequence on x86-64.
+        let i = (rel as i32).max(0) as u32;
+        if i > c.last {
+            return self.depth[(c.start + c.last) as usize];
         }
-        let lo = f32::from(s.lo);
-        let rel = x - lo;
-        let i = rel as usize;
-        if i >= s.len() {
-            return self.depth[s.start as usize + s.len() - 1];
-        }
-        let at = s.start as usize + i;
+        let at = (c.start + i) as usize;
         if i == 0 {
             // The first cell's hair fills [front, lo + 1).
-            return self.depth[at] * ((x - s.front) / (lo + 1.0 - s.front));
+            return self.depth[at] * ((x - c.front) / (c.lo + 1.0 - c.front));
         }
         let t = rel - i as f32;
         let front = self.depth[at - 1];
