@@ -44,9 +44,27 @@ fn every_example_scene_loads_and_builds_its_hair() {
 #[test]
 fn the_sintel_scene_grows_the_real_groom_into_a_full_head() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/sintel.toml");
-    let hair = build_hair(&Scene::load(&path).unwrap()).unwrap();
+    let scene = Scene::load(&path).unwrap();
+    let hair = build_hair(&scene).unwrap();
     // 228 guides, each with 15 followers, 31 segments each, subdivided in 2
     // by Catmull-Rom: the 226K segments the README quotes.
     assert_eq!(hair.strand_count(), 228 * 16);
     assert_eq!(hair.segment_count(), 228 * 16 * 31 * 2);
+    // The head sphere fitted to the roots holds no hair, and every strand
+    // starts near its surface (within 4 units: the guides' roots lie 8.15 to
+    // 10.9 from the fitted centre, follow strands up to 0.4 further).
+    let head = scene.head.as_ref().expect("the Sintel scene has a head");
+    for (s, strand) in hair.strands().enumerate() {
+        for p in strand {
+            assert!(
+                p.distance(head.center) >= head.radius,
+                "strand {s}: {p} inside the head"
+            );
+        }
+        let root = strand[0].distance(head.center);
+        assert!(
+            root <= head.radius + 4.0,
+            "strand {s}: root {root} from the centre"
+        );
+    }
 }
