@@ -564,4 +564,50 @@ mod tests {
             "missing columns are refused"
         );
     }
+
+    #[test]
+    fn lookups_anywhere_around_the_map_read_the_nearest_edge_column_or_nothing() {
+        // Hair in every column of a 4^3 map, so that every edge column is
+        // occupied; then points from 10 cells before to 10 cells past the
+        // map on every axis.
+        let light = Light::directional(Vec3::X).unwrap();
+        let frame = LightFrame::centered(&light, Vec3::ZERO, 4.0, 4).unwrap();
+        let mut map = DensityMap::new(frame);
+        let q = (0.25 / DEPTH_QUANTUM) as u32;
+        for k in 0..4 {
+            for j in 0..4 {
+                map.add_quanta(1, j, k, q);
+            }
+        }
+        let t = Transmittance::compute(&map);
+        let total = t.column_depth(0, 0, 100.0);
+        assert!((total - 0.25).abs() < 1e-6);
+        for x in -10..=14 {
+            for y in -10..=14 {
+                for z in -10..=14 {
+                    let c = Vec3::new(x as f32, y as f32, z as f32) + 0.25;
+                    let p = frame.to_world(c);
+                    for filter in [true, false] {
+                        let d = t.optical_depth(p, filter);
+                        assert!(
+                            d.is_finite() && (0.0..=total + 1e-6).contains(&d),
+                            "D = {d} at cell coordinates {c}, filter {filter}"
+                        );
+                        let inside_across = (0.0..4.0).contains(&c.y) && (0.0..4.0).contains(&c.z);
+                        if c.x <= 1.0 {
+                            // In front of all hair: nothing at all.
+                            assert_eq!(d, 0.0, "in front at {c}");
+                        } else if c.x >= 2.0 && inside_across && !filter {
+                            // Behind the hair, within the map's columns.
+                            assert!((d - total).abs() < 1e-6, "behind at {c}: {d}");
+                        }
+                        if !(-2.5..6.5).contains(&c.y) || !(-2.5..6.5).contains(&c.z) {
+                            // Clamped two cells beyond the map: no column there.
+                            assert_eq!(d, 0.0, "far to the side at {c}");
+                        }
+                    }
+                }
+            }
+        }
+    }
 }
