@@ -1,24 +1,15 @@
 //! Every example scene of `scenes/` loads and builds its hair on a fresh
 //! clone: no scene may point at a file the repository does not hold.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use engine::{Scene, build_hair};
 
-fn example_scenes() -> Vec<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
-    let mut v: Vec<PathBuf> = std::fs::read_dir(&dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
-        .collect();
-    v.sort();
-    v
-}
+mod common;
 
 #[test]
 fn every_example_scene_loads_and_builds_its_hair() {
-    let scenes = example_scenes();
+    let scenes = common::scene_files("scenes");
     let names: Vec<String> = scenes
         .iter()
         .map(|p| p.file_stem().unwrap().to_string_lossy().into_owned())

@@ -6,15 +6,11 @@ use std::path::{Path, PathBuf};
 
 use engine::{Scene, Sequence};
 
+mod common;
+
 fn hard_scenes() -> Vec<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/hard");
-    let mut v: Vec<PathBuf> = std::fs::read_dir(&dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
-        .collect();
-    v.sort();
-    assert!(v.len() >= 12, "the hard scenes are in {}", dir.display());
+    let v = common::scene_files("scenes/hard");
+    assert!(v.len() >= 12, "the hard scenes are in scenes/hard");
     v
 }
 
