@@ -497,6 +497,15 @@ impl Validator<'_> {
             })
     }
 
+    /// A file named in the scene: relative paths are relative to the
+    /// scene file's folder.
+    fn relative(&self, file: &Path) -> PathBuf {
+        match self.path.parent() {
+            Some(dir) if file.is_relative() => dir.join(file),
+            _ => file.to_owned(),
+        }
+    }
+
     fn positive(
         &self,
         field: &'static str,
@@ -596,10 +605,7 @@ impl Validator<'_> {
                 HairSource::Inline(self.inline_strands(strands)?)
             }
             (None, Some(file)) => {
-                let path = match self.path.parent() {
-                    Some(dir) if file.is_relative() => dir.join(file),
-                    _ => file.clone(),
-                };
+                let path = self.relative(file);
                 let tfx = path
                     .extension()
                     .is_some_and(|e| e.eq_ignore_ascii_case("tfx"));
@@ -772,10 +778,7 @@ impl Validator<'_> {
                         ));
                     }
                     Some(HeadMesh {
-                        path: match self.path.parent() {
-                            Some(dir) if file.is_relative() => dir.join(file),
-                            _ => file,
-                        },
+                        path: self.relative(&file),
                         scale,
                         offset: vec3("head.mesh_offset", hd.mesh_offset)?.unwrap_or(Vec3::ZERO),
                     })

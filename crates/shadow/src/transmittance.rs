@@ -231,15 +231,9 @@ impl Transmittance {
         let frame = *density.frame();
         let n = frame.n_cells as usize;
         let cols = frame.columns();
-        // Where each column's depths start: a running sum of span lengths.
-        let mut spans = Vec::with_capacity(cols);
-        let mut total = 0u32;
-        for col in 0..cols {
-            let s = span_of(density, col, total);
-            total += s.len() as u32;
-            spans.push(s);
-        }
-        let mut depth = vec![0.0f32; total as usize];
+        let layout = ColumnSlab::layout(density, 0..cols as u32);
+        let mut depth = vec![0.0f32; layout.cells()];
+        let spans = layout.spans;
         // Groups of columns, each sweeping into its own part of `depth`.
         let group = cols.div_ceil(64).max(256);
         let mut parts = Vec::with_capacity(cols.div_ceil(group));

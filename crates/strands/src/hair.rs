@@ -45,6 +45,13 @@ impl Bounds {
             max: Vec3::splat(f32::NEG_INFINITY),
         }
     }
+    /// The smallest box holding `points` (empty for none).
+    pub fn of(points: &[Vec3]) -> Self {
+        points.iter().fold(Bounds::empty(), |mut b, &p| {
+            b.include(p);
+            b
+        })
+    }
     pub fn is_empty(&self) -> bool {
         self.min.x > self.max.x
     }
@@ -174,10 +181,7 @@ impl Hair {
     }
 
     pub fn bounds(&self) -> Bounds {
-        self.points.iter().fold(Bounds::empty(), |mut b, &p| {
-            b.include(p);
-            b
-        })
+        Bounds::of(&self.points)
     }
 
     /// Length of the longest strand, `l_max` in the paper's map bound.

@@ -104,11 +104,7 @@ impl Mesh {
     }
 
     pub fn bounds(&self) -> Bounds {
-        let mut b = Bounds::empty();
-        for &p in &self.positions {
-            b.include(p);
-        }
-        b
+        Bounds::of(&self.positions)
     }
 
     /// The mesh moved by `m`, a rigid motion with uniform scale (normals
