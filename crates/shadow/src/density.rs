@@ -27,21 +27,38 @@ const EMPTY_LO: u16 = u16::MAX;
 ///
 /// Cells are stored column-major, `(k * n + j) * n + i`: the transmittance
 /// sweep reads each `(j, k)` column as one contiguous run. Each column also
-/// records its first and last occupied slice, so that clearing and sweeping
-/// cost time in proportion to the hair, not to `n^3`.
+/// knows its first and last occupied slice ([`ColumnMeta`]), so that
+/// clearing and sweeping cost time in proportion to the hair, not to `n^3`.
+///
+/// Hair mostly keeps that knowledge per block of 2 x 2 columns: a piece's
+/// tent splat reaches the four columns of one block, and widening one
+/// block costs a quarter of widening four columns. A piece that leaves one
+/// of the four with nothing (on a column's centre line, or a share that
+/// rounds to zero) widens only the columns it reaches, so that no column
+/// counts hair it did not get. A column's meta is its own joined with its
+/// four blocks'.
 #[derive(Debug, Clone)]
 pub struct DensityMap {
     frame: LightFrame,
     n: usize,
     cells: Vec<u32>,
     meta: Vec<ColumnMeta>,
+    /// Hair's meta per block of columns `(j0..=j0 + 1, k0..=k0 + 1)`, for
+    /// `j0, k0` in `-1..n`: at `(k0 + 1) * (n + 1) + j0 + 1`.
+    blocks: Vec<ColumnMeta>,
     /// Opaque bodies' deposits since the last clear: `(column, slice,
     /// quanta)`, sorted.
     bodies: Vec<(u32, u16, u32)>,
-    /// The parallel deposit's lists (task, then slab of `k`), kept empty
-    /// between fills so that their memory is not allocated and faulted in
-    /// again for every frame.
-    scratch: Vec<Vec<Vec<Deposit>>>,
+    /// The deposit's points in map coordinates, and each strand's range of
+    /// `z` (cells), kept between fills so that their memory is not
+    /// allocated and faulted in again for every frame.
+    scratch: Scratch,
+}
+
+#[derive(Debug, Clone, Default)]
+struct Scratch {
+    pts: Vec<Vec3>,
+    z_range: Vec<(f32, f32)>,
 }
 
 /// What a column knows of its hair: the occupied cells `lo..=hi`, and
@@ -68,6 +85,19 @@ impl ColumnMeta {
 
     /// Widens the column to hold a deposit in slice `i` whose piece starts
     /// at slice coordinate `front`. Min and max do not depend on order.
+    #[inline]
+    fn union(self, o: ColumnMeta) -> ColumnMeta {
+        ColumnMeta {
+            lo: self.lo.min(o.lo),
+            hi: self.hi.max(o.hi),
+            front: if o.front < self.front {
+                o.front
+            } else {
+                self.front
+            },
+        }
+    }
+
     #[inline]
     fn include(&mut self, i: u16, front: f32) {
         self.lo = self.lo.min(i);
@@ -106,18 +136,6 @@ impl std::iter::Sum for FillStats {
     }
 }
 
-/// One piece's deposit into slice `i` of four columns: `q[0]` quanta into
-/// column `col = k * n + j`, `q[1]` into `(j + 1, k)`, `q[2]` into
-/// `(j, k + 1)`, `q[3]` into `(j + 1, k + 1)`, from a piece that starts at
-/// slice coordinate `front`. Zero quanta touch nothing.
-#[derive(Debug, Clone, Copy)]
-struct Deposit {
-    col: u32,
-    i: u32,
-    q: [u32; 4],
-    front: f32,
-}
-
 impl DensityMap {
     /// An empty map in `frame`.
     pub fn new(frame: LightFrame) -> DensityMap {
@@ -127,8 +145,9 @@ impl DensityMap {
             n,
             cells: vec![0; n * n * n],
             meta: vec![ColumnMeta::EMPTY; n * n],
+            blocks: vec![ColumnMeta::EMPTY; (n + 1) * (n + 1)],
             bodies: Vec::new(),
-            scratch: Vec::new(),
+            scratch: Scratch::default(),
         }
     }
 
@@ -151,17 +170,20 @@ impl DensityMap {
     pub fn clear(&mut self) {
         self.bodies.clear();
         let n = self.n;
+        let (meta, blocks) = (&self.meta, &self.blocks);
         self.cells
             .par_chunks_mut(n * n)
-            .zip(self.meta.par_chunks_mut(n))
-            .for_each(|(slice, meta)| {
-                for (col, m) in slice.chunks_mut(n).zip(meta) {
+            .enumerate()
+            .for_each(|(k, slice)| {
+                for (j, col) in slice.chunks_mut(n).enumerate() {
+                    let m = column_meta(meta, blocks, n, k * n + j);
                     if !m.is_empty() {
                         col[m.lo as usize..=m.hi as usize].fill(0);
                     }
-                    *m = ColumnMeta::EMPTY;
                 }
             });
+        self.meta.fill(ColumnMeta::EMPTY);
+        self.blocks.fill(ColumnMeta::EMPTY);
     }
 
     /// Empties the map and deposits all of `hair`.
@@ -188,10 +210,12 @@ impl DensityMap {
     /// where `|piece x L| = dl sin(theta)`. In map coordinates (cells, X_map
     /// along L) that is `alpha * w / ds * sqrt(dy^2 + dz^2)`.
     ///
-    /// With several threads the strands are cut into tasks that list their
-    /// deposits by slab of `k`; then each slab applies its deposits alone.
-    /// No atomics: a locked add per deposit would serialize the cache misses
-    /// that dominate this stage.
+    /// With several threads the map is cut into slabs of rows `k`, one per
+    /// thread, each holding about as many of the hair's points. Each slab
+    /// walks the strands that reach it and writes only its own cells. No
+    /// atomics, no lists of deposits handed between threads: a strand that
+    /// crosses a slab boundary is walked by both slabs, which costs less
+    /// than writing and reading back every deposit.
     pub fn deposit(&mut self, hair: &Hair, strands: Range<usize>, fiber: &Fiber) -> FillStats {
         // Fixed-point optical depth per cell of piece length across the light.
         let k_q =
@@ -200,70 +224,106 @@ impl DensityMap {
             return FillStats::default();
         }
         let n = self.n;
-        let offsets = hair.offsets();
-        let points = hair.points();
-        let strand_points = |s: usize| &points[offsets[s] as usize..offsets[s + 1] as usize];
-        let threads = rayon::current_num_threads();
-        if threads == 1 {
-            let mut stats = FillStats::default();
-            for s in strands {
-                stats = stats
-                    + pieces(&self.frame, strand_points(s), k_q, |_, d| {
-                        apply(&mut self.cells, &mut self.meta, n, 0, d)
-                    });
-            }
-            return stats;
-        }
-        // Phase 1: deposits of each task, bucketed by slab of k.
-        let slabs = (threads * 4).min(n);
-        let slab_k = n.div_ceil(slabs);
-        let slabs = n.div_ceil(slab_k);
-        let tasks = (threads * 4).min(strands.len());
-        let per_task = strands.len().div_ceil(tasks);
         let frame = self.frame;
-        let mut lists = std::mem::take(&mut self.scratch);
-        lists.resize_with(tasks, Vec::new);
-        let stats: FillStats = lists
-            .par_iter_mut()
-            .enumerate()
-            .map(|(t, buckets)| {
-                let lo = strands.start + t * per_task;
-                let hi = (lo + per_task).min(strands.end);
-                buckets.resize_with(slabs, Vec::new);
+        let offsets = &hair.offsets()[strands.start..=strands.end];
+        let first = offsets[0] as usize;
+        let points = &hair.points()[first..offsets[offsets.len() - 1] as usize];
+        // The strands' points in map coordinates, and each strand's z range
+        // (all of z if a coordinate overflowed to a non-finite value).
+        let Scratch { pts, z_range } = &mut self.scratch;
+        pts.clear();
+        pts.resize(points.len(), Vec3::ZERO);
+        pts.par_chunks_mut(4096)
+            .zip(points.par_chunks(4096))
+            .for_each(|(out, pts)| {
+                for (o, &p) in out.iter_mut().zip(pts) {
+                    *o = frame.to_cells(p);
+                }
+            });
+        let local = |s: usize| offsets[s] as usize - first..offsets[s + 1] as usize - first;
+        z_range.clear();
+        z_range.par_extend((0..strands.len()).into_par_iter().map(|s| {
+            let pts = &pts[local(s)];
+            let (lo, hi) = pts
+                .iter()
+                .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| {
+                    (lo.min(p.z), hi.max(p.z))
+                });
+            if pts.iter().all(|p| p.is_finite()) {
+                (lo, hi)
+            } else {
+                (f32::NEG_INFINITY, f32::INFINITY)
+            }
+        }));
+        // One slab of rows k per thread, each holding about as many points.
+        // Any split gives the same cells: deposits are integers, and
+        // integer sums do not depend on their order.
+        let slabs = rayon::current_num_threads().min(n);
+        let mut bounds = vec![0];
+        if slabs > 1 {
+            let row = |p: &Vec3| (p.z as i32).clamp(0, n as i32 - 1) as usize;
+            let hist = pts
+                .par_chunks(16 * 1024)
+                .map(|chunk| {
+                    let mut hist = vec![0usize; n];
+                    chunk.iter().for_each(|p| hist[row(p)] += 1);
+                    hist
+                })
+                .reduce(
+                    || vec![0; n],
+                    |mut a, b| {
+                        a.iter_mut().zip(b).for_each(|(a, b)| *a += b);
+                        a
+                    },
+                );
+            let mut seen = 0;
+            for (k, h) in hist.iter().enumerate() {
+                seen += h;
+                if seen * slabs > bounds.len() * pts.len() && k + 1 < n && bounds.len() < slabs {
+                    bounds.push(k + 1);
+                }
+            }
+        }
+        bounds.push(n);
+        let mut parts = Vec::with_capacity(bounds.len() - 1);
+        let (mut cells, mut meta, mut blocks) = (
+            &mut self.cells[..],
+            &mut self.meta[..],
+            &mut self.blocks[..],
+        );
+        for w in bounds.windows(2) {
+            let rows = w[1] - w[0];
+            let (c, c_rest) = cells.split_at_mut(rows * n * n);
+            let (m, m_rest) = meta.split_at_mut(rows * n);
+            // Block rows k0 in k_lo..k_hi, and -1 with the first rows.
+            let block_rows = rows + usize::from(w[0] == 0);
+            let (b, b_rest) = blocks.split_at_mut(block_rows * (n + 1));
+            (cells, meta, blocks) = (c_rest, m_rest, b_rest);
+            parts.push(Rows {
+                cells: c,
+                meta: m,
+                blocks: b,
+                n: n as i32,
+                k_lo: w[0] as i32,
+                k_hi: w[1] as i32,
+            });
+        }
+        let (pts, z_range) = (&*pts, &*z_range);
+        parts
+            .into_par_iter()
+            .map(|mut rows| {
                 let mut stats = FillStats::default();
-                for s in lo..hi {
-                    stats = stats
-                        + pieces(&frame, strand_points(s), k_q, |k, d| {
-                            buckets[k / slab_k].push(d)
-                        });
+                let (vis_lo, vis_hi) = rows.visits();
+                for (s, &(lo, hi)) in z_range.iter().enumerate() {
+                    if !(hi < vis_lo || lo >= vis_hi) {
+                        stats = stats + strand_pieces(&mut rows, &pts[local(s)], k_q);
+                    }
                 }
                 stats
             })
-            .sum();
-        // Phase 2: each slab of k applies its deposits, which also reach the
-        // first row of the next slab (k + 1). Even slabs first, then odd
-        // ones, each together with its successor: no two tasks share a cell.
-        for parity in [0, 1] {
-            let (skip_cells, skip_cols) = (parity * n * n * slab_k, parity * n * slab_k);
-            self.cells[skip_cells..]
-                .par_chunks_mut(2 * n * n * slab_k)
-                .zip(self.meta[skip_cols..].par_chunks_mut(2 * n * slab_k))
-                .enumerate()
-                .for_each(|(pair, (cells, meta))| {
-                    let b = 2 * pair + parity;
-                    let base = b * n * slab_k;
-                    for buckets in &lists {
-                        for &d in &buckets[b] {
-                            apply(cells, meta, n, base, d);
-                        }
-                    }
-                });
-        }
-        for buckets in &mut lists {
-            buckets.iter_mut().for_each(Vec::clear);
-        }
-        self.scratch = lists;
-        stats
+            .collect::<Vec<_>>()
+            .into_iter()
+            .sum()
     }
 
     /// Adds an opaque body (a head) to the map: every column whose centre
@@ -311,14 +371,15 @@ impl DensityMap {
     /// Adds `q` quanta to cell `(i, j, k)` from hair starting at slice
     /// coordinate `front`.
     fn add_cell(&mut self, i: usize, j: usize, k: usize, q: u32, front: f32) {
-        let n = self.n;
-        let d = Deposit {
-            col: (k * n + j) as u32,
-            i: i as u32,
-            q: [q, 0, 0, 0],
+        add_at(
+            &mut self.cells,
+            &mut self.meta,
+            self.n,
+            k * self.n + j,
+            i as u32,
+            q,
             front,
-        };
-        apply(&mut self.cells, &mut self.meta, n, 0, d);
+        );
     }
 
     /// Adds a column of another map over the same frame (a worker's partial
@@ -341,14 +402,14 @@ impl DensityMap {
     /// The occupied span `lo..=hi` of column `col = k * n + j`, if any.
     #[inline]
     pub fn span(&self, col: usize) -> Option<(usize, usize)> {
-        let m = self.meta[col];
+        let m = self.meta(col);
         (!m.is_empty()).then_some((m.lo as usize, m.hi as usize))
     }
 
     /// What column `col` knows of its hair.
     #[inline]
     pub fn meta(&self, col: usize) -> ColumnMeta {
-        self.meta[col]
+        column_meta(&self.meta, &self.blocks, self.n, col)
     }
 
     /// Quanta of column `col`'s cells `range`.
@@ -367,30 +428,163 @@ impl DensityMap {
     }
 }
 
-/// Cuts one strand into pieces no longer than a cell and hands each
-/// piece's deposit to `emit`.
+/// Map coordinates in the piece loop are fixed point: `2^FX` units a cell.
+const FX: u32 = 16;
+/// Half a cell, in fixed point.
+const FX_HALF: i32 = 1 << (FX - 1);
+/// The fraction of a cell, in fixed point.
+const FX_FRAC: i32 = (1 << FX) - 1;
+
+/// Rows `k_lo..k_hi` of a map's columns: the part of the map one task
+/// writes. Deposits into other rows are someone else's and are skipped.
+struct Rows<'a> {
+    cells: &'a mut [u32],
+    meta: &'a mut [ColumnMeta],
+    /// Block rows `k_lo..k_hi`, and with the first rows `-1` too.
+    blocks: &'a mut [ColumnMeta],
+    n: i32,
+    k_lo: i32,
+    k_hi: i32,
+}
+
+impl Rows<'_> {
+    /// The range of `z` (cells) of the pieces these rows receive deposits
+    /// from or count: a piece at `z` deposits into rows `floor(z - 0.5)`
+    /// and the next, and is counted by row `floor(z)` clamped into the map.
+    fn visits(&self) -> (f32, f32) {
+        let lo = if self.k_lo == 0 {
+            f32::NEG_INFINITY
+        } else {
+            (self.k_lo - 1) as f32
+        };
+        let hi = if self.k_hi == self.n {
+            f32::INFINITY
+        } else {
+            (self.k_hi + 1) as f32
+        };
+        (lo, hi)
+    }
+
+    /// Whether these rows count a piece whose row is `k` (clamped into the
+    /// map: pieces beyond it are counted by the first or last rows).
+    #[inline]
+    fn owns(&self, k: i32) -> bool {
+        (self.k_lo..self.k_hi).contains(&k.clamp(0, self.n - 1))
+    }
+
+    /// The tent splat of one piece in slice `i` starting at slice
+    /// coordinate `front`: `q[0]` quanta into column `(j, k)`, `q[1]` into
+    /// `(j + 1, k)`, `q[2]` into `(j, k + 1)`, `q[3]` into `(j + 1, k + 1)`,
+    /// each if it is in these rows and in the map.
+    #[inline(always)]
+    fn splat(&mut self, j: i32, k: i32, i: u32, q: [u32; 4], front: f32) {
+        let n = self.n as usize;
+        let columns = [(j, k), (j + 1, k), (j, k + 1), (j + 1, k + 1)];
+        if j >= 0 && j < self.n - 1 && k >= self.k_lo && k + 1 < self.k_hi {
+            let col = (k - self.k_lo) as usize * n + j as usize;
+            let base = col * n + i as usize;
+            // One bounds test for the four cells.
+            let cells = &mut self.cells[base..=base + n * n + n];
+            for (q, c) in q.into_iter().zip([0, n, n * n, n * n + n]) {
+                cells[c] = cells[c].saturating_add(q);
+            }
+        } else {
+            for (q, (j, k)) in q.into_iter().zip(columns) {
+                if q > 0 && (0..self.n).contains(&j) && (self.k_lo..self.k_hi).contains(&k) {
+                    let at = ((k - self.k_lo) as usize * n + j as usize) * n + i as usize;
+                    self.cells[at] = self.cells[at].saturating_add(q);
+                }
+            }
+        }
+        if q.iter().all(|&q| q > 0) {
+            // Block rows stored before row k0: from k_lo, or from -1.
+            let first_block_row = if self.k_lo == 0 { -1 } else { self.k_lo };
+            if (first_block_row..self.k_hi).contains(&k) {
+                let block = (k - first_block_row) as usize * (n + 1) + (j + 1) as usize;
+                self.blocks[block].include(i as u16, front);
+            }
+        } else {
+            for (q, (j, k)) in q.into_iter().zip(columns) {
+                if q > 0 && (0..self.n).contains(&j) && (self.k_lo..self.k_hi).contains(&k) {
+                    self.meta[(k - self.k_lo) as usize * n + j as usize].include(i as u16, front);
+                }
+            }
+        }
+    }
+}
+
+/// Cuts one strand (points in map coordinates) into pieces no longer than
+/// a cell, deposits those that reach `rows` and counts those it owns.
+///
+/// A segment well inside the map (both ends within a cell of it) walks its
+/// pieces in fixed point, with integer cells and weights; one reaching
+/// further out walks them in floating point, where a far coordinate cannot
+/// overflow an integer.
 #[inline]
-fn pieces(
-    frame: &LightFrame,
-    pts: &[Vec3],
-    k_q: f32,
-    mut emit: impl FnMut(usize, Deposit),
-) -> FillStats {
+fn strand_pieces(rows: &mut Rows, pts: &[Vec3], k_q: f32) -> FillStats {
     let mut stats = FillStats::default();
-    let nu = frame.n_cells as usize;
-    let n = frame.n_cells as f32;
-    for_each_segment(frame, pts, |prev, d, across, m| {
+    let n = rows.n as f32;
+    let max_pieces = (4 * rows.n) as f32;
+    let (vis_lo, vis_hi) = rows.visits();
+    let near = |p: Vec3| p.cmpge(Vec3::splat(-1.0)).all() && p.cmple(Vec3::splat(n + 1.0)).all();
+    for w in pts.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        let finite = a.z.is_finite() && b.z.is_finite();
+        if finite && (a.z.max(b.z) < vis_lo || a.z.min(b.z) >= vis_hi) {
+            continue;
+        }
+        let d = b - a;
+        let across = (d.y * d.y + d.z * d.z).sqrt();
+        let m = piece_count(d, max_pieces);
         let inv_m = 1.0 / m as f32;
         // Quanta of one piece; below half a quantum it rounds to nothing.
         let q = (k_q * across * inv_m).min(u32::MAX as f32);
-        if q >= 0.5 {
-            let step = d * inv_m;
-            let mut mid = prev + 0.5 * step;
+        if q < 0.5 {
+            continue;
+        }
+        let step = d * inv_m;
+        if near(a) && near(b) {
+            let fx = |v: Vec3| (v * (1 << FX) as f32).as_ivec3();
+            let s = fx(step);
+            let mut p = fx(a) + s / 2;
+            // The front in floating point, as the other path has it: a
+            // front truncated to fixed point could start the hair in front
+            // of its own first point.
+            let mut mid_x = a.x + 0.5 * step.x;
+            let half_dx = 0.5 * step.x.abs();
+            let lim = (rows.n as u32) << FX;
+            // q + 0.5 truncated rounds to nearest; 32 bits of weight
+            // (16 across each axis) times 32 of quanta fit in a u64.
+            let q = u64::from((q + 0.5) as u32);
             for _ in 0..m {
-                if mid.cmpge(Vec3::ZERO).all() && mid.cmplt(Vec3::splat(n)).all() {
+                let own = rows.owns(p.z >> FX);
+                if (p.x as u32) < lim && (p.y as u32) < lim && (p.z as u32) < lim {
                     // The piece starts half a step before its midpoint.
+                    let front = mid_x - half_dx;
+                    // Tent splat across the light, bilinear weights of
+                    // the four columns around the midpoint (see below).
+                    let (fy, fz) = (p.y - FX_HALF, p.z - FX_HALF);
+                    let (ty, tz) = (
+                        u64::from((fy & FX_FRAC) as u32),
+                        u64::from((fz & FX_FRAC) as u32),
+                    );
+                    let (sy, sz) = ((1 << FX) - ty, (1 << FX) - tz);
+                    let part = |w: u64| ((q * w + (1 << 31)) >> 32) as u32;
+                    let qs = [part(sy * sz), part(ty * sz), part(sy * tz), part(ty * tz)];
+                    rows.splat(fy >> FX, fz >> FX, (p.x >> FX) as u32, qs, front);
+                    stats.samples += u64::from(own);
+                } else {
+                    stats.out_of_map += u64::from(own);
+                }
+                p += s;
+                mid_x += step.x;
+            }
+        } else {
+            let mut mid = a + 0.5 * step;
+            for _ in 0..m {
+                let own = rows.owns(mid.z.floor() as i32);
+                if mid.cmpge(Vec3::ZERO).all() && mid.cmplt(Vec3::splat(n)).all() {
                     let front = mid.x - 0.5 * step.x.abs();
-                    let i = mid.x as u32;
                     // Tent splat across the light: the piece's quanta go to
                     // the four columns around its midpoint with bilinear
                     // weights, so that the map is a smooth function of where
@@ -408,45 +602,15 @@ fn pieces(
                         (q * sy * tz + 0.5) as u32,
                         (q * ty * tz + 0.5) as u32,
                     ];
-                    let last = nu as i32 - 1;
-                    if j0 >= 0 && k0 >= 0 && j0 < last && k0 < last {
-                        emit(
-                            k0 as usize,
-                            Deposit {
-                                col: (k0 as usize * nu + j0 as usize) as u32,
-                                i,
-                                q: qs,
-                                front,
-                            },
-                        );
-                    } else {
-                        // At the map's edge: each column that exists on its own.
-                        for (x, (dj, dk)) in
-                            [(0, 0), (1, 0), (0, 1), (1, 1)].into_iter().enumerate()
-                        {
-                            let (j, k) = (j0 + dj, k0 + dk);
-                            if qs[x] > 0 && (0..=last).contains(&j) && (0..=last).contains(&k) {
-                                let (j, k) = (j as usize, k as usize);
-                                emit(
-                                    k,
-                                    Deposit {
-                                        col: (k * nu + j) as u32,
-                                        i,
-                                        q: [qs[x], 0, 0, 0],
-                                        front,
-                                    },
-                                );
-                            }
-                        }
-                    }
-                    stats.samples += 1;
+                    rows.splat(j0, k0, mid.x as u32, qs, front);
+                    stats.samples += u64::from(own);
                 } else {
-                    stats.out_of_map += 1;
+                    stats.out_of_map += u64::from(own);
                 }
                 mid += step;
             }
         }
-    });
+    }
     stats
 }
 
@@ -485,19 +649,36 @@ pub(crate) fn piece_count(d: Vec3, max_pieces: f32) -> u32 {
     (whole + u32::from((whole as f32) < len)).max(1)
 }
 
-/// Adds a deposit to `cells` (whose first column is column `base`),
-/// saturating: for non-negative terms a saturating sum is still independent
-/// of order. Widens the column's occupied span and front.
+/// Column `col`'s meta: its own joined with its four blocks' (see
+/// [`DensityMap`]).
 #[inline]
-fn apply(cells: &mut [u32], meta: &mut [ColumnMeta], n: usize, base: usize, d: Deposit) {
-    let col = d.col as usize - base;
-    for (q, c) in d.q.into_iter().zip([col, col + 1, col + n, col + n + 1]) {
-        if q > 0 {
-            let cell = &mut cells[c * n + d.i as usize];
-            *cell = cell.saturating_add(q);
-            meta[c].include(d.i as u16, d.front);
-        }
-    }
+fn column_meta(meta: &[ColumnMeta], blocks: &[ColumnMeta], n: usize, col: usize) -> ColumnMeta {
+    let (j, k) = (col % n, col / n);
+    // Blocks (j0, k0) for j0 in {j - 1, j}, k0 in {k - 1, k}.
+    let b = k * (n + 1) + j;
+    meta[col]
+        .union(blocks[b])
+        .union(blocks[b + 1])
+        .union(blocks[b + n + 1])
+        .union(blocks[b + n + 2])
+}
+
+/// Adds `q` quanta to cell `i` of column `col` of `cells` (columns of `n`
+/// cells), saturating: for non-negative terms a saturating sum is still
+/// independent of order. Widens the column's occupied span and front.
+#[inline]
+fn add_at(
+    cells: &mut [u32],
+    meta: &mut [ColumnMeta],
+    n: usize,
+    col: usize,
+    i: u32,
+    q: u32,
+    front: f32,
+) {
+    let cell = &mut cells[col * n + i as usize];
+    *cell = cell.saturating_add(q);
+    meta[col].include(i as u16, front);
 }
 
 #[cfg(test)]
@@ -592,6 +773,85 @@ mod tests {
         map.clear();
         assert!((0..64).all(|c| map.span(c).is_none()));
         assert!((0..8).all(|k| map.quanta(4, 4, k) == 0));
+    }
+
+    /// Hair of many strands on a fixed map, some crossing its faces, some
+    /// far outside it, one along a slice boundary.
+    fn crossing_hair() -> Hair {
+        let mut hair = Hair::new();
+        for s in 0..40 {
+            let t = s as f32 * 0.37;
+            let pts: Vec<Vec3> = (0..30)
+                .map(|i| {
+                    let u = i as f32 / 29.0;
+                    Vec3::new(
+                        1.3 * (t + 5.0 * u).sin(),
+                        -1.4 + 2.8 * u,
+                        1.2 * (t * 1.7 + 3.0 * u).cos(),
+                    )
+                })
+                .collect();
+            hair.push_strand(&pts).unwrap();
+        }
+        hair.push_strand(&[Vec3::new(0.0, -50.0, 3.0), Vec3::new(0.0, 50.0, -3.0)])
+            .unwrap();
+        hair.push_strand(&[Vec3::new(0.2, 0.0, -0.9), Vec3::new(0.2, 0.0, 0.9)])
+            .unwrap();
+        hair
+    }
+
+    fn snapshot(map: &DensityMap) -> (Vec<u32>, Vec<ColumnMeta>) {
+        let cols = map.frame().columns();
+        (map.cells.clone(), (0..cols).map(|c| map.meta(c)).collect())
+    }
+
+    #[test]
+    fn any_thread_count_and_any_split_of_the_strands_give_the_same_map() {
+        let hair = crossing_hair();
+        let fiber = Fiber::new(0.01, 0.5).unwrap();
+        let fill = |threads: usize, parts: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                let mut map = DensityMap::new(frame(24));
+                let strands = hair.strand_count();
+                let mut stats = FillStats::default();
+                for p in 0..parts {
+                    let range = p * strands / parts..(p + 1) * strands / parts;
+                    stats = stats + map.deposit(&hair, range, &fiber);
+                }
+                (stats, snapshot(&map))
+            })
+        };
+        let (stats, one) = fill(1, 1);
+        assert!(stats.samples > 500 && stats.out_of_map > 100, "{stats:?}");
+        for (threads, parts) in [(2, 1), (3, 1), (7, 1), (1, 3), (4, 5)] {
+            let (s, m) = fill(threads, parts);
+            assert_eq!(s, stats, "{threads} threads, {parts} parts");
+            assert!(m == one, "{threads} threads, {parts} parts: another map");
+        }
+    }
+
+    #[test]
+    fn a_column_span_holds_all_its_hair_and_its_front_precedes_it() {
+        let hair = crossing_hair();
+        let mut map = DensityMap::new(frame(24));
+        map.fill(&hair, &Fiber::new(0.01, 0.5).unwrap());
+        let n = 24;
+        let mut occupied = 0;
+        for col in 0..n * n {
+            let m = map.meta(col);
+            for i in 0..n {
+                if map.cells[col * n + i] > 0 {
+                    occupied += 1;
+                    assert!(!m.is_empty() && (m.lo as usize..=m.hi as usize).contains(&i));
+                    assert!(m.front < (m.lo + 1) as f32, "{m:?}");
+                }
+            }
+        }
+        assert!(occupied > 500);
     }
 
     #[test]
