@@ -120,17 +120,16 @@ pub fn sweep(density: &DensityMap, columns: Range<u32>) -> ColumnSlab {
 /// The span of column `col` of `density` whose depths start at `start`.
 #[inline]
 fn span_of(density: &DensityMap, col: usize, start: u32) -> Span {
-    match density.span(col) {
-        None => Span::EMPTY,
-        Some((lo, hi)) => Span {
-            lo: lo as u16,
-            hi: hi as u16,
-            start,
-            front: density
-                .meta(col)
-                .front
-                .clamp(lo as f32, lo as f32 + 1.0 - Span::FRONT_GAP),
-        },
+    let m = density.meta(col);
+    if m.is_empty() {
+        return Span::EMPTY;
+    }
+    let lo = f32::from(m.lo);
+    Span {
+        lo: m.lo,
+        hi: m.hi,
+        start,
+        front: m.front.clamp(lo, lo + 1.0 - Span::FRONT_GAP),
     }
 }
 
@@ -400,7 +399,7 @@ impl Transmittance {
     /// first order, never underflows in dense hair, and gives exactly 0 in
     /// front of all hair. Unfiltered: the value at the centre of `p`'s cell
     /// (0 in front of the hair of `p`'s column).
-    #[inline]
+    #[inline(always)]
     pub fn optical_depth(&self, p: Vec3, filter: bool) -> f32 {
         debug_assert!(p.is_finite());
         let c = self.frame.to_cells(p);
