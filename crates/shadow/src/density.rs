@@ -30,13 +30,13 @@ const EMPTY_LO: u16 = u16::MAX;
 /// knows its first and last occupied slice ([`ColumnMeta`]), so that
 /// clearing and sweeping cost time in proportion to the hair, not to `n^3`.
 ///
-/// Hair mostly keeps that knowledge per block of 2 x 2 columns: a piece's
-/// tent splat reaches the four columns of one block, and widening one
-/// block costs a quarter of widening four columns. A piece that leaves one
-/// of the four with nothing (on a column's centre line, or a share that
-/// rounds to zero) widens only the columns it reaches, so that no column
-/// counts hair it did not get. A column's meta is its own joined with its
-/// four blocks'.
+/// While depositing, hair mostly keeps that knowledge per block of 2 x 2
+/// columns: a piece's tent splat reaches the four columns of one block,
+/// and widening one block costs a quarter of widening four columns. A
+/// piece that leaves one of the four with nothing (on a column's centre
+/// line, or a share that rounds to zero) widens only the columns it
+/// reaches, so that no column counts hair it did not get. At the end of a
+/// deposit each column takes in its four blocks'.
 #[derive(Debug, Clone)]
 pub struct DensityMap {
     frame: LightFrame,
@@ -170,19 +170,17 @@ impl DensityMap {
     pub fn clear(&mut self) {
         self.bodies.clear();
         let n = self.n;
-        let (meta, blocks) = (&self.meta, &self.blocks);
         self.cells
             .par_chunks_mut(n * n)
-            .enumerate()
-            .for_each(|(k, slice)| {
-                for (j, col) in slice.chunks_mut(n).enumerate() {
-                    let m = column_meta(meta, blocks, n, k * n + j);
+            .zip(self.meta.par_chunks_mut(n))
+            .for_each(|(slice, meta)| {
+                for (col, m) in slice.chunks_mut(n).zip(meta) {
                     if !m.is_empty() {
                         col[m.lo as usize..=m.hi as usize].fill(0);
                     }
+                    *m = ColumnMeta::EMPTY;
                 }
             });
-        self.meta.fill(ColumnMeta::EMPTY);
         self.blocks.fill(ColumnMeta::EMPTY);
     }
 
@@ -309,7 +307,7 @@ impl DensityMap {
             });
         }
         let (pts, z_range) = (&*pts, &*z_range);
-        parts
+        let stats = parts
             .into_par_iter()
             .map(|mut rows| {
                 let mut stats = FillStats::default();
@@ -323,7 +321,20 @@ impl DensityMap {
             })
             .collect::<Vec<_>>()
             .into_iter()
-            .sum()
+            .sum();
+        // Each column takes in its blocks' meta (a union: taking it in
+        // again after another deposit changes nothing), so that reading a
+        // column's meta is one load.
+        let blocks = &self.blocks;
+        self.meta
+            .par_chunks_mut(n)
+            .enumerate()
+            .for_each(|(k, row)| {
+                for (j, m) in row.iter_mut().enumerate() {
+                    *m = column_meta(m, blocks, n, k * n + j);
+                }
+            });
+        stats
     }
 
     /// Adds an opaque body (a head) to the map: every column whose centre
@@ -409,7 +420,7 @@ impl DensityMap {
     /// What column `col` knows of its hair.
     #[inline]
     pub fn meta(&self, col: usize) -> ColumnMeta {
-        column_meta(&self.meta, &self.blocks, self.n, col)
+        self.meta[col]
     }
 
     /// Quanta of column `col`'s cells `range`.
@@ -649,15 +660,14 @@ pub(crate) fn piece_count(d: Vec3, max_pieces: f32) -> u32 {
     (whole + u32::from((whole as f32) < len)).max(1)
 }
 
-/// Column `col`'s meta: its own joined with its four blocks' (see
+/// Column `col`'s meta: its own, `own`, joined with its four blocks' (see
 /// [`DensityMap`]).
 #[inline]
-fn column_meta(meta: &[ColumnMeta], blocks: &[ColumnMeta], n: usize, col: usize) -> ColumnMeta {
+fn column_meta(own: &ColumnMeta, blocks: &[ColumnMeta], n: usize, col: usize) -> ColumnMeta {
     let (j, k) = (col % n, col / n);
     // Blocks (j0, k0) for j0 in {j - 1, j}, k0 in {k - 1, k}.
     let b = k * (n + 1) + j;
-    meta[col]
-        .union(blocks[b])
+    own.union(blocks[b])
         .union(blocks[b + 1])
         .union(blocks[b + n + 1])
         .union(blocks[b + n + 2])
