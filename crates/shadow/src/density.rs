@@ -83,13 +83,14 @@ impl ColumnMeta {
         self.lo > self.hi
     }
 
-    /// Widens the column to hold a deposit in slice `i` whose piece starts
-    /// at slice coordinate `front`. Min and max do not depend on order.
+    /// What both columns know. Min and max do not depend on order.
     #[inline]
     fn union(self, o: ColumnMeta) -> ColumnMeta {
         ColumnMeta {
             lo: self.lo.min(o.lo),
             hi: self.hi.max(o.hi),
+            // `min` without `f32::min`'s NaN handling (a NaN front changes
+            // nothing either way, and fronts start infinite, never NaN).
             front: if o.front < self.front {
                 o.front
             } else {
@@ -98,15 +99,15 @@ impl ColumnMeta {
         }
     }
 
+    /// Widens the column to hold a deposit in slice `i` whose piece starts
+    /// at slice coordinate `front`.
     #[inline]
     fn include(&mut self, i: u16, front: f32) {
-        self.lo = self.lo.min(i);
-        self.hi = self.hi.max(i);
-        // `min` without `f32::min`'s NaN handling (a NaN front changes
-        // nothing either way, and `self.front` starts infinite, never NaN).
-        if front < self.front {
-            self.front = front;
-        }
+        *self = self.union(ColumnMeta {
+            lo: i,
+            hi: i,
+            front,
+        });
     }
 }
 
@@ -229,7 +230,7 @@ impl DensityMap {
         // The strands' points in map coordinates, and each strand's z range
         // (all of z if a coordinate overflowed to a non-finite value).
         let Scratch { pts, z_range } = &mut self.scratch;
-        pts.clear();
+        // Every point is written below: no need to clear the old ones.
         pts.resize(points.len(), Vec3::ZERO);
         pts.par_chunks_mut(4096)
             .zip(points.par_chunks(4096))
@@ -319,9 +320,7 @@ impl DensityMap {
                 }
                 stats
             })
-            .collect::<Vec<_>>()
-            .into_iter()
-            .sum();
+            .sum::<FillStats>();
         // Each column takes in its blocks' meta (a union: taking it in
         // again after another deposit changes nothing), so that reading a
         // column's meta is one load.
@@ -476,6 +475,14 @@ impl Rows<'_> {
         (lo, hi)
     }
 
+    /// Index into `meta` of column `(j, k)` if it is in these rows and in
+    /// the map (`n` columns a row: its cells start at `n` times that).
+    #[inline]
+    fn local(&self, j: i32, k: i32) -> Option<usize> {
+        ((0..self.n).contains(&j) && (self.k_lo..self.k_hi).contains(&k))
+            .then(|| (k - self.k_lo) as usize * self.n as usize + j as usize)
+    }
+
     /// Whether these rows count a piece whose row is `k` (clamped into the
     /// map: pieces beyond it are counted by the first or last rows).
     #[inline]
@@ -501,8 +508,8 @@ impl Rows<'_> {
             }
         } else {
             for (q, (j, k)) in q.into_iter().zip(columns) {
-                if q > 0 && (0..self.n).contains(&j) && (self.k_lo..self.k_hi).contains(&k) {
-                    let at = ((k - self.k_lo) as usize * n + j as usize) * n + i as usize;
+                if let Some(col) = self.local(j, k).filter(|_| q > 0) {
+                    let at = col * n + i as usize;
                     self.cells[at] = self.cells[at].saturating_add(q);
                 }
             }
@@ -516,8 +523,8 @@ impl Rows<'_> {
             }
         } else {
             for (q, (j, k)) in q.into_iter().zip(columns) {
-                if q > 0 && (0..self.n).contains(&j) && (self.k_lo..self.k_hi).contains(&k) {
-                    self.meta[(k - self.k_lo) as usize * n + j as usize].include(i as u16, front);
+                if let Some(col) = self.local(j, k).filter(|_| q > 0) {
+                    self.meta[col].include(i as u16, front);
                 }
             }
         }
