@@ -126,8 +126,11 @@ fn screen_corners(tri: [u32; 3], screen: &[Option<Vec3>]) -> Option<[Vec3; 3]> {
     ])
 }
 
-/// A segment binned for drawing: its ends and the index of its look.
-type Segment = (ScreenVertex, ScreenVertex, u32);
+/// A segment binned for drawing: the index in `verts` of its first end
+/// (the second follows it) and the index of its look. Eight bytes, where
+/// the ends themselves would be sixty: a band reads its segments' ends from
+/// the shared vertices, in strand order.
+type Segment = (u32, u32);
 
 /// Strands per binning task.
 const STRANDS_PER_CHUNK: usize = 256;
@@ -140,6 +143,9 @@ struct ScreenVertex {
     color: Vec3,
     /// Line width in pixels at this vertex.
     width: f32,
+    /// Depth weight of its fragments, `(depth_ref / z)^6` (see
+    /// [`HairLook::depth_ref`]), clamped to [1e-3, 1e3].
+    weight: f32,
 }
 
 impl Canvas {
@@ -394,6 +400,7 @@ impl Canvas {
         let base = self.verts.len();
         let fiber_width = look.fiber_width;
         let focal = camera.focal();
+        let depth_ref = look.depth_ref;
         // Project every vertex once.
         self.verts
             .par_extend(points.par_iter().zip(colors).map(|(&p, &color)| {
@@ -401,7 +408,16 @@ impl Canvas {
                 // Projected width: w * focal / z pixels, at least a hair's
                 // breadth so that distant hair still covers something.
                 let width = (fiber_width * focal / s.z).clamp(0.05, 8.0);
-                Some(ScreenVertex { p: s, color, width })
+                // The depth weight at the ends, interpolated along a
+                // segment (which spans a few pixels; the weight changes
+                // little along it).
+                let weight = (depth_ref / s.z).powi(6).clamp(1e-3, 1e3);
+                Some(ScreenVertex {
+                    p: s,
+                    color,
+                    width,
+                    weight,
+                })
             }));
         self.looks.push((base as u32, *look));
         let look_index = (self.looks.len() - 1) as u32;
@@ -435,7 +451,7 @@ impl Canvas {
                         }
                         let (first, last) = (lo as usize / BAND, (hi as usize).min(h - 1) / BAND);
                         for bin in &mut bins[first..=last] {
-                            bin.push((a, b, look_index));
+                            bin.push(((base + i) as u32, look_index));
                         }
                     }
                 }
@@ -463,8 +479,12 @@ impl Canvas {
                     acc.resize(rows * w, Acc::EMPTY);
                 }
                 let acc = &mut acc[..rows * w];
-                for &(a, b, look) in chunks.iter().flat_map(|c| &c[band]) {
-                    self.rasterize(a, b, &self.looks[look as usize].1, y0, rows, acc);
+                for &(i, look) in chunks.iter().flat_map(|c| &c[band]) {
+                    let i = i as usize;
+                    // Binned segments have both ends on screen.
+                    if let (Some(a), Some(b)) = (self.verts[i], self.verts[i + 1]) {
+                        self.rasterize(a, b, &self.looks[look as usize].1, y0, rows, acc);
+                    }
                 }
                 let depth = &self.depth[y0 * w..(y0 + rows) * w];
                 let opaque = &self.opaque[y0 * w..(y0 + rows) * w];
@@ -502,11 +522,7 @@ impl Canvas {
     ) {
         let w = self.width;
         let opacity = look.opacity.clamp(0.0, 1.0);
-        let depth_ref = look.depth_ref;
-        // The depth weight at the ends, interpolated along the segment (a
-        // segment spans a few pixels; the weight changes little along it).
-        let weight = |z: f32| (depth_ref / z).powi(6).clamp(1e-3, 1e3);
-        let (wa, wb) = (weight(a.p.z), weight(b.p.z));
+        let (wa, wb) = (a.weight, b.weight);
         let depth = &self.depth[y0 * w..(y0 + rows) * w];
         let clip = [0, w as i32, y0 as i32, (y0 + rows) as i32];
         let band = Band {
@@ -777,6 +793,7 @@ mod tests {
             p: Vec3::new(x, y, 1.0),
             color: Vec3::ONE,
             width,
+            weight: 1.0,
         }
     }
 
