@@ -11,7 +11,7 @@
 //! the thread count, so the picture is the same bytes; drawing the strands
 //! in another order changes only rounding.
 
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 use rayon::prelude::*;
 
 use crate::{Camera, RasterError};
@@ -63,17 +63,18 @@ pub struct HairLook {
 /// Per-pixel hair sums: colour times alpha times depth weight, alpha
 /// times depth weight, and the product of `1 - alpha`, the fraction of the
 /// background the hair reveals.
+///
+/// Colour and weight sit in one vector (`xyz` and `w`), so that a fragment
+/// adds both in one operation.
 #[derive(Debug, Clone, Copy)]
 struct Acc {
-    rgb: Vec3,
-    weight: f32,
+    rgbw: Vec4,
     reveal: f32,
 }
 
 impl Acc {
     const EMPTY: Acc = Acc {
-        rgb: Vec3::ZERO,
-        weight: 0.0,
+        rgbw: Vec4::ZERO,
         reveal: 1.0,
     };
 }
@@ -491,13 +492,13 @@ impl Canvas {
                 for (i, px) in out.chunks_exact_mut(3).enumerate() {
                     let a = std::mem::replace(&mut acc[i], Acc::EMPTY);
                     let covered = depth[i].is_finite();
-                    if a.weight == 0.0 && !covered {
+                    if a.rgbw.w == 0.0 && !covered {
                         px.copy_from_slice(&bg);
                         continue;
                     }
                     let base = if covered { opaque[i] } else { background };
-                    let c = if a.weight > 0.0 {
-                        let hair = a.rgb / a.weight;
+                    let c = if a.rgbw.w > 0.0 {
+                        let hair = a.rgbw.truncate() / a.rgbw.w;
                         hair * (1.0 - a.reveal) + base * a.reveal
                     } else {
                         base
@@ -556,30 +557,47 @@ struct Band<'a> {
 }
 
 impl Band<'_> {
-    /// Adds one step's two fragments to `acc`; `STEEP`: y is the major axis.
+    /// Adds the fragments of four steps to `acc`, step by step and in each
+    /// step the nearer row first; `STEEP`: y is the major axis. What a
+    /// step's two pixels share (depth, colour, weight, alpha) is computed
+    /// for the four steps at once, each lane as one step would compute it.
     #[inline(always)]
-    fn add<const STEEP: bool>(&self, a: ScreenVertex, b: ScreenVertex, s: Step, acc: &mut [Acc]) {
-        // What the step's two pixels share: depth, colour, weight.
+    fn add<const STEEP: bool>(&self, a: ScreenVertex, b: ScreenVertex, s: &Steps, acc: &mut [Acc]) {
         let t = s.t;
-        let z = a.p.z + t * (b.p.z - a.p.z);
-        let c = (a.color + t * (b.color - a.color)).max(Vec3::ZERO);
-        let wt = self.wa + t * (self.wb - self.wa);
+        let z = (Vec4::splat(a.p.z) + t * (b.p.z - a.p.z)).to_array();
+        // Colours with w = 1, so that colour times weight carries the
+        // weight along: 1 + t (1 - 1) is exactly 1.
+        let (ca, cb) = (a.color.extend(1.0), b.color.extend(1.0));
+        let dc = cb - ca;
+        let ts = t.to_array();
+        let wt = (Vec4::splat(self.wa) + t * (self.wb - self.wa)).to_array();
         let step_alpha = self.opacity * s.cov;
-        for (r, share) in [(s.minor, s.shares[0]), (s.minor + 1, s.shares[1])] {
-            let alpha = (step_alpha * share).min(MAX_ALPHA);
-            if alpha <= 0.0 {
-                continue;
+        let alphas = s
+            .shares
+            .map(|share| (step_alpha * share).min(Vec4::splat(MAX_ALPHA)).to_array());
+        for l in 0..4 {
+            let major = s.major + l as i32;
+            let c = (ca + ts[l] * dc).max(Vec4::ZERO);
+            for (row, alpha) in alphas.iter().enumerate() {
+                let alpha = alpha[l];
+                if alpha <= 0.0 {
+                    continue;
+                }
+                let minor = s.minor[l] + row as i32;
+                let (x, y) = if STEEP {
+                    (minor, major)
+                } else {
+                    (major, minor)
+                };
+                let px = (y as usize - self.y0) * self.w + x as usize;
+                if z[l] >= self.depth[px] {
+                    continue;
+                }
+                let aw = alpha * wt[l];
+                let cell = &mut acc[px];
+                cell.rgbw += c * aw;
+                cell.reveal *= 1.0 - alpha;
             }
-            let (x, y) = if STEEP { (r, s.major) } else { (s.major, r) };
-            let px = (y as usize - self.y0) * self.w + x as usize;
-            if z >= self.depth[px] {
-                continue;
-            }
-            let aw = alpha * wt;
-            let cell = &mut acc[px];
-            cell.rgb += c * aw;
-            cell.weight += aw;
-            cell.reveal *= 1.0 - alpha;
         }
     }
 }
@@ -646,11 +664,15 @@ fn srgb8(v: f32) -> u8 {
 fn line_fragments(a: ScreenVertex, b: ScreenVertex, mut emit: impl FnMut(i32, i32, f32, f32)) {
     let all = [i32::MIN, i32::MAX, i32::MIN, i32::MAX];
     let steep = is_steep(a, b);
-    let mut each = |s: Step| {
-        for (r, share) in [(s.minor, s.shares[0]), (s.minor + 1, s.shares[1])] {
-            if share > 0.0 {
-                let (x, y) = if steep { (r, s.major) } else { (s.major, r) };
-                emit(x, y, s.t, s.cov * share);
+    let mut each = |s: &Steps| {
+        for l in 0..4 {
+            let major = s.major + l as i32;
+            for (row, share) in s.shares.iter().enumerate() {
+                if share[l] > 0.0 {
+                    let r = s.minor[l] + row as i32;
+                    let (x, y) = if steep { (r, major) } else { (major, r) };
+                    emit(x, y, s.t[l], s.cov[l] * share[l]);
+                }
             }
         }
     };
@@ -673,17 +695,18 @@ fn ceil_i32(x: f32) -> i32 {
     }
 }
 
-/// One step of a line along its major axis: the pixel column (or row)
-/// `major`, the parameter `t` along the line, the coverage `cov` of the
-/// step, and the two pixels across it, `minor` and `minor + 1`, with their
-/// shares of the coverage (0 for a pixel outside the clip).
+/// Four consecutive steps of a line along its major axis, lane `l` being
+/// the pixel column (or row) `major + l`: the parameter `t` along the
+/// line, the coverage `cov` of the step, and the two pixels across it,
+/// `minor` and `minor + 1`, with their shares of the coverage (0 for a
+/// pixel outside the clip, and for lanes past the line's last step).
 #[derive(Debug, Clone, Copy)]
-struct Step {
+struct Steps {
     major: i32,
-    t: f32,
-    cov: f32,
-    minor: i32,
-    shares: [f32; 2],
+    t: Vec4,
+    cov: Vec4,
+    minor: [i32; 4],
+    shares: [Vec4; 2],
 }
 
 /// Whether y is the major axis of the line from `a` to `b`.
@@ -694,16 +717,18 @@ fn is_steep(a: ScreenVertex, b: ScreenVertex) -> bool {
 }
 
 /// [`line_fragments`] restricted to the pixels `x0..x1`, `y0..y1` of
-/// `clip`, a step at a time: `emit(step)`, along y when `STEEP` (which
-/// must be [`is_steep`]), else along x. The same fragments inside the clip,
-/// and no work spent outside (a segment that reaches far off screen costs
-/// only its visible steps).
+/// `clip`, four steps at a time: `emit(steps)`, along y when `STEEP`
+/// (which must be [`is_steep`]), else along x. The same fragments inside
+/// the clip, and no work spent outside (a segment that reaches far off
+/// screen costs only its visible steps). Each lane computes what one step
+/// would on its own, with the same operations in the same order, so the
+/// fragments do not depend on how steps are grouped.
 #[inline(always)]
 fn line_steps<const STEEP: bool>(
     a: ScreenVertex,
     b: ScreenVertex,
     clip: [i32; 4],
-    mut emit: impl FnMut(Step),
+    mut emit: impl FnMut(&Steps),
 ) {
     let d = b.p - a.p;
     let steep = STEEP;
@@ -736,6 +761,10 @@ fn line_steps<const STEEP: bool>(
         (ua + du, ua)
     };
     let inv_du = 1.0 / du;
+    if !inv_du.is_finite() {
+        // Shorter than a float can invert: no pixel centre lies on it.
+        return;
+    }
     let m = dv * inv_du;
     let stretch = (1.0 + m * m).sqrt();
     // Pixel centres k + 0.5 in [u0, u1), within the clip.
@@ -756,31 +785,38 @@ fn line_steps<const STEEP: bool>(
         }
     }
     let dw = b.width - a.width;
-    for k in first..last {
-        let uc = k as f32 + 0.5;
-        let t = ((uc - ua) * inv_du).clamp(0.0, 1.0);
-        let v = va + t * dv;
-        let cov = (a.width + t * dw) * stretch;
+    // The clip across, and the steps' end, as floats: exact, as pixel
+    // coordinates are far below 2^24.
+    let (v_lo, v_hi, end) = (
+        Vec4::splat(v_lo as f32),
+        Vec4::splat(v_hi as f32),
+        Vec4::splat(last as f32),
+    );
+    let mut k = first;
+    while k < last {
+        let ks = Vec4::splat(k as f32) + Vec4::new(0.0, 1.0, 2.0, 3.0);
+        let t = ((ks + 0.5 - ua) * inv_du).clamp(Vec4::ZERO, Vec4::ONE);
+        let v = Vec4::splat(va) + t * dv;
+        let cov = (Vec4::splat(a.width) + t * dw) * stretch;
         let vc = v - 0.5;
-        // Floor by truncation (`floor` is a libm call on baseline x86-64).
-        // At negative integers this picks the row below with share 0 and
-        // the row itself with share 1: the same fragments.
-        let r0 = if vc >= 0.0 { vc as i32 } else { vc as i32 - 1 };
-        let f = vc - r0 as f32;
-        let inside = |r: i32| r >= v_lo && r < v_hi;
+        let r0 = vc.floor();
+        let f = vc - r0;
+        let r1 = r0 + 1.0;
+        let lane = ks.cmplt(end);
         let shares = [
-            if inside(r0) { 1.0 - f } else { 0.0 },
-            if inside(r0.saturating_add(1)) { f } else { 0.0 },
+            Vec4::select(lane & r0.cmpge(v_lo) & r0.cmplt(v_hi), 1.0 - f, Vec4::ZERO),
+            Vec4::select(lane & r1.cmpge(v_lo) & r1.cmplt(v_hi), f, Vec4::ZERO),
         ];
-        if shares[0] > 0.0 || shares[1] > 0.0 {
-            emit(Step {
+        if (shares[0].cmpgt(Vec4::ZERO) | shares[1].cmpgt(Vec4::ZERO)).any() {
+            emit(&Steps {
                 major: k,
                 t,
                 cov,
-                minor: r0,
+                minor: r0.as_ivec4().to_array(),
                 shares,
             });
         }
+        k = k.saturating_add(4);
     }
 }
 
