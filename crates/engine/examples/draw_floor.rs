@@ -123,30 +123,43 @@ fn main() {
                     .par_iter()
                     .map(|&p| camera.project(p))
                     .collect();
-                // Segments binned to bands.
-                let mut bins: Vec<Vec<(Vec3, Vec3)>> = vec![Vec::new(); h.div_ceil(BAND)];
-                for s in hair.offsets().windows(2) {
-                    for i in s[0] as usize..(s[1] as usize).saturating_sub(1) {
-                        let (Some(a), Some(b)) = (pts[i], pts[i + 1]) else {
-                            continue;
-                        };
-                        let lo = (a.y.min(b.y) - 2.0).clamp(0.0, h as f32 - 1.0) as usize;
-                        let hi = (a.y.max(b.y) + 2.0).clamp(0.0, h as f32 - 1.0) as usize;
-                        for bin in &mut bins[lo / BAND..=hi / BAND] {
-                            bin.push((a, b));
+                // Segments binned to bands, by chunks of 256 strands in
+                // parallel.
+                let offsets = hair.offsets();
+                let chunks: Vec<Vec<Vec<(Vec3, Vec3)>>> = offsets[..offsets.len() - 1]
+                    .par_chunks(256)
+                    .enumerate()
+                    .map(|(c, starts)| {
+                        let mut bins = vec![Vec::new(); h.div_ceil(BAND)];
+                        for (s, &start) in starts.iter().enumerate() {
+                            let end = offsets[c * 256 + s + 1] as usize;
+                            for i in start as usize..end.saturating_sub(1) {
+                                let (Some(a), Some(b)) = (pts[i], pts[i + 1]) else {
+                                    continue;
+                                };
+                                let lo = (a.y.min(b.y) - 2.0).clamp(0.0, h as f32 - 1.0) as usize;
+                                let hi = (a.y.max(b.y) + 2.0).clamp(0.0, h as f32 - 1.0) as usize;
+                                for bin in &mut bins[lo / BAND..=hi / BAND] {
+                                    bin.push((a, b));
+                                }
+                            }
                         }
-                    }
-                }
+                        bins
+                    })
+                    .collect();
                 img.par_chunks_mut(BAND * w * 3).enumerate().for_each_init(
                     || vec![Vec4::ZERO; BAND * w],
                     |acc, (band, img)| {
                         let rows = img.len() / (3 * w);
-                        draw(&bins[band], acc, w, band * BAND, rows);
+                        for bins in &chunks {
+                            draw(&bins[band], acc, w, band * BAND, rows);
+                        }
                         resolve(&mut acc[..rows * w], img, &lut);
                     },
                 );
-                fragments = bins
+                fragments = chunks
                     .iter()
+                    .flatten()
                     .flatten()
                     .map(|(a, b)| 2.0 * f64::from((b.x - a.x).abs().max((b.y - a.y).abs())))
                     .sum::<f64>();
