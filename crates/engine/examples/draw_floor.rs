@@ -1,14 +1,16 @@
-//! How fast drawing hair in software can be here, as a floor for the
-//! `draw` stage of `wisplight bench frame`: the smooth style's segments,
-//! framed as the renderer frames them, drawn as Wu lines (two fragments a
-//! step, as the renderer draws them) added into an RGBA float sum per
-//! pixel, in bands of 16 rows that stay in a core's cache, then encoded to
-//! 8 bits through a table.
+//! Drawing hair written plainly, a yardstick for the `draw` stage of
+//! `wisplight bench frame`: a scene's segments (the smooth style by
+//! default), framed as the renderer frames them, drawn as Wu lines (two
+//! fragments a step, as the renderer draws them), binned by chunks of
+//! strands in parallel and added into an RGBA float sum per pixel in bands
+//! of 16 rows that stay in a core's cache, then encoded to 8 bits through a
+//! table.
 //!
 //! It leaves out what the renderer does besides: no depth test against the
 //! head, no colour per vertex, no depth weights, no transparency product,
-//! no head, no clipping of far segments. The time it takes is below what
-//! any renderer drawing these fragments can take on this machine.
+//! no head, no clipping of far segments. It is straightforward code, not
+//! the fastest possible: it measures what drawing these fragments costs on
+//! a machine with the least work per fragment, not a proven lower bound.
 //!
 //! ```text
 //! cargo run --release -p engine --example draw_floor [SCENE.toml]
