@@ -499,6 +499,8 @@ impl Rows<'_> {
         let n = self.n as usize;
         // Block rows stored before row k0: from k_lo, or from -1.
         let first_block_row = if self.k_lo == 0 { -1 } else { self.k_lo };
+        // Block (j, k)'s index, where its row is stored here.
+        let block = || (k - first_block_row) as usize * (n + 1) + (j + 1) as usize;
         let all = q.iter().all(|&q| q > 0);
         if j >= 0 && j < self.n - 1 && k >= self.k_lo && k + 1 < self.k_hi {
             // All four columns are in these rows and in the map.
@@ -511,8 +513,7 @@ impl Rows<'_> {
             }
             if all {
                 // k0 in k_lo..k_hi: its block row is stored here.
-                let block = (k - first_block_row) as usize * (n + 1) + (j + 1) as usize;
-                self.blocks[block].include(i as u16, front);
+                self.blocks[block()].include(i as u16, front);
             } else {
                 for (q, c) in q.into_iter().zip([col, col + 1, col + n, col + n + 1]) {
                     if q > 0 {
@@ -531,8 +532,7 @@ impl Rows<'_> {
         }
         if all {
             if (first_block_row..self.k_hi).contains(&k) {
-                let block = (k - first_block_row) as usize * (n + 1) + (j + 1) as usize;
-                self.blocks[block].include(i as u16, front);
+                self.blocks[block()].include(i as u16, front);
             }
         } else {
             for (q, (j, k)) in q.into_iter().zip(columns) {
@@ -600,15 +600,8 @@ fn strand_pieces(rows: &mut Rows, pts: &[Vec3], k_q: f32) -> FillStats {
                         u64::from((fz & FX_FRAC) as u32),
                     );
                     let (sy, sz) = ((1 << FX) - ty, (1 << FX) - tz);
-                    // q sz sy = q (sy sz) exactly: below 2^32 times 2^32.
-                    let (qs_z, qt_z) = (q * sz, q * tz);
-                    let part = |qw: u64| ((qw + (1 << 31)) >> 32) as u32;
-                    let qs = [
-                        part(qs_z * sy),
-                        part(qs_z * ty),
-                        part(qt_z * sy),
-                        part(qt_z * ty),
-                    ];
+                    let part = |w: u64| ((q * w + (1 << 31)) >> 32) as u32;
+                    let qs = [part(sy * sz), part(ty * sz), part(sy * tz), part(ty * tz)];
                     rows.splat(fy >> FX, fz >> FX, (p.x >> FX) as u32, qs, front);
                     stats.samples += u64::from(own);
                 } else {
