@@ -1,10 +1,10 @@
 //! Drawing hair written plainly, a yardstick for the `draw` stage of
 //! `wisplight bench frame`: a scene's segments (the smooth style by
-//! default), framed as the renderer frames them, drawn as Wu lines (two
-//! fragments a step, as the renderer draws them), binned by chunks of
-//! strands in parallel and added into an RGBA float sum per pixel in bands
-//! of 16 rows that stay in a core's cache, then encoded to 8 bits through a
-//! table.
+//! default), framed from the front as the renderer frames hair (its head
+//! aside), drawn as Wu lines (two fragments a step, as the renderer draws
+//! them), binned by chunks of strands in parallel and added into an RGBA
+//! float sum per pixel in bands of 16 rows that stay in a core's cache,
+//! then encoded to 8 bits through a table.
 //!
 //! It leaves out what the renderer does besides: no depth test against the
 //! head, no colour per vertex, no depth weights, no transparency product,
@@ -99,7 +99,8 @@ fn main() {
     let scene = Scene::load(std::path::Path::new(&path)).expect("a scene");
     let hair = build_hair(&scene).expect("hair");
     let (w, h) = (scene.render.width as usize, scene.render.height as usize);
-    // Framed as the renderer frames a scene without a camera position.
+    // Framed as the renderer frames a scene without a camera position,
+    // from the hair's bounds alone.
     let b = hair.bounds();
     let size = b.size().max_element();
     let fov = scene.camera.fov_deg;

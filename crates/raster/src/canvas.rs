@@ -99,14 +99,13 @@ pub struct Canvas {
     /// Projected hair vertices (`None`: behind the camera).
     verts: Vec<Option<ScreenVertex>>,
     /// Per chunk of strands (binned in parallel) and band of rows, every
-    /// segment that touches the band (copied, so that a band reads its
-    /// segments in one stream), with its look's index. A band reads the
-    /// chunks in order: strand order.
+    /// segment that touches the band, as its first vertex's index and its
+    /// look's index. A band reads the chunks in order: strand order.
     bins: Vec<Vec<Vec<Segment>>>,
     /// Chunks of `bins` in use since the last clear.
     chunks: usize,
-    /// The look of the hair drawn from each vertex on.
-    looks: Vec<(u32, HairLook)>,
+    /// The look of each call to [`Canvas::draw_hair`] since the last clear.
+    looks: Vec<HairLook>,
 }
 
 /// The smallest pixel rectangle `[x0, x1, y0, y1]` holding `a` (if any) and `b`.
@@ -420,7 +419,7 @@ impl Canvas {
                     weight,
                 })
             }));
-        self.looks.push((base as u32, *look));
+        self.looks.push(*look);
         let look_index = (self.looks.len() - 1) as u32;
         // Bin segments to bands of rows: chunks of strands in parallel, each
         // in strand order.
@@ -484,7 +483,7 @@ impl Canvas {
                     let i = i as usize;
                     // Binned segments have both ends on screen.
                     if let (Some(a), Some(b)) = (self.verts[i], self.verts[i + 1]) {
-                        self.rasterize(a, b, &self.looks[look as usize].1, y0, rows, acc);
+                        self.rasterize(a, b, &self.looks[look as usize], y0, rows, acc);
                     }
                 }
                 let depth = &self.depth[y0 * w..(y0 + rows) * w];
