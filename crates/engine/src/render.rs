@@ -310,7 +310,14 @@ impl Renderer {
             opacity: s.render.hair_alpha,
             depth_ref: view.depth_ref,
         };
-        canvas.draw_hair(&camera, hair.points(), hair.offsets(), &self.colors, &look);
+        canvas.draw_hair(
+            &camera,
+            hair.points(),
+            hair.offsets(),
+            &self.colors,
+            &look,
+            &[],
+        );
         Ok(canvas.resolve(s.render.background))
     }
 }

@@ -4,9 +4,10 @@
 //!
 //! This crate knows nothing of density maps or scenes: it is handed shaded
 //! vertices (colour per vertex) and a head, and turns them into pixels. Its
-//! results are the same bytes whatever the thread count or the draw order:
-//! hair fragments are accumulated in integers (sums do not depend on order)
-//! and composited once per pixel.
+//! results are the same bytes whatever the thread count, and whether groups
+//! of strands are drawn on one canvas or on several whose partial pictures
+//! ([`HairLayer`]) are composited together: each group's fragments are
+//! summed in floating point, the groups' sums in exact integers.
 
 mod camera;
 mod canvas;
@@ -15,7 +16,7 @@ mod png;
 mod shade;
 
 pub use camera::Camera;
-pub use canvas::{Canvas, HairLook, MAX_PIXELS, Sphere, to_srgb8};
+pub use canvas::{Canvas, HairLayer, HairLook, MAX_PIXELS, Sphere, Sums, to_srgb8};
 pub use gif::GifWriter;
 pub use png::{AtomicFile, encode_png, write_atomic, write_bytes_atomic, write_png_atomic};
 pub use shade::{Shading, kajiya_kay};
@@ -30,6 +31,8 @@ pub const fn canvas_max_side() -> u32 {
 pub enum RasterError {
     #[error("image size {width}x{height}: must be 1..={max} pixels a side and at most {pixels} pixels", max = canvas::MAX_SIDE, pixels = MAX_PIXELS)]
     Size { width: u32, height: u32 },
+    #[error("partial picture: {0}")]
+    Layer(String),
     #[error("camera: {0}")]
     Camera(String),
     #[error("cannot write {}: {cause}", path.display())]

@@ -158,6 +158,16 @@ impl WispModel {
     /// Grows a procedural hairstyle; the same parameters give the same bytes.
     pub fn generate(p: &StyleParams) -> WispModel {
         let roots = scalp_points(p.wisps as usize);
+        // Wisps in order of their root's azimuth about the vertical axis,
+        // so that a contiguous range of wisps is a sector of the head: a
+        // compact part of the picture (a cluster worker draws a few such
+        // sectors, and their partial pictures overlap little). Each wisp
+        // keeps the random numbers of its root's place on the scalp.
+        let mut order: Vec<usize> = (0..roots.len()).collect();
+        order.sort_by(|&a, &b| {
+            let (a, b) = (roots[a], roots[b]);
+            a.x.atan2(a.z).total_cmp(&b.x.atan2(b.z))
+        });
         let segs = p.style.control_segments();
         let mut guides = Hair::with_capacity(
             roots.len() * GUIDES_PER_WISP,
@@ -169,8 +179,9 @@ impl WispModel {
             Style::Smooth => Vec3::new(0.16, 0.075, 0.03),
             Style::Curly => Vec3::new(0.42, 0.10, 0.035),
         };
-        for (w, n) in roots.iter().enumerate() {
-            let mut rng = Rng::fork(p.seed, w as u64);
+        for (w, &at) in order.iter().enumerate() {
+            let n = &roots[at];
+            let mut rng = Rng::fork(p.seed, at as u64);
             let wisp = WispShape {
                 length: match p.style {
                     Style::Smooth => rng.range(22.0, 30.0),

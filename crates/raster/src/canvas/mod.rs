@@ -1,0 +1,810 @@
+//! The canvas: an opaque layer (the head, depth-tested) under a
+//! semi-transparent hair layer, resolved once per pixel.
+//!
+//! Hair is drawn as anti-aliased line strips. Its fragments are blended in
+//! an order-independent way (weighted blended transparency, McGuire and
+//! Bavoil 2013): each pixel sums colour times alpha times a depth weight
+//! and alpha times the weight, and multiplies `1 - alpha`. The picture is
+//! cut into bands of rows; one thread rasterizes a band into sums that stay
+//! in cache, and composites it.
+//!
+//! Strands come in groups (say, a cluster worker's share is a set of whole
+//! groups). Inside a group, fragments are summed in floating point in
+//! strand order; each group's sums are then rounded once into exact
+//! integers ([`Sums`]) and added. So the picture is the same bytes whatever
+//! the thread count, and whether the groups are drawn on one canvas or on
+//! several whose [`HairLayer`]s are composited together; drawing the
+//! strands of a group in another order changes only rounding.
+
+mod layer;
+mod line;
+mod opaque;
+mod srgb;
+mod sums;
+
+pub use layer::HairLayer;
+pub use opaque::Sphere;
+pub use srgb::to_srgb8;
+pub use sums::Sums;
+
+use glam::{Vec3, Vec4};
+use rayon::prelude::*;
+
+use crate::{Camera, RasterError};
+use line::{ScreenVertex, Steps, is_steep, line_steps};
+
+/// The largest image side, in pixels.
+pub const MAX_SIDE: u32 = 16_384;
+/// The most pixels an image may have (about 200 MB of accumulators).
+pub const MAX_PIXELS: u64 = 40_000_000;
+
+/// Fragment alpha never reaches 1: one fragment never hides all behind it.
+const MAX_ALPHA: f32 = 0.995;
+/// Image rows per band: bands are drawn in parallel, each by one thread.
+const BAND: usize = 16;
+
+/// How drawn strands look.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HairLook {
+    /// Strand width, scene units (projected to pixels by the camera).
+    pub fiber_width: f32,
+    /// Opacity where a strand covers a whole pixel.
+    pub opacity: f32,
+    /// Distance from the camera (scene units) that sets the depth
+    /// weighting: fragments nearer count more, farther less.
+    pub depth_ref: f32,
+}
+
+/// One group's per-pixel hair sums while it is rasterized: colour times
+/// alpha times depth weight, alpha times depth weight, and the product of
+/// `1 - alpha`, the fraction of the background the hair reveals.
+///
+/// Colour and weight sit in one vector (`xyz` and `w`), so that a fragment
+/// adds both in one operation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Acc {
+    rgbw: Vec4,
+    reveal: f32,
+}
+
+impl Acc {
+    const EMPTY: Acc = Acc {
+        rgbw: Vec4::ZERO,
+        reveal: 1.0,
+    };
+}
+
+/// A picture being drawn.
+///
+/// The opaque layer is kept for the whole image, and cleared only where the
+/// last frame drew. Hair is not accumulated over the whole image: its
+/// segments are projected and binned to bands of rows, and [`Self::resolve`]
+/// rasterizes each band into a small buffer that stays in cache and
+/// composites it at once.
+#[derive(Debug)]
+pub struct Canvas {
+    width: usize,
+    height: usize,
+    /// Opaque layer: view depth (infinite where nothing) and linear colour.
+    depth: Vec<f32>,
+    opaque: Vec<Vec3>,
+    /// Rows `y0..y1`, columns `x0..x1` of the opaque layer drawn since the
+    /// last clear.
+    dirty: Option<[usize; 4]>,
+    /// Projected hair vertices (`None`: behind the camera).
+    verts: Vec<Option<ScreenVertex>>,
+    /// Per chunk of strands (binned in parallel) and band of rows, every
+    /// segment that touches the band, as its first vertex's index and its
+    /// look's index. A band reads the chunks in order: strand order.
+    bins: Vec<Vec<Vec<Segment>>>,
+    /// Per chunk and band, the pixel columns `[x0, x1)` its segments can
+    /// reach there (`x0 >= x1`: none).
+    reach: Vec<Vec<[u32; 2]>>,
+    /// The group of each chunk in use; a chunk holds strands of one group,
+    /// and a group's chunks follow each other.
+    chunk_group: Vec<u32>,
+    /// Groups drawn since the last clear.
+    groups: u32,
+    /// The look of each call to [`Canvas::draw_hair`] since the last clear.
+    looks: Vec<HairLook>,
+}
+
+/// A segment binned for drawing: the index in `verts` of its first end
+/// (the second follows it) and the index of its look. Eight bytes, where
+/// the ends themselves would be sixty: a band reads its segments' ends from
+/// the shared vertices, in strand order.
+type Segment = (u32, u32);
+
+/// Strands per binning task.
+const STRANDS_PER_CHUNK: usize = 256;
+
+/// No pixel columns.
+const NO_REACH: [u32; 2] = [u32::MAX, 0];
+
+/// What one thread keeps between the bands it draws: the float sums of
+/// the group being rasterized (`acc`), and exact sums of the groups before
+/// it, kept only at the pixels some group reached: `slot` names a pixel's
+/// place in `sums`, `marked` has a bit for each (a word per 64 pixels of a
+/// row). A band's few thousand exact sums stay in cache where a full band
+/// of them would not.
+#[derive(Debug, Default)]
+struct Scratch {
+    acc: Vec<Acc>,
+    slot: Vec<u32>,
+    sums: Vec<Sums>,
+    marked: Vec<u64>,
+    /// Words of `marked` per row.
+    words: usize,
+}
+
+/// No exact sums at a pixel yet.
+const NO_SLOT: u32 = u32::MAX;
+
+impl Scratch {
+    /// Sized for `rows` rows of `w` pixels, everything empty.
+    fn ready(&mut self, rows: usize, w: usize) {
+        let pixels = rows * w;
+        if self.acc.len() < pixels {
+            self.acc.resize(pixels, Acc::EMPTY);
+            self.slot.resize(pixels, NO_SLOT);
+        }
+        self.words = w.div_ceil(64);
+        if self.marked.len() < rows * self.words {
+            self.marked.resize(rows * self.words, 0);
+        }
+        self.sums.clear();
+    }
+
+    /// The exact sums' slot of pixel `x` of row `r` (band pixel `px`),
+    /// made empty if it had none.
+    #[inline]
+    fn slot_of(&mut self, px: usize, r: usize, x: usize) -> usize {
+        let s = self.slot[px];
+        if s != NO_SLOT {
+            return s as usize;
+        }
+        self.slot[px] = self.sums.len() as u32;
+        self.sums.push(Sums::ZERO);
+        self.marked[r * self.words + x / 64] |= 1 << (x % 64);
+        self.sums.len() - 1
+    }
+
+    /// Rounds the float sums of columns `x0..x1` of rows `0..rows` (a band
+    /// `w` wide) into the exact ones, and empties them.
+    fn fold(&mut self, rows: usize, w: usize, [x0, x1]: [u32; 2]) {
+        let (x0, x1) = (x0 as usize, (x1 as usize).min(w));
+        for r in 0..rows {
+            for x in x0..x1 {
+                let px = r * w + x;
+                // w > 0 wherever a fragment landed (alpha > 0, weight >= 1e-3).
+                if self.acc[px].rgbw.w != 0.0 {
+                    let a = std::mem::replace(&mut self.acc[px], Acc::EMPTY);
+                    let s = self.slot_of(px, r, x);
+                    self.sums[s].fold(a.rgbw, a.reveal);
+                }
+            }
+        }
+    }
+
+    /// Adds exact sums at pixel `x` of row `r` (band pixel `px`).
+    fn add(&mut self, px: usize, r: usize, x: usize, sums: &Sums) {
+        let s = self.slot_of(px, r, x);
+        self.sums[s].add(sums);
+    }
+
+    /// Takes the hair sums at band pixel `px`, exact and float together,
+    /// leaving it empty; `None` where no hair reached it.
+    #[inline]
+    fn take(&mut self, px: usize) -> Option<Sums> {
+        let s = std::mem::replace(&mut self.slot[px], NO_SLOT);
+        let mut sums = (s != NO_SLOT).then(|| self.sums[s as usize]);
+        if self.acc[px].rgbw.w != 0.0 {
+            let a = std::mem::replace(&mut self.acc[px], Acc::EMPTY);
+            sums.get_or_insert(Sums::ZERO).fold(a.rgbw, a.reveal);
+        }
+        sums
+    }
+}
+
+impl Canvas {
+    pub fn new(width: u32, height: u32) -> Result<Canvas, RasterError> {
+        if !(1..=MAX_SIDE).contains(&width)
+            || !(1..=MAX_SIDE).contains(&height)
+            || u64::from(width) * u64::from(height) > MAX_PIXELS
+        {
+            return Err(RasterError::Size { width, height });
+        }
+        let n = width as usize * height as usize;
+        Ok(Canvas {
+            width: width as usize,
+            height: height as usize,
+            depth: vec![f32::INFINITY; n],
+            opaque: vec![Vec3::ZERO; n],
+            dirty: None,
+            verts: Vec::new(),
+            bins: Vec::new(),
+            reach: Vec::new(),
+            chunk_group: Vec::new(),
+            groups: 0,
+            looks: Vec::new(),
+        })
+    }
+
+    /// Empties the canvas for the next frame, keeping its memory.
+    pub fn clear(&mut self) {
+        if let Some([x0, x1, y0, y1]) = self.dirty.take() {
+            let w = self.width;
+            self.depth[y0 * w..y1 * w]
+                .par_chunks_mut(w)
+                .zip(self.opaque[y0 * w..y1 * w].par_chunks_mut(w))
+                .for_each(|(d, c)| {
+                    d[x0..x1].fill(f32::INFINITY);
+                    c[x0..x1].fill(Vec3::ZERO);
+                });
+        }
+        self.verts.clear();
+        let used = self.chunk_group.len();
+        for (chunk, reach) in self.bins[..used].iter_mut().zip(&mut self.reach) {
+            chunk.iter_mut().for_each(Vec::clear);
+            reach.fill(NO_REACH);
+        }
+        self.chunk_group.clear();
+        self.groups = 0;
+        self.looks.clear();
+    }
+
+    pub fn width(&self) -> u32 {
+        self.width as u32
+    }
+
+    pub fn height(&self) -> u32 {
+        self.height as u32
+    }
+
+    /// Draws hair: line strips through `points` (strand `s` is
+    /// `offsets[s]..offsets[s + 1]`) with per-vertex linear `colors`, looking
+    /// as `look` says, in groups of strands: group `g` is strands
+    /// `groups[g]..groups[g + 1]` (`groups` ascending from 0 to the strand
+    /// count; empty for one group of all). The strips are projected and
+    /// binned here, and rasterized by [`Self::resolve`] or [`Self::layer`].
+    pub fn draw_hair(
+        &mut self,
+        camera: &Camera,
+        points: &[Vec3],
+        offsets: &[u32],
+        colors: &[Vec3],
+        look: &HairLook,
+        groups: &[u32],
+    ) {
+        assert_eq!(points.len(), colors.len());
+        let strands = offsets.len().saturating_sub(1);
+        let all = [0, strands as u32];
+        let groups = if groups.is_empty() { &all[..] } else { groups };
+        assert!(
+            groups[0] == 0
+                && groups[groups.len() - 1] as usize == strands
+                && groups.windows(2).all(|g| g[0] <= g[1]),
+            "groups cover the strands in order"
+        );
+        let base = self.verts.len();
+        let fiber_width = look.fiber_width;
+        let focal = camera.focal();
+        let depth_ref = look.depth_ref;
+        // Project every vertex once.
+        self.verts
+            .par_extend(points.par_iter().zip(colors).map(|(&p, &color)| {
+                let s = camera.project(p)?;
+                // Projected width: w * focal / z pixels, at least a hair's
+                // breadth so that distant hair still covers something.
+                let width = (fiber_width * focal / s.z).clamp(0.05, 8.0);
+                // The depth weight at the ends, interpolated along a
+                // segment (which spans a few pixels; the weight changes
+                // little along it).
+                let weight = (depth_ref / s.z).powi(6).clamp(1e-3, 1e3);
+                Some(ScreenVertex {
+                    p: s,
+                    color,
+                    width,
+                    weight,
+                })
+            }));
+        self.looks.push(*look);
+        let look_index = (self.looks.len() - 1) as u32;
+        // Chunks of strands, none across a group's end.
+        let first_chunk = self.chunk_group.len();
+        let mut chunks = Vec::new();
+        for g in groups.windows(2) {
+            for s in (g[0]..g[1]).step_by(STRANDS_PER_CHUNK) {
+                chunks.push(s as usize..(s as usize + STRANDS_PER_CHUNK).min(g[1] as usize));
+                self.chunk_group.push(self.groups);
+            }
+            self.groups += 1;
+        }
+        // Bin segments to bands of rows: chunks of strands in parallel, each
+        // in strand order.
+        let bands = self.height.div_ceil(BAND);
+        let end_chunk = self.chunk_group.len();
+        if self.bins.len() < end_chunk {
+            self.bins.resize_with(end_chunk, || vec![Vec::new(); bands]);
+            self.reach.resize_with(end_chunk, || vec![NO_REACH; bands]);
+        }
+        let verts = &self.verts;
+        let (w, h) = (self.width as f32, self.height);
+        self.bins[first_chunk..end_chunk]
+            .par_iter_mut()
+            .zip(&mut self.reach[first_chunk..end_chunk])
+            .zip(chunks)
+            .for_each(|((bins, reach), strands)| {
+                for s in strands {
+                    for i in offsets[s] as usize..(offsets[s + 1] as usize).saturating_sub(1) {
+                        let (Some(a), Some(b)) = (verts[base + i], verts[base + i + 1]) else {
+                            continue;
+                        };
+                        let pad = a.width.max(b.width) + 2.0;
+                        let lo = (a.p.y.min(b.p.y) - pad).max(0.0);
+                        let hi = (a.p.y.max(b.p.y) + pad).min(h as f32);
+                        let (left, right) = (a.p.x.min(b.p.x) - pad, a.p.x.max(b.p.x) + pad);
+                        if lo >= hi || right < 0.0 || left > w {
+                            continue;
+                        }
+                        // Columns the segment's fragments can fall in.
+                        let (x0, x1) = (left.max(0.0) as u32, (right.min(w) as u32 + 1));
+                        let (first, last) = (lo as usize / BAND, (hi as usize).min(h - 1) / BAND);
+                        for (bin, r) in bins[first..=last].iter_mut().zip(&mut reach[first..=last])
+                        {
+                            bin.push(((base + i) as u32, look_index));
+                            *r = [r[0].min(x0), r[1].max(x1)];
+                        }
+                    }
+                }
+            });
+    }
+
+    /// The finished picture: hair over the opaque layer over `background`
+    /// (linear colours), encoded as 8-bit sRGB. Each band of rows is
+    /// rasterized into its own sums, then composited.
+    pub fn resolve(&self, background: Vec3) -> image::RgbImage {
+        self.resolve_layers(background, &[])
+    }
+
+    /// [`Self::resolve`] with the hair of `layers` (drawn on other
+    /// canvases of the same size, with the same opaque layer) added to
+    /// this canvas's own: the same bytes as drawing all their groups here.
+    /// Layers of another size are ignored (the caller checks them).
+    pub fn resolve_layers(&self, background: Vec3, layers: &[HairLayer]) -> image::RgbImage {
+        let (w, h) = (self.width, self.height);
+        let mut img = image::RgbImage::new(w as u32, h as u32);
+        let lut = srgb::srgb_table();
+        let bg = srgb::encode(lut, background);
+        let buf: &mut [u8] = &mut img;
+        let layers: Vec<&HairLayer> = layers
+            .iter()
+            .filter(|l| l.width() as usize == w && l.height() as usize == h)
+            .collect();
+        buf.par_chunks_mut(w * BAND * 3).enumerate().for_each_init(
+            Scratch::default,
+            |scratch, (band, out)| {
+                let y0 = band * BAND;
+                let rows = out.len() / (3 * w);
+                // The last group stays in floats, folded as it is composited.
+                let last = self.band_sums(band, rows, scratch, false);
+                let first = (y0 * w) as u32;
+                for l in &layers {
+                    let (pixels, sums) = l.range(first, first + (rows * w) as u32);
+                    for (&p, s) in pixels.iter().zip(sums) {
+                        let px = (p - first) as usize;
+                        scratch.add(px, px / w, px % w, s);
+                    }
+                }
+                let depth = &self.depth[y0 * w..(y0 + rows) * w];
+                let opaque = &self.opaque[y0 * w..(y0 + rows) * w];
+                for (r, row) in out.chunks_exact_mut(3 * w).enumerate() {
+                    // 64 pixels a word of `marked`: a run with no exact
+                    // sums, no float sums and no head is background.
+                    for (k, run) in row.chunks_mut(64 * 3).enumerate() {
+                        let (x0, x1) = (k * 64, k * 64 + run.len() / 3);
+                        let (p0, p1) = (r * w + x0, r * w + x1);
+                        let word = &mut scratch.marked[r * scratch.words + k];
+                        let floats = x1 as u32 > last[0] && (x0 as u32) < last[1];
+                        if *word == 0 && !floats && depth[p0..p1].iter().all(|d| d.is_infinite()) {
+                            run.chunks_exact_mut(3)
+                                .for_each(|px| px.copy_from_slice(&bg));
+                            continue;
+                        }
+                        *word = 0;
+                        for (p, px) in (p0..p1).zip(run.chunks_exact_mut(3)) {
+                            let covered = depth[p].is_finite();
+                            let hair = scratch.take(p);
+                            if hair.is_none() && !covered {
+                                px.copy_from_slice(&bg);
+                                continue;
+                            }
+                            let base = if covered { opaque[p] } else { background };
+                            let c = hair.map_or(base, |s| s.over(base));
+                            px.copy_from_slice(&srgb::encode(lut, c));
+                        }
+                    }
+                }
+            },
+        );
+        img
+    }
+
+    /// This canvas's hair alone, as exact sums at the pixels it touched
+    /// (hidden behind the opaque layer where that is in front), for
+    /// [`Self::resolve_layers`] elsewhere.
+    pub fn layer(&self) -> HairLayer {
+        let (w, h) = (self.width, self.height);
+        let bands = h.div_ceil(BAND);
+        let parts: Vec<HairLayer> = (0..bands)
+            .into_par_iter()
+            .map_init(Scratch::default, |scratch, band| {
+                let y0 = band * BAND;
+                let rows = BAND.min(h - y0);
+                self.band_sums(band, rows, scratch, true);
+                let mut part = HairLayer::new(w as u32, h as u32);
+                for r in 0..rows {
+                    let words = &mut scratch.marked[r * scratch.words..(r + 1) * scratch.words];
+                    for (k, bits) in words.iter_mut().enumerate() {
+                        while *bits != 0 {
+                            let x = k * 64 + bits.trailing_zeros() as usize;
+                            *bits &= *bits - 1;
+                            let s = std::mem::replace(&mut scratch.slot[r * w + x], NO_SLOT);
+                            part.push(((y0 + r) * w + x) as u32, scratch.sums[s as usize]);
+                        }
+                    }
+                }
+                part
+            })
+            .collect();
+        let mut layer = HairLayer::new(w as u32, h as u32);
+        for p in parts {
+            layer.append(p);
+        }
+        layer
+    }
+
+    /// Rasterizes band `band` (its first `rows` rows) of every group into
+    /// `scratch`, group by group, each group's float sums folded into the
+    /// exact ones when it is done; the last group's too when `fold_last`.
+    /// Returns the columns `[x0, x1)` where float sums are left.
+    fn band_sums(
+        &self,
+        band: usize,
+        rows: usize,
+        scratch: &mut Scratch,
+        fold_last: bool,
+    ) -> [u32; 2] {
+        let (w, y0) = (self.width, band * BAND);
+        scratch.ready(rows, w);
+        let mut group = None;
+        let mut reach = NO_REACH;
+        for ((chunk, r), &g) in self.bins.iter().zip(&self.reach).zip(&self.chunk_group) {
+            if group != Some(g) {
+                scratch.fold(rows, w, reach);
+                reach = NO_REACH;
+                group = Some(g);
+            }
+            reach = [reach[0].min(r[band][0]), reach[1].max(r[band][1])];
+            for &(i, look) in &chunk[band] {
+                let i = i as usize;
+                // Binned segments have both ends on screen.
+                if let (Some(a), Some(b)) = (self.verts[i], self.verts[i + 1]) {
+                    self.rasterize(a, b, &self.looks[look as usize], y0, rows, &mut scratch.acc);
+                }
+            }
+        }
+        if fold_last {
+            scratch.fold(rows, w, reach);
+            return NO_REACH;
+        }
+        reach
+    }
+
+    /// Adds the fragments of the segment from `a` to `b` that fall in rows
+    /// `y0..y0 + rows` to `acc` (that band's float sums).
+    fn rasterize(
+        &self,
+        a: ScreenVertex,
+        b: ScreenVertex,
+        look: &HairLook,
+        y0: usize,
+        rows: usize,
+        acc: &mut [Acc],
+    ) {
+        let w = self.width;
+        let opacity = look.opacity.clamp(0.0, 1.0);
+        let (wa, wb) = (a.weight, b.weight);
+        let depth = &self.depth[y0 * w..(y0 + rows) * w];
+        let clip = [0, w as i32, y0 as i32, (y0 + rows) as i32];
+        let band = Band {
+            w,
+            y0,
+            depth,
+            opacity,
+            wa,
+            wb,
+        };
+        // One copy of the loop per major axis, with no per-fragment test of
+        // which axis is which.
+        if is_steep(a, b) {
+            line_steps::<true>(a, b, clip, |s| band.add::<true>(a, b, s, acc));
+        } else {
+            line_steps::<false>(a, b, clip, |s| band.add::<false>(a, b, s, acc));
+        }
+    }
+}
+
+/// What every step of one segment in one band shares.
+struct Band<'a> {
+    w: usize,
+    y0: usize,
+    /// The band's rows of the opaque layer's depth.
+    depth: &'a [f32],
+    opacity: f32,
+    /// Depth weights at the segment's ends.
+    wa: f32,
+    wb: f32,
+}
+
+impl Band<'_> {
+    /// Adds the fragments of four steps to `acc`, step by step and in each
+    /// step the nearer row first; `STEEP`: y is the major axis. What a
+    /// step's two pixels share (depth, colour, weight, alpha) is computed
+    /// for the four steps at once, each lane as one step would compute it.
+    #[inline(always)]
+    fn add<const STEEP: bool>(&self, a: ScreenVertex, b: ScreenVertex, s: &Steps, acc: &mut [Acc]) {
+        let t = s.t;
+        let z = (Vec4::splat(a.p.z) + t * (b.p.z - a.p.z)).to_array();
+        // Colours with w = 1, so that colour times weight carries the
+        // weight along: 1 + t (1 - 1) is exactly 1.
+        let (ca, cb) = (a.color.extend(1.0), b.color.extend(1.0));
+        let dc = cb - ca;
+        let ts = t.to_array();
+        let wt = (Vec4::splat(self.wa) + t * (self.wb - self.wa)).to_array();
+        let step_alpha = self.opacity * s.cov;
+        let alphas = s
+            .shares
+            .map(|share| (step_alpha * share).min(Vec4::splat(MAX_ALPHA)).to_array());
+        for l in 0..4 {
+            let major = s.major + l as i32;
+            let c = (ca + ts[l] * dc).max(Vec4::ZERO);
+            for (row, alpha) in alphas.iter().enumerate() {
+                let alpha = alpha[l];
+                if alpha <= 0.0 {
+                    continue;
+                }
+                let minor = s.minor[l] + row as i32;
+                let (x, y) = if STEEP {
+                    (minor, major)
+                } else {
+                    (major, minor)
+                };
+                let px = (y as usize - self.y0) * self.w + x as usize;
+                if z[l] >= self.depth[px] {
+                    continue;
+                }
+                let aw = alpha * wt[l];
+                let cell = &mut acc[px];
+                cell.rgbw += c * aw;
+                cell.reveal *= 1.0 - alpha;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn refuses_absurd_sizes() {
+        assert!(Canvas::new(0, 10).is_err());
+        assert!(Canvas::new(100_000, 10).is_err());
+        assert!(Canvas::new(16_000, 16_000).is_err());
+        assert!(Canvas::new(64, 48).is_ok());
+    }
+
+    #[test]
+    fn thread_count_does_not_change_a_single_byte_and_draw_order_only_rounding() {
+        let cam = Camera::new(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, 40.0, 64, 48).unwrap();
+        let mut pts = Vec::new();
+        let mut cols = Vec::new();
+        for s in 0..40 {
+            let f = s as f32 * 0.1;
+            pts.extend([
+                Vec3::new(-2.0 + f, -1.0, f - 2.0),
+                Vec3::new(2.0 - f, 1.5, 1.0 - f),
+            ]);
+            cols.extend([Vec3::new(f / 4.0, 0.3, 0.9 - f / 5.0); 2]);
+        }
+        let offsets: Vec<u32> = (0..=40).map(|s| 2 * s).collect();
+        let draw = |pts: &[Vec3], cols: &[Vec3]| {
+            let mut c = Canvas::new(64, 48).unwrap();
+            c.draw_hair(
+                &cam,
+                pts,
+                &offsets,
+                cols,
+                &HairLook {
+                    fiber_width: 0.05,
+                    opacity: 0.6,
+                    depth_ref: 10.0,
+                },
+                &[],
+            );
+            c.resolve(Vec3::splat(0.1)).into_raw()
+        };
+        let forward = draw(&pts, &cols);
+        let on = |threads| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| draw(&pts, &cols))
+        };
+        assert!(forward == on(1) && forward == on(3), "thread counts");
+        // Another order rounds differently, by at most a level.
+        let rev_pts: Vec<Vec3> = pts.chunks(2).rev().flatten().copied().collect();
+        let rev_cols: Vec<Vec3> = cols.chunks(2).rev().flatten().copied().collect();
+        let back = draw(&rev_pts, &rev_cols);
+        assert!(forward.iter().zip(&back).all(|(a, b)| a.abs_diff(*b) <= 1));
+        assert!(forward.iter().any(|&v| v > 40), "something was drawn");
+    }
+
+    /// Strands in groups drawn on one canvas, and the same groups split
+    /// across canvases whose layers are composited: the same bytes, for
+    /// any split and thread count, over a head that hides some of them.
+    #[test]
+    fn groups_split_across_canvases_composite_to_the_same_bytes() {
+        let cam = Camera::new(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, 40.0, 80, 56).unwrap();
+        let (mut pts, mut cols, mut offsets) = (Vec::new(), Vec::new(), vec![0u32]);
+        for s in 0..60 {
+            let f = s as f32 * 0.07;
+            for k in 0..5 {
+                let t = k as f32 / 4.0;
+                pts.push(Vec3::new(-2.5 + f + 0.3 * t, 1.8 - 3.6 * t, 1.5 - f * 0.5));
+                cols.push(Vec3::new(0.2 + f / 8.0, 0.3 * t, 0.5));
+            }
+            offsets.push(pts.len() as u32);
+        }
+        let look = HairLook {
+            fiber_width: 0.04,
+            opacity: 0.7,
+            depth_ref: 10.0,
+        };
+        let head = Sphere {
+            center: Vec3::new(0.5, 0.0, -0.5),
+            radius: 1.2,
+        };
+        let groups = [0, 7, 20, 21, 33, 60];
+        let canvas = |strands: std::ops::Range<usize>| {
+            let mut c = Canvas::new(80, 56).unwrap();
+            c.draw_sphere(&cam, &head, |_, _| Vec3::new(0.6, 0.4, 0.3));
+            // Group boundaries within `strands`, as strand indices from its start.
+            let g: Vec<u32> = groups
+                .iter()
+                .map(|&b| (b as usize).clamp(strands.start, strands.end))
+                .map(|b| (b - strands.start) as u32)
+                .collect();
+            let (p0, p1) = (
+                offsets[strands.start] as usize,
+                offsets[strands.end] as usize,
+            );
+            let off: Vec<u32> = offsets[strands.clone()]
+                .iter()
+                .chain([&offsets[strands.end]])
+                .map(|&o| o - p0 as u32)
+                .collect();
+            c.draw_hair(&cam, &pts[p0..p1], &off, &cols[p0..p1], &look, &g);
+            c
+        };
+        let bg = Vec3::splat(0.05);
+        let whole = canvas(0..60).resolve(bg);
+        assert!(whole.pixels().any(|p| p[0] > 60), "something was drawn");
+        for cuts in [
+            vec![0, 60],
+            vec![0, 21, 60],
+            vec![0, 7, 33, 60],
+            vec![0, 7, 20, 21, 33, 60],
+        ] {
+            let layers: Vec<HairLayer> = cuts
+                .windows(2)
+                .map(|c| canvas(c[0]..c[1]).layer())
+                .collect();
+            // The compositor has the head alone, and the layers, in any order.
+            let mut head_only = Canvas::new(80, 56).unwrap();
+            head_only.draw_sphere(&cam, &head, |_, _| Vec3::new(0.6, 0.4, 0.3));
+            let mut rev = layers.clone();
+            rev.reverse();
+            for ls in [&layers, &rev] {
+                let img = rayon::ThreadPoolBuilder::new()
+                    .num_threads(3)
+                    .build()
+                    .unwrap()
+                    .install(|| head_only.resolve_layers(bg, ls));
+                assert!(img == whole, "split at {cuts:?}");
+            }
+        }
+        // The integers themselves add up: split layers sum to the whole's.
+        let all = canvas(0..60).layer();
+        assert!(!all.pixels().is_empty());
+        assert!(all.sums().iter().all(|s| !s.is_zero()));
+        let mut added = std::collections::BTreeMap::new();
+        for c in [0, 7, 20, 21, 33, 60].windows(2) {
+            let l = canvas(c[0]..c[1]).layer();
+            for (&p, s) in l.pixels().iter().zip(l.sums()) {
+                added.entry(p).or_insert(Sums::ZERO).add(s);
+            }
+        }
+        let whole_sums: std::collections::BTreeMap<u32, Sums> = all
+            .pixels()
+            .iter()
+            .copied()
+            .zip(all.sums().iter().copied())
+            .collect();
+        assert_eq!(added, whole_sums);
+    }
+
+    #[test]
+    fn malformed_layers_are_refused() {
+        let s = Sums::ZERO;
+        assert!(HairLayer::from_parts(4, 4, vec![1, 3], vec![s, s]).is_ok());
+        assert!(HairLayer::from_parts(4, 4, vec![3, 1], vec![s, s]).is_err());
+        assert!(HairLayer::from_parts(4, 4, vec![1, 1], vec![s, s]).is_err());
+        assert!(HairLayer::from_parts(4, 4, vec![16], vec![s]).is_err());
+        assert!(HairLayer::from_parts(4, 4, vec![1], vec![]).is_err());
+    }
+
+    #[test]
+    fn a_mesh_covers_its_projected_area_without_cracks_and_the_nearer_face_wins() {
+        // Orthographic enough: a far camera with a narrow field of view.
+        let cam = Camera::new(Vec3::new(0.0, 0.0, 400.0), Vec3::ZERO, 2.0, 96, 96).unwrap();
+        let px = cam.focal() / 400.0; // pixels per unit at the plane z = 0
+        // A square of side 8 px made of a fan of 4 triangles around its centre
+        // (shared edges), and behind it a larger square of another colour.
+        let h = 4.0 / px;
+        let front = [
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(-h, -h, 0.0),
+            Vec3::new(h, -h, 0.0),
+            Vec3::new(h, h, 0.0),
+            Vec3::new(-h, h, 0.0),
+        ];
+        let back = [
+            Vec3::new(-3.0 * h, -3.0 * h, -1.0),
+            Vec3::new(3.0 * h, -3.0 * h, -1.0),
+            Vec3::new(3.0 * h, 3.0 * h, -1.0),
+            Vec3::new(-3.0 * h, 3.0 * h, -1.0),
+        ];
+        let positions: Vec<Vec3> = back.iter().chain(&front).copied().collect();
+        let normals = vec![Vec3::Z; positions.len()];
+        let tris = [
+            [0, 1, 2],
+            [0, 2, 3],
+            [4, 5, 6],
+            [4, 6, 7],
+            [4, 7, 8],
+            [4, 8, 5],
+        ];
+        let draw = || {
+            let mut c = Canvas::new(96, 96).unwrap();
+            // Colour by depth: the front square white, the back one grey.
+            c.draw_mesh(&cam, &positions, &normals, &tris, |p, n| {
+                assert!((n - Vec3::Z).length() < 1e-5);
+                Vec3::splat(if p.z > -0.5 { 1.0 } else { 0.2 })
+            });
+            c.resolve(Vec3::ZERO)
+        };
+        let img = draw();
+        let count = |v: u8| img.pixels().filter(|p| p[0] == v).count();
+        assert_eq!(count(255), 64, "an 8x8 px square, no crack and no overlap");
+        assert_eq!(count(to_srgb8(Vec3::splat(0.2))[0]), 24 * 24 - 64);
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap()
+            .install(draw);
+        assert!(one == img, "thread counts");
+    }
+}
