@@ -87,6 +87,7 @@ fn main() {
         hair: &hair,
         fiber: &fiber,
         occluders: &head,
+        extent: None,
     }
     .fit(cells)
     .expect("a map");

@@ -65,34 +65,29 @@ impl LightFrame {
         n_cells: u32,
     ) -> Result<LightFrame, ShadowError> {
         check_cells(n_cells)?;
-        let axes = light_axes(light.direction());
         let Some(&c) = points.first().or(extra.first()) else {
             return LightFrame::centered(light, Vec3::ZERO, 1.0, n_cells);
         };
-        // Project relative to a point of the hair: keeps precision for hair
-        // far from the world origin. Min and max are exact in any order, so
-        // the parallel reduction is deterministic.
-        let (lo, hi) = points
-            .par_chunks(16 * 1024)
-            .map(|chunk| {
-                let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
-                for &p in chunk {
-                    let q = p - c;
-                    let m = Vec3::new(q.dot(axes[0]), q.dot(axes[1]), q.dot(axes[2]));
-                    lo = lo.min(m);
-                    hi = hi.max(m);
-                }
-                (lo, hi)
-            })
-            .reduce(
-                || (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-                |a, b| (a.0.min(b.0), a.1.max(b.1)),
-            );
-        let (lo, hi) = extra.iter().fold((lo, hi), |(lo, hi), &p| {
-            let q = p - c;
-            let m = Vec3::new(q.dot(axes[0]), q.dot(axes[1]), q.dot(axes[2]));
-            (lo.min(m), hi.max(m))
-        });
+        let extent = Extent::of(light, c, points).union(Extent::of(light, c, extra));
+        LightFrame::fit_extent(light, c, extent, n_cells)
+    }
+
+    /// The smallest cubic map around `extent` (measured from `anchor`, see
+    /// [`Extent::of`]), with a spare cell on each side so that the hair and
+    /// its deposits lie strictly inside.
+    pub fn fit_extent(
+        light: &Light,
+        anchor: Vec3,
+        extent: Extent,
+        n_cells: u32,
+    ) -> Result<LightFrame, ShadowError> {
+        check_cells(n_cells)?;
+        if extent.is_empty() {
+            return LightFrame::centered(light, anchor, 1.0, n_cells);
+        }
+        let axes = light_axes(light.direction());
+        let (lo, hi) = (extent.lo, extent.hi);
+        let c = anchor;
         let extent = (hi - lo).max_element();
         // A map must be wider than float noise at this distance from the origin.
         let floor = 1e-3 * (1.0 + c.abs().max_element() * 1e-2);
@@ -154,6 +149,56 @@ impl LightFrame {
     /// Number of `(j, k)` columns: `n_cells^2`.
     pub fn columns(&self) -> usize {
         (self.n_cells as usize).pow(2)
+    }
+}
+
+/// Where points lie along a light's map axes, measured from an anchor
+/// point near them (which keeps precision for hair far from the world
+/// origin): the smallest and largest coordinate along each axis. Extents
+/// of parts of the hair combine with [`Extent::union`], exactly and in any
+/// order, into the extent of all of it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Extent {
+    pub lo: Vec3,
+    pub hi: Vec3,
+}
+
+impl Extent {
+    pub const EMPTY: Extent = Extent {
+        lo: Vec3::splat(f32::INFINITY),
+        hi: Vec3::splat(f32::NEG_INFINITY),
+    };
+
+    pub fn is_empty(&self) -> bool {
+        !(self.lo.cmple(self.hi).all())
+    }
+
+    /// The extent of `points` along `light`'s map axes, from `anchor`.
+    /// Min and max are exact in any order, so the parallel reduction is
+    /// deterministic.
+    pub fn of(light: &Light, anchor: Vec3, points: &[Vec3]) -> Extent {
+        let axes = light_axes(light.direction());
+        points
+            .par_chunks(16 * 1024)
+            .map(|chunk| {
+                let mut e = Extent::EMPTY;
+                for &p in chunk {
+                    let q = p - anchor;
+                    let m = Vec3::new(q.dot(axes[0]), q.dot(axes[1]), q.dot(axes[2]));
+                    e.lo = e.lo.min(m);
+                    e.hi = e.hi.max(m);
+                }
+                e
+            })
+            .reduce(|| Extent::EMPTY, Extent::union)
+    }
+
+    /// The extent of both.
+    pub fn union(self, o: Extent) -> Extent {
+        Extent {
+            lo: self.lo.min(o.lo),
+            hi: self.hi.max(o.hi),
+        }
     }
 }
 

@@ -26,12 +26,12 @@ mod transmittance;
 
 pub use density::{ColumnMeta, DEPTH_QUANTUM, DensityMap, FillStats, MAX_CELLS};
 pub use fiber::Fiber;
-pub use frame::{Light, LightFrame};
+pub use frame::{Extent, Light, LightFrame};
 pub use method::{
     Beyond, DensityMapMethod, MethodConfig, OPAQUE_DEPTH, OpacityMode, ShadowInput, ShadowMethod,
 };
 pub use occluder::{Occluder, OccluderView};
-pub use transmittance::{ColumnSlab, DEPTH_STEP, Span, Transmittance, sweep};
+pub use transmittance::{ColumnSlab, DEPTH_STEP, Span, Transmittance, columns_read, sweep};
 
 /// Errors of the shadow stages.
 #[derive(Debug, thiserror::Error, PartialEq)]

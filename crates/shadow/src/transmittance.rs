@@ -102,6 +102,34 @@ impl ColumnSlab {
     pub fn cells(&self) -> usize {
         self.spans.iter().map(Span::len).sum()
     }
+
+    /// This slab with only the columns whose bits are set in `keep` (a
+    /// bitmap of the map's columns, as [`columns_read`] makes), the others
+    /// empty.
+    pub fn keep(&self, keep: &[u64]) -> ColumnSlab {
+        let mut depth = Vec::new();
+        let spans = self
+            .columns
+            .clone()
+            .zip(&self.spans)
+            .map(|(col, s)| {
+                let kept = keep
+                    .get(col as usize / 64)
+                    .is_some_and(|w| w >> (col % 64) & 1 == 1);
+                if !kept || s.is_empty() {
+                    return Span::EMPTY;
+                }
+                let start = depth.len() as u32;
+                depth.extend_from_slice(&self.depth[s.start as usize..s.start as usize + s.len()]);
+                Span { start, ..*s }
+            })
+            .collect();
+        ColumnSlab {
+            columns: self.columns.clone(),
+            spans,
+            depth,
+        }
+    }
 }
 
 /// Sweeps columns `columns` of `density` (paper 4.2): along each column from
@@ -183,6 +211,96 @@ pub struct Transmittance {
 /// columns -2 to n + 2 (points outside the map are clamped to 2 cells
 /// beyond it), and those outside the map are empty, with no bounds tests.
 const COL_PAD: usize = 2;
+
+/// Where a lookup of `p` reads a map (see [`Transmittance::optical_depth`]):
+/// columns `(j, k)` (and, filtered, `(j + 1, k)`, `(j, k + 1)` and
+/// `(j + 1, k + 1)`, with bilinear weights `ty`, `tz`), at slice
+/// coordinate `x`; unfiltered, at the centre slice `centre` of `p`'s cell.
+/// Points far outside the map are clamped to 2 cells beyond it (padding
+/// columns, all empty), so that the casts cannot overflow.
+#[derive(Debug, Clone, Copy)]
+struct Lookup {
+    j: i32,
+    k: i32,
+    x: f32,
+    ty: f32,
+    tz: f32,
+    centre: f32,
+}
+
+impl Lookup {
+    #[inline(always)]
+    fn at(frame: &LightFrame, p: Vec3, filter: bool) -> Lookup {
+        let n = frame.n_cells as f32;
+        // Shifting by 2 cells keeps the coordinates positive, so truncating
+        // casts are floors (`floor` is a libm call on baseline x86-64).
+        let c = frame.to_cells(p).clamp(Vec3::splat(-2.0), Vec3::splat(n + 2.0)) + 2.0;
+        let x = c.x - 2.0;
+        let centre = (c.x as i32 - 2) as f32 + 0.5;
+        if filter {
+            let (fy, fz) = (c.y - 0.5, c.z - 0.5);
+            let (j, k) = (fy as i32, fz as i32);
+            let (ty, tz) = (fy - j as f32, fz - k as f32);
+            Lookup {
+                j: j - 2,
+                k: k - 2,
+                x,
+                ty,
+                tz,
+                centre,
+            }
+        } else {
+            Lookup {
+                j: c.y as i32 - 2,
+                k: c.z as i32 - 2,
+                x,
+                ty: 0.0,
+                tz: 0.0,
+                centre,
+            }
+        }
+    }
+}
+
+/// Every column of `frame`'s map that looking up `points` (filtered or
+/// not) reads, as a bitmap of its `n_cells^2` columns (bit `c % 64` of word
+/// `c / 64`): what hair drawn elsewhere needs of a map swept elsewhere. A
+/// [`Transmittance`] that holds these columns (and any others) looks the
+/// points up exactly as the whole map does.
+pub fn columns_read(frame: &LightFrame, points: &[Vec3], filter: bool) -> Vec<u64> {
+    let n = frame.n_cells as i32;
+    let words = frame.columns().div_ceil(64);
+    points
+        .par_chunks(8192)
+        .fold(
+            || vec![0u64; words],
+            |mut bits, pts| {
+                let mut mark = |j: i32, k: i32| {
+                    if (0..n).contains(&j) && (0..n).contains(&k) {
+                        let c = (k * n + j) as usize;
+                        bits[c / 64] |= 1 << (c % 64);
+                    }
+                };
+                for &p in pts {
+                    let at = Lookup::at(frame, p, filter);
+                    mark(at.j, at.k);
+                    if filter {
+                        mark(at.j + 1, at.k);
+                        mark(at.j, at.k + 1);
+                        mark(at.j + 1, at.k + 1);
+                    }
+                }
+                bits
+            },
+        )
+        .reduce(
+            || vec![0u64; words],
+            |mut a, b| {
+                a.iter_mut().zip(b).for_each(|(a, b)| *a |= b);
+                a
+            },
+        )
+}
 
 /// One column's span in the form the filter reads fastest: no hair in
 /// front of `front` (infinite for an empty column), depths of cells
@@ -402,16 +520,9 @@ impl Transmittance {
     #[inline(always)]
     pub fn optical_depth(&self, p: Vec3, filter: bool) -> f32 {
         debug_assert!(p.is_finite());
-        let c = self.frame.to_cells(p);
-        // Far outside the map: clamp so the casts below cannot overflow.
-        // Shifting by 2 cells keeps the coordinates positive, so truncating
-        // casts are floors (`floor` is a libm call on baseline x86-64).
-        let c = c.clamp(Vec3::splat(-2.0), Vec3::splat(self.n as f32 + 2.0)) + 2.0;
+        let at = Lookup::at(&self.frame, p, filter);
+        let (j, k, x) = (at.j, at.k, at.x);
         if filter {
-            let (fy, fz) = (c.y - 0.5, c.z - 0.5);
-            let (j, k) = (fy as i32, fz as i32);
-            let (ty, tz) = (fy - j as f32, fz - k as f32);
-            let (j, k, x) = (j - 2, k - 2, c.x - 2.0);
             let d00 = self.column_depth(j, k, x);
             let d10 = self.column_depth(j + 1, k, x);
             let d01 = self.column_depth(j, k + 1, x);
@@ -419,17 +530,17 @@ impl Transmittance {
             // Non-negative weights: for fixed weights the sum never
             // decreases when any column's depth grows (monotone along the
             // light, rounding included).
+            let (ty, tz) = (at.ty, at.tz);
             let (sy, sz) = (1.0 - ty, 1.0 - tz);
             sz * (sy * d00 + ty * d10) + tz * (sy * d01 + ty * d11)
         } else {
             // The value at the centre of p's cell, but none in front of the
             // column's hair: monotone along the light, and exactly 0 where
             // no hair lies between p and the light.
-            let (j, k, x) = (c.y as i32 - 2, c.z as i32 - 2, c.x - 2.0);
             if self.column_depth(j, k, x) == 0.0 {
                 return 0.0;
             }
-            self.column_depth(j, k, (c.x as i32 - 2) as f32 + 0.5)
+            self.column_depth(j, k, at.centre)
         }
     }
 
@@ -600,6 +711,44 @@ mod tests {
                         }
                     }
                 }
+            }
+        }
+    }
+
+    #[test]
+    fn the_columns_a_lookup_reads_are_all_it_needs() {
+        let light = Light::directional(Vec3::new(0.7, -0.5, 0.2)).unwrap();
+        let mut hair = Hair::new();
+        for s in 0..40 {
+            let f = s as f32 * 0.1;
+            hair.push_strand(&[
+                Vec3::new(f.sin(), 1.0 + f * 0.2, f.cos()),
+                Vec3::new(f.sin() * 1.5, -1.0, f.cos() * 0.5 - 0.3),
+                Vec3::new(f * 0.3, -2.0, 0.4),
+            ])
+            .unwrap();
+        }
+        let frame = LightFrame::fit(&light, hair.points(), 24).unwrap();
+        let mut map = DensityMap::new(frame);
+        map.deposit(&hair, 0..hair.strand_count(), &Fiber::new(0.05, 0.6).unwrap());
+        let whole = Transmittance::compute(&map);
+        let slab = sweep(&map, 0..frame.columns() as u32);
+        // Points of the first few strands, and some outside the map.
+        let part = &hair.points()[..15];
+        let outside = [Vec3::splat(50.0), Vec3::new(-40.0, 3.0, 0.0)];
+        for filter in [true, false] {
+            let mut pts = part.to_vec();
+            pts.extend(outside);
+            let need = columns_read(&frame, &pts, filter);
+            let kept = slab.keep(&need);
+            assert!(kept.depth.len() < slab.depth.len(), "only some columns");
+            let sparse = Transmittance::assemble(frame, [kept]).unwrap();
+            for &p in &pts {
+                assert_eq!(
+                    sparse.optical_depth(p, filter).to_bits(),
+                    whole.optical_depth(p, filter).to_bits(),
+                    "{p} filter {filter}"
+                );
             }
         }
     }

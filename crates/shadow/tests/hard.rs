@@ -36,6 +36,7 @@ fn build(
             hair,
             fiber,
             occluders: &[],
+            extent: None,
         })
         .unwrap();
     assert_eq!(

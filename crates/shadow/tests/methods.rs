@@ -29,6 +29,7 @@ fn run(
             hair,
             fiber: &fiber,
             occluders,
+            extent: None,
         })
         .unwrap();
     assert_eq!(
