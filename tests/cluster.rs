@@ -245,14 +245,21 @@ fn bench_scaling_reports_every_configuration_and_writes_its_plot() {
             "density_received",
             "density_sent",
             "slabs_received",
+            "pose",
+            "draw_sent",
+            "layers_received",
         ];
         assert_eq!(parts.iter().map(|k| part(k)).sum::<u64>(), part("total"));
+        // Drawing on the workers (the default), partial pictures come back.
+        assert_eq!(c["draw"], "workers");
         for k in [
             "step_sent",
             "wisps_received",
             "density_received",
             "density_sent",
             "slabs_received",
+            "draw_sent",
+            "layers_received",
         ] {
             assert!(part(k) > 0, "{k} in {w}");
         }

@@ -97,6 +97,22 @@ pub fn worker(args: WorkerArgs) -> anyhow::Result<()> {
     .context("worker failed")
 }
 
+/// `--draw`: where the drawn hair is drawn.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Draw {
+    Workers,
+    Coordinator,
+}
+
+impl From<Draw> for cluster::DrawAt {
+    fn from(d: Draw) -> cluster::DrawAt {
+        match d {
+            Draw::Workers => cluster::DrawAt::Workers,
+            Draw::Coordinator => cluster::DrawAt::Coordinator,
+        }
+    }
+}
+
 #[derive(Debug, clap::Args)]
 pub struct CoordinatorArgs {
     /// Worker addresses, comma-separated: `127.0.0.1:43125,10.0.0.2:7000`.
@@ -111,6 +127,13 @@ pub struct CoordinatorArgs {
     /// to the last received.
     #[arg(long, default_value_t = 30.0, value_name = "SECONDS")]
     deadline: f64,
+    /// Where the drawn hair is posed, filtered, shaded and rasterized:
+    /// `workers` (each its own strands; the coordinator composites their
+    /// partial pictures) or `coordinator` (the paper's scheme: workers
+    /// simulate, fill and sweep, the coordinator draws every strand).
+    /// The pictures are the same bytes either way.
+    #[arg(long, value_enum, default_value_t = Draw::Workers, value_name = "WHERE")]
+    draw: Draw,
     #[command(flatten)]
     tls: ClientTlsArgs,
     #[command(flatten)]
@@ -128,8 +151,11 @@ pub fn coordinator(args: CoordinatorArgs) -> anyhow::Result<()> {
     }
     let remote = super::render::Remote {
         workers: args.workers,
-        deadline: Duration::from_secs_f64(args.deadline),
-        tls: args.tls.load()?,
+        options: cluster::Options {
+            deadline: Duration::from_secs_f64(args.deadline),
+            tls: args.tls.load()?,
+            draw: args.draw.into(),
+        },
     };
     super::render::run_with(args.render, Some(remote))
 }

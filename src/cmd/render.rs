@@ -45,12 +45,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     run_with(args, None)
 }
 
-/// Cluster mode: the workers that fill and sweep the density map.
+/// Cluster mode: the workers, and how the coordinator runs them.
 pub struct Remote {
     pub workers: Vec<String>,
-    pub deadline: std::time::Duration,
-    /// Mutual TLS credentials, when on.
-    pub tls: Option<cluster::Tls>,
+    pub options: cluster::Options,
 }
 
 /// `render`, or with `remote` the same frames with the density map filled
@@ -110,26 +108,21 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
     let mut timing = None;
     let mut workers = 0;
     if let Some(r) = remote {
-        let mut executor =
-            cluster::RemoteExecutor::connect(&r.workers, &scene.fiber, r.deadline, r.tls.as_ref())
-                .context("cannot start the cluster")?;
-        // The workers build the same wisps from the scene's text.
-        let toml = match &args.scene {
-            Some(p) => std::fs::read_to_string(p)
-                .with_context(|| format!("cannot read scene {}", p.display()))?,
-            None => engine::scene::BUILT_IN_SCENE.to_string(),
-        };
-        executor.set_scene(toml);
-        if !matches!(scene.shadow.method, shadow::MethodConfig::DensityMap { .. }) {
+        let executor = cluster::RemoteExecutor::connect(&r.workers, &scene, &r.options)
+            .context("cannot start the cluster")?;
+        if !matches!(scene.shadow.method, shadow::MethodConfig::DensityMap { .. })
+            && scene.effects.self_shadow
+        {
             tracing::warn!(
                 method = scene.shadow.method.name(),
-                "only the density map runs on workers; this method runs on the coordinator"
+                "only the density map runs on workers; this method and the drawing run on the coordinator"
             );
         }
         workers = executor.worker_count();
         traffic = Some(executor.traffic());
         timing = Some(executor.timing());
-        seq.set_executor(Box::new(executor));
+        seq.set_executor(Box::new(executor))
+            .context("cannot start the cluster")?;
     }
     // A progress bar on a terminal for more than one frame.
     let bar = if n > 1 {

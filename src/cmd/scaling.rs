@@ -26,6 +26,16 @@ pub struct ScalingArgs {
     #[arg(long, default_value_t = 10, value_name = "N",
           value_parser = clap::value_parser!(u64).range(1..=10_000))]
     frames: u64,
+    /// Where the hair is drawn, comma-separated: `workers` (each worker
+    /// its own strands, the coordinator composites), `coordinator` (the
+    /// paper's scheme: the coordinator draws every strand), or both.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "workers",
+        value_name = "WHERE,..."
+    )]
+    draw: Vec<super::cluster::Draw>,
     /// The plot of median frame times.
     #[arg(long, default_value = "scaling.png", value_name = "FILE.png")]
     plot: PathBuf,
@@ -91,16 +101,26 @@ impl Drop for WorkerProcess {
     }
 }
 
-/// Medians of one configuration.
+/// Medians of one configuration, over its timed frames.
 #[derive(Debug, Clone)]
 struct Row {
     label: String,
+    /// `None` for the single process.
+    draw: Option<cluster::DrawAt>,
     workers: u32,
     frame_ms: f64,
+    /// Wall time of the Step calls, and the slowest worker's compute in them.
     step_ms: f64,
-    slowest_worker_ms: f64,
+    step_compute_ms: f64,
+    pose_ms: f64,
     fill_ms: f64,
     sweep_ms: f64,
+    /// Wall time of the Draw calls, and the slowest worker's compute in them.
+    draw_ms: f64,
+    draw_compute_ms: f64,
+    /// The rest of the frame on the coordinator (with workers drawing: the
+    /// head and compositing; with the coordinator drawing: posing,
+    /// filtering, shading, drawing); both: the self-collision field.
     coordinator_ms: f64,
     wire_mb: f64,
     /// The bytes of the timed frame with the median total, by stage.
@@ -108,13 +128,30 @@ struct Row {
     identical: bool,
 }
 
+impl Row {
+    fn single(frame_ms: f64) -> Row {
+        Row {
+            label: "1 process".into(),
+            draw: None,
+            workers: 0,
+            frame_ms,
+            step_ms: 0.0,
+            step_compute_ms: 0.0,
+            pose_ms: 0.0,
+            fill_ms: 0.0,
+            sweep_ms: 0.0,
+            draw_ms: 0.0,
+            draw_compute_ms: 0.0,
+            coordinator_ms: frame_ms,
+            wire_mb: 0.0,
+            wire: cluster::Traffic::default(),
+            identical: true,
+        }
+    }
+}
+
 pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
     let scene = super::load_scene(a.scene.as_deref())?;
-    let toml = match &a.scene {
-        Some(p) => std::fs::read_to_string(p)
-            .with_context(|| format!("cannot read scene {}", p.display()))?,
-        None => engine::scene::BUILT_IN_SCENE.to_string(),
-    };
     if !a
         .plot
         .extension()
@@ -132,6 +169,13 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
         return Err(super::usage(format!(
             "--node-cpus {c}: must be between 0.01 and this machine's {cores} cores"
         )));
+    }
+    let mut schemes: Vec<cluster::DrawAt> = Vec::new();
+    for d in &a.draw {
+        let d = cluster::DrawAt::from(*d);
+        if !schemes.contains(&d) {
+            schemes.push(d);
+        }
     }
     let nodes = Nodes::new(
         Request {
@@ -153,8 +197,9 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
     }
     let warm = 2;
     let total = warm + a.frames;
+    let configs = (a.workers.len() * schemes.len()) as u64;
     let bar = super::progress_bar(
-        total * (1 + a.workers.len() as u64),
+        total * (1 + configs),
         "{bar:30} {pos}/{len} frames [{elapsed} < {eta}]",
     );
 
@@ -171,118 +216,138 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
         }
         bar.inc(1);
     }
-    let mut rows = vec![Row {
-        label: "1 process".into(),
-        workers: 0,
-        frame_ms: median(&mut times),
-        step_ms: 0.0,
-        slowest_worker_ms: 0.0,
-        fill_ms: 0.0,
-        sweep_ms: 0.0,
-        coordinator_ms: 0.0,
-        wire_mb: 0.0,
-        wire: cluster::Traffic::default(),
-        identical: true,
-    }];
+    let mut rows = vec![Row::single(median(&mut times))];
 
-    for &k in &a.workers {
-        let procs = (1..=k)
-            .map(|i| WorkerProcess::start(&nodes, i))
-            .collect::<anyhow::Result<Vec<_>>>()?;
-        let addrs: Vec<String> = procs.iter().map(|p| p.addr.clone()).collect();
-        let mut ex =
-            cluster::RemoteExecutor::connect(&addrs, &scene.fiber, Duration::from_secs(120), None)
+    for &draw in &schemes {
+        for &k in &a.workers {
+            let procs = (1..=k)
+                .map(|i| WorkerProcess::start(&nodes, i))
+                .collect::<anyhow::Result<Vec<_>>>()?;
+            let addrs: Vec<String> = procs.iter().map(|p| p.addr.clone()).collect();
+            let options = cluster::Options {
+                deadline: Duration::from_secs(120),
+                tls: None,
+                draw,
+            };
+            let ex = cluster::RemoteExecutor::connect(&addrs, &scene, &options)
                 .context("cannot start the cluster")?;
-        ex.set_scene(toml.clone());
-        let (traffic, timing) = (ex.traffic(), ex.timing());
-        let mut seq = engine::Sequence::new(&scene).context("cannot set up the scene")?;
-        seq.set_executor(Box::new(ex));
-        let mut v: [Vec<f64>; 7] = Default::default();
-        let mut frames_traffic = Vec::new();
-        let mut identical = true;
-        for f in 0..total {
-            let (b0, c0) = (*lock(&traffic)?, *lock(&timing)?);
-            let t = Instant::now();
-            let (img, _) = seq.next_frame().context("cannot render")?;
-            let ms = t.elapsed().as_secs_f64() * 1e3;
-            if f >= warm {
-                identical &= *img == pictures[(f - warm) as usize];
-                let (b1, c1) = (*lock(&traffic)?, *lock(&timing)?);
-                let step = c1.step_wall_ms - c0.step_wall_ms;
-                let fill = c1.fill_ms - c0.fill_ms;
-                let sweep = c1.sweep_ms - c0.sweep_ms;
-                frames_traffic.push(b1.since(&b0));
-                for (v, x) in v.iter_mut().zip([
-                    ms,
-                    step,
-                    c1.step_compute_ms - c0.step_compute_ms,
-                    fill,
-                    sweep,
-                    ms - step - fill - sweep,
-                    b1.since(&b0).total() as f64 / 1e6,
-                ]) {
-                    v.push(x);
+            let (traffic, timing) = (ex.traffic(), ex.timing());
+            let mut seq = engine::Sequence::new(&scene).context("cannot set up the scene")?;
+            seq.set_executor(Box::new(ex))
+                .context("cannot start the cluster")?;
+            let mut v: [Vec<f64>; 10] = Default::default();
+            let mut frames_traffic = Vec::new();
+            let mut identical = true;
+            for f in 0..total {
+                let (b0, c0) = (*lock(&traffic)?, *lock(&timing)?);
+                let t = Instant::now();
+                let (img, _) = seq.next_frame().context("cannot render")?;
+                let ms = t.elapsed().as_secs_f64() * 1e3;
+                if f >= warm {
+                    identical &= *img == pictures[(f - warm) as usize];
+                    let (b1, c1) = (*lock(&traffic)?, *lock(&timing)?);
+                    let step = c1.step_wall_ms - c0.step_wall_ms;
+                    let pose = c1.pose_ms - c0.pose_ms;
+                    let fill = c1.fill_ms - c0.fill_ms;
+                    let sweep = c1.sweep_ms - c0.sweep_ms;
+                    let drawn = c1.draw_ms - c0.draw_ms;
+                    frames_traffic.push(b1.since(&b0));
+                    for (v, x) in v.iter_mut().zip([
+                        ms,
+                        step,
+                        c1.step_compute_ms - c0.step_compute_ms,
+                        pose,
+                        fill,
+                        sweep,
+                        drawn,
+                        c1.draw_compute_ms - c0.draw_compute_ms,
+                        ms - step - pose - fill - sweep - drawn,
+                        b1.since(&b0).total() as f64 / 1e6,
+                    ]) {
+                        v.push(x);
+                    }
                 }
+                bar.inc(1);
             }
-            bar.inc(1);
+            let m: Vec<f64> = v.iter_mut().map(|x| median(x)).collect();
+            frames_traffic.sort_by_key(cluster::Traffic::total);
+            let wire = frames_traffic
+                .get(frames_traffic.len() / 2)
+                .copied()
+                .unwrap_or_default();
+            rows.push(Row {
+                label: format!(
+                    "{k} worker{}{}",
+                    if k == 1 { "" } else { "s" },
+                    if schemes.len() > 1 || draw != cluster::DrawAt::Workers {
+                        format!(", {} draws", draw.name())
+                    } else {
+                        String::new()
+                    }
+                ),
+                draw: Some(draw),
+                workers: k,
+                frame_ms: m[0],
+                step_ms: m[1],
+                step_compute_ms: m[2],
+                pose_ms: m[3],
+                fill_ms: m[4],
+                sweep_ms: m[5],
+                draw_ms: m[6],
+                draw_compute_ms: m[7],
+                coordinator_ms: m[8],
+                wire_mb: m[9],
+                wire,
+                identical,
+            });
         }
-        let m: Vec<f64> = v.iter_mut().map(|x| median(x)).collect();
-        frames_traffic.sort_by_key(cluster::Traffic::total);
-        let wire = frames_traffic
-            .get(frames_traffic.len() / 2)
-            .copied()
-            .unwrap_or_default();
-        rows.push(Row {
-            label: format!("{k} worker{}", if k == 1 { "" } else { "s" }),
-            workers: k,
-            frame_ms: m[0],
-            step_ms: m[1],
-            slowest_worker_ms: m[2],
-            fill_ms: m[3],
-            sweep_ms: m[4],
-            coordinator_ms: m[5],
-            wire_mb: m[6],
-            wire,
-            identical,
-        });
     }
     bar.finish_and_clear();
 
     let single = rows[0].frame_ms;
-    let one_worker = rows.iter().find(|r| r.workers == 1).map(|r| r.frame_ms);
+    let one_worker = |d: Option<cluster::DrawAt>| {
+        rows.iter()
+            .find(|r| r.workers == 1 && r.draw == d)
+            .map(|r| r.frame_ms)
+    };
     println!(
-        "{:<11} {:>9} {:>8} {:>8} {:>9} {:>9} {:>8} {:>8} {:>9} {:>8} {:>9}",
+        "{:<28} {:>8} {:>7} {:>7} {:>13} {:>6} {:>6} {:>13} {:>7} {:>7} {:>5}",
         "config",
         "frame ms",
         "vs 1 w",
         "vs proc",
-        "step ms",
-        "slowest",
-        "fill ms",
+        "step/slowest",
+        "fill",
         "sweep",
-        "coord ms",
+        "draw/slowest",
+        "coord",
         "MB",
         "same"
     );
     for r in &rows {
-        let vs1 = one_worker.map_or("-".into(), |o| format!("{:.2}x", o / r.frame_ms));
+        let vs1 = match (r.workers, one_worker(r.draw)) {
+            (0, _) | (_, None) => "-".to_string(),
+            (_, Some(o)) => format!("{:.2}x", o / r.frame_ms),
+        };
         println!(
-            "{:<11} {:>9.1} {:>8} {:>7.2}x {:>9.1} {:>9.1} {:>8.1} {:>8.1} {:>9.1} {:>8.3} {:>9}",
+            "{:<28} {:>8.1} {:>7} {:>6.2}x {:>6.1}/{:<6.1} {:>6.1} {:>6.1} {:>6.1}/{:<6.1} {:>7.1} {:>7.3} {:>5}",
             r.label,
             r.frame_ms,
-            if r.workers == 0 { "-".into() } else { vs1 },
+            vs1,
             single / r.frame_ms,
-            r.step_ms,
-            r.slowest_worker_ms,
+            r.step_ms + r.pose_ms,
+            r.step_compute_ms,
             r.fill_ms,
             r.sweep_ms,
+            r.draw_ms,
+            r.draw_compute_ms,
             r.coordinator_ms,
             r.wire_mb,
             if r.identical { "yes" } else { "NO" }
         );
     }
     eprintln!(
-        "bench scaling: step = wall time of the wisps' Step calls (slowest = the slowest worker's own compute), fill = Deposit calls and merging, sweep = Sweep calls and assembling, coord = the rest of the frame on the coordinator (pose, self-collision field, filter, shade, draw); MB = bytes on the wire per frame; same = pictures identical to one process"
+        "bench scaling: medians per frame; step = wall time of the wisps' Step (or Pose) calls / the slowest worker's own compute; fill = Deposit calls and summing the densities; sweep = Sweep calls and assembling the slabs; draw = Draw calls and decoding the partial pictures / the slowest worker's filter, shade and rasterization; coord = the rest of the frame on the coordinator (the self-collision field, and the head and compositing, or with the coordinator drawing: posing, filtering, shading and drawing every strand); MB = bytes on the wire per frame; same = pictures identical to one process"
     );
     for r in rows.iter().skip(1) {
         eprintln!(
@@ -328,13 +393,17 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
             "single_process_ms": single,
             "configs": rows.iter().skip(1).map(|r| serde_json::json!({
                 "workers": r.workers,
+                "draw": r.draw.map(cluster::DrawAt::name),
                 "frame_ms": r.frame_ms,
-                "speedup_vs_one_worker": one_worker.map(|o| o / r.frame_ms),
+                "speedup_vs_one_worker": one_worker(r.draw).map(|o| o / r.frame_ms),
                 "speedup_vs_single_process": single / r.frame_ms,
                 "step_ms": r.step_ms,
-                "slowest_worker_ms": r.slowest_worker_ms,
+                "slowest_worker_ms": r.step_compute_ms,
+                "pose_ms": r.pose_ms,
                 "fill_ms": r.fill_ms,
                 "sweep_ms": r.sweep_ms,
+                "draw_ms": r.draw_ms,
+                "slowest_draw_ms": r.draw_compute_ms,
                 "coordinator_ms": r.coordinator_ms,
                 "wire_mb_per_frame": r.wire_mb,
                 "wire_bytes_median_frame": {
@@ -346,6 +415,9 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
                     "density_received": r.wire.density_received,
                     "density_sent": r.wire.density_sent,
                     "slabs_received": r.wire.slabs_received,
+                    "pose": r.wire.pose,
+                    "draw_sent": r.wire.draw_sent,
+                    "layers_received": r.wire.layers_received,
                 },
                 "identical": r.identical,
             })).collect::<Vec<_>>(),

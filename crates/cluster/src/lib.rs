@@ -1,7 +1,9 @@
-//! Cluster mode, in the paper's parallel scheme (section 5.2): workers fill
-//! the density of a share of the strands and sweep a share of the map's
-//! columns; a coordinator sums, gathers and draws. The only crate that
-//! knows protobuf, tonic and tokio.
+//! Cluster mode, in the paper's parallel scheme (section 5.2), extended:
+//! workers simulate a share of the wisps, fill their density and sweep a
+//! share of the map's columns, and (by default) pose, filter, shade and
+//! rasterize their strands into partial pictures; a coordinator sums the
+//! densities, hands out columns and slabs, and composites. The only crate
+//! that knows protobuf, tonic and tokio.
 
 pub mod pb {
     //! Code generated from `proto/wisplight/v1/worker.proto`.
@@ -12,12 +14,14 @@ pub mod pb {
     pub const DESCRIPTOR: &[u8] = tonic::include_file_descriptor_set!("wisplight_descriptor");
 }
 
+mod client;
 pub mod remote;
 pub mod tls;
 pub mod wire;
 pub mod worker;
 
-pub use remote::{RemoteExecutor, Timing, Traffic};
+pub use client::{Timing, Traffic};
+pub use remote::{DrawAt, Options, RemoteExecutor};
 pub use tls::Tls;
 
 use std::net::SocketAddr;
@@ -86,10 +90,10 @@ pub fn check_health(
         .build()
         .map_err(|e| ClusterError::Setup(format!("cannot start the network runtime: {e}")))?;
     rt.block_on(async {
-        let channel = remote::endpoint(addr, deadline, tls)?
+        let channel = client::endpoint(addr, deadline, tls)?
             .connect()
             .await
-            .map_err(|e| err(remote::root_cause(&e)))?;
+            .map_err(|e| err(client::root_cause(&e)))?;
         let reply = HealthClient::new(channel)
             .check(HealthCheckRequest {
                 service: String::new(),

@@ -1,153 +1,134 @@
-//! The coordinator's side: an [`engine::Executor`] that runs the wisps'
-//! simulation, the density map's fill and its sweep on workers over gRPC,
-//! with the same bytes as one process.
+//! The coordinator's side: an [`engine::Executor`] that runs every stage
+//! that grows with the hair on workers over gRPC, with the same bytes as
+//! one process.
 //!
-//! Each live worker owns a contiguous share of the wisps (weighted by their
-//! drawn strands) and, per sweep, a contiguous share of the columns
-//! (weighted by their occupied cells). When a worker fails a call (it died,
-//! missed the deadline, or sent something malformed) it is dropped: its
-//! wisps go to the survivors with the state the coordinator gathered last,
-//! and the stage is run again, so the frame comes out the same.
+//! Each live worker owns a contiguous share of the hair's groups (whole
+//! wisps, weighted by their drawn strands) and, per sweep, a contiguous
+//! share of the columns (weighted by their occupied cells). With
+//! [`DrawAt::Workers`] (the default) a worker also poses, filters, shades
+//! and rasterizes its strands into a partial picture, and the coordinator
+//! composites; with [`DrawAt::Coordinator`] (the paper's scheme) the
+//! coordinator poses and draws every strand from the wisps' states. When a
+//! worker fails a call (it died, missed the deadline, or sent something
+//! malformed) it is dropped: its share goes to the survivors with the
+//! state the coordinator gathered last, they pose it again, and the stage
+//! runs again, so the frame comes out the same.
 
 use std::ops::Range;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use engine::{Animator, EngineError, Executor, FrameStats, Stage, StepPlan};
+use engine::{
+    Animator, DrawJob, DrawReport, EngineError, Executor, FrameStats, PosePlan, PoseReport, Scene,
+    SceneSource, Stage, StepPlan, split_by,
+};
 use prost::Message;
-use shadow::{ColumnSlab, DensityMap, Fiber, FillStats, Transmittance};
+use shadow::{ColumnSlab, DensityMap, Fiber, FillStats, LightFrame, Transmittance};
+use sim::WispState;
 use strands::Hair;
-use tonic::transport::{Channel, Endpoint};
 
-use crate::pb::worker_client::WorkerClient;
-use crate::{ClusterError, Tls, pb, tls, wire};
+use crate::client::{Remote, call_error, collect, fan_out, hello, malformed};
+use crate::{ClusterError, Timing, Tls, Traffic, pb, wire};
 
-/// Bytes on the wire, by stage and direction (protobuf message bytes;
-/// HTTP/2 framing adds a little).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct Traffic {
-    /// Wisp shares and their state sent (Assign), at the start and after
-    /// a worker is lost.
-    pub assign_sent: u64,
-    /// Step requests (head transforms, bodies, accelerations).
-    pub step_sent: u64,
-    /// Wisp states received (Step replies).
-    pub wisps_received: u64,
-    /// Strands sent to workers (Deposit requests).
-    pub strands_sent: u64,
-    /// Partial density columns received.
-    pub density_received: u64,
-    /// Summed density columns sent for sweeping.
-    pub density_sent: u64,
-    /// Transmittance slabs received.
-    pub slabs_received: u64,
+/// Where the drawn hair is posed, filtered, shaded and rasterized.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum DrawAt {
+    /// On the workers, each its own strands; the coordinator composites
+    /// their partial pictures.
+    #[default]
+    Workers,
+    /// On the coordinator, every strand (the paper's scheme: workers
+    /// simulate, fill and sweep).
+    Coordinator,
 }
 
-impl Traffic {
-    pub fn total(&self) -> u64 {
-        self.assign_sent
-            + self.step_sent
-            + self.wisps_received
-            + self.strands_sent
-            + self.density_received
-            + self.density_sent
-            + self.slabs_received
-    }
-
-    /// The bytes counted since `earlier`.
-    pub fn since(&self, earlier: &Traffic) -> Traffic {
-        Traffic {
-            assign_sent: self.assign_sent - earlier.assign_sent,
-            step_sent: self.step_sent - earlier.step_sent,
-            wisps_received: self.wisps_received - earlier.wisps_received,
-            strands_sent: self.strands_sent - earlier.strands_sent,
-            density_received: self.density_received - earlier.density_received,
-            density_sent: self.density_sent - earlier.density_sent,
-            slabs_received: self.slabs_received - earlier.slabs_received,
+impl DrawAt {
+    pub fn name(self) -> &'static str {
+        match self {
+            DrawAt::Workers => "workers",
+            DrawAt::Coordinator => "coordinator",
         }
     }
-
-    /// One line: the total and each part, in MB.
-    pub fn summary(&self) -> String {
-        let mb = |b: u64| b as f64 / 1e6;
-        format!(
-            "{:.3} MB (wisps: assign {:.3}, steps {:.3}, states in {:.3}; strands out {:.3}; density in {:.3}, out {:.3}; slabs in {:.3})",
-            mb(self.total()),
-            mb(self.assign_sent),
-            mb(self.step_sent),
-            mb(self.wisps_received),
-            mb(self.strands_sent),
-            mb(self.density_received),
-            mb(self.density_sent),
-            mb(self.slabs_received),
-        )
-    }
 }
 
-/// Where the time of the remote stages went, summed over frames (for the
-/// scaling benchmark's critical path).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct Timing {
-    /// Wall time of Step calls, as the coordinator waited for them.
-    pub step_wall_ms: f64,
-    /// The slowest worker's own compute time in each Step, summed.
-    pub step_compute_ms: f64,
-    /// Wall time of Deposit calls plus merging their partial densities.
-    pub fill_ms: f64,
-    /// Wall time of Sweep calls plus assembling their slabs.
-    pub sweep_ms: f64,
-    /// Workers lost and their work handed to the survivors.
-    pub workers_lost: u32,
+/// How a coordinator runs its workers.
+#[derive(Debug, Clone, Default)]
+pub struct Options {
+    /// Bounds every call, from its first byte sent to its last received.
+    pub deadline: Duration,
+    /// Mutual TLS on every connection, when given.
+    pub tls: Option<Tls>,
+    pub draw: DrawAt,
 }
 
-#[derive(Debug, Clone)]
-struct Remote {
-    addr: String,
-    client: WorkerClient<Channel>,
+/// The hair the workers share, learnt from the frame's animator.
+#[derive(Debug)]
+struct Hair_ {
+    /// Drawn strands of each group: the weights for sharing groups out.
+    strands: Vec<u64>,
+    /// Wisp boundaries of the groups, for simulated hair.
+    wisps: Option<Vec<u32>>,
+    points_per_wisp: usize,
+    /// Every wisp's state as gathered last (reassigned after a loss).
+    states: Vec<WispState>,
 }
 
-/// Workers that simulate wisps and fill and sweep the density map (see
-/// the module docs).
+/// Workers that run the stages of the hair (see the module docs).
 #[derive(Debug)]
 pub struct RemoteExecutor {
     rt: tokio::runtime::Runtime,
     /// The live workers, in order.
     workers: Vec<Remote>,
     deadline: Duration,
+    draw: DrawAt,
     /// Counts calls, for the ids of those not about a posed hair version.
     calls: u64,
     traffic: Arc<Mutex<Traffic>>,
     timing: Arc<Mutex<Timing>>,
-    /// The scene's TOML text, for Assign (simulated hair only).
-    scene_toml: Option<String>,
-    /// Each live worker's wisps, once assigned.
+    /// The scene the workers build their shares from.
+    source: SceneSource,
+    /// Whether lookups filter (the workers' columns read depend on it).
+    filter: bool,
+    hair: Option<Hair_>,
+    /// Each live worker's groups, once assigned.
     shares: Option<Vec<Range<usize>>>,
-    /// The hair version the workers posed at their last Step.
+    /// The hair version the workers posed last, that pose's plan and
+    /// report.
     posed: Option<u64>,
+    last_pose: Option<PosePlan>,
+    report: Option<PoseReport>,
+    /// Per light, the columns each live worker's lookups read (from its
+    /// last posed Deposit), in worker order.
+    reads: Vec<Option<Vec<Vec<u64>>>>,
+    /// Per light, the frame and slabs of its last sweep.
+    swept: Vec<Option<(LightFrame, Vec<ColumnSlab>)>>,
 }
 
 impl RemoteExecutor {
-    /// Connects to every worker and checks its protocol version. `deadline`
-    /// bounds every call, from its first byte sent to its last received.
-    /// With `tls`, every connection is mutual TLS.
+    /// Connects to every worker and checks its protocol version, for
+    /// `scene` (whose data files are read now, to send them).
     pub fn connect(
         addrs: &[String],
-        fiber: &Fiber,
-        deadline: Duration,
-        tls: Option<&Tls>,
+        scene: &Scene,
+        options: &Options,
     ) -> Result<RemoteExecutor, ClusterError> {
         if addrs.is_empty() {
             return Err(ClusterError::Setup("no workers given".into()));
         }
+        let mut scene = scene.clone();
+        scene
+            .read_data_files()
+            .map_err(|e| ClusterError::Setup(e.to_string()))?;
         let rt = tokio::runtime::Builder::new_multi_thread()
             .worker_threads(2)
             .enable_all()
             .build()
             .map_err(|e| ClusterError::Setup(format!("cannot start the network runtime: {e}")))?;
+        let (fiber, deadline, tls) = (scene.fiber, options.deadline, options.tls.as_ref());
         let workers = rt.block_on(async {
             let mut out = Vec::with_capacity(addrs.len());
             for addr in addrs {
-                out.push(hello(addr, fiber, deadline, tls).await?);
+                out.push(hello(addr, &fiber, deadline, tls).await?);
             }
             Ok::<_, ClusterError>(out)
         })?;
@@ -155,21 +136,20 @@ impl RemoteExecutor {
             rt,
             workers,
             deadline,
+            draw: options.draw,
             calls: 0,
             traffic: Arc::new(Mutex::new(Traffic::default())),
             timing: Arc::new(Mutex::new(Timing::default())),
-            scene_toml: None,
+            filter: scene.shadow.method.filter(),
+            reads: vec![None; scene.lights.len()],
+            swept: vec![None; scene.lights.len()],
+            source: scene.source,
+            hair: None,
             shares: None,
             posed: None,
+            last_pose: None,
+            report: None,
         })
-    }
-
-    /// The scene's TOML text: with it, simulated wisps are stepped on the
-    /// workers (each builds the same wisps from it); without it, the
-    /// coordinator simulates and sends the drawn strands.
-    pub fn set_scene(&mut self, toml: String) {
-        self.scene_toml = Some(toml);
-        self.shares = None;
     }
 
     /// A handle on where the remote stages' time went.
@@ -198,6 +178,12 @@ impl RemoteExecutor {
         }
     }
 
+    fn hair(&self) -> Result<&Hair_, ClusterError> {
+        self.hair
+            .as_ref()
+            .ok_or_else(|| ClusterError::Setup("the executor was not attached to the hair".into()))
+    }
+
     /// After `e`: drops the worker it names, when others are left, and
     /// returns Ok so the caller runs its stage again on the survivors;
     /// otherwise returns `e`.
@@ -214,200 +200,16 @@ impl RemoteExecutor {
         self.workers.remove(i);
         self.shares = None;
         self.posed = None;
+        self.reads.iter_mut().for_each(|r| *r = None);
         self.clock(|t| t.workers_lost += 1);
         tracing::warn!(
             error = %e,
             survivors = self.workers.len(),
-            "worker lost; its wisps and columns go to the survivors"
+            "worker lost; its share of the hair and its columns go to the survivors"
         );
         Ok(())
     }
-}
 
-/// The endpoint of the worker at `addr`: connect and call timeouts of
-/// `deadline`, TLS when `tls` is given.
-pub(crate) fn endpoint(
-    addr: &str,
-    deadline: Duration,
-    tls: Option<&Tls>,
-) -> Result<Endpoint, ClusterError> {
-    let err = |msg: String| ClusterError::Connect {
-        addr: addr.to_string(),
-        msg,
-    };
-    let endpoint = Endpoint::from_shared(format!("{}://{addr}", tls::scheme(tls)))
-        .map_err(|e| err(e.to_string()))?
-        .connect_timeout(deadline)
-        .timeout(deadline)
-        .tcp_nodelay(true);
-    match tls {
-        Some(t) => endpoint
-            .tls_config(t.client_config(addr))
-            .map_err(|e| t.refused(&e)),
-        None => Ok(endpoint),
-    }
-}
-
-async fn hello(
-    addr: &str,
-    fiber: &Fiber,
-    deadline: Duration,
-    tls: Option<&Tls>,
-) -> Result<Remote, ClusterError> {
-    let err = |msg: String| ClusterError::Connect {
-        addr: addr.to_string(),
-        msg: tls::explain(tls, msg),
-    };
-    let channel = endpoint(addr, deadline, tls)?
-        .connect()
-        .await
-        .map_err(|e| err(root_cause(&e)))?;
-    let mut client = WorkerClient::new(channel)
-        .max_decoding_message_size(wire::MAX_MESSAGE_BYTES)
-        .max_encoding_message_size(wire::MAX_MESSAGE_BYTES);
-    let reply = client
-        .hello(pb::HelloRequest {
-            protocol_version: wire::PROTOCOL_VERSION,
-            fiber_width: fiber.width(),
-            fiber_opacity: fiber.opacity(),
-        })
-        .await
-        .map_err(|s| match s.code() {
-            tonic::Code::FailedPrecondition => ClusterError::Version {
-                addr: addr.to_string(),
-                msg: s.message().to_string(),
-            },
-            tonic::Code::Unimplemented => ClusterError::Connect {
-                addr: addr.to_string(),
-                msg: "this address serves no wisplight worker (unimplemented: a health port?)"
-                    .into(),
-            },
-            _ if s.message().is_empty() => err(s.code().description().to_string()),
-            _ => err(s.message().to_string()),
-        })?
-        .into_inner();
-    if reply.protocol_version != wire::PROTOCOL_VERSION {
-        return Err(ClusterError::Version {
-            addr: addr.to_string(),
-            msg: format!(
-                "the worker speaks protocol version {}, this coordinator {}",
-                reply.protocol_version,
-                wire::PROTOCOL_VERSION
-            ),
-        });
-    }
-    tracing::info!(addr, worker = reply.worker, "worker ready");
-    Ok(Remote {
-        addr: addr.to_string(),
-        client,
-    })
-}
-
-/// The innermost cause: "Connection refused (os error 111)" rather than
-/// three layers of "transport error".
-pub(crate) fn root_cause(e: &dyn std::error::Error) -> String {
-    let mut last = e.to_string();
-    let mut s = e.source();
-    while let Some(x) = s {
-        last = x.to_string();
-        s = x.source();
-    }
-    last
-}
-
-/// Cuts `0..len` into `parts` contiguous ranges whose `weight` sums are
-/// about equal (a range may be empty).
-fn split_by(
-    len: usize,
-    parts: usize,
-    weight: impl Fn(usize) -> u64,
-) -> Vec<std::ops::Range<usize>> {
-    let total: u64 = (0..len).map(&weight).sum();
-    let mut out = Vec::with_capacity(parts);
-    let (mut start, mut acc, mut i) = (0, 0u64, 0);
-    for p in 1..=parts {
-        let goal = total * p as u64 / parts as u64;
-        while i < len && (acc < goal || p == parts) {
-            acc += weight(i);
-            i += 1;
-        }
-        out.push(start..i);
-        start = i;
-    }
-    out
-}
-
-/// Runs `call` on every worker at once, each bounded by `deadline`, and
-/// returns the results in worker order: the first error, if any, names
-/// its worker.
-fn fan_out<R, T, F, Fut>(
-    rt: &tokio::runtime::Runtime,
-    requests: Vec<(Remote, R)>,
-    stage: &'static str,
-    deadline: Duration,
-    call: F,
-) -> Result<Vec<T>, ClusterError>
-where
-    R: Send + 'static,
-    T: Send + 'static,
-    F: Fn(Remote, R) -> Fut,
-    Fut: std::future::Future<Output = Result<T, ClusterError>> + Send + 'static,
-{
-    rt.block_on(async {
-        let tasks: Vec<_> = requests
-            .into_iter()
-            .map(|(w, r)| {
-                let addr = w.addr.clone();
-                let fut = call(w, r);
-                tokio::spawn(async move {
-                    match tokio::time::timeout(deadline, fut).await {
-                        Ok(r) => r,
-                        Err(_) => Err(ClusterError::Deadline {
-                            addr,
-                            stage,
-                            secs: deadline.as_secs_f64(),
-                        }),
-                    }
-                })
-            })
-            .collect();
-        let mut out = Vec::with_capacity(tasks.len());
-        for t in tasks {
-            out.push(t.await.map_err(|e| ClusterError::Setup(e.to_string()))??);
-        }
-        Ok(out)
-    })
-}
-
-fn call_error(addr: &str, stage: &'static str, s: tonic::Status) -> ClusterError {
-    ClusterError::Call {
-        addr: addr.to_string(),
-        stage,
-        msg: format!("{:?}: {}", s.code(), s.message()),
-    }
-}
-
-/// Collects a server stream's messages.
-async fn collect<T>(
-    addr: &str,
-    stage: &'static str,
-    mut s: tonic::Streaming<T>,
-) -> Result<Vec<T>, ClusterError> {
-    let mut out = Vec::new();
-    while let Some(c) = s.message().await.map_err(|e| call_error(addr, stage, e))? {
-        out.push(c);
-    }
-    Ok(out)
-}
-
-fn malformed(addr: &str, e: impl ToString) -> ClusterError {
-    ClusterError::Malformed {
-        addr: addr.to_string(),
-        msg: e.to_string(),
-    }
-}
-
-impl RemoteExecutor {
     /// Runs `attempt` until it succeeds, dropping a failed worker before
     /// each new try while others are left.
     fn with_survivors<T>(
@@ -422,63 +224,99 @@ impl RemoteExecutor {
         }
     }
 
-    /// Shares the wisps out over the live workers, with their state in
-    /// `anim` (the state gathered last).
-    fn assign(&mut self, anim: &Animator) -> Result<(), ClusterError> {
-        let toml = self
-            .scene_toml
-            .clone()
-            .ok_or_else(|| ClusterError::Setup("no scene to simulate".into()))?;
-        let weights = anim.strands_per_wisp();
-        let shares = split_by(weights.len(), self.workers.len(), |w| weights[w] + 1);
+    /// Shares the groups out over the live workers, with the scene and
+    /// the wisps' state gathered last.
+    fn assign(&mut self) -> Result<(), ClusterError> {
+        let hair = self.hair()?;
+        let weights = &hair.strands;
+        let shares = split_by(weights.len(), self.workers.len(), |g| weights[g] + 1);
+        let wisp_range = |g: &Range<usize>| match &hair.wisps {
+            Some(w) => w[g.start] as usize..w[g.end] as usize,
+            None => 0..0,
+        };
+        let files: Vec<(String, &[u8])> = self
+            .source
+            .files
+            .iter()
+            .map(|(p, b)| (p.to_string_lossy().into_owned(), &b[..]))
+            .collect();
         let mut requests = Vec::with_capacity(shares.len());
         let mut sent = 0u64;
         for (w, share) in self.workers.iter().zip(&shares) {
-            let states: Vec<_> = share
-                .clone()
-                .map(|i| anim.wisp_state(i).expect("simulated wisps"))
-                .collect();
-            let chunks: Vec<pb::AssignChunk> = wire::wisp_chunks(share.start, states)
-                .into_iter()
-                .enumerate()
-                .map(|(i, state)| pb::AssignChunk {
-                    scene_toml: if i == 0 { toml.clone() } else { String::new() },
-                    first_wisp: share.start as u32,
-                    end_wisp: share.end as u32,
-                    state: Some(state),
-                })
-                .collect();
+            let wisps = wisp_range(share);
+            let mut chunks = vec![pb::AssignChunk {
+                scene_toml: self.source.text.to_string(),
+                scene_path: self.source.path.to_string_lossy().into_owned(),
+                first_group: share.start as u32,
+                end_group: share.end as u32,
+                ..Default::default()
+            }];
+            if !wisps.is_empty() {
+                let states = &hair.states[wisps.clone()];
+                chunks.extend(wire::wisp_chunks(wisps.start, states).into_iter().map(|s| {
+                    pb::AssignChunk {
+                        state: Some(s),
+                        ..Default::default()
+                    }
+                }));
+            }
+            for (path, bytes) in &files {
+                for (i, piece) in bytes.chunks(1 << 20).enumerate() {
+                    chunks.push(pb::AssignChunk {
+                        file_path: if i == 0 { path.clone() } else { String::new() },
+                        file_data: piece.to_vec(),
+                        ..Default::default()
+                    });
+                }
+            }
             sent += chunks.iter().map(|c| c.encoded_len() as u64).sum::<u64>();
-            requests.push((w.clone(), chunks));
+            requests.push((w.clone(), (chunks, wisps)));
         }
-        let per = anim.points_per_wisp() as u32;
+        let (per, groups) = (hair.points_per_wisp as u32, weights.len() as u32);
         fan_out(
             &self.rt,
             requests,
             "assign",
             self.deadline,
-            move |mut w, chunks| async move {
+            move |mut w, (chunks, wisps)| async move {
                 let reply = w
                     .client
                     .assign(tokio_stream::iter(chunks))
                     .await
                     .map_err(|s| call_error(&w.addr, "assign", s))?
                     .into_inner();
-                if reply.points_per_wisp != per {
+                let theirs = reply.first_wisp as usize..reply.end_wisp as usize;
+                if reply.groups != groups
+                    || (!wisps.is_empty() && (reply.points_per_wisp != per || theirs != wisps))
+                {
                     return Err(malformed(
                         &w.addr,
                         format!(
-                            "the worker's wisps have {} guide points, the coordinator's {per}",
-                            reply.points_per_wisp
+                            "the worker made {} groups, wisps {theirs:?} of {} guide points; the coordinator {groups} groups, wisps {wisps:?} of {per}",
+                            reply.groups, reply.points_per_wisp
                         ),
                     ));
                 }
                 Ok(())
             },
         )?;
-        tracing::info!(shares = ?shares, "wisps assigned");
+        tracing::info!(shares = ?shares, "groups assigned");
         self.count(|t| t.assign_sent += sent);
         self.shares = Some(shares);
+        Ok(())
+    }
+
+    /// Assigns the shares after a loss and poses them again as last posed:
+    /// the survivors then hold every strand as the lost worker held it.
+    fn ensure_posed(&mut self) -> Result<(), ClusterError> {
+        if self.shares.is_none() {
+            self.assign()?;
+        }
+        if self.posed.is_none()
+            && let Some(plan) = self.last_pose.clone()
+        {
+            self.pose_call(&plan)?;
+        }
         Ok(())
     }
 
@@ -486,14 +324,22 @@ impl RemoteExecutor {
     /// every worker answered.
     fn step(&mut self, anim: &mut Animator, plan: &StepPlan) -> Result<(), ClusterError> {
         if self.shares.is_none() {
-            self.assign(anim)?;
+            self.assign()?;
         }
         let shares = self.shares.clone().expect("assigned above");
-        let per = anim.points_per_wisp();
+        let hair = self.hair()?;
+        let (per, lights) = (hair.points_per_wisp, plan.pose.lights.len());
+        let wisps: Vec<Range<usize>> = shares
+            .iter()
+            .map(|g| match &hair.wisps {
+                Some(w) => w[g.start] as usize..w[g.end] as usize,
+                None => 0..0,
+            })
+            .collect();
         let mut base = pb::StepRequest {
-            frame_id: plan.version,
-            version: plan.version,
+            frame_id: plan.pose.version,
             has_accel: plan.accel.is_some(),
+            pose: Some(wire::pose_plan_to_pb(&plan.pose)),
             ..Default::default()
         };
         for (h, b) in plan.heads.iter().zip(&plan.bodies) {
@@ -501,10 +347,9 @@ impl RemoteExecutor {
             base.body_counts.push(b.len() as u32);
             wire::bodies_to_floats(b, &mut base.bodies);
         }
-        wire::bodies_to_floats(&plan.drawn_bodies, &mut base.drawn_bodies);
         let mut requests = Vec::with_capacity(shares.len());
         let mut sent = 0u64;
-        for (w, share) in self.workers.iter().zip(&shares) {
+        for (w, share) in self.workers.iter().zip(&wisps) {
             let mut r = base.clone();
             if let Some(a) = &plan.accel {
                 (r.accel_skip, r.accel) = wire::accel_to_pb(&a[share.start * per..share.end * per]);
@@ -527,7 +372,7 @@ impl RemoteExecutor {
                     .into_inner();
                 let chunks = collect(&w.addr, "step", s).await?;
                 let mut states = Vec::with_capacity(share.len());
-                let (mut bytes, mut compute) = (0u64, 0.0f64);
+                let (mut bytes, mut compute, mut report) = (0u64, 0.0f64, None);
                 for c in &chunks {
                     bytes += c.encoded_len() as u64;
                     compute += c.compute_ms;
@@ -535,6 +380,11 @@ impl RemoteExecutor {
                         wire::wisps_from_chunk(c, per, &share)
                             .map_err(|e| malformed(&w.addr, e))?,
                     );
+                    if let Some(r) = &c.report {
+                        report = Some(
+                            wire::report_from_pb(r, lights).map_err(|e| malformed(&w.addr, e))?,
+                        );
+                    }
                 }
                 let in_order = states.iter().map(|(i, _)| *i).eq(share.clone());
                 if !in_order {
@@ -543,19 +393,26 @@ impl RemoteExecutor {
                         format!("the states of wisps {share:?} did not come whole and in order"),
                     ));
                 }
-                Ok((w.addr, states, bytes, compute))
+                let report = report
+                    .ok_or_else(|| malformed(&w.addr, "a Step reply without its pose's report"))?;
+                Ok((w.addr, states, report, bytes, compute))
             },
         )?;
         let wall = t.elapsed().as_secs_f64() * 1e3;
         let mut received = 0u64;
         let mut slowest = 0.0f64;
-        for (addr, states, bytes, compute) in replies {
+        let mut reports = Vec::with_capacity(replies.len());
+        for (addr, states, report, bytes, compute) in replies {
             received += bytes;
             slowest = slowest.max(compute);
             for (i, state) in states {
-                anim.set_wisp_state(i, state)
+                anim.set_wisp_state(i, state.clone())
                     .map_err(|e| malformed(&addr, e))?;
+                if let Some(h) = &mut self.hair {
+                    h.states[i] = state;
+                }
             }
+            reports.push(report);
         }
         self.count(|t| {
             t.step_sent += sent;
@@ -565,7 +422,53 @@ impl RemoteExecutor {
             t.step_wall_ms += wall;
             t.step_compute_ms += slowest;
         });
+        self.posed_as(&plan.pose, reports);
+        Ok(())
+    }
+
+    /// Notes that the workers posed the hair as `plan` says.
+    fn posed_as(&mut self, plan: &PosePlan, reports: Vec<PoseReport>) {
+        let mut reports = reports.into_iter();
+        let first = reports.next();
+        self.report = first.map(|f| reports.fold(f, |a, b| a.union(&b)));
         self.posed = Some(plan.version);
+        self.last_pose = Some(plan.clone());
+    }
+
+    /// One Pose on every worker.
+    fn pose_call(&mut self, plan: &PosePlan) -> Result<(), ClusterError> {
+        let request = wire::pose_plan_to_pb(plan);
+        let lights = plan.lights.len();
+        let sent = request.encoded_len() as u64 * self.workers.len() as u64;
+        let requests: Vec<_> = self
+            .workers
+            .iter()
+            .map(|w| (w.clone(), request.clone()))
+            .collect();
+        let t = Instant::now();
+        let replies = fan_out(
+            &self.rt,
+            requests,
+            "pose",
+            self.deadline,
+            move |mut w, r| async move {
+                let reply = w
+                    .client
+                    .pose(r)
+                    .await
+                    .map_err(|s| call_error(&w.addr, "pose", s))?
+                    .into_inner();
+                let bytes = reply.encoded_len() as u64;
+                let report =
+                    wire::report_from_pb(&reply, lights).map_err(|e| malformed(&w.addr, e))?;
+                Ok((report, bytes))
+            },
+        )?;
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        let received: u64 = replies.iter().map(|(_, b)| b).sum();
+        self.count(|t| t.pose += sent + received);
+        self.clock(|t| t.pose_ms += ms);
+        self.posed_as(plan, replies.into_iter().map(|(r, _)| r).collect());
         Ok(())
     }
 
@@ -575,7 +478,7 @@ impl RemoteExecutor {
         &self,
         id: u64,
         light: u32,
-        frame: &shadow::LightFrame,
+        frame: &LightFrame,
         hair: &Hair,
         version: Option<u64>,
     ) -> Vec<(Remote, Vec<pb::DepositChunk>)> {
@@ -590,6 +493,7 @@ impl RemoteExecutor {
                         map: Some(wire::frame_to_pb(frame)),
                         posed: true,
                         version: version.unwrap_or_default(),
+                        filter: self.filter,
                         ..Default::default()
                     };
                     (w.clone(), vec![c])
@@ -619,6 +523,9 @@ impl RemoteExecutor {
         hair: &Hair,
         version: Option<u64>,
     ) -> Result<FillStats, ClusterError> {
+        if self.draw == DrawAt::Workers {
+            self.ensure_posed()?;
+        }
         let id = version.unwrap_or_else(|| {
             self.calls += 1;
             self.calls
@@ -626,6 +533,12 @@ impl RemoteExecutor {
         let frame = *map.frame();
         let requests = self.deposit_requests(id, light as u32, &frame, hair, version);
         let posed = requests.first().is_some_and(|(_, c)| c[0].posed);
+        if self.draw == DrawAt::Workers && !posed {
+            return Err(ClusterError::Setup(format!(
+                "the workers hold hair version {:?}, not {version:?}",
+                self.posed
+            )));
+        }
         let sent: u64 = requests
             .iter()
             .flat_map(|(_, c)| c)
@@ -653,6 +566,7 @@ impl RemoteExecutor {
         let mut stats = FillStats::default();
         let mut received = 0u64;
         let mut decoded = Vec::with_capacity(replies.len());
+        let mut reads = Vec::with_capacity(replies.len());
         for (addr, chunks) in &replies {
             for c in chunks {
                 decoded.push(wire::decode_columns(&frame, c).map_err(|e| malformed(addr, e))?);
@@ -660,9 +574,21 @@ impl RemoteExecutor {
                 stats.samples += c.samples;
                 stats.out_of_map += c.out_of_map;
             }
+            if posed {
+                let last = chunks
+                    .last()
+                    .ok_or_else(|| malformed(addr, "an empty Deposit reply"))?;
+                reads.push(
+                    wire::columns_from_pb(&last.columns_read, frame.columns())
+                        .map_err(|e| malformed(addr, e))?,
+                );
+            }
         }
         for d in &decoded {
             wire::add_columns(map, d);
+        }
+        if let Some(r) = self.reads.get_mut(light) {
+            *r = posed.then_some(reads);
         }
         tracing::debug!(frame_id = id, light, posed, "density gathered");
         self.count(|t| {
@@ -730,10 +656,16 @@ impl RemoteExecutor {
             },
         )?;
         let received: u64 = replies.iter().map(|(_, _, b)| b).sum();
+        let slabs: Vec<ColumnSlab> = replies.into_iter().map(|(_, s, _)| s).collect();
         // Each reader already refused, naming its worker, whatever does not
         // fit the spans the coordinator sent; `assemble` checks once more.
-        let trans = Transmittance::assemble(frame, replies.into_iter().map(|(_, s, _)| s))
+        let trans = Transmittance::assemble(frame, slabs.iter().cloned())
             .map_err(|e| malformed("workers", e))?;
+        if self.draw == DrawAt::Workers
+            && let Some(s) = self.swept.get_mut(light)
+        {
+            *s = Some((frame, slabs));
+        }
         let ms = t.elapsed().as_secs_f64() * 1e3;
         self.count(|x| {
             x.density_sent += sent;
@@ -743,6 +675,88 @@ impl RemoteExecutor {
         tracing::debug!(frame_id = id, light, "transmittance gathered");
         Ok(trans)
     }
+
+    fn draw_remote(&mut self, job: &DrawJob) -> Result<DrawReport, ClusterError> {
+        self.ensure_posed()?;
+        if self.posed != Some(job.version) {
+            return Err(ClusterError::Setup(format!(
+                "the workers hold hair version {:?}, not {}",
+                self.posed, job.version
+            )));
+        }
+        let first = pb::DrawChunk {
+            job: Some(wire::job_to_pb(job)),
+            ..Default::default()
+        };
+        let mut requests = Vec::with_capacity(self.workers.len());
+        let mut sent = 0u64;
+        for (i, w) in self.workers.iter().enumerate() {
+            let mut chunks = vec![first.clone()];
+            if job.shadows {
+                for (l, swept) in self.swept.iter().enumerate() {
+                    let (frame, slabs) = swept.as_ref().ok_or_else(|| {
+                        ClusterError::Setup(format!("light {l} was not swept before drawing"))
+                    })?;
+                    // The columns this worker reads; all of them after a loss.
+                    let keep = self.reads[l].as_ref().and_then(|r| r.get(i));
+                    chunks.extend(wire::draw_columns(
+                        l as u32,
+                        frame,
+                        slabs,
+                        keep.map(|k| &k[..]),
+                    ));
+                }
+            }
+            sent += chunks.iter().map(|c| c.encoded_len() as u64).sum::<u64>();
+            requests.push((w.clone(), chunks));
+        }
+        let (width, height) = (job.camera.width(), job.camera.height());
+        let t = Instant::now();
+        let replies = fan_out(
+            &self.rt,
+            requests,
+            "draw",
+            self.deadline,
+            move |mut w, chunks| async move {
+                let s = w
+                    .client
+                    .draw(tokio_stream::iter(chunks))
+                    .await
+                    .map_err(|s| call_error(&w.addr, "draw", s))?
+                    .into_inner();
+                let mut reader = wire::LayerReader::new(width, height);
+                let mut bytes = 0u64;
+                for c in collect(&w.addr, "draw", s).await? {
+                    bytes += c.encoded_len() as u64;
+                    reader.add(&c).map_err(|e| malformed(&w.addr, e))?;
+                }
+                let times = reader.times;
+                let layer = reader.finish().map_err(|e| malformed(&w.addr, e))?;
+                Ok((layer, times, bytes))
+            },
+        )?;
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        let mut report = DrawReport::default();
+        let mut received = 0u64;
+        let mut slowest = 0.0f64;
+        for (layer, times, bytes) in replies {
+            received += bytes;
+            report.filter_ms = report.filter_ms.max(times.filter_ms);
+            report.shade_ms = report.shade_ms.max(times.shade_ms);
+            report.raster_ms = report.raster_ms.max(times.raster_ms);
+            slowest = slowest.max(times.filter_ms + times.shade_ms + times.raster_ms);
+            report.layers.push(layer);
+        }
+        self.count(|x| {
+            x.draw_sent += sent;
+            x.layers_received += received;
+        });
+        self.clock(|x| {
+            x.draw_ms += ms;
+            x.draw_compute_ms += slowest;
+        });
+        Ok(report)
+    }
 }
 
 fn engine_error(e: ClusterError) -> EngineError {
@@ -750,16 +764,34 @@ fn engine_error(e: ClusterError) -> EngineError {
 }
 
 impl Executor for RemoteExecutor {
+    fn attach(&mut self, anim: &Animator) -> Result<(), EngineError> {
+        let groups = anim.groups();
+        let strands = groups
+            .strands
+            .windows(2)
+            .map(|g| u64::from(g[1] - g[0]))
+            .collect();
+        let states = (0..anim.wisp_count())
+            .map(|w| anim.wisp_state(w).cloned())
+            .collect::<Option<Vec<_>>>()
+            .ok_or_else(|| EngineError::Executor("a wisp without a state".into()))?;
+        self.hair = Some(Hair_ {
+            strands,
+            wisps: groups.wisps.clone(),
+            points_per_wisp: anim.points_per_wisp(),
+            states,
+        });
+        self.shares = None;
+        self.posed = None;
+        Ok(())
+    }
+
     fn simulate(
         &mut self,
         anim: &mut Animator,
         plan: &StepPlan,
         stats: &mut FrameStats,
     ) -> Result<(), EngineError> {
-        if self.scene_toml.is_none() {
-            // No scene to build wisps from: simulate here.
-            return engine::LocalExecutor.simulate(anim, plan, stats);
-        }
         stats
             .time(Stage::Simulate, || {
                 self.with_survivors(|ex| ex.step(anim, plan))
@@ -777,8 +809,8 @@ impl Executor for RemoteExecutor {
         _fiber: &Fiber,
         version: Option<u64>,
     ) -> Result<FillStats, EngineError> {
-        // After a loss the survivors lack the lost worker's posed strands:
-        // the retry sends strands (`posed` was cleared).
+        // After a loss the survivors pose the lost worker's share again
+        // (drawing on the workers), or are sent strands (drawing here).
         self.with_survivors(|ex| ex.fill_remote(light, map, hair, version))
             .map_err(engine_error)
     }
@@ -787,22 +819,28 @@ impl Executor for RemoteExecutor {
         self.with_survivors(|ex| ex.sweep_remote(light, map))
             .map_err(engine_error)
     }
-}
 
-#[cfg(test)]
-mod tests {
-    use super::split_by;
+    fn draws(&self) -> bool {
+        self.draw == DrawAt::Workers
+    }
 
-    #[test]
-    fn splits_cover_everything_in_order_and_balance_weight() {
-        for (len, parts) in [(0, 3), (1, 3), (10, 3), (100, 1), (7, 7)] {
-            let s = split_by(len, parts, |i| (i % 5) as u64 + 1);
-            assert_eq!(s.len(), parts);
-            assert_eq!(s[0].start, 0);
-            assert_eq!(s[parts - 1].end, len);
-            assert!(s.windows(2).all(|w| w[0].end == w[1].start));
+    fn pose(&mut self, plan: &PosePlan) -> Result<PoseReport, EngineError> {
+        if self.posed != Some(plan.version) {
+            self.with_survivors(|ex| {
+                if ex.shares.is_none() {
+                    ex.assign()?;
+                }
+                ex.pose_call(plan)
+            })
+            .map_err(engine_error)?;
         }
-        let s = split_by(90, 3, |_| 1);
-        assert_eq!(s, vec![0..30, 30..60, 60..90]);
+        self.report
+            .clone()
+            .ok_or_else(|| EngineError::Executor("no worker reported its pose".into()))
+    }
+
+    fn draw(&mut self, job: &DrawJob) -> Result<DrawReport, EngineError> {
+        self.with_survivors(|ex| ex.draw_remote(job))
+            .map_err(engine_error)
     }
 }

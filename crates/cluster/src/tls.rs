@@ -89,7 +89,7 @@ impl Tls {
         ClusterError::Tls(format!(
             "{} were refused: {}",
             self.origin,
-            crate::remote::root_cause(e)
+            crate::client::root_cause(e)
         ))
     }
 }

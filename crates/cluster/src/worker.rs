@@ -1,7 +1,9 @@
-//! The worker: simulates a share of the wisps, fills partial density maps
-//! and sweeps column ranges for a coordinator, behind the
-//! `wisplight.v1.Worker` gRPC service, with grpc.health.v1 health and
-//! server reflection.
+//! The worker: holds a share of a scene's hair (whole groups of strands,
+//! with their wisps), steps and poses it, fills partial density maps,
+//! sweeps column ranges, and filters, shades and rasterizes its strands
+//! into partial pictures for a coordinator, behind the `wisplight.v1.Worker`
+//! gRPC service, with grpc.health.v1 health and server reflection. The
+//! stages are the engine's own ([`engine::Share`]).
 
 use std::net::SocketAddr;
 use std::pin::Pin;
@@ -9,7 +11,7 @@ use std::sync::{Arc, Mutex};
 
 use std::ops::Range;
 
-use engine::{Animator, FrameStats, Scene, StepPlan};
+use engine::{FrameStats, Scene, SceneSource, Share, StepPlan};
 use shadow::{ColumnSlab, DensityMap, Fiber, LightFrame};
 use strands::Hair;
 use tokio_stream::Stream;
@@ -21,38 +23,43 @@ use crate::{ClusterError, Tls, pb, wire};
 type Chunks<T> = Pin<Box<dyn Stream<Item = Result<T, Status>> + Send>>;
 
 /// The worker's state: the fiber of the coordinator it serves, its share
-/// of a simulated scene's wisps, and density maps kept between calls
-/// (their memory, not their content).
+/// of the scene's hair, and density maps kept between calls (their memory,
+/// not their content).
 #[derive(Debug, Default)]
 pub struct WorkerService {
     fiber: Mutex<Option<Fiber>>,
     maps: Arc<Mutex<Vec<DensityMap>>>,
-    share: Arc<Mutex<Option<Share>>>,
+    held: Arc<Mutex<Option<Held>>>,
     /// Fault injection for tests: the process exits (as if killed) when
     /// this many Step calls have arrived.
     exit_after_steps: Option<u64>,
     steps: std::sync::atomic::AtomicU64,
 }
 
-/// A share of a simulated scene's wisps.
+/// A share of a scene's hair and the scene it came from (a new Assign of
+/// the same scene and groups keeps it).
 #[derive(Debug)]
-struct Share {
-    /// The scene's TOML text: a new Assign of the same scene keeps `anim`.
-    scene_toml: String,
-    anim: Box<Animator>,
-    wisps: Range<usize>,
-    /// The drawn strands of the share as posed at the last Step (shared
-    /// with the Deposit calls of every light, not copied), and that hair's
-    /// version.
-    posed: Option<(u64, Arc<Hair>)>,
+struct Held {
+    source: SceneSource,
+    share: Share,
 }
 
 fn invalid(e: wire::Malformed) -> Status {
     Status::invalid_argument(e.to_string())
 }
 
+/// An engine error of a call about the share (a hair version it does not
+/// hold, say): the coordinator asked for something this worker lacks.
+fn refused(e: engine::EngineError) -> Status {
+    Status::failed_precondition(e.to_string())
+}
+
 fn stream_of<T: Send + 'static>(items: Vec<T>) -> Chunks<T> {
     Box::pin(tokio_stream::iter(items.into_iter().map(Ok)))
+}
+
+fn poisoned<T>(_: T) -> Status {
+    Status::internal("worker state poisoned")
 }
 
 impl WorkerService {
@@ -68,7 +75,7 @@ impl WorkerService {
     fn fiber(&self) -> Result<Fiber, Status> {
         self.fiber
             .lock()
-            .map_err(|_| Status::internal("worker state poisoned"))?
+            .map_err(poisoned)?
             .ok_or_else(|| Status::failed_precondition("call Hello first (protocol version check)"))
     }
 
@@ -84,23 +91,6 @@ impl WorkerService {
         }
     }
 
-    /// The strands posed at the last Step, when they are hair `version`.
-    fn posed_hair(&self, version: u64) -> Result<Arc<Hair>, Status> {
-        let share = self
-            .share
-            .lock()
-            .map_err(|_| Status::internal("worker state poisoned"))?;
-        match share.as_ref().and_then(|s| s.posed.as_ref()) {
-            Some((v, hair)) if *v == version => Ok(Arc::clone(hair)),
-            Some((v, _)) => Err(Status::failed_precondition(format!(
-                "the posed strands are hair version {v}, not {version}"
-            ))),
-            None => Err(Status::failed_precondition(
-                "no strands posed here: call Assign and Step first",
-            )),
-        }
-    }
-
     fn give_back(maps: &Mutex<Vec<DensityMap>>, map: DensityMap) {
         if let Ok(mut m) = maps.lock()
             && m.len() < 4
@@ -108,6 +98,23 @@ impl WorkerService {
             m.push(map);
         }
     }
+}
+
+/// Runs `f` on the held share off the async threads.
+async fn with_share<T: Send + 'static>(
+    held: &Arc<Mutex<Option<Held>>>,
+    f: impl FnOnce(&mut Share) -> Result<T, Status> + Send + 'static,
+) -> Result<T, Status> {
+    let held = held.clone();
+    tokio::task::spawn_blocking(move || {
+        let mut slot = held.lock().map_err(poisoned)?;
+        let h = slot.as_mut().ok_or_else(|| {
+            Status::failed_precondition("no share of the hair here: call Assign first")
+        })?;
+        f(&mut h.share)
+    })
+    .await
+    .map_err(|e| Status::internal(format!("worker task failed: {e}")))?
 }
 
 #[tonic::async_trait]
@@ -126,10 +133,7 @@ impl Worker for WorkerService {
         }
         let fiber = Fiber::new(r.fiber_width, r.fiber_opacity)
             .map_err(|e| Status::invalid_argument(e.to_string()))?;
-        *self
-            .fiber
-            .lock()
-            .map_err(|_| Status::internal("worker state poisoned"))? = Some(fiber);
+        *self.fiber.lock().map_err(poisoned)? = Some(fiber);
         Ok(Response::new(pb::HelloReply {
             protocol_version: wire::PROTOCOL_VERSION,
             worker: format!("wisplight-worker {}", env!("CARGO_PKG_VERSION")),
@@ -151,39 +155,54 @@ impl Worker for WorkerService {
         let frame = wire::frame_from_pb(first.map.as_ref()).map_err(invalid)?;
         let (frame_id, light) = (first.frame_id, first.light);
         let mut hair = Hair::new();
-        let posed = first.posed;
         wire::add_strands(&mut hair, &first).map_err(invalid)?;
         while let Some(c) = stream.message().await? {
             wire::add_strands(&mut hair, &c).map_err(invalid)?;
         }
-        let hair = if posed {
+        let maps = self.maps.clone();
+        let chunks = if first.posed {
             if hair.strand_count() > 0 {
                 return Err(Status::invalid_argument(
                     "a posed Deposit carries no strands",
                 ));
             }
-            self.posed_hair(first.version)?
+            let (version, filter) = (first.version, first.filter);
+            with_share(&self.held, move |share| {
+                let mut map = WorkerService::map_in(&maps, frame);
+                let stats = share.deposit(version, &mut map, &fiber).map_err(refused)?;
+                let read = share
+                    .columns_read(version, &frame, filter)
+                    .map_err(refused)?;
+                let mut chunks = wire::column_chunks(&map, 0..frame.columns());
+                WorkerService::give_back(&maps, map);
+                if let Some(c) = chunks.last_mut() {
+                    c.samples = stats.samples;
+                    c.out_of_map = stats.out_of_map;
+                    c.columns_read = wire::columns_to_pb(&read);
+                }
+                Ok(chunks)
+            })
+            .await?
         } else {
-            Arc::new(hair)
+            tokio::task::spawn_blocking(move || {
+                let mut map = WorkerService::map_in(&maps, frame);
+                let stats = map.deposit(&hair, 0..hair.strand_count(), &fiber);
+                let mut chunks = wire::column_chunks(&map, 0..frame.columns());
+                WorkerService::give_back(&maps, map);
+                if let Some(c) = chunks.last_mut() {
+                    c.samples = stats.samples;
+                    c.out_of_map = stats.out_of_map;
+                }
+                chunks
+            })
+            .await
+            .map_err(|e| Status::internal(format!("deposit task failed: {e}")))?
         };
-        let maps = self.maps.clone();
-        let chunks = tokio::task::spawn_blocking(move || {
-            let mut map = WorkerService::map_in(&maps, frame);
-            let stats = map.deposit(&hair, 0..hair.strand_count(), &fiber);
-            let mut chunks = wire::column_chunks(&map, 0..frame.columns());
-            WorkerService::give_back(&maps, map);
-            if let Some(c) = chunks.first_mut() {
-                c.frame_id = frame_id;
-                c.light = light;
-            }
-            if let Some(c) = chunks.last_mut() {
-                c.samples = stats.samples;
-                c.out_of_map = stats.out_of_map;
-            }
-            chunks
-        })
-        .await
-        .map_err(|e| Status::internal(format!("deposit task failed: {e}")))?;
+        let mut chunks = chunks;
+        if let Some(c) = chunks.first_mut() {
+            c.frame_id = frame_id;
+            c.light = light;
+        }
         tracing::debug!(frame_id, light, chunks = chunks.len(), "deposit done");
         Ok(Response::new(stream_of(chunks)))
     }
@@ -198,28 +217,53 @@ impl Worker for WorkerService {
             .message()
             .await?
             .ok_or_else(|| Status::invalid_argument("an empty Assign call"))?;
-        let wisps = first.first_wisp as usize..first.end_wisp as usize;
-        let mut chunks: Vec<pb::WispChunk> = first.state.into_iter().collect();
+        let groups = first.first_group as usize..first.end_group as usize;
+        let mut source = SceneSource {
+            text: first.scene_toml.as_str().into(),
+            path: first.scene_path.clone().into(),
+            files: Default::default(),
+        };
+        let mut states: Vec<pb::WispChunk> = Vec::new();
+        let mut files: Vec<(String, Vec<u8>)> = Vec::new();
+        let mut take = |c: pb::AssignChunk| -> Result<(), Status> {
+            states.extend(c.state);
+            if !c.file_path.is_empty() {
+                files.push((c.file_path, Vec::new()));
+            }
+            if !c.file_data.is_empty() {
+                let (_, data) = files
+                    .last_mut()
+                    .ok_or_else(|| Status::invalid_argument("file data before any file's path"))?;
+                data.extend_from_slice(&c.file_data);
+            }
+            Ok(())
+        };
+        take(first)?;
         while let Some(c) = stream.message().await? {
-            chunks.extend(c.state);
+            take(c)?;
         }
-        let slot = self.share.clone();
-        let toml = first.scene_toml;
-        let points = tokio::task::spawn_blocking(move || {
-            let mut slot = slot
-                .lock()
-                .map_err(|_| Status::internal("worker state poisoned"))?;
-            let share = build_share(slot.take(), toml, wisps, chunks)?;
-            let per = share.anim.points_per_wisp();
-            tracing::info!(wisps = ?share.wisps, "wisps assigned");
-            *slot = Some(share);
-            Ok::<_, Status>(per)
+        for (path, data) in files {
+            source.files.insert(path.into(), data.into());
+        }
+        let held = self.held.clone();
+        let reply = tokio::task::spawn_blocking(move || {
+            let mut slot = held.lock().map_err(poisoned)?;
+            let h = build_share(slot.take(), source, groups, &states)?;
+            let anim = h.share.animator();
+            let wisps = h.share.wisps();
+            let reply = pb::AssignReply {
+                points_per_wisp: anim.points_per_wisp() as u32,
+                groups: anim.groups().count() as u32,
+                first_wisp: wisps.start as u32,
+                end_wisp: wisps.end as u32,
+            };
+            tracing::info!(groups = ?h.share.groups(), wisps = ?wisps, "share assigned");
+            *slot = Some(h);
+            Ok::<_, Status>(reply)
         })
         .await
         .map_err(|e| Status::internal(format!("assign task failed: {e}")))??;
-        Ok(Response::new(pb::AssignReply {
-            points_per_wisp: points as u32,
-        }))
+        Ok(Response::new(reply))
     }
 
     type StepStream = Chunks<pb::WispChunk>;
@@ -235,42 +279,34 @@ impl Worker for WorkerService {
             std::process::exit(3);
         }
         let r = req.into_inner();
-        let slot = self.share.clone();
-        let chunks = tokio::task::spawn_blocking(move || {
+        let chunks = with_share(&self.held, move |share| {
             let start = std::time::Instant::now();
-            let mut slot = slot
-                .lock()
-                .map_err(|_| Status::internal("worker state poisoned"))?;
-            let share = slot
-                .as_mut()
-                .ok_or_else(|| Status::failed_precondition("no wisps here: call Assign first"))?;
             let (plan, accel) = step_plan(&r, share).map_err(invalid)?;
             let mut stats = FrameStats::new(r.frame_id, 0.0);
-            let wisps = share.wisps.clone();
-            engine::step_wisps(
-                &mut share.anim,
-                wisps.clone(),
-                &plan,
-                accel.as_deref(),
-                &mut stats,
-            );
-            let hair = share.anim.pose_share(wisps, &plan.drawn_bodies);
-            share.posed = Some((plan.version, Arc::new(hair)));
+            share.step(&plan, accel.as_deref(), &mut stats);
+            let report = share.pose(&plan.pose);
             let mut chunks = share_chunks(share)?;
             if let Some(c) = chunks.last_mut() {
                 c.compute_ms = start.elapsed().as_secs_f64() * 1e3;
+                c.report = Some(wire::report_to_pb(&report));
             }
             tracing::debug!(
                 frame_id = r.frame_id,
-                version = r.version,
+                version = plan.pose.version,
                 steps = stats.steps,
                 "step done"
             );
-            Ok::<_, Status>(chunks)
+            Ok(chunks)
         })
-        .await
-        .map_err(|e| Status::internal(format!("step task failed: {e}")))??;
+        .await?;
         Ok(Response::new(stream_of(chunks)))
+    }
+
+    async fn pose(&self, req: Request<pb::PosePlan>) -> Result<Response<pb::PoseReport>, Status> {
+        self.fiber()?;
+        let plan = wire::pose_plan_from_pb(&req.into_inner()).map_err(invalid)?;
+        let report = with_share(&self.held, move |share| Ok(share.pose(&plan))).await?;
+        Ok(Response::new(wire::report_to_pb(&report)))
     }
 
     type SweepStream = Chunks<pb::SlabChunk>;
@@ -315,57 +351,84 @@ impl Worker for WorkerService {
         );
         Ok(Response::new(stream_of(chunks)))
     }
+
+    type DrawStream = Chunks<pb::LayerChunk>;
+
+    async fn draw(
+        &self,
+        req: Request<Streaming<pb::DrawChunk>>,
+    ) -> Result<Response<Self::DrawStream>, Status> {
+        self.fiber()?;
+        let mut stream = req.into_inner();
+        let first = stream
+            .message()
+            .await?
+            .ok_or_else(|| Status::invalid_argument("an empty Draw call"))?;
+        let job = first
+            .job
+            .as_ref()
+            .ok_or_else(|| Status::invalid_argument("a Draw call's first chunk carries the job"))?;
+        let job = wire::job_from_pb(job).map_err(invalid)?;
+        let mut reader =
+            wire::ColumnsReader::new(if job.shadows { job.to_lights.len() } else { 0 });
+        if first.map.is_some() || !first.column_steps.is_empty() {
+            reader.add(&first).map_err(invalid)?;
+        }
+        while let Some(c) = stream.message().await? {
+            if c.job.is_some() {
+                return Err(Status::invalid_argument("a Draw call carries one job"));
+            }
+            reader.add(&c).map_err(invalid)?;
+        }
+        let maps = reader.finish().map_err(invalid)?;
+        let chunks = with_share(&self.held, move |share| {
+            let (layer, times) = share.draw(&job, &maps).map_err(refused)?;
+            Ok(wire::layer_chunks(&layer, &times))
+        })
+        .await?;
+        Ok(Response::new(stream_of(chunks)))
+    }
 }
 
-/// The state of `first..first + count`'s guides from a share, as chunks.
+/// The state of the share's wisps, as chunks.
 fn share_chunks(share: &Share) -> Result<Vec<pb::WispChunk>, Status> {
-    let states: Option<Vec<_>> = share
-        .wisps
+    let wisps = share.wisps();
+    let states: Option<Vec<_>> = wisps
         .clone()
-        .map(|w| share.anim.wisp_state(w))
+        .map(|w| share.animator().wisp_state(w))
         .collect();
     let states = states.ok_or_else(|| Status::internal("a wisp of the share is missing"))?;
-    Ok(wire::wisp_chunks(share.wisps.start, states))
+    Ok(wire::wisp_chunks(wisps.start, states))
 }
 
 /// Builds the share an Assign call asks for (off the async threads: the
-/// scene's hair is generated here).
+/// scene's hair is generated here), keeping the old one's hair when the
+/// scene and groups are the same.
 fn build_share(
-    old: Option<Share>,
-    scene_toml: String,
-    wisps: Range<usize>,
-    chunks: Vec<pb::WispChunk>,
-) -> Result<Share, Status> {
-    let mut anim = match old {
-        Some(s) if s.scene_toml == scene_toml => s.anim,
+    old: Option<Held>,
+    source: SceneSource,
+    groups: Range<usize>,
+    states: &[pb::WispChunk],
+) -> Result<Held, Status> {
+    let mut held = match old {
+        Some(h) if h.source == source && h.share.groups() == groups => h,
         _ => {
-            let scene = Scene::from_toml_str(&scene_toml, std::path::Path::new("<coordinator>"))
+            let scene = Scene::from_source(&source)
                 .map_err(|e| Status::invalid_argument(format!("the scene: {e}")))?;
-            Box::new(
-                Animator::new(&scene)
-                    .map_err(|e| Status::invalid_argument(format!("the scene's hair: {e}")))?,
-            )
+            let share = Share::new(&scene, groups)
+                .map_err(|e| Status::invalid_argument(format!("the scene's hair: {e}")))?;
+            Held { source, share }
         }
     };
-    if !anim.simulates() {
-        return Err(Status::invalid_argument(
-            "the scene's hair is not simulated (a procedural style with dynamics on a moving head)",
-        ));
-    }
-    if wisps.start > wisps.end || wisps.end > anim.wisp_count() {
-        return Err(Status::invalid_argument(format!(
-            "wisps {}..{} of a scene of {}",
-            wisps.start,
-            wisps.end,
-            anim.wisp_count()
-        )));
-    }
+    let share = &mut held.share;
+    let wisps = share.wisps();
+    let per = share.animator().points_per_wisp();
     let mut seen = vec![false; wisps.len()];
-    for c in &chunks {
-        for (w, state) in
-            wire::wisps_from_chunk(c, anim.points_per_wisp(), &wisps).map_err(invalid)?
-        {
-            anim.set_wisp_state(w, state)
+    for c in states {
+        for (w, state) in wire::wisps_from_chunk(c, per, &wisps).map_err(invalid)? {
+            share
+                .animator_mut()
+                .set_wisp_state(w, state)
                 .map_err(|e| Status::invalid_argument(e.to_string()))?;
             seen[w - wisps.start] = true;
         }
@@ -376,12 +439,7 @@ fn build_share(
             wisps.start + i
         )));
     }
-    Ok(Share {
-        scene_toml,
-        anim,
-        wisps,
-        posed: None,
-    })
+    Ok(held)
 }
 
 /// A Step request as a plan for `share`: the worker's accelerations apart.
@@ -415,18 +473,21 @@ fn step_plan(
             b
         })
         .collect();
-    let points = share.wisps.len() * share.anim.points_per_wisp();
+    let points = share.wisps().len() * share.animator().points_per_wisp();
     let accel = if r.has_accel {
         Some(wire::accel_from_pb(&r.accel_skip, &r.accel, points)?)
     } else {
         None
     };
+    let pose = r
+        .pose
+        .as_ref()
+        .ok_or_else(|| wire::Malformed("a Step without its pose".into()))?;
     let plan = StepPlan {
         heads,
         bodies,
         accel: None,
-        drawn_bodies: wire::bodies_from_floats(&r.drawn_bodies)?,
-        version: r.version,
+        pose: wire::pose_plan_from_pb(pose)?,
     };
     Ok((plan, accel))
 }

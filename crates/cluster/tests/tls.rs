@@ -43,8 +43,21 @@ fn fiber() -> Fiber {
     Fiber::new(0.1, 0.5).unwrap()
 }
 
+fn options(tls: Option<&Tls>, secs: u64) -> cluster::Options {
+    cluster::Options {
+        deadline: Duration::from_secs(secs),
+        tls: tls.cloned(),
+        // The strands are sent for any hair.
+        draw: cluster::DrawAt::Coordinator,
+    }
+}
+
 fn connect(addr: SocketAddr, tls: Option<&Tls>) -> Result<RemoteExecutor, ClusterError> {
-    RemoteExecutor::connect(&[addr.to_string()], &fiber(), Duration::from_secs(5), tls)
+    RemoteExecutor::connect(
+        &[addr.to_string()],
+        &engine::Scene::default(),
+        &options(tls, 5),
+    )
 }
 
 #[test]
@@ -59,7 +72,8 @@ fn a_coordinator_with_the_clusters_credentials_gets_the_local_bytes() {
     let frame = LightFrame::fit(&light, hair.points(), 64).unwrap();
     let tls = pki().coordinator();
     let mut remote =
-        RemoteExecutor::connect(&addrs, &fiber(), Duration::from_secs(20), Some(&tls)).unwrap();
+        RemoteExecutor::connect(&addrs, &engine::Scene::default(), &options(Some(&tls), 20))
+            .unwrap();
     let (mut a, mut b) = (DensityMap::new(frame), DensityMap::new(frame));
     LocalExecutor
         .fill(0, &mut a, &hair, &fiber(), None)

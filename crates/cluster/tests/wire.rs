@@ -10,7 +10,7 @@ use std::net::SocketAddr;
 use std::time::Duration;
 
 use cluster::pb::worker_client::WorkerClient;
-use cluster::{RemoteExecutor, pb, wire};
+use cluster::{DrawAt, Options, RemoteExecutor, pb, wire};
 use engine::{Executor, LocalExecutor, Scene, Sequence};
 use glam::Vec3;
 use shadow::{DensityMap, Fiber, Light, LightFrame};
@@ -67,6 +67,15 @@ fn local_frames(scene: &Scene, frames: usize) -> Vec<image::RgbImage> {
         .collect()
 }
 
+/// How tests run workers: drawing where `draw` says, deadline `secs`.
+fn options(draw: DrawAt, secs: u64) -> Options {
+    Options {
+        deadline: Duration::from_secs(secs),
+        tls: None,
+        draw,
+    }
+}
+
 fn hair() -> strands::Hair {
     let mut p = StyleParams::new(Style::Curly);
     p.strands_per_wisp = 3;
@@ -81,8 +90,10 @@ fn three_workers_give_the_local_map_and_transmittance_bit_for_bit() {
     let light = Light::directional(Vec3::new(0.9, -0.35, -0.25)).unwrap();
     let frame = LightFrame::fit(&light, hair.points(), 96).unwrap();
     let mut local = LocalExecutor;
+    // Drawing on the coordinator: the strands are sent, as for any hair.
     let mut remote =
-        RemoteExecutor::connect(&addrs, &fiber, Duration::from_secs(20), None).unwrap();
+        RemoteExecutor::connect(&addrs, &Scene::default(), &options(DrawAt::Coordinator, 20))
+            .unwrap();
     let (mut a, mut b) = (DensityMap::new(frame), DensityMap::new(frame));
     let sa = local.fill(0, &mut a, &hair, &fiber, None).unwrap();
     let sb = remote.fill(0, &mut b, &hair, &fiber, None).unwrap();
@@ -133,9 +144,12 @@ fn a_worker_refuses_another_protocol_version_and_calls_before_hello() {
         assert_eq!(e.code(), tonic::Code::FailedPrecondition);
         assert!(e.message().contains("protocol version"), "{}", e.message());
     });
-    // And the coordinator says so, naming the worker.
-    let fiber = Fiber::new(0.1, 0.5).unwrap();
-    let ok = RemoteExecutor::connect(&[addr.to_string()], &fiber, Duration::from_secs(5), None);
+    // A coordinator of this version is served.
+    let ok = RemoteExecutor::connect(
+        &[addr.to_string()],
+        &Scene::default(),
+        &options(DrawAt::Workers, 5),
+    );
     assert!(ok.is_ok());
 }
 
@@ -300,71 +314,89 @@ fn a_worker_answers_health_checks_for_itself_and_the_server() {
 }
 
 #[test]
-fn three_workers_simulating_the_wisps_give_the_local_animation_byte_for_byte() {
+fn three_workers_give_the_local_animation_byte_for_byte_drawing_anywhere() {
     let scene = Scene::from_toml_str(DANCE, std::path::Path::new("dance.toml")).unwrap();
     let want = local_frames(&scene, 4);
-    let addrs: Vec<String> = (0..3).map(|_| start_worker().to_string()).collect();
-    let mut remote =
-        RemoteExecutor::connect(&addrs, &scene.fiber, Duration::from_secs(20), None).unwrap();
-    remote.set_scene(DANCE.to_string());
+    for draw in [DrawAt::Workers, DrawAt::Coordinator] {
+        let addrs: Vec<String> = (0..3).map(|_| start_worker().to_string()).collect();
+        let remote = RemoteExecutor::connect(&addrs, &scene, &options(draw, 20)).unwrap();
+        let traffic = remote.traffic();
+        let mut seq = Sequence::new(&scene).unwrap();
+        seq.set_executor(Box::new(remote)).unwrap();
+        let mut after_first = None;
+        for (i, w) in want.iter().enumerate() {
+            let (img, _) = seq.next_frame().unwrap();
+            assert!(img == w, "{draw:?}: frame {i} differs from one process");
+            if i == 0 {
+                after_first = Some(*traffic.lock().unwrap());
+            }
+        }
+        let first = after_first.unwrap();
+        let t = traffic.lock().unwrap().since(&first);
+        // Later frames: the wisps are stepped on the workers, and the
+        // density filled from the strands they posed: the Deposit requests
+        // carry a map frame (about 70 bytes), no strand (a strand is 200+
+        // bytes).
+        assert!(t.step_sent > 0 && t.wisps_received > 0, "{t:?}");
+        assert!(t.strands_sent <= 3 * 3 * 100, "{t:?}");
+        assert_eq!(t.assign_sent, 0, "assigned once: {t:?}");
+        // Drawing on the workers, partial pictures come back.
+        assert_eq!(t.layers_received > 0, draw == DrawAt::Workers, "{t:?}");
+    }
+}
+
+#[test]
+fn rigid_hair_drawn_on_workers_is_the_local_animation() {
+    let text = format!("{DANCE}\n[effects]\ndynamics = false\n");
+    let scene = Scene::from_toml_str(&text, std::path::Path::new("rigid.toml")).unwrap();
+    let want = local_frames(&scene, 3);
+    let addrs: Vec<String> = (0..2).map(|_| start_worker().to_string()).collect();
+    let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::Workers, 20)).unwrap();
     let traffic = remote.traffic();
     let mut seq = Sequence::new(&scene).unwrap();
-    seq.set_executor(Box::new(remote));
-    let mut after_first = None;
+    seq.set_executor(Box::new(remote)).unwrap();
     for (i, w) in want.iter().enumerate() {
-        let (img, _) = seq.next_frame().unwrap();
-        assert!(img == w, "frame {i} differs from one process");
-        if i == 0 {
-            after_first = Some(*traffic.lock().unwrap());
-        }
+        assert!(seq.next_frame().unwrap().0 == w, "frame {i}");
     }
-    let first = after_first.unwrap();
-    let t = traffic.lock().unwrap().since(&first);
-    // Later frames: the wisps are stepped on the workers, and the density
-    // filled from the strands they posed: the Deposit requests carry a map
-    // frame (about 70 bytes), no strand (a strand is 200+ bytes).
-    assert!(t.step_sent > 0 && t.wisps_received > 0, "{t:?}");
-    assert!(t.strands_sent <= 3 * 3 * 100, "{t:?}");
-    assert_eq!(t.assign_sent, 0, "assigned once: {t:?}");
+    let t = *traffic.lock().unwrap();
+    assert!(t.pose > 0 && t.strands_sent < 1000, "posed there: {t:?}");
 }
 
 #[test]
 fn a_worker_lost_mid_animation_hands_its_work_to_the_survivors() {
     let scene = Scene::from_toml_str(DANCE, std::path::Path::new("dance.toml")).unwrap();
     let want = local_frames(&scene, 6);
-    let (a, _keep_a) = start_stoppable_worker();
-    let (b, stop_b) = start_stoppable_worker();
-    let (c, _keep_c) = start_stoppable_worker();
-    let addrs = [a.to_string(), b.to_string(), c.to_string()];
-    let mut remote =
-        RemoteExecutor::connect(&addrs, &scene.fiber, Duration::from_secs(20), None).unwrap();
-    remote.set_scene(DANCE.to_string());
-    let timing = remote.timing();
-    let mut seq = Sequence::new(&scene).unwrap();
-    seq.set_executor(Box::new(remote));
-    let mut stop_b = Some(stop_b);
-    for (i, w) in want.iter().enumerate() {
-        if i == 3 {
-            stop_b.take().unwrap().send(()).unwrap();
-            // Let the server close its listener.
-            std::thread::sleep(Duration::from_millis(300));
+    for draw in [DrawAt::Workers, DrawAt::Coordinator] {
+        let (a, _keep_a) = start_stoppable_worker();
+        let (b, stop_b) = start_stoppable_worker();
+        let (c, _keep_c) = start_stoppable_worker();
+        let addrs = [a.to_string(), b.to_string(), c.to_string()];
+        let remote = RemoteExecutor::connect(&addrs, &scene, &options(draw, 20)).unwrap();
+        let timing = remote.timing();
+        let mut seq = Sequence::new(&scene).unwrap();
+        seq.set_executor(Box::new(remote)).unwrap();
+        let mut stop_b = Some(stop_b);
+        for (i, w) in want.iter().enumerate() {
+            if i == 3 {
+                stop_b.take().unwrap().send(()).unwrap();
+                // Let the server close its listener.
+                std::thread::sleep(Duration::from_millis(300));
+            }
+            let (img, _) = seq.next_frame().unwrap();
+            assert!(img == w, "{draw:?}: frame {i} differs from one process");
         }
-        let (img, _) = seq.next_frame().unwrap();
-        assert!(img == w, "frame {i} differs from one process");
+        assert_eq!(timing.lock().unwrap().workers_lost, 1, "{draw:?}");
     }
-    assert_eq!(timing.lock().unwrap().workers_lost, 1);
 }
 
 #[test]
 fn a_coordinator_with_no_worker_left_fails_naming_the_worker() {
     let scene = Scene::from_toml_str(DANCE, std::path::Path::new("dance.toml")).unwrap();
     let (a, stop) = start_stoppable_worker();
-    let mut remote =
-        RemoteExecutor::connect(&[a.to_string()], &scene.fiber, Duration::from_secs(5), None)
-            .unwrap();
-    remote.set_scene(DANCE.to_string());
+    let remote =
+        RemoteExecutor::connect(&[a.to_string()], &scene, &options(DrawAt::Workers, 5)).unwrap();
     let mut seq = Sequence::new(&scene).unwrap();
-    seq.set_executor(Box::new(remote));
+    seq.set_executor(Box::new(remote)).unwrap();
     seq.next_frame().unwrap();
     stop.send(()).unwrap();
     std::thread::sleep(Duration::from_millis(300));
@@ -383,17 +415,14 @@ fn malformed_assign_and_step_calls_get_an_error_and_the_worker_lives_on() {
         assert_eq!(e.code(), tonic::Code::FailedPrecondition, "{}", e.message());
         let assign = |toml: &str, first: u32, end: u32| pb::AssignChunk {
             scene_toml: toml.to_string(),
-            first_wisp: first,
-            end_wisp: end,
-            state: None,
+            scene_path: "dance.toml".into(),
+            first_group: first,
+            end_group: end,
+            ..Default::default()
         };
         let bad = [
             (assign("[hair]\nstyle = \"wavy\"\n", 0, 1), "style"),
-            (
-                assign("[hair]\nstyle = \"smooth\"\n", 0, 1),
-                "not simulated",
-            ),
-            (assign(DANCE, 0, 500), "wisps 0..500"),
+            (assign(DANCE, 0, 500), "groups 0..500"),
             (assign(DANCE, 0, 1), "no state for wisp 0"),
         ];
         for (chunk, says) in bad {
@@ -401,22 +430,35 @@ fn malformed_assign_and_step_calls_get_an_error_and_the_worker_lives_on() {
             assert_eq!(e.code(), tonic::Code::InvalidArgument, "{}", e.message());
             assert!(e.message().contains(says), "{}", e.message());
         }
-        // A good share of wisp 0: its rest state from the scene itself.
+        // A good share of group 0: its wisps' rest state from the scene itself.
         let scene = Scene::from_toml_str(DANCE, std::path::Path::new("d")).unwrap();
         let anim = engine::Animator::new(&scene).unwrap();
-        let state = wire::wisp_chunks(0, [anim.wisp_state(0).unwrap()]);
-        let mut good = assign(DANCE, 0, 1);
-        good.state = Some(state[0].clone());
-        let r = c.assign(tokio_stream::iter(vec![good])).await.unwrap();
-        assert_eq!(
-            r.into_inner().points_per_wisp as usize,
-            anim.points_per_wisp()
-        );
+        let wisps = anim.groups().wisp_range(0..1);
+        let states = wire::wisp_chunks(0, wisps.clone().map(|w| anim.wisp_state(w).unwrap()));
+        let mut good = vec![assign(DANCE, 0, 1)];
+        good.extend(states.into_iter().map(|s| pb::AssignChunk {
+            state: Some(s),
+            ..Default::default()
+        }));
+        let r = c
+            .assign(tokio_stream::iter(good))
+            .await
+            .unwrap()
+            .into_inner();
+        assert_eq!(r.points_per_wisp as usize, anim.points_per_wisp());
+        assert_eq!(r.first_wisp as usize..r.end_wisp as usize, wisps);
         let head = glam::Affine3A::IDENTITY.to_cols_array().to_vec();
-        let step = pb::StepRequest {
+        let pose = pb::PosePlan {
             version: 7,
+            head: head.clone(),
+            lights: vec![0.0, -1.0, 0.0],
+            anchor: vec![0.0; 3],
+            ..Default::default()
+        };
+        let step = pb::StepRequest {
             heads: head.clone(),
             body_counts: vec![0],
+            pose: Some(pose.clone()),
             ..Default::default()
         };
         let bad_steps = [
@@ -450,6 +492,17 @@ fn malformed_assign_and_step_calls_get_an_error_and_the_worker_lives_on() {
                 accel: vec![f32::INFINITY, 0.0, 0.0],
                 ..step.clone()
             },
+            pb::StepRequest {
+                pose: None,
+                ..step.clone()
+            },
+            pb::StepRequest {
+                pose: Some(pb::PosePlan {
+                    lights: vec![0.0; 3],
+                    ..pose.clone()
+                }),
+                ..step.clone()
+            },
         ];
         for r in bad_steps {
             let e = c.step(r.clone()).await.unwrap_err();
@@ -462,11 +515,14 @@ fn malformed_assign_and_step_calls_get_an_error_and_the_worker_lives_on() {
         }
         // A good step, then a posed deposit of another version is refused.
         let mut s = c.step(step).await.unwrap().into_inner();
-        let mut got = 0;
+        let (mut got, mut report) = (0, None);
         while let Some(m) = s.message().await.unwrap() {
             got += m.pos.len();
+            report = report.or(m.report);
         }
-        assert_eq!(got, 3 * anim.points_per_wisp());
+        assert_eq!(got, 3 * wisps.len() * anim.points_per_wisp());
+        let report = wire::report_from_pb(&report.unwrap(), 1).unwrap();
+        assert!(!report.bounds.is_empty() && !report.extents[0].is_empty());
         let light = Light::directional(Vec3::NEG_Y).unwrap();
         let frame = LightFrame::centered(&light, Vec3::ZERO, 80.0, 8).unwrap();
         let posed = |version| pb::DepositChunk {

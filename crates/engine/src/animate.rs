@@ -42,6 +42,72 @@ pub struct Animator {
     hair: Hair,
     /// The head transform the drawn hair is posed under.
     head: Affine3A,
+    groups: Groups,
+}
+
+/// How many groups the drawn hair is drawn in (see [`Groups`]).
+pub const GROUPS: usize = 6;
+
+/// The fixed partition of the drawn hair into groups of whole strands
+/// (and, for simulated hair, of whole wisps): the unit in which hair is
+/// shared out to cluster workers, and in which the canvas sums fragments
+/// in floats before adding groups exactly. Any share of whole groups,
+/// drawn anywhere, composites to the same bytes. Six groups share evenly
+/// over 1, 2, 3 and 6 workers.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Groups {
+    /// Group `g` is drawn strands `strands[g]..strands[g + 1]`.
+    pub strands: Vec<u32>,
+    /// For simulated hair, group `g` is wisps `wisps[g]..wisps[g + 1]`.
+    pub wisps: Option<Vec<u32>>,
+}
+
+impl Groups {
+    pub fn count(&self) -> usize {
+        self.strands.len() - 1
+    }
+
+    /// The drawn strands of groups `groups`.
+    pub fn strand_range(&self, groups: Range<usize>) -> Range<usize> {
+        self.strands[groups.start] as usize..self.strands[groups.end] as usize
+    }
+
+    /// The wisps of groups `groups` (empty for hair that is not simulated).
+    pub fn wisp_range(&self, groups: Range<usize>) -> Range<usize> {
+        match &self.wisps {
+            Some(w) => w[groups.start] as usize..w[groups.end] as usize,
+            None => 0..0,
+        }
+    }
+
+    /// The group boundaries inside groups `groups`, as strand indices from
+    /// their first strand: what [`raster::Canvas::draw_hair`] takes for
+    /// those strands alone.
+    pub fn within(&self, groups: Range<usize>) -> Vec<u32> {
+        let first = self.strands[groups.start];
+        self.strands[groups.start..=groups.end]
+            .iter()
+            .map(|&s| s - first)
+            .collect()
+    }
+}
+
+/// Cuts `0..len` into `parts` contiguous ranges whose `weight` sums are
+/// about equal (a range may be empty).
+pub fn split_by(len: usize, parts: usize, weight: impl Fn(usize) -> u64) -> Vec<Range<usize>> {
+    let total: u64 = (0..len).map(&weight).sum();
+    let mut out = Vec::with_capacity(parts);
+    let (mut start, mut acc, mut i) = (0, 0u64, 0);
+    for p in 1..=parts {
+        let goal = total * p as u64 / parts as u64;
+        while i < len && (acc < goal || p == parts) {
+            acc += weight(i);
+            i += 1;
+        }
+        out.push(start..i);
+        start = i;
+    }
+    out
 }
 
 impl Animator {
@@ -79,6 +145,42 @@ impl Animator {
             _ => Source::Rigid { rest: rest.clone() },
         };
         let settle_frames = (scene.dynamics.settle_s / frame_dt).ceil() as u32;
+        let groups = match &source {
+            Source::Wisps { model, .. } => {
+                let mut per = vec![0u64; model.wisp_count()];
+                for m in &model.members {
+                    per[m.wisp as usize] += 1;
+                }
+                let g = GROUPS.min(per.len()).max(1);
+                let wisps = split_by(per.len(), g, |w| per[w]);
+                Groups {
+                    strands: std::iter::once(0)
+                        .chain(
+                            wisps
+                                .iter()
+                                .map(|r| model.member_range(r.clone()).end as u32),
+                        )
+                        .collect(),
+                    wisps: Some(
+                        std::iter::once(0)
+                            .chain(wisps.iter().map(|r| r.end as u32))
+                            .collect(),
+                    ),
+                }
+            }
+            Source::Rigid { rest } => {
+                let n = rest.strand_count();
+                let g = GROUPS.min(n).max(1);
+                let offsets = rest.offsets();
+                let strands = split_by(n, g, |s| u64::from(offsets[s + 1] - offsets[s]) + 1);
+                Groups {
+                    strands: std::iter::once(0)
+                        .chain(strands.iter().map(|r| r.end as u32))
+                        .collect(),
+                    wisps: None,
+                }
+            }
+        };
         let mut a = Animator {
             head: motion.at(0.0, pivot),
             motion,
@@ -88,6 +190,7 @@ impl Animator {
             settle_frames,
             source,
             hair: rest,
+            groups,
         };
         a.pose();
         Ok(a)
@@ -149,20 +252,6 @@ impl Animator {
         }
     }
 
-    /// Drawn strands of each wisp: the weights for sharing wisps out.
-    pub fn strands_per_wisp(&self) -> Vec<u64> {
-        match &self.source {
-            Source::Wisps { model, .. } => {
-                let mut n = vec![0u64; model.wisp_count()];
-                for m in &model.members {
-                    n[m.wisp as usize] += 1;
-                }
-                n
-            }
-            Source::Rigid { .. } => Vec::new(),
-        }
-    }
-
     /// The acceleration of `field` at every guide point of every wisp,
     /// wisp after wisp (self-collisions, sampled where the hair is now).
     pub fn sample_field(&self, field: &dyn ForceField) -> Vec<Vec3> {
@@ -207,27 +296,62 @@ impl Animator {
         }
     }
 
-    /// The drawn strands of wisps `wisps` alone, posed from their guides and
-    /// pushed out of `bodies`: the very points [`Self::set_head`] and
-    /// [`Self::collide_drawn`] give those strands, for a share of the wisps
-    /// simulated away from the rest. Empty for rigid hair.
-    pub fn pose_share(&mut self, wisps: Range<usize>, bodies: &[Body]) -> Hair {
-        let Source::Wisps {
-            model,
-            sim,
-            subdivide,
-            ..
-        } = &mut self.source
-        else {
-            return Hair::new();
-        };
-        sim.write_guides(&mut model.guides);
-        let control = model.interpolate_members(model.member_range(wisps));
-        let mut hair = strands::resample(&control, *subdivide);
-        if !bodies.is_empty() {
-            push_out_all(&mut hair, bodies);
+    /// The fixed groups the drawn hair is drawn in.
+    pub fn groups(&self) -> &Groups {
+        &self.groups
+    }
+
+    /// A point near the hair under head transform `head`, from which map
+    /// extents are measured (precision for hair far from the origin): the
+    /// head's centre (or the rest hair's), moved with the head.
+    pub fn anchor_at(&self, head: &Affine3A) -> Vec3 {
+        head.transform_point3(self.pivot)
+    }
+
+    /// The drawn strands of groups `groups` alone, with their colours,
+    /// under head transform `head`: posed from the simulated guides and
+    /// pushed out of `bodies`, or the rest hair moved rigidly. The very
+    /// points [`Self::set_head`] (and [`Self::collide_drawn`]) give those
+    /// strands, for a share of the hair posed away from the rest.
+    pub fn pose_part(&mut self, groups: Range<usize>, head: Affine3A, bodies: &[Body]) -> Hair {
+        let strands = self.groups.strand_range(groups.clone());
+        let wisps = self.groups.wisp_range(groups);
+        match &mut self.source {
+            Source::Rigid { rest } => {
+                let offsets = rest.offsets();
+                let mut hair = Hair::with_capacity(
+                    strands.len(),
+                    (offsets[strands.end] - offsets[strands.start]) as usize,
+                );
+                let mut pts = Vec::new();
+                for s in strands.clone() {
+                    pts.clear();
+                    pts.extend(rest.strand(s).iter().map(|&p| head.transform_point3(p)));
+                    hair.push_strand(&pts)
+                        .expect("a rigid move of finite points is finite");
+                }
+                if let Some(c) = rest.colors() {
+                    hair.set_colors(c[strands].to_vec());
+                }
+                hair
+            }
+            Source::Wisps {
+                model,
+                sim,
+                subdivide,
+                ..
+            } => {
+                sim.write_guides(&mut model.guides);
+                let members = model.member_range(wisps);
+                let mut control = model.interpolate_members(members.clone());
+                control.set_colors(model.colors[members].to_vec());
+                let mut hair = strands::resample(&control, *subdivide);
+                if !bodies.is_empty() {
+                    push_out_all(&mut hair, bodies);
+                }
+                hair
+            }
         }
-        hair
     }
 
     /// Pushes the drawn points of simulated hair out of `bodies`: strands

@@ -1,17 +1,21 @@
 //! The executor boundary: where a frame's parallel work runs.
 //!
-//! Three stages can run away from the frame pipeline, each on any share of
-//! its input: the simulation of the wisps (any share of wisps), the filling
-//! of the density map (any share of strands) and its sweep (any share of
-//! columns). [`LocalExecutor`] runs them in this process; cluster mode's
-//! executor runs them on workers. Everything else (posing the drawn hair,
-//! filtering, shading, drawing) is the same code either way, so both give
+//! Every stage whose work grows with the hair can run away from the frame
+//! pipeline, each on any share of its input: the simulation of the wisps
+//! (any share of wisps), the filling of the density map (any share of
+//! strands) and its sweep (any share of columns), and, for an executor
+//! that holds the drawn hair itself ([`Executor::draws`]: cluster workers),
+//! the pose, filter, shade and rasterization of whole groups of strands
+//! (see [`crate::Groups`]). [`LocalExecutor`] runs the first three in this
+//! process and leaves the rest to the frame, which runs the same stage
+//! code ([`crate::HairPart`]) on all the hair; either way the pictures are
 //! the same bytes.
 
 use glam::{Affine3A, Vec3};
-use shadow::{DensityMap, Fiber, FillStats, Transmittance};
+use raster::{Camera, HairLayer, HairLook, Shading};
+use shadow::{DensityMap, Extent, Fiber, FillStats, Light, Transmittance};
 use sim::Body;
-use strands::Hair;
+use strands::{Bounds, Hair};
 
 use crate::{Animator, EngineError, FrameStats, Stage};
 
@@ -29,19 +33,106 @@ pub struct StepPlan {
     /// frame's density map and held through the frame's steps. `None`
     /// without self-collisions.
     pub accel: Option<Vec<Vec3>>,
-    /// After the steps, the drawn hair is posed and pushed out of these
-    /// bodies (empty: not pushed).
-    pub drawn_bodies: Vec<Body>,
-    /// The pose counter the drawn hair has once posed after these steps;
-    /// [`Executor::fill`] is told it again.
-    pub version: u64,
+    /// The pose of the drawn hair after the steps.
+    pub pose: PosePlan,
 }
 
-/// Where the simulation, the density map's fill and its sweep run.
-/// Implementations must give exactly the results of [`LocalExecutor`].
+/// How the drawn hair is posed in a frame, and what the frame needs to
+/// know of it when it is posed elsewhere.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PosePlan {
+    /// The head transform the hair is posed under.
+    pub head: Affine3A,
+    /// Simulated hair: bodies the drawn points are pushed out of (empty:
+    /// not pushed).
+    pub drawn_bodies: Vec<Body>,
+    /// The pose counter the drawn hair has once posed;
+    /// [`Executor::fill`] is told it again.
+    pub version: u64,
+    /// The lights whose map extents are measured, from `anchor`.
+    pub lights: Vec<Light>,
+    pub anchor: Vec3,
+}
+
+/// What the frame needs of drawn hair posed wherever it is: its bounds
+/// (for framing the camera) and its extent along each light's map axes
+/// (for fitting the maps). Reports of shares of the hair combine exactly.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PoseReport {
+    pub bounds: Bounds,
+    pub extents: Vec<Extent>,
+}
+
+impl PoseReport {
+    /// The report of `hair` as `plan` posed it.
+    pub fn of(hair: &Hair, plan: &PosePlan) -> PoseReport {
+        PoseReport {
+            bounds: hair.bounds(),
+            extents: plan
+                .lights
+                .iter()
+                .map(|l| Extent::of(l, plan.anchor, hair.points()))
+                .collect(),
+        }
+    }
+
+    /// The report of both shares.
+    pub fn union(self, o: &PoseReport) -> PoseReport {
+        PoseReport {
+            bounds: self.bounds.union(o.bounds),
+            extents: self
+                .extents
+                .iter()
+                .zip(&o.extents)
+                .map(|(a, b)| a.union(*b))
+                .collect(),
+        }
+    }
+}
+
+/// The inputs of the per-vertex stages (filter, shade) and of the
+/// rasterization, for drawn hair held elsewhere.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DrawJob {
+    /// The hair version to draw: the one posed last.
+    pub version: u64,
+    pub camera: Camera,
+    pub look: HairLook,
+    /// Kajiya-Kay settings (the highlight off when the effect is).
+    pub shading: Shading,
+    /// The unit direction towards each light.
+    pub to_lights: Vec<Vec3>,
+    /// Whether the lights' transmittance is looked up at every vertex;
+    /// otherwise it is 1.
+    pub shadows: bool,
+    /// Whether the lookups are filtered (trilinear) or take the cell's value.
+    pub filter: bool,
+    /// The head transform: hair behind the head is hidden.
+    pub head: Affine3A,
+}
+
+/// What drawing elsewhere gave: the partial pictures, to composite, and
+/// the slowest share's milliseconds of each stage.
+#[derive(Debug, Clone, Default)]
+pub struct DrawReport {
+    pub layers: Vec<HairLayer>,
+    pub filter_ms: f64,
+    pub shade_ms: f64,
+    pub raster_ms: f64,
+}
+
+/// Where the stages that grow with the hair run. Implementations must give
+/// exactly the results of [`LocalExecutor`] and the frame's own stages.
 pub trait Executor: Send + Sync + std::fmt::Debug {
+    /// Learns the scene's hair before any frame: its groups and the state
+    /// of its wisps (an executor that holds shares of the hair elsewhere
+    /// hands them out from these).
+    fn attach(&mut self, anim: &Animator) -> Result<(), EngineError> {
+        let _ = anim;
+        Ok(())
+    }
     /// Runs `plan`'s steps on every wisp of `anim` and leaves the stepped
-    /// state in `anim` (the caller then poses the drawn hair).
+    /// state in `anim`.
     fn simulate(
         &mut self,
         anim: &mut Animator,
@@ -50,9 +141,10 @@ pub trait Executor: Send + Sync + std::fmt::Debug {
     ) -> Result<(), EngineError>;
     /// Adds the density of every strand of `hair` to `map` (empty, in its
     /// frame) for light `light`. `version` is the hair's pose counter when
-    /// it was posed after [`Self::simulate`] with a plan of that version
-    /// (an executor that simulated elsewhere may fill from the strands it
-    /// posed there), `None` for any other hair.
+    /// it was posed after [`Self::simulate`] or [`Self::pose`] with a plan
+    /// of that version (an executor that posed elsewhere fills from the
+    /// strands it posed there, and `hair` may be empty), `None` for any
+    /// other hair.
     fn fill(
         &mut self,
         light: usize,
@@ -63,9 +155,33 @@ pub trait Executor: Send + Sync + std::fmt::Debug {
     ) -> Result<FillStats, EngineError>;
     /// Sweeps every column of `map` (paper 4.2).
     fn sweep(&mut self, light: usize, map: &DensityMap) -> Result<Transmittance, EngineError>;
+    /// Whether this executor holds the drawn hair and poses, filters,
+    /// shades and rasterizes it where it is ([`Self::pose`],
+    /// [`Self::draw`]); otherwise the frame does, in this process.
+    fn draws(&self) -> bool {
+        false
+    }
+    /// Poses the drawn hair as `plan` says, where it is held (after the
+    /// simulation's steps, if any), and reports on it.
+    fn pose(&mut self, plan: &PosePlan) -> Result<PoseReport, EngineError> {
+        let _ = plan;
+        Err(EngineError::Executor(
+            "this executor does not hold the drawn hair".into(),
+        ))
+    }
+    /// Filters the transmittance of the last [`Self::sweep`] of every
+    /// light at the drawn vertices, shades them and rasterizes them, where
+    /// they are held: one partial picture per share.
+    fn draw(&mut self, job: &DrawJob) -> Result<DrawReport, EngineError> {
+        let _ = job;
+        Err(EngineError::Executor(
+            "this executor does not hold the drawn hair".into(),
+        ))
+    }
 }
 
-/// Every stage in this process, on all threads.
+/// The simulation, the fill and the sweep in this process, on all threads;
+/// the frame poses, filters, shades and draws.
 #[derive(Debug, Default, Clone, Copy)]
 pub struct LocalExecutor;
 

@@ -21,10 +21,13 @@ use std::time::Instant;
 use glam::Affine3A;
 use shadow::{MethodConfig, ShadowInput, ShadowMethod};
 use sim::Body;
+use strands::Hair;
 
 use crate::animate::Animator;
 use crate::collide::DensityRepulsion;
-use crate::{EngineError, Renderer, Scene, StepPlan};
+use crate::{
+    EngineError, Executor, LocalExecutor, PosePlan, PoseReport, Renderer, Scene, StepPlan,
+};
 
 /// A stage of a frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -121,6 +124,13 @@ impl FrameStats {
         self.stages.iter().map(|r| r.ms).sum()
     }
 
+    /// Marks stage `s` as run, adding `ms` milliseconds measured elsewhere.
+    pub fn record(&mut self, s: Stage, ms: f64) {
+        let r = &mut self.stages[s.index()];
+        r.ran = true;
+        r.ms += ms.max(0.0);
+    }
+
     /// Runs `f` as stage `s`, adding its time.
     pub fn time<T>(&mut self, s: Stage, f: impl FnOnce() -> T) -> T {
         let t = Instant::now();
@@ -136,16 +146,30 @@ impl FrameStats {
 type Version = u64;
 
 /// The frames of one scene, rendered in order.
+///
+/// The sequence plans each frame and owns the [`Executor`] that runs the
+/// stages which grow with the hair: in this process by default, or on
+/// cluster workers. When the executor holds the drawn hair itself
+/// ([`Executor::draws`]) and the shadows are the density map's, the
+/// sequence never poses the drawn hair here: it fits the maps to the
+/// extents the executor reports, and composites the partial pictures it
+/// returns over the head.
 #[derive(Debug)]
 pub struct Sequence {
     scene: Scene,
     anim: Animator,
     renderer: Renderer,
+    executor: Box<dyn Executor>,
     /// Self-collisions' own density map, when the shadows do not fill one
     /// (self-shadowing off, or another shadow method).
     collision_map: Option<Box<dyn ShadowMethod>>,
     /// Counts poses of the drawn hair.
     version: Version,
+    /// The head transform the drawn hair was last posed under.
+    posed_head: Affine3A,
+    /// What the last pose reported, when it was posed elsewhere or once
+    /// measured here.
+    report: Option<PoseReport>,
     /// The hair the self-collision map holds.
     collision_at: Option<Version>,
     /// The hair the shadow result (and the filtered transmittance) holds.
@@ -155,10 +179,14 @@ pub struct Sequence {
     next: u64,
 }
 
+/// No hair: what the density fill is handed for hair posed elsewhere.
+static NO_HAIR: std::sync::LazyLock<Hair> = std::sync::LazyLock::new(Hair::new);
+
 impl Sequence {
     pub fn new(scene: &Scene) -> Result<Sequence, EngineError> {
         let anim = Animator::new(scene)?;
-        let renderer = Renderer::new(scene)?;
+        let mut renderer = Renderer::new(scene)?;
+        renderer.set_groups(anim.groups().strands.clone());
         let shares_map = scene.effects.self_shadow
             && matches!(scene.shadow.method, MethodConfig::DensityMap { .. });
         let collides = anim.simulates() && scene.effects.self_collision;
@@ -175,10 +203,13 @@ impl Sequence {
         };
         Ok(Sequence {
             scene: scene.clone(),
+            posed_head: anim.head(),
             anim,
             renderer,
+            executor: Box::new(LocalExecutor),
             collision_map,
             version: 0,
+            report: None,
             collision_at: None,
             shadow_at: None,
             shaded_at: None,
@@ -187,13 +218,27 @@ impl Sequence {
         })
     }
 
-    /// Runs the density map's fill and sweep through `executor` (cluster
+    /// Runs the stages that grow with the hair through `executor` (cluster
     /// workers) from the next frame on. The pictures are the same bytes.
-    pub fn set_executor(&mut self, executor: Box<dyn crate::Executor>) {
-        self.renderer.shadows_mut().set_executor(executor);
+    pub fn set_executor(&mut self, mut executor: Box<dyn Executor>) -> Result<(), EngineError> {
+        executor.attach(&self.anim)?;
+        self.executor = executor;
+        // Hair held elsewhere is posed there before it is used.
+        self.report = None;
+        self.shadow_at = None;
+        self.collision_at = None;
+        self.shaded_at = None;
+        self.picture = None;
+        Ok(())
     }
 
-    /// The drawn hair of the last frame.
+    /// The executor the stages run through.
+    pub fn executor(&self) -> &dyn Executor {
+        self.executor.as_ref()
+    }
+
+    /// The drawn hair as last posed in this process (when the executor
+    /// draws elsewhere, the hair as it stood before).
     pub fn hair(&self) -> &strands::Hair {
         self.anim.hair()
     }
@@ -202,9 +247,19 @@ impl Sequence {
         &self.anim
     }
 
-    /// The renderer, with the last frame's transmittance and colours.
+    /// The renderer, with the last frame's transmittance and colours (when
+    /// drawn in this process).
     pub fn renderer(&self) -> &Renderer {
         &self.renderer
+    }
+
+    /// Whether the drawn hair is posed, filtered, shaded and rasterized by
+    /// the executor, elsewhere: it holds it, and no shadow method needs all
+    /// of it here.
+    fn draws_elsewhere(&self) -> bool {
+        self.executor.draws()
+            && (!self.scene.effects.self_shadow
+                || matches!(self.scene.shadow.method, MethodConfig::DensityMap { .. }))
     }
 
     /// Renders the next frame: its picture and what each stage did.
@@ -216,6 +271,7 @@ impl Sequence {
         let t = index as f32 * self.anim.frame_dt();
         let mut stats = FrameStats::new(index, t);
         let fx = self.scene.effects;
+        let elsewhere = self.draws_elsewhere();
 
         // Motion: simulated steps, or a rigid move of the head.
         let head = self.anim.head_at(t);
@@ -235,8 +291,8 @@ impl Sequence {
                     let d = if last { drawn.clone() } else { Vec::new() };
                     self.advance(&mut stats, vec![head; n], head, d)?;
                 }
-                if settle == 0 && !drawn.is_empty() {
-                    stats.time(Stage::BodyCollide, || self.anim.collide_drawn(&drawn));
+                if settle == 0 {
+                    self.pose(&mut stats, head, drawn)?;
                 }
             } else {
                 let (t0, dt) = (t - self.anim.frame_dt(), self.anim.frame_dt());
@@ -246,43 +302,128 @@ impl Sequence {
                     .collect();
                 self.advance(&mut stats, heads, head, drawn)?;
             }
-        } else if head != self.anim.head() {
-            self.pose(&mut stats, head);
+        } else if head != self.posed_head || (elsewhere && self.report.is_none()) {
+            self.pose(&mut stats, head, Vec::new())?;
         }
         self.renderer.set_head_pose(head);
 
         // Shadows, only when the hair moved since the last result.
-        let hair = self.anim.hair();
-        let version = Some(self.version);
-        if fx.self_shadow && self.shadow_at != Some(self.version) {
-            let r = &mut self.renderer;
-            stats.time(Stage::Density, || r.shadows_mut().density_of(hair, version))?;
-            stats.time(Stage::Transmittance, || r.shadows_mut().transmittance())?;
-            stats.time(Stage::Filter, || r.filter(hair));
-            self.shadow_at = Some(self.version);
+        let version = self.version;
+        if fx.self_shadow && self.shadow_at != Some(version) {
+            let report = self.report(&mut stats)?.clone();
+            let anchor = self.anim.anchor_at(&self.posed_head);
+            let hair = if elsewhere {
+                &*NO_HAIR
+            } else {
+                self.anim.hair()
+            };
+            let (r, ex) = (&mut self.renderer, self.executor.as_mut());
+            let extents = Some((anchor, &report.extents[..]));
+            stats.time(Stage::Density, || {
+                r.shadows_mut()
+                    .density_with(hair, Some(version), extents, ex)
+            })?;
+            stats.time(Stage::Transmittance, || {
+                r.shadows_mut().transmittance_with(ex)
+            })?;
+            if !elsewhere {
+                stats.time(Stage::Filter, || r.filter(hair));
+            }
+            self.shadow_at = Some(version);
             if self.collision_map.is_none() {
-                self.collision_at = Some(self.version);
+                self.collision_at = Some(version);
             }
         }
-        if self.shaded_at != Some(self.version) {
-            let r = &mut self.renderer;
-            stats.time(Stage::Shade, || r.shade(hair, fx.self_shadow))?;
-            self.shaded_at = Some(self.version);
-        }
-        if self.picture.as_ref().is_none_or(|p| p.0 != self.version) {
-            let r = &mut self.renderer;
-            let img = stats.time(Stage::Draw, || r.draw(hair, fx.self_shadow))?;
-            self.picture = Some((self.version, img));
+        if elsewhere {
+            if self.picture.as_ref().is_none_or(|p| p.0 != version) {
+                let bounds = self.report(&mut stats)?.bounds;
+                self.renderer.frame_on(bounds)?;
+                let job = self.renderer.draw_job(version, fx.self_shadow)?;
+                let start = Instant::now();
+                let drawn = self.executor.draw(&job)?;
+                let img = self.renderer.compose(&drawn.layers, fx.self_shadow)?;
+                let ms = start.elapsed().as_secs_f64() * 1e3;
+                if fx.self_shadow {
+                    stats.record(Stage::Filter, drawn.filter_ms);
+                }
+                stats.record(Stage::Shade, drawn.shade_ms);
+                stats.record(Stage::Draw, ms - drawn.filter_ms - drawn.shade_ms);
+                self.shaded_at = Some(version);
+                self.picture = Some((version, img));
+            }
+        } else {
+            let hair = self.anim.hair();
+            if self.shaded_at != Some(version) {
+                let r = &mut self.renderer;
+                stats.time(Stage::Shade, || r.shade(hair, fx.self_shadow))?;
+                self.shaded_at = Some(version);
+            }
+            if self.picture.as_ref().is_none_or(|p| p.0 != version) {
+                let r = &mut self.renderer;
+                let img = stats.time(Stage::Draw, || r.draw(hair, fx.self_shadow))?;
+                self.picture = Some((version, img));
+            }
         }
         self.next += 1;
         let (_, img) = self.picture.as_ref().expect("drawn above");
         Ok((img, stats))
     }
 
-    /// Poses the drawn hair under `head`: a new version of the hair.
-    fn pose(&mut self, stats: &mut FrameStats, head: Affine3A) {
-        stats.time(Stage::Pose, || self.anim.set_head(head));
-        self.version += 1;
+    /// What the drawn hair's last pose reported: measured here the first
+    /// time it is asked for, when the hair is posed here; hair held
+    /// elsewhere is first posed there as it stands (at rest, under the
+    /// head, as [`Animator::new`] poses it here).
+    fn report(&mut self, stats: &mut FrameStats) -> Result<&PoseReport, EngineError> {
+        if self.report.is_none() {
+            let plan = self.pose_plan(self.posed_head, Vec::new());
+            if self.draws_elsewhere() {
+                self.posed(stats, &plan)?;
+            } else {
+                self.report = Some(PoseReport::of(self.anim.hair(), &plan));
+            }
+        }
+        Ok(self.report.as_ref().expect("measured above"))
+    }
+
+    /// The plan of the next pose under `head`, pushed out of `drawn_bodies`.
+    fn pose_plan(&self, head: Affine3A, drawn_bodies: Vec<Body>) -> PosePlan {
+        PosePlan {
+            head,
+            drawn_bodies,
+            version: self.version + 1,
+            lights: self.scene.lights.clone(),
+            anchor: self.anim.anchor_at(&head),
+        }
+    }
+
+    /// Poses the drawn hair under `head`, pushed out of `drawn_bodies`
+    /// (simulated hair), after the steps (if any) that led there: here, or
+    /// where the executor holds it. A new version of the hair.
+    fn pose(
+        &mut self,
+        stats: &mut FrameStats,
+        head: Affine3A,
+        drawn_bodies: Vec<Body>,
+    ) -> Result<(), EngineError> {
+        let plan = self.pose_plan(head, drawn_bodies);
+        self.posed(stats, &plan)
+    }
+
+    fn posed(&mut self, stats: &mut FrameStats, plan: &PosePlan) -> Result<(), EngineError> {
+        if self.draws_elsewhere() {
+            let ex = self.executor.as_mut();
+            self.report = Some(stats.time(Stage::Pose, || ex.pose(plan))?);
+        } else {
+            stats.time(Stage::Pose, || self.anim.set_head(plan.head));
+            if !plan.drawn_bodies.is_empty() {
+                let b = &plan.drawn_bodies;
+                stats.time(Stage::BodyCollide, || self.anim.collide_drawn(b));
+            }
+            self.report = None;
+        }
+        self.version = plan.version;
+        self.posed_head = plan.head;
+        Ok(())
     }
 
     /// One frame's worth of simulation steps through the executor, under
@@ -299,9 +440,16 @@ impl Sequence {
         let c = self.scene.collision;
         if fx.self_collision && self.collision_at != Some(self.version) {
             // The density map of the hair as it is now (the previous frame's).
-            let hair = self.anim.hair();
+            let elsewhere = self.draws_elsewhere();
+            let report = self.report(stats)?.clone();
+            let anchor = self.anim.anchor_at(&self.posed_head);
+            let hair = if elsewhere {
+                &*NO_HAIR
+            } else {
+                self.anim.hair()
+            };
             let version = Some(self.version);
-            let shadows = self.renderer.shadows_mut();
+            let ex = self.executor.as_mut();
             match self
                 .collision_map
                 .as_mut()
@@ -313,14 +461,18 @@ impl Sequence {
                         hair,
                         fiber: &self.scene.fiber,
                         occluders: &[],
+                        extent: Some((anchor, report.extents[0])),
                     };
-                    let ex = shadows.executor_mut();
                     stats.time(Stage::Density, || {
                         m.build_with(&input, |map| ex.fill(0, map, hair, input.fiber, version))
                     })?;
                 }
                 None => {
-                    stats.time(Stage::Density, || shadows.density_of(hair, version))?;
+                    let shadows = self.renderer.shadows_mut();
+                    let extents = Some((anchor, &report.extents[..]));
+                    stats.time(Stage::Density, || {
+                        shadows.density_with(hair, version, extents, ex)
+                    })?;
                     // The shadow result now lags the map: recompute it.
                     self.shadow_at = None;
                 }
@@ -355,17 +507,10 @@ impl Sequence {
             heads,
             bodies,
             accel,
-            drawn_bodies,
-            version: self.version + 1,
+            pose: self.pose_plan(head, drawn_bodies),
         };
-        let ex = self.renderer.shadows_mut().executor_mut();
-        ex.simulate(&mut self.anim, &plan, stats)?;
-        self.pose(stats, head);
-        if !plan.drawn_bodies.is_empty() {
-            let b = &plan.drawn_bodies;
-            stats.time(Stage::BodyCollide, || self.anim.collide_drawn(b));
-        }
-        Ok(())
+        self.executor.simulate(&mut self.anim, &plan, stats)?;
+        self.posed(stats, &plan.pose)
     }
 
     /// The head and the scene's bodies under head transform `head`.

@@ -6,7 +6,7 @@ use glam::{Affine3A, Vec3};
 use shadow::Occluder;
 use strands::{Bounds, Mesh};
 
-use crate::{EngineError, HeadSettings};
+use crate::{EngineError, HeadSettings, Scene};
 
 /// The scene's head, moved by the head's motion.
 #[derive(Debug, Clone)]
@@ -21,11 +21,19 @@ pub struct Head {
 }
 
 impl Head {
-    /// The head of `settings` at rest; reads its mesh file, if any.
-    pub fn load(settings: &HeadSettings) -> Result<Head, EngineError> {
+    /// The head of `settings` at rest; reads its mesh file, if any, as
+    /// `scene` holds it (see [`Scene::data_file`]).
+    pub fn load(settings: &HeadSettings, scene: &Scene) -> Result<Head, EngineError> {
         let rest = match &settings.mesh {
             Some(m) => {
-                let mesh = strands::load_obj(&m.path)?;
+                let bytes =
+                    scene
+                        .data_file(&m.path)
+                        .map_err(|cause| strands::MeshLoadError::Io {
+                            path: m.path.clone(),
+                            cause,
+                        })?;
+                let mesh = strands::load_obj_bytes(&m.path, &bytes)?;
                 let place = Affine3A::from_scale_rotation_translation(
                     Vec3::splat(m.scale),
                     glam::Quat::IDENTITY,
@@ -59,6 +67,11 @@ impl Head {
                 Arc::new(m.transformed(pose))
             }
         });
+    }
+
+    /// The head motion's transform it stands under.
+    pub fn pose(&self) -> Affine3A {
+        self.pose
     }
 
     pub fn settings(&self) -> &HeadSettings {

@@ -16,20 +16,26 @@ pub mod collide;
 pub mod exec;
 pub mod frames;
 pub mod head;
+pub mod part;
 pub mod pipeline;
 pub mod render;
 pub mod scene;
+pub mod share;
 
-pub use animate::Animator;
-pub use exec::{Executor, LocalExecutor, StepPlan, step_wisps};
+pub use animate::{Animator, GROUPS, Groups, split_by};
+pub use exec::{
+    DrawJob, DrawReport, Executor, LocalExecutor, PosePlan, PoseReport, StepPlan, step_wisps,
+};
 pub use frames::{FrameStats, Sequence, Stage, StageRecord};
 pub use head::Head;
+pub use part::{HairPart, draw_head};
 pub use pipeline::{ShadowPipeline, StageTimes, build_hair};
 pub use render::{FrameTimes, Renderer};
 pub use scene::{
     Animation, BodySettings, Collision, Dynamics, Effects, HairSource, HeadMesh, HeadSettings,
-    Scene, SceneError, ShadowSettings,
+    Scene, SceneError, SceneSource, ShadowSettings,
 };
+pub use share::{DrawTimes, Share};
 
 /// Errors of the engine, each naming what is wrong and where.
 #[derive(Debug, thiserror::Error)]

@@ -3,7 +3,7 @@
 use std::time::Instant;
 
 use glam::{Affine3A, Vec3};
-use shadow::{Fiber, FillStats, Light, Occluder, ShadowInput, ShadowMethod};
+use shadow::{Extent, Fiber, FillStats, Light, Occluder, ShadowInput, ShadowMethod};
 use strands::{Hair, WispModel, grow_followers, resample};
 
 use crate::{EngineError, Executor, HairSource, Head, LocalExecutor, Scene};
@@ -26,7 +26,7 @@ pub fn build_hair(scene: &Scene) -> Result<Hair, EngineError> {
             WispModel::generate(p).interpolate()
         }
         HairSource::File { path, follow } => {
-            let guides = strands::load(path)?;
+            let guides = strands::load_with(path, |p| scene.data_file(p))?;
             match follow {
                 Some(f) => {
                     check_size(
@@ -60,8 +60,8 @@ fn check_size(segments: u64) -> Result<(), EngineError> {
 /// method. Each light owns its method's maps.
 ///
 /// With the density-map method, the filling of the map and the sweep of its
-/// columns go through an [`Executor`]: in this process by default, or on
-/// cluster workers. Either gives the same bytes.
+/// columns go through an [`Executor`]: in this process, or on cluster
+/// workers. Either gives the same bytes.
 #[derive(Debug)]
 pub struct ShadowPipeline {
     fiber: Fiber,
@@ -71,7 +71,6 @@ pub struct ShadowPipeline {
     head_shadow: bool,
     occluders: Vec<Occluder>,
     lights: Vec<LightState>,
-    executor: Box<dyn Executor>,
 }
 
 #[derive(Debug)]
@@ -92,7 +91,11 @@ impl ShadowPipeline {
                 })
             })
             .collect::<Result<_, EngineError>>()?;
-        let head = scene.head.as_ref().map(Head::load).transpose()?;
+        let head = scene
+            .head
+            .as_ref()
+            .map(|h| Head::load(h, scene))
+            .transpose()?;
         let mut p = ShadowPipeline {
             fiber: scene.fiber,
             head,
@@ -100,19 +103,9 @@ impl ShadowPipeline {
             head_shadow: scene.effects.head_shadow,
             occluders: Vec::new(),
             lights,
-            executor: Box::new(LocalExecutor),
         };
         p.set_head_pose(Affine3A::IDENTITY);
         Ok(p)
-    }
-
-    /// Runs the density map's fill and sweep through `executor`.
-    pub fn set_executor(&mut self, executor: Box<dyn Executor>) {
-        self.executor = executor;
-    }
-
-    pub fn executor_mut(&mut self) -> &mut dyn Executor {
-        self.executor.as_mut()
     }
 
     /// Moves the head (drawn, and as an occluder when it is one) to
@@ -132,6 +125,16 @@ impl ShadowPipeline {
         self.head.as_ref()
     }
 
+    /// The head motion's transform the head stands under now.
+    pub fn head_pose(&self) -> Affine3A {
+        self.head.as_ref().map_or(Affine3A::IDENTITY, Head::pose)
+    }
+
+    /// The lights' methods' settings: whether lookups are filtered.
+    pub fn method(&self, l: usize) -> &dyn ShadowMethod {
+        self.lights[l].method.as_ref()
+    }
+
     /// The density map of the first light, when the method fills one and
     /// has been built.
     pub fn density_map(&self) -> Option<&shadow::DensityMap> {
@@ -146,15 +149,19 @@ impl ShadowPipeline {
     /// density map, fits the map to them and fills it. Returns the samples
     /// over all lights.
     pub fn density(&mut self, hair: &Hair) -> Result<FillStats, EngineError> {
-        self.density_of(hair, None)
+        self.density_with(hair, None, None, &mut LocalExecutor)
     }
 
-    /// [`Self::density`] of hair whose pose counter is `version` (see
-    /// [`Executor::fill`]).
-    pub fn density_of(
+    /// [`Self::density`] with the density map filled through `ex`, of hair
+    /// whose pose counter is `version` (see [`Executor::fill`]); the maps
+    /// are fitted to `extents` (one per light, measured from the anchor)
+    /// when given, else to `hair`'s points.
+    pub fn density_with(
         &mut self,
         hair: &Hair,
         version: Option<u64>,
+        extents: Option<(Vec3, &[Extent])>,
+        ex: &mut dyn Executor,
     ) -> Result<FillStats, EngineError> {
         let mut total = FillStats::default();
         for (i, l) in self.lights.iter_mut().enumerate() {
@@ -163,11 +170,12 @@ impl ShadowPipeline {
                 hair,
                 fiber: &self.fiber,
                 occluders: &self.occluders,
+                extent: extents.map(|(a, e)| (a, e[i])),
             };
             let stats = match l.method.as_density_map_method() {
-                Some(m) => m.build_with(&input, |map| {
-                    self.executor.fill(i, map, hair, &self.fiber, version)
-                })?,
+                Some(m) => {
+                    m.build_with(&input, |map| ex.fill(i, map, hair, &self.fiber, version))?
+                }
                 None => l.method.build(&input)?,
             };
             if stats.out_of_map > 0 {
@@ -184,13 +192,23 @@ impl ShadowPipeline {
 
     /// Stage 2: for the density map, sweeps every column of every light's map.
     pub fn transmittance(&mut self) -> Result<(), EngineError> {
+        self.transmittance_with(&mut LocalExecutor)
+    }
+
+    /// [`Self::transmittance`] with the columns swept through `ex`.
+    pub fn transmittance_with(&mut self, ex: &mut dyn Executor) -> Result<(), EngineError> {
         for (i, l) in self.lights.iter_mut().enumerate() {
             match l.method.as_density_map_method() {
-                Some(m) => m.prepare_with(|map| self.executor.sweep(i, map))?,
+                Some(m) => m.prepare_with(|map| ex.sweep(i, map))?,
                 None => l.method.prepare(),
             }
         }
         Ok(())
+    }
+
+    /// Stage 3 for light `l` at `points`, into `out`.
+    pub fn lookup(&self, l: usize, points: &[Vec3], out: &mut [f32]) {
+        self.lights[l].method.lookup(points, out);
     }
 
     /// Stage 3: transmittance of every light at every point; `out[l][p]`.

@@ -1,17 +1,17 @@
 //! One frame: the shadow stages, Kajiya-Kay shading at every drawn vertex,
-//! and the draw (head, then hair).
+//! and the draw (head, then hair), or the compositing of hair drawn
+//! elsewhere over the head.
 
 use std::time::Instant;
 
-use glam::Vec3;
-use raster::{Camera, Canvas, Sphere, kajiya_kay};
-use rayon::prelude::*;
+use glam::{Affine3A, Vec3};
+use raster::{Camera, Canvas, HairLayer};
 use strands::{Bounds, Hair};
 
-use crate::{EngineError, Scene, ShadowPipeline};
+use crate::part::draw_head;
+use crate::{DrawJob, EngineError, HairPart, Scene, ShadowPipeline};
 
-/// Hair colour when neither the style nor the file gives one (linear RGB).
-pub const DEFAULT_HAIR_COLOR: Vec3 = Vec3::new(0.30, 0.17, 0.08);
+pub use crate::part::DEFAULT_HAIR_COLOR;
 
 /// Milliseconds of each stage of one frame; stages that did not run are 0.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -33,13 +33,15 @@ impl FrameTimes {
 ///
 /// [`Self::render`] runs every stage of a frame; a frame pipeline that
 /// skips stages calls [`Self::shadows_mut`], [`Self::filter`],
-/// [`Self::shade`] and [`Self::draw`] itself.
+/// [`Self::shade`] and [`Self::draw`] itself, or, for hair drawn
+/// elsewhere, [`Self::draw_job`] and [`Self::compose`].
 #[derive(Debug)]
 pub struct Renderer {
     scene: Scene,
     shadows: ShadowPipeline,
-    trans: Vec<Vec<f32>>,
-    colors: Vec<Vec3>,
+    part: HairPart,
+    /// The groups the hair is drawn in (strand boundaries; empty: one).
+    groups: Vec<u32>,
     /// Kept between frames: allocating and zeroing ~50 MB per frame at
     /// 1280x720 costs more than clearing it in parallel.
     canvas: Option<Canvas>,
@@ -68,25 +70,31 @@ impl Renderer {
             scene.shading.specular = 0.0;
         }
         Ok(Renderer {
-            trans: vec![Vec::new(); shadows.light_count()],
             shadows,
             scene,
-            colors: Vec::new(),
+            part: HairPart::default(),
+            groups: Vec::new(),
             canvas: None,
             view: None,
         })
     }
 
+    /// Draws hair in these groups from now on (strand boundaries, see
+    /// [`raster::Canvas::draw_hair`]; empty: one group).
+    pub fn set_groups(&mut self, groups: Vec<u32>) {
+        self.groups = groups;
+    }
+
     /// Transmittance of each light at each drawn point in the last
     /// shadowed frame: `[light][point]`.
     pub fn transmittance(&self) -> &[Vec<f32>] {
-        &self.trans
+        self.part.transmittance()
     }
 
     /// The shaded colour of each drawn point in the last [`Self::shade`]
     /// (linear RGB).
     pub fn colors(&self) -> &[Vec3] {
-        &self.colors
+        self.part.colors()
     }
 
     pub fn shadows(&self) -> &ShadowPipeline {
@@ -101,19 +109,23 @@ impl Renderer {
 
     /// Moves the head (drawn, and as an occluder) to `pose`, the head
     /// motion's transform.
-    pub fn set_head_pose(&mut self, pose: glam::Affine3A) {
+    pub fn set_head_pose(&mut self, pose: Affine3A) {
         self.shadows.set_head_pose(pose);
+    }
+
+    /// Frames the camera on hair with `bounds` (and the head), unless it
+    /// is already framed: the view is fixed from the first frame on.
+    pub fn frame_on(&mut self, bounds: Bounds) -> Result<(), EngineError> {
+        if self.view.is_none() {
+            self.view = Some(self.framing(bounds)?);
+        }
+        Ok(())
     }
 
     /// The fixed view, framed on `hair` the first time.
     fn view(&mut self, hair: &Hair) -> Result<View, EngineError> {
-        match self.view {
-            Some(v) => Ok(v),
-            None => {
-                let v = self.framing(hair.bounds())?;
-                Ok(*self.view.insert(v))
-            }
-        }
+        self.frame_on(hair.bounds())?;
+        Ok(self.view.expect("framed above"))
     }
 
     /// The camera of the scene, framing hair with `hair_bounds` (and the
@@ -157,7 +169,11 @@ impl Renderer {
     /// Shadow stage 3: the transmittance of every light at every drawn
     /// point, kept for [`Self::shade`].
     pub fn filter(&mut self, hair: &Hair) {
-        self.shadows.filter(hair.points(), &mut self.trans);
+        let shadows = &self.shadows;
+        self.part
+            .filter(hair, shadows.light_count(), |l, pts, out| {
+                shadows.lookup(l, pts, out)
+            });
     }
 
     /// Renders `hair` with self-shadowing (`shadows`) or without (every
@@ -189,86 +205,62 @@ impl Renderer {
         Ok((img, times))
     }
 
+    /// Unit directions towards each light.
+    fn to_lights(&self) -> Vec<Vec3> {
+        self.shadows.lights().map(|l| -l.direction()).collect()
+    }
+
     /// Kajiya-Kay shading at every drawn vertex with the strand's colour,
     /// lit by the transmittance of the last [`Self::filter`] (`shadows`) or
     /// by full light.
     pub fn shade(&mut self, hair: &Hair, shadows: bool) -> Result<(), EngineError> {
         let eye = self.view(hair)?.camera.position;
-        let points = hair.points();
-        let s = &self.scene;
-        let to_lights: Vec<Vec3> = self.shadows.lights().map(|l| -l.direction()).collect();
-        if shadows {
-            assert!(
-                self.trans.iter().all(|t| t.len() == points.len()),
-                "filter runs before shading with shadows"
-            );
-        }
-        self.colors.resize(points.len(), Vec3::ZERO);
-        let offsets = hair.offsets();
-        let strand_colors = hair.colors();
-        let trans = &self.trans;
-        // Strands in parallel; each writes its own vertices.
-        let mut chunks: Vec<&mut [Vec3]> = Vec::with_capacity(hair.strand_count());
-        let mut rest: &mut [Vec3] = &mut self.colors;
-        for w in offsets.windows(2) {
-            let (a, b) = rest.split_at_mut((w[1] - w[0]) as usize);
-            chunks.push(a);
-            rest = b;
-        }
-        chunks
-            .into_par_iter()
-            .enumerate()
-            .with_min_len(64)
-            .for_each(|(si, out)| {
-                let base = offsets[si] as usize;
-                let pts = &points[base..base + out.len()];
-                let color = strand_colors.map_or(DEFAULT_HAIR_COLOR, |c| c[si]);
-                for (v, o) in out.iter_mut().enumerate() {
-                    // Tangent by central differences (one-sided at the ends).
-                    let (a, b) = (pts[v.saturating_sub(1)], pts[(v + 1).min(pts.len() - 1)]);
-                    let tangent = (b - a).normalize_or(Vec3::Y);
-                    let to_eye = (eye - pts[v]).normalize_or(Vec3::Z);
-                    let mut c = Vec3::ZERO;
-                    for (l, &to_light) in to_lights.iter().enumerate() {
-                        let tr = if shadows { trans[l][base + v] } else { 1.0 };
-                        let sh = if l == 0 {
-                            s.shading
-                        } else {
-                            raster::Shading {
-                                ambient: 0.0,
-                                ..s.shading
-                            }
-                        };
-                        c += kajiya_kay(&sh, color, tangent, to_light, to_eye, tr);
-                    }
-                    *o = c;
-                }
-            });
+        let to_lights = self.to_lights();
+        self.part
+            .shade(hair, eye, &self.scene.shading, &to_lights, shadows);
         Ok(())
     }
 
-    /// Draws the head, then `hair` over it with the colours of the last
-    /// [`Self::shade`]; the head receives the hair's shadow when `shadows`
-    /// and the scene's head shadow are on.
-    pub fn draw(&mut self, hair: &Hair, shadows: bool) -> Result<image::RgbImage, EngineError> {
-        let view = self.view(hair)?;
-        let camera = view.camera;
+    /// The inputs for filtering, shading and drawing hair of version
+    /// `version` elsewhere, on the view framed by [`Self::frame_on`].
+    pub fn draw_job(&self, version: u64, shadows: bool) -> Result<DrawJob, EngineError> {
+        let view = self
+            .view
+            .ok_or_else(|| EngineError::Executor("the camera is framed before drawing".into()))?;
         let s = &self.scene;
-        assert_eq!(
-            self.colors.len(),
-            hair.point_count(),
-            "shade runs before draw"
-        );
-        let to_lights: Vec<Vec3> = self.shadows.lights().map(|l| -l.direction()).collect();
-        let canvas = match &mut self.canvas {
-            Some(c) => {
-                c.clear();
-                c
-            }
-            None => self
-                .canvas
-                .insert(Canvas::new(s.render.width, s.render.height)?),
-        };
+        Ok(DrawJob {
+            version,
+            camera: view.camera,
+            look: self.look(&view),
+            shading: s.shading,
+            to_lights: self.to_lights(),
+            shadows,
+            filter: s.shadow.method.filter(),
+            head: self.shadows.head_pose(),
+        })
+    }
+
+    fn look(&self, view: &View) -> raster::HairLook {
+        raster::HairLook {
+            fiber_width: self.scene.fiber.width(),
+            opacity: self.scene.render.hair_alpha,
+            depth_ref: view.depth_ref,
+        }
+    }
+
+    /// The canvas, cleared, with the head drawn and shaded: Lambert under
+    /// the hair's shadow when `shadows` and the scene's head shadow are on.
+    fn canvas_with_head(&mut self, shadows: bool) -> Result<(View, &mut Canvas), EngineError> {
+        let view = self
+            .view
+            .ok_or_else(|| EngineError::Executor("the camera is framed before drawing".into()))?;
+        let to_lights = self.to_lights();
+        let s = &self.scene;
+        if self.canvas.is_none() {
+            self.canvas = Some(Canvas::new(s.render.width, s.render.height)?);
+        }
+        let canvas = self.canvas.as_mut().expect("made above");
+        canvas.clear();
         if let Some(head) = self.shadows.head() {
             let head_shadow = shadows && s.effects.head_shadow;
             let pipeline = &self.shadows;
@@ -291,33 +283,47 @@ impl Renderer {
                 }
                 c
             };
-            match head.mesh() {
-                Some(m) => {
-                    canvas.draw_mesh(&camera, m.positions(), m.normals(), m.triangles(), shade)
-                }
-                None => canvas.draw_sphere(
-                    &camera,
-                    &Sphere {
-                        center: head.center(),
-                        radius: head.settings().radius,
-                    },
-                    shade,
-                ),
-            }
+            draw_head(canvas, &view.camera, head, shade);
         }
-        let look = raster::HairLook {
-            fiber_width: s.fiber.width(),
-            opacity: s.render.hair_alpha,
-            depth_ref: view.depth_ref,
-        };
-        canvas.draw_hair(
-            &camera,
-            hair.points(),
-            hair.offsets(),
-            &self.colors,
-            &look,
-            &[],
-        );
-        Ok(canvas.resolve(s.render.background))
+        Ok((view, canvas))
+    }
+
+    /// Draws the head, then `hair` over it with the colours of the last
+    /// [`Self::shade`]; the head receives the hair's shadow when `shadows`
+    /// and the scene's head shadow are on.
+    pub fn draw(&mut self, hair: &Hair, shadows: bool) -> Result<image::RgbImage, EngineError> {
+        self.view(hair)?;
+        let background = self.scene.render.background;
+        let (view, _) = self.canvas_with_head(shadows)?;
+        let look = self.look(&view);
+        let canvas = self.canvas.as_mut().expect("made above");
+        self.part
+            .draw(hair, &view.camera, &look, &self.groups, canvas);
+        Ok(canvas.resolve(background))
+    }
+
+    /// The head drawn here and the hair of `layers` (drawn elsewhere, see
+    /// [`Self::draw_job`]) over it: the same bytes as [`Self::draw`] of all
+    /// that hair.
+    pub fn compose(
+        &mut self,
+        layers: &[HairLayer],
+        shadows: bool,
+    ) -> Result<image::RgbImage, EngineError> {
+        let background = self.scene.render.background;
+        let (_, canvas) = self.canvas_with_head(shadows)?;
+        if let Some(l) = layers
+            .iter()
+            .find(|l| l.width() != canvas.width() || l.height() != canvas.height())
+        {
+            return Err(EngineError::Executor(format!(
+                "a partial picture of {}x{} for a {}x{} frame",
+                l.width(),
+                l.height(),
+                canvas.width(),
+                canvas.height()
+            )));
+        }
+        Ok(canvas.resolve_layers(background, layers))
     }
 }

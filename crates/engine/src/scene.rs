@@ -35,7 +35,9 @@
 
 mod motion;
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use glam::Vec3;
 use serde::Deserialize;
@@ -272,9 +274,23 @@ pub struct HeadMesh {
     pub offset: Vec3,
 }
 
+/// What a scene was made from: its TOML text, the path it came from
+/// (relative paths in it are relative to that), and the bytes of the data
+/// files it names once they are read (see [`Scene::read_data_files`]):
+/// everything another process needs to make the same scene.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SceneSource {
+    pub text: Arc<str>,
+    pub path: PathBuf,
+    /// Data files by the path the scene names them by.
+    pub files: BTreeMap<PathBuf, Arc<[u8]>>,
+}
+
 /// A validated scene.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Scene {
+    /// What it was made from.
+    pub source: SceneSource,
     pub hair: HairSource,
     pub subdivide: u32,
     pub fiber: Fiber,
@@ -334,7 +350,60 @@ impl Scene {
             path: path.to_owned(),
             message: one_line(&e.to_string()),
         })?;
-        Validator { path }.scene(raw)
+        let mut scene = Validator { path }.scene(raw)?;
+        scene.source = SceneSource {
+            text: text.into(),
+            path: path.to_owned(),
+            files: BTreeMap::new(),
+        };
+        Ok(scene)
+    }
+
+    /// The data files the scene names: the groom file and the head mesh.
+    pub fn data_paths(&self) -> Vec<&Path> {
+        let hair = match &self.hair {
+            HairSource::File { path, .. } => Some(path.as_path()),
+            _ => None,
+        };
+        let mesh = self
+            .head
+            .as_ref()
+            .and_then(|h| h.mesh.as_ref())
+            .map(|m| m.path.as_path());
+        hair.into_iter().chain(mesh).collect()
+    }
+
+    /// Reads every data file the scene names into [`Scene::source`], so
+    /// that the scene can be made again elsewhere without them.
+    pub fn read_data_files(&mut self) -> Result<(), SceneError> {
+        let paths: Vec<PathBuf> = self.data_paths().into_iter().map(Path::to_owned).collect();
+        for p in paths {
+            if self.source.files.contains_key(&p) {
+                continue;
+            }
+            let bytes = std::fs::read(&p).map_err(|cause| SceneError::Io {
+                path: p.clone(),
+                cause,
+            })?;
+            self.source.files.insert(p, bytes.into());
+        }
+        Ok(())
+    }
+
+    /// The bytes of data file `path`: those read into the scene's source,
+    /// else the file's.
+    pub fn data_file(&self, path: &Path) -> std::io::Result<std::borrow::Cow<'_, [u8]>> {
+        match self.source.files.get(path) {
+            Some(b) => Ok(std::borrow::Cow::Borrowed(b)),
+            None => std::fs::read(path).map(std::borrow::Cow::Owned),
+        }
+    }
+
+    /// The scene `source` describes, with its data files as read there.
+    pub fn from_source(source: &SceneSource) -> Result<Scene, SceneError> {
+        let mut scene = Scene::from_toml_str(&source.text, &source.path)?;
+        scene.source.files = source.files.clone();
+        Ok(scene)
     }
 }
 
@@ -818,6 +887,7 @@ impl Validator<'_> {
         let dynamics = self.dynamics(raw.dynamics)?;
         self.steps_in_bounds(&animation, &dynamics)?;
         Ok(Scene {
+            source: SceneSource::default(),
             hair,
             subdivide,
             fiber,

@@ -18,6 +18,9 @@ pub struct Camera {
     focal: f32,
     width: u32,
     height: u32,
+    /// What it was made from, to make it again elsewhere.
+    look_at: Vec3,
+    fov_deg: f32,
 }
 
 /// Points closer to the camera than this (scene units) are not drawn.
@@ -60,7 +63,19 @@ impl Camera {
             focal,
             width,
             height,
+            look_at,
+            fov_deg,
         })
+    }
+
+    /// The point it looks at, as given to [`Self::new`].
+    pub fn look_at(&self) -> Vec3 {
+        self.look_at
+    }
+
+    /// The vertical field of view in degrees, as given to [`Self::new`].
+    pub fn fov_deg(&self) -> f32 {
+        self.fov_deg
     }
 
     /// Pixel coordinates `(x, y)` (x right, y down, pixel centres at

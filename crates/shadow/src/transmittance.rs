@@ -234,7 +234,10 @@ impl Lookup {
         let n = frame.n_cells as f32;
         // Shifting by 2 cells keeps the coordinates positive, so truncating
         // casts are floors (`floor` is a libm call on baseline x86-64).
-        let c = frame.to_cells(p).clamp(Vec3::splat(-2.0), Vec3::splat(n + 2.0)) + 2.0;
+        let c = frame
+            .to_cells(p)
+            .clamp(Vec3::splat(-2.0), Vec3::splat(n + 2.0))
+            + 2.0;
         let x = c.x - 2.0;
         let centre = (c.x as i32 - 2) as f32 + 0.5;
         if filter {
@@ -730,7 +733,11 @@ mod tests {
         }
         let frame = LightFrame::fit(&light, hair.points(), 24).unwrap();
         let mut map = DensityMap::new(frame);
-        map.deposit(&hair, 0..hair.strand_count(), &Fiber::new(0.05, 0.6).unwrap());
+        map.deposit(
+            &hair,
+            0..hair.strand_count(),
+            &Fiber::new(0.05, 0.6).unwrap(),
+        );
         let whole = Transmittance::compute(&map);
         let slab = sweep(&map, 0..frame.columns() as u32);
         // Points of the first few strands, and some outside the map.

@@ -62,27 +62,47 @@ pub enum FormatError {
 
 /// Loads `.hair` or `.tfx` by extension.
 pub fn load(path: &Path) -> Result<Hair, LoadError> {
+    load_with(path, |p| std::fs::read(p).map(std::borrow::Cow::Owned))
+}
+
+/// Loads `.hair` or `.tfx` by extension, its bytes from `read` (called
+/// once the extension is known: an unknown one is refused first).
+pub fn load_with<'a>(
+    path: &Path,
+    read: impl FnOnce(&Path) -> std::io::Result<std::borrow::Cow<'a, [u8]>>,
+) -> Result<Hair, LoadError> {
+    parser(path)?;
+    let bytes = read(path).map_err(|cause| LoadError::Io {
+        path: path.to_owned(),
+        cause,
+    })?;
+    load_bytes(path, &bytes)
+}
+
+/// Parses the bytes of the file `path` (`.hair` or `.tfx` by extension;
+/// the path names the file in errors).
+pub fn load_bytes(path: &Path, bytes: &[u8]) -> Result<Hair, LoadError> {
+    parser(path)?(bytes).map_err(|cause| LoadError::Format {
+        path: path.to_owned(),
+        cause,
+    })
+}
+
+type Parser = fn(&[u8]) -> Result<Hair, FormatError>;
+
+/// The parser for `path`'s extension.
+fn parser(path: &Path) -> Result<Parser, LoadError> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
-    let parse: fn(&[u8]) -> Result<Hair, FormatError> = match ext.as_deref() {
-        Some("hair") => parse_hair_format,
-        Some("tfx") => parse_tfx,
-        _ => {
-            return Err(LoadError::UnknownExtension {
-                path: path.to_owned(),
-            });
-        }
-    };
-    let bytes = std::fs::read(path).map_err(|cause| LoadError::Io {
-        path: path.to_owned(),
-        cause,
-    })?;
-    parse(&bytes).map_err(|cause| LoadError::Format {
-        path: path.to_owned(),
-        cause,
-    })
+    match ext.as_deref() {
+        Some("hair") => Ok(parse_hair_format),
+        Some("tfx") => Ok(parse_tfx),
+        _ => Err(LoadError::UnknownExtension {
+            path: path.to_owned(),
+        }),
+    }
 }
 
 fn u32_at(b: &[u8], at: usize) -> u32 {

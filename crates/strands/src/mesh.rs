@@ -171,7 +171,12 @@ pub fn load_obj(path: &Path) -> Result<Mesh, MeshLoadError> {
         path: path.to_owned(),
         cause,
     })?;
-    parse_obj(&bytes).map_err(|cause| MeshLoadError::Format {
+    load_obj_bytes(path, &bytes)
+}
+
+/// Parses the bytes of the OBJ file `path` (which names it in errors).
+pub fn load_obj_bytes(path: &Path, bytes: &[u8]) -> Result<Mesh, MeshLoadError> {
+    parse_obj(bytes).map_err(|cause| MeshLoadError::Format {
         path: path.to_owned(),
         cause,
     })

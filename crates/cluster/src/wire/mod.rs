@@ -13,9 +13,12 @@ use strands::Hair;
 
 use crate::pb;
 
+mod draw;
+pub use draw::*;
+
 /// The protocol version this build speaks. A coordinator and a worker of
 /// different versions refuse each other.
-pub const PROTOCOL_VERSION: u32 = 4;
+pub const PROTOCOL_VERSION: u32 = 5;
 
 /// Points per Deposit chunk: 3 floats each, 1.5 MB.
 pub const POINTS_PER_CHUNK: usize = 128 * 1024;
@@ -36,7 +39,7 @@ pub const MAX_POINTS: usize = 200_000_000;
 #[error("malformed message: {0}")]
 pub struct Malformed(pub String);
 
-fn bad(what: impl Into<String>) -> Malformed {
+pub(crate) fn bad(what: impl Into<String>) -> Malformed {
     Malformed(what.into())
 }
 
@@ -368,12 +371,12 @@ impl SlabReader {
 /// `r << 1 | 1`. Most cells of a column's span are empty (about 60 % in
 /// the built-in scene), so runs save most of them.
 #[derive(Debug, Default)]
-struct Runs {
+pub(crate) struct Runs {
     zeros: u64,
 }
 
 impl Runs {
-    fn push(&mut self, v: u32, out: &mut Vec<u8>) {
+    pub(crate) fn push(&mut self, v: u32, out: &mut Vec<u8>) {
         if v == 0 {
             self.zeros += 1;
         } else {
@@ -383,7 +386,7 @@ impl Runs {
     }
 
     /// Writes the pending run of zeros.
-    fn finish(&mut self, out: &mut Vec<u8>) {
+    pub(crate) fn finish(&mut self, out: &mut Vec<u8>) {
         if self.zeros > 0 {
             put_varint(self.zeros << 1 | 1, out);
             self.zeros = 0;
@@ -415,7 +418,7 @@ fn put_varint(mut x: u64, out: &mut Vec<u8>) {
 /// truncated or overlong varint, a value past 32 bits, an empty run, more
 /// or fewer values than `count`, or bytes left over are refused. Never
 /// allocates more than `count` values.
-fn unpack_runs(bytes: &[u8], count: usize, out: &mut Vec<u32>) -> Result<(), Malformed> {
+pub(crate) fn unpack_runs(bytes: &[u8], count: usize, out: &mut Vec<u32>) -> Result<(), Malformed> {
     // A value takes at least one byte, a run can stand for many.
     out.reserve(count.min(bytes.len().saturating_mul(64)));
     let end = out.len() + count;

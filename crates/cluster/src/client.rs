@@ -1,0 +1,278 @@
+//! The coordinator's connections to its workers: dialling and the
+//! protocol check, calls fanned out to every worker under a deadline, and
+//! the accounting of bytes and time.
+
+use std::time::Duration;
+
+use shadow::Fiber;
+use tonic::transport::{Channel, Endpoint};
+
+use crate::pb::worker_client::WorkerClient;
+use crate::{ClusterError, Tls, pb, tls, wire};
+
+/// Bytes on the wire, by stage and direction (protobuf message bytes;
+/// HTTP/2 framing adds a little).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Traffic {
+    /// Wisp shares and their state sent (Assign), at the start and after
+    /// a worker is lost.
+    pub assign_sent: u64,
+    /// Step requests (head transforms, bodies, accelerations).
+    pub step_sent: u64,
+    /// Wisp states received (Step replies).
+    pub wisps_received: u64,
+    /// Strands sent to workers (Deposit requests).
+    pub strands_sent: u64,
+    /// Partial density columns received.
+    pub density_received: u64,
+    /// Summed density columns sent for sweeping.
+    pub density_sent: u64,
+    /// Transmittance slabs received.
+    pub slabs_received: u64,
+    /// Pose requests and reports (hair posed on the workers without steps).
+    pub pose: u64,
+    /// Draw requests: the jobs and the swept columns each worker reads.
+    pub draw_sent: u64,
+    /// Partial pictures received.
+    pub layers_received: u64,
+}
+
+impl Traffic {
+    pub fn total(&self) -> u64 {
+        self.assign_sent
+            + self.step_sent
+            + self.wisps_received
+            + self.strands_sent
+            + self.density_received
+            + self.density_sent
+            + self.slabs_received
+            + self.pose
+            + self.draw_sent
+            + self.layers_received
+    }
+
+    /// The bytes counted since `earlier`.
+    pub fn since(&self, earlier: &Traffic) -> Traffic {
+        Traffic {
+            assign_sent: self.assign_sent - earlier.assign_sent,
+            step_sent: self.step_sent - earlier.step_sent,
+            wisps_received: self.wisps_received - earlier.wisps_received,
+            strands_sent: self.strands_sent - earlier.strands_sent,
+            density_received: self.density_received - earlier.density_received,
+            density_sent: self.density_sent - earlier.density_sent,
+            slabs_received: self.slabs_received - earlier.slabs_received,
+            pose: self.pose - earlier.pose,
+            draw_sent: self.draw_sent - earlier.draw_sent,
+            layers_received: self.layers_received - earlier.layers_received,
+        }
+    }
+
+    /// One line: the total and each part, in MB.
+    pub fn summary(&self) -> String {
+        let mb = |b: u64| b as f64 / 1e6;
+        format!(
+            "{:.3} MB (wisps: assign {:.3}, steps {:.3}, states in {:.3}; strands out {:.3}; density in {:.3}, out {:.3}; slabs in {:.3}; pose {:.3}; draw out {:.3}, pictures in {:.3})",
+            mb(self.total()),
+            mb(self.assign_sent),
+            mb(self.step_sent),
+            mb(self.wisps_received),
+            mb(self.strands_sent),
+            mb(self.density_received),
+            mb(self.density_sent),
+            mb(self.slabs_received),
+            mb(self.pose),
+            mb(self.draw_sent),
+            mb(self.layers_received),
+        )
+    }
+}
+
+/// Where the time of the remote stages went, summed over frames (for the
+/// scaling benchmark's critical path).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Timing {
+    /// Wall time of Step calls, as the coordinator waited for them.
+    pub step_wall_ms: f64,
+    /// The slowest worker's own compute time in each Step, summed.
+    pub step_compute_ms: f64,
+    /// Wall time of Deposit calls plus merging their partial densities.
+    pub fill_ms: f64,
+    /// Wall time of Sweep calls plus assembling their slabs.
+    pub sweep_ms: f64,
+    /// Wall time of Pose calls (hair posed without steps).
+    pub pose_ms: f64,
+    /// Wall time of Draw calls plus decoding their partial pictures.
+    pub draw_ms: f64,
+    /// The slowest worker's own compute time in each Draw (filter, shade,
+    /// rasterize), summed.
+    pub draw_compute_ms: f64,
+    /// Workers lost and their work handed to the survivors.
+    pub workers_lost: u32,
+}
+
+#[derive(Debug, Clone)]
+pub(crate) struct Remote {
+    pub(crate) addr: String,
+    pub(crate) client: WorkerClient<Channel>,
+}
+
+/// The endpoint of the worker at `addr`: connect and call timeouts of
+/// `deadline`, TLS when `tls` is given.
+pub(crate) fn endpoint(
+    addr: &str,
+    deadline: Duration,
+    tls: Option<&Tls>,
+) -> Result<Endpoint, ClusterError> {
+    let err = |msg: String| ClusterError::Connect {
+        addr: addr.to_string(),
+        msg,
+    };
+    let endpoint = Endpoint::from_shared(format!("{}://{addr}", tls::scheme(tls)))
+        .map_err(|e| err(e.to_string()))?
+        .connect_timeout(deadline)
+        .timeout(deadline)
+        .tcp_nodelay(true);
+    match tls {
+        Some(t) => endpoint
+            .tls_config(t.client_config(addr))
+            .map_err(|e| t.refused(&e)),
+        None => Ok(endpoint),
+    }
+}
+
+pub(crate) async fn hello(
+    addr: &str,
+    fiber: &Fiber,
+    deadline: Duration,
+    tls: Option<&Tls>,
+) -> Result<Remote, ClusterError> {
+    let err = |msg: String| ClusterError::Connect {
+        addr: addr.to_string(),
+        msg: tls::explain(tls, msg),
+    };
+    let channel = endpoint(addr, deadline, tls)?
+        .connect()
+        .await
+        .map_err(|e| err(root_cause(&e)))?;
+    let mut client = WorkerClient::new(channel)
+        .max_decoding_message_size(wire::MAX_MESSAGE_BYTES)
+        .max_encoding_message_size(wire::MAX_MESSAGE_BYTES);
+    let reply = client
+        .hello(pb::HelloRequest {
+            protocol_version: wire::PROTOCOL_VERSION,
+            fiber_width: fiber.width(),
+            fiber_opacity: fiber.opacity(),
+        })
+        .await
+        .map_err(|s| match s.code() {
+            tonic::Code::FailedPrecondition => ClusterError::Version {
+                addr: addr.to_string(),
+                msg: s.message().to_string(),
+            },
+            tonic::Code::Unimplemented => ClusterError::Connect {
+                addr: addr.to_string(),
+                msg: "this address serves no wisplight worker (unimplemented: a health port?)"
+                    .into(),
+            },
+            _ if s.message().is_empty() => err(s.code().description().to_string()),
+            _ => err(s.message().to_string()),
+        })?
+        .into_inner();
+    if reply.protocol_version != wire::PROTOCOL_VERSION {
+        return Err(ClusterError::Version {
+            addr: addr.to_string(),
+            msg: format!(
+                "the worker speaks protocol version {}, this coordinator {}",
+                reply.protocol_version,
+                wire::PROTOCOL_VERSION
+            ),
+        });
+    }
+    tracing::info!(addr, worker = reply.worker, "worker ready");
+    Ok(Remote {
+        addr: addr.to_string(),
+        client,
+    })
+}
+
+/// The innermost cause: "Connection refused (os error 111)" rather than
+/// three layers of "transport error".
+pub(crate) fn root_cause(e: &dyn std::error::Error) -> String {
+    let mut last = e.to_string();
+    let mut s = e.source();
+    while let Some(x) = s {
+        last = x.to_string();
+        s = x.source();
+    }
+    last
+}
+
+/// Runs `call` on every worker at once, each bounded by `deadline`, and
+/// returns the results in worker order: the first error, if any, names
+/// its worker.
+pub(crate) fn fan_out<R, T, F, Fut>(
+    rt: &tokio::runtime::Runtime,
+    requests: Vec<(Remote, R)>,
+    stage: &'static str,
+    deadline: Duration,
+    call: F,
+) -> Result<Vec<T>, ClusterError>
+where
+    R: Send + 'static,
+    T: Send + 'static,
+    F: Fn(Remote, R) -> Fut,
+    Fut: std::future::Future<Output = Result<T, ClusterError>> + Send + 'static,
+{
+    rt.block_on(async {
+        let tasks: Vec<_> = requests
+            .into_iter()
+            .map(|(w, r)| {
+                let addr = w.addr.clone();
+                let fut = call(w, r);
+                tokio::spawn(async move {
+                    match tokio::time::timeout(deadline, fut).await {
+                        Ok(r) => r,
+                        Err(_) => Err(ClusterError::Deadline {
+                            addr,
+                            stage,
+                            secs: deadline.as_secs_f64(),
+                        }),
+                    }
+                })
+            })
+            .collect();
+        let mut out = Vec::with_capacity(tasks.len());
+        for t in tasks {
+            out.push(t.await.map_err(|e| ClusterError::Setup(e.to_string()))??);
+        }
+        Ok(out)
+    })
+}
+
+pub(crate) fn call_error(addr: &str, stage: &'static str, s: tonic::Status) -> ClusterError {
+    ClusterError::Call {
+        addr: addr.to_string(),
+        stage,
+        msg: format!("{:?}: {}", s.code(), s.message()),
+    }
+}
+
+/// Collects a server stream's messages.
+pub(crate) async fn collect<T>(
+    addr: &str,
+    stage: &'static str,
+    mut s: tonic::Streaming<T>,
+) -> Result<Vec<T>, ClusterError> {
+    let mut out = Vec::new();
+    while let Some(c) = s.message().await.map_err(|e| call_error(addr, stage, e))? {
+        out.push(c);
+    }
+    Ok(out)
+}
+
+pub(crate) fn malformed(addr: &str, e: impl ToString) -> ClusterError {
+    ClusterError::Malformed {
+        addr: addr.to_string(),
+        msg: e.to_string(),
+    }
+}

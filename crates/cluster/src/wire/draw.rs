@@ -1,0 +1,535 @@
+//! What crosses the wire for drawing on the workers: pose plans and their
+//! reports, the columns a worker's lookups read, the draw job with the
+//! swept columns it needs, and partial pictures. Everything received is
+//! checked before use.
+
+use engine::{DrawJob, PosePlan, PoseReport};
+use glam::{Affine3A, Vec3};
+use prost::encoding::{decode_varint, encode_varint};
+use raster::{Camera, HairLayer, HairLook, Shading, Sums};
+use shadow::{ColumnSlab, Extent, Light, LightFrame, Span};
+use strands::Bounds;
+
+use super::{
+    CELLS_PER_CHUNK, Malformed, Runs, affines_from_floats, bad, bodies_from_floats,
+    bodies_to_floats, frame_from_pb, frame_to_pb, unpack_runs,
+};
+use crate::pb;
+
+/// The most lights one scene may have on the wire.
+pub const MAX_LIGHTS: usize = 64;
+
+/// Pixels per partial-picture chunk: about 1.2 MB.
+pub const PIXELS_PER_CHUNK: usize = 64 * 1024;
+
+/// A vector of `n` floats, each finite.
+fn floats<const N: usize>(what: &str, f: &[f32]) -> Result<[f32; N], Malformed> {
+    let a: [f32; N] = f
+        .try_into()
+        .map_err(|_| bad(format!("{what}: {} values, expected {N}", f.len())))?;
+    if a.iter().any(|v| !v.is_finite()) {
+        return Err(bad(format!("{what} is not finite")));
+    }
+    Ok(a)
+}
+
+fn one_affine(what: &str, f: &[f32]) -> Result<Affine3A, Malformed> {
+    let a = affines_from_floats(f)?;
+    match a.as_slice() {
+        [one] => Ok(*one),
+        _ => Err(bad(format!("{what}: {} transforms, expected 1", a.len()))),
+    }
+}
+
+fn lights_from_floats(f: &[f32]) -> Result<Vec<Light>, Malformed> {
+    if !f.len().is_multiple_of(3) || f.len() / 3 > MAX_LIGHTS {
+        return Err(bad(format!(
+            "{} light values: not x, y, z triples, or more than {MAX_LIGHTS} lights",
+            f.len()
+        )));
+    }
+    f.chunks_exact(3)
+        .map(|d| Light::directional(Vec3::from_slice(d)).map_err(|e| bad(e.to_string())))
+        .collect()
+}
+
+pub fn pose_plan_to_pb(p: &PosePlan) -> pb::PosePlan {
+    let mut out = pb::PosePlan {
+        version: p.version,
+        head: p.head.to_cols_array().to_vec(),
+        anchor: p.anchor.to_array().to_vec(),
+        ..Default::default()
+    };
+    bodies_to_floats(&p.drawn_bodies, &mut out.drawn_bodies);
+    out.lights = p
+        .lights
+        .iter()
+        .flat_map(|l| l.direction().to_array())
+        .collect();
+    out
+}
+
+/// A pose plan as sent: one finite head transform, bodies, at most
+/// [`MAX_LIGHTS`] valid light directions, a finite anchor.
+pub fn pose_plan_from_pb(p: &pb::PosePlan) -> Result<PosePlan, Malformed> {
+    Ok(PosePlan {
+        version: p.version,
+        head: one_affine("pose head", &p.head)?,
+        drawn_bodies: bodies_from_floats(&p.drawn_bodies)?,
+        lights: lights_from_floats(&p.lights)?,
+        anchor: Vec3::from_array(floats::<3>("pose anchor", &p.anchor)?),
+    })
+}
+
+pub fn report_to_pb(r: &PoseReport) -> pb::PoseReport {
+    let six = |lo: Vec3, hi: Vec3| [lo.to_array(), hi.to_array()].concat();
+    pb::PoseReport {
+        bounds: if r.bounds.is_empty() {
+            Vec::new()
+        } else {
+            six(r.bounds.min, r.bounds.max)
+        },
+        extents: r.extents.iter().flat_map(|e| six(e.lo, e.hi)).collect(),
+    }
+}
+
+/// A report as sent, for a plan of `lights` lights: finite values, each
+/// least corner no greater than its greatest (empty extents are all
+/// infinities, as [`Extent::EMPTY`]).
+pub fn report_from_pb(r: &pb::PoseReport, lights: usize) -> Result<PoseReport, Malformed> {
+    let bounds = match r.bounds.as_slice() {
+        [] => Bounds::empty(),
+        b => {
+            let b = floats::<6>("pose bounds", b)?;
+            let (min, max) = (Vec3::from_slice(&b[..3]), Vec3::from_slice(&b[3..]));
+            if !min.cmple(max).all() {
+                return Err(bad(format!("pose bounds {min}..{max}")));
+            }
+            Bounds { min, max }
+        }
+    };
+    if r.extents.len() != 6 * lights {
+        return Err(bad(format!(
+            "{} extent values for {lights} lights",
+            r.extents.len()
+        )));
+    }
+    let extents = r
+        .extents
+        .chunks_exact(6)
+        .map(|e| {
+            let (lo, hi) = (Vec3::from_slice(&e[..3]), Vec3::from_slice(&e[3..]));
+            let fine = lo.is_finite() && hi.is_finite() && lo.cmple(hi).all();
+            if !(fine || Extent { lo, hi } == Extent::EMPTY) {
+                return Err(bad(format!("pose extent {lo}..{hi}")));
+            }
+            Ok(Extent { lo, hi })
+        })
+        .collect::<Result<_, _>>()?;
+    Ok(PoseReport { bounds, extents })
+}
+
+/// A bitmap of a map's columns (as [`shadow::columns_read`] makes) in
+/// 32-bit words, zero-run packed.
+pub fn columns_to_pb(bits: &[u64]) -> Vec<u8> {
+    let words: Vec<u32> = bits
+        .iter()
+        .flat_map(|w| [*w as u32, (*w >> 32) as u32])
+        .collect();
+    super::pack(&words)
+}
+
+/// [`columns_to_pb`] undone for a map of `columns` columns; no bit beyond.
+pub fn columns_from_pb(bytes: &[u8], columns: usize) -> Result<Vec<u64>, Malformed> {
+    let words = columns.div_ceil(64);
+    let mut w32 = Vec::new();
+    unpack_runs(bytes, 2 * words, &mut w32)?;
+    let bits: Vec<u64> = w32
+        .chunks_exact(2)
+        .map(|p| u64::from(p[0]) | u64::from(p[1]) << 32)
+        .collect();
+    let spare = words * 64 - columns;
+    if spare > 0 && bits.last().is_some_and(|w| w >> (64 - spare) != 0) {
+        return Err(bad(format!("a column past the map's {columns}")));
+    }
+    Ok(bits)
+}
+
+pub fn job_to_pb(j: &DrawJob) -> pb::DrawJob {
+    let c = &j.camera;
+    pb::DrawJob {
+        version: j.version,
+        camera: [
+            c.position.to_array().as_slice(),
+            c.look_at().to_array().as_slice(),
+            &[c.fov_deg()],
+        ]
+        .concat(),
+        width: c.width(),
+        height: c.height(),
+        fiber_width: j.look.fiber_width,
+        hair_alpha: j.look.opacity,
+        depth_ref: j.look.depth_ref,
+        shading: {
+            let (s, c) = (&j.shading, j.shading.specular_color);
+            vec![s.ambient, s.diffuse, s.specular, s.shininess, c.x, c.y, c.z]
+        },
+        to_lights: j.to_lights.iter().flat_map(|l| l.to_array()).collect(),
+        shadows: j.shadows,
+        filter: j.filter,
+        head: j.head.to_cols_array().to_vec(),
+    }
+}
+
+/// A draw job as sent: a camera [`Camera::new`] takes (within the
+/// renderer's picture limits), finite settings, unit light directions.
+pub fn job_from_pb(j: &pb::DrawJob) -> Result<DrawJob, Malformed> {
+    let c = floats::<7>("draw camera", &j.camera)?;
+    if u64::from(j.width) * u64::from(j.height) > raster::MAX_PIXELS
+        || j.width == 0
+        || j.height == 0
+        || j.width > raster::canvas_max_side()
+        || j.height > raster::canvas_max_side()
+    {
+        return Err(bad(format!("a picture of {}x{}", j.width, j.height)));
+    }
+    let camera = Camera::new(
+        Vec3::from_slice(&c[..3]),
+        Vec3::from_slice(&c[3..6]),
+        c[6],
+        j.width,
+        j.height,
+    )
+    .map_err(|e| bad(e.to_string()))?;
+    let [ambient, diffuse, specular, shininess, sr, sg, sb] =
+        floats::<7>("draw shading", &j.shading)?;
+    let look = [j.fiber_width, j.hair_alpha, j.depth_ref];
+    if look.iter().any(|v| !v.is_finite() || *v < 0.0) {
+        return Err(bad(format!("hair look {look:?}")));
+    }
+    if !j.to_lights.len().is_multiple_of(3) || j.to_lights.len() / 3 > MAX_LIGHTS {
+        return Err(bad(format!("{} light direction values", j.to_lights.len())));
+    }
+    let to_lights: Vec<Vec3> = j.to_lights.chunks_exact(3).map(Vec3::from_slice).collect();
+    if to_lights
+        .iter()
+        .any(|l| !l.is_finite() || (l.length() - 1.0).abs() > 1e-3)
+    {
+        return Err(bad("a light direction that is not a unit vector"));
+    }
+    Ok(DrawJob {
+        version: j.version,
+        camera,
+        look: HairLook {
+            fiber_width: j.fiber_width,
+            opacity: j.hair_alpha,
+            depth_ref: j.depth_ref,
+        },
+        shading: Shading {
+            ambient,
+            diffuse,
+            specular,
+            shininess,
+            specular_color: Vec3::new(sr, sg, sb),
+        },
+        to_lights,
+        shadows: j.shadows,
+        filter: j.filter,
+        head: one_affine("draw head", &j.head)?,
+    })
+}
+
+/// The columns of `slabs` (contiguous, swept in `frame`) whose bits are
+/// set in `keep` (all when `None`), as Draw chunks of light `light`, the
+/// first carrying the frame.
+pub fn draw_columns(
+    light: u32,
+    frame: &LightFrame,
+    slabs: &[ColumnSlab],
+    keep: Option<&[u64]>,
+) -> Vec<pb::DrawChunk> {
+    let new = |with_frame: bool| pb::DrawChunk {
+        light,
+        map: with_frame.then(|| frame_to_pb(frame)),
+        ..Default::default()
+    };
+    let mut out = Vec::new();
+    let mut chunk = new(true);
+    let (mut cells, mut runs, mut last) = (0usize, Runs::default(), 0u32);
+    for slab in slabs {
+        for (col, s) in slab.columns.clone().zip(&slab.spans) {
+            let kept = keep.is_none_or(|k| {
+                k.get(col as usize / 64)
+                    .is_some_and(|w| w >> (col % 64) & 1 == 1)
+            });
+            if s.is_empty() || !kept {
+                continue;
+            }
+            if cells > 0 && cells + s.len() > CELLS_PER_CHUNK {
+                runs.finish(&mut chunk.depth_steps);
+                out.push(std::mem::replace(&mut chunk, new(false)));
+                cells = 0;
+            }
+            // The first column of each chunk counts from 0.
+            let step = if chunk.column_steps.is_empty() {
+                col
+            } else {
+                col - last
+            };
+            chunk.column_steps.push(step);
+            last = col;
+            chunk.lo.push(u32::from(s.lo));
+            chunk.hi.push(u32::from(s.hi));
+            chunk.front.push(s.front);
+            let mut prev = 0u32;
+            for &d in &slab.depth[s.start as usize..s.start as usize + s.len()] {
+                runs.push(d - prev, &mut chunk.depth_steps);
+                prev = d;
+            }
+            cells += s.len();
+        }
+    }
+    runs.finish(&mut chunk.depth_steps);
+    out.push(chunk);
+    out
+}
+
+/// Receives the swept columns of a Draw call, light by light, into slabs
+/// of every column (those not sent empty).
+#[derive(Debug)]
+pub struct ColumnsReader {
+    lights: Vec<Option<(LightFrame, ColumnSlab)>>,
+    /// The last column received of the current light.
+    next: Option<u32>,
+    current: Option<u32>,
+}
+
+impl ColumnsReader {
+    /// For a job of `lights` lights.
+    pub fn new(lights: usize) -> ColumnsReader {
+        ColumnsReader {
+            lights: vec![None; lights],
+            next: None,
+            current: None,
+        }
+    }
+
+    pub fn add(&mut self, c: &pb::DrawChunk) -> Result<(), Malformed> {
+        let l = c.light as usize;
+        if l >= self.lights.len() {
+            return Err(bad(format!(
+                "columns of light {l} in a job of {} lights",
+                self.lights.len()
+            )));
+        }
+        if c.map.is_some() {
+            if self.lights[l].is_some() {
+                return Err(bad(format!("light {l}'s frame comes twice")));
+            }
+            let frame = frame_from_pb(c.map.as_ref())?;
+            let columns = frame.columns() as u32;
+            self.lights[l] = Some((
+                frame,
+                ColumnSlab {
+                    columns: 0..columns,
+                    spans: vec![Span::EMPTY; columns as usize],
+                    depth: Vec::new(),
+                },
+            ));
+            self.current = Some(c.light);
+            self.next = None;
+        } else if self.current != Some(c.light) {
+            return Err(bad(format!("columns of light {l} before its frame")));
+        }
+        let (frame, slab) = self.lights[l].as_mut().expect("set above");
+        let n = frame.n_cells as usize;
+        let count = c.column_steps.len();
+        if c.lo.len() != count || c.hi.len() != count || c.front.len() != count {
+            return Err(bad(format!(
+                "{count} columns with {} lo, {} hi and {} front values",
+                c.lo.len(),
+                c.hi.len(),
+                c.front.len()
+            )));
+        }
+        let mut need = 0usize;
+        let mut col = 0u64;
+        let mut cols = Vec::with_capacity(count);
+        for i in 0..count {
+            col = if i == 0 {
+                u64::from(c.column_steps[0])
+            } else if c.column_steps[i] == 0 {
+                return Err(bad(format!("column {col} comes twice")));
+            } else {
+                col + u64::from(c.column_steps[i])
+            };
+            let (lo, hi) = (c.lo[i] as usize, c.hi[i] as usize);
+            if col >= (n * n) as u64
+                || self.next.is_some_and(|p| col <= u64::from(p))
+                || lo > hi
+                || hi >= n
+            {
+                return Err(bad(format!(
+                    "column {col} with cells {lo}..={hi} out of order or out of a map of {n} a side"
+                )));
+            }
+            need += hi - lo + 1;
+            cols.push(col as u32);
+            if i + 1 == count {
+                self.next = Some(col as u32);
+            }
+        }
+        if slab.depth.len() + need > n * n * n {
+            return Err(bad("more depths than the map has cells"));
+        }
+        let mut steps = Vec::new();
+        unpack_runs(&c.depth_steps, need, &mut steps)?;
+        let mut at = 0;
+        for (i, &col) in cols.iter().enumerate() {
+            let (lo, hi) = (c.lo[i] as u16, c.hi[i] as u16);
+            let len = usize::from(hi - lo) + 1;
+            slab.spans[col as usize] = Span {
+                lo,
+                hi,
+                start: slab.depth.len() as u32,
+                front: c.front[i],
+            };
+            let mut depth = 0u32;
+            for &s in &steps[at..at + len] {
+                depth = depth
+                    .checked_add(s)
+                    .ok_or_else(|| bad(format!("a depth past 2^32 steps in column {col}")))?;
+                slab.depth.push(depth);
+            }
+            at += len;
+        }
+        Ok(())
+    }
+
+    /// The transmittance of every light, once each light's frame came (the
+    /// spans are checked as the map's own are).
+    pub fn finish(self) -> Result<Vec<shadow::Transmittance>, Malformed> {
+        self.lights
+            .into_iter()
+            .enumerate()
+            .map(|(l, x)| {
+                let (frame, slab) = x.ok_or_else(|| bad(format!("no columns of light {l}")))?;
+                shadow::Transmittance::assemble(frame, [slab]).map_err(|e| bad(e.to_string()))
+            })
+            .collect()
+    }
+}
+
+/// A partial picture as chunks; the last carries the worker's times.
+pub fn layer_chunks(layer: &HairLayer, times: &engine::DrawTimes) -> Vec<pb::LayerChunk> {
+    let mut out = Vec::new();
+    let (mut prev, n) = (0u32, layer.pixels().len());
+    for start in (0..n.max(1)).step_by(PIXELS_PER_CHUNK) {
+        let end = (start + PIXELS_PER_CHUNK).min(n);
+        let mut c = pb::LayerChunk {
+            width: layer.width(),
+            height: layer.height(),
+            count: (end - start) as u32,
+            ..Default::default()
+        };
+        for (&p, s) in layer.pixels()[start..end]
+            .iter()
+            .zip(&layer.sums()[start..end])
+        {
+            encode_varint(u64::from(p - prev), &mut c.pixels);
+            prev = p;
+            for v in s.rgbw {
+                encode_varint(v as u64, &mut c.sums);
+            }
+            encode_varint(s.absorb, &mut c.sums);
+        }
+        out.push(c);
+    }
+    if let Some(last) = out.last_mut() {
+        last.filter_ms = times.filter_ms;
+        last.shade_ms = times.shade_ms;
+        last.raster_ms = times.raster_ms;
+    }
+    out
+}
+
+/// Receives a partial picture's chunks for a frame of `width` x `height`.
+#[derive(Debug)]
+pub struct LayerReader {
+    width: u32,
+    height: u32,
+    pixels: Vec<u32>,
+    sums: Vec<Sums>,
+    /// The worker's times, from the last chunk.
+    pub times: engine::DrawTimes,
+}
+
+impl LayerReader {
+    pub fn new(width: u32, height: u32) -> LayerReader {
+        LayerReader {
+            width,
+            height,
+            pixels: Vec::new(),
+            sums: Vec::new(),
+            times: engine::DrawTimes::default(),
+        }
+    }
+
+    pub fn add(&mut self, c: &pb::LayerChunk) -> Result<(), Malformed> {
+        if (c.width, c.height) != (self.width, self.height) {
+            return Err(bad(format!(
+                "a partial picture of {}x{} for a frame of {}x{}",
+                c.width, c.height, self.width, self.height
+            )));
+        }
+        let total = u64::from(self.width) * u64::from(self.height);
+        let count = c.count as usize;
+        // Each pixel takes a byte at least, and there are no more than the picture's.
+        if count > c.pixels.len() || self.pixels.len() as u64 + count as u64 > total {
+            return Err(bad(format!("{count} pixels in {} bytes", c.pixels.len())));
+        }
+        let mut px = &c.pixels[..];
+        let mut sums = &c.sums[..];
+        let mut at = self.pixels.last().copied();
+        self.pixels.reserve(count);
+        self.sums.reserve(count);
+        let varint =
+            |b: &mut &[u8]| decode_varint(b).map_err(|e| bad(format!("a partial picture: {e}")));
+        for _ in 0..count {
+            let step = varint(&mut px)?;
+            let p = match at {
+                Some(a) if step == 0 => return Err(bad(format!("pixel {a} comes twice"))),
+                Some(a) => u64::from(a) + step,
+                None => step,
+            };
+            if p >= total {
+                return Err(bad(format!("pixel {p} outside the picture")));
+            }
+            let mut s = Sums::ZERO;
+            for v in &mut s.rgbw {
+                *v = varint(&mut sums)? as i64;
+            }
+            s.absorb = varint(&mut sums)?;
+            self.pixels.push(p as u32);
+            self.sums.push(s);
+            at = Some(p as u32);
+        }
+        if !px.is_empty() || !sums.is_empty() {
+            return Err(bad("bytes left over in a partial picture chunk"));
+        }
+        let t = [c.filter_ms, c.shade_ms, c.raster_ms];
+        if t.iter().all(|v| v.is_finite() && *v >= 0.0) {
+            self.times = engine::DrawTimes {
+                filter_ms: t[0],
+                shade_ms: t[1],
+                raster_ms: t[2],
+            };
+        }
+        Ok(())
+    }
+
+    pub fn finish(self) -> Result<HairLayer, Malformed> {
+        HairLayer::from_parts(self.width, self.height, self.pixels, self.sums)
+            .map_err(|e| bad(e.to_string()))
+    }
+}

@@ -1,0 +1,159 @@
+//! The stages that run per drawn vertex (filter, shade) and the
+//! rasterization of some drawn hair: all of it in one process, or a
+//! cluster worker's share. The same code either way, so the same bytes.
+
+use glam::Vec3;
+use raster::{Camera, Canvas, HairLook, Shading, Sphere, kajiya_kay};
+use rayon::prelude::*;
+use strands::Hair;
+
+use crate::Head;
+
+/// Hair colour when neither the style nor the file gives one (linear RGB).
+pub const DEFAULT_HAIR_COLOR: Vec3 = Vec3::new(0.30, 0.17, 0.08);
+
+/// The per-vertex results of some drawn hair, kept between its stages.
+#[derive(Debug, Default, Clone)]
+pub struct HairPart {
+    /// Transmittance of each light at each vertex: `[light][vertex]`.
+    trans: Vec<Vec<f32>>,
+    /// The shaded linear colour of each vertex.
+    colors: Vec<Vec3>,
+}
+
+impl HairPart {
+    /// Transmittance of each light at each vertex of the last
+    /// [`Self::filter`]: `[light][vertex]`.
+    pub fn transmittance(&self) -> &[Vec<f32>] {
+        &self.trans
+    }
+
+    /// The shaded colour of each vertex in the last [`Self::shade`].
+    pub fn colors(&self) -> &[Vec3] {
+        &self.colors
+    }
+
+    /// Shadow stage 3: the transmittance of each of `lights` lights at
+    /// every vertex of `hair`, `lookup(light, points, out)` filling `out`.
+    pub fn filter(
+        &mut self,
+        hair: &Hair,
+        lights: usize,
+        lookup: impl Fn(usize, &[Vec3], &mut [f32]),
+    ) {
+        self.trans.resize(lights, Vec::new());
+        for (l, t) in self.trans.iter_mut().enumerate() {
+            t.resize(hair.point_count(), 0.0);
+            lookup(l, hair.points(), t);
+        }
+    }
+
+    /// Kajiya-Kay shading at every vertex of `hair` with its strand's
+    /// colour, seen from `eye`, lit from `to_lights` (unit directions
+    /// towards each light) through the transmittance of the last
+    /// [`Self::filter`] (`shadows`) or by full light. Only the first light
+    /// adds the ambient term.
+    pub fn shade(
+        &mut self,
+        hair: &Hair,
+        eye: Vec3,
+        shading: &Shading,
+        to_lights: &[Vec3],
+        shadows: bool,
+    ) {
+        let points = hair.points();
+        if shadows {
+            assert!(
+                self.trans.len() == to_lights.len()
+                    && self.trans.iter().all(|t| t.len() == points.len()),
+                "filter runs before shading with shadows"
+            );
+        }
+        self.colors.resize(points.len(), Vec3::ZERO);
+        let offsets = hair.offsets();
+        let strand_colors = hair.colors();
+        let trans = &self.trans;
+        // Strands in parallel; each writes its own vertices.
+        let mut chunks: Vec<&mut [Vec3]> = Vec::with_capacity(hair.strand_count());
+        let mut rest: &mut [Vec3] = &mut self.colors;
+        for w in offsets.windows(2) {
+            let (a, b) = rest.split_at_mut((w[1] - w[0]) as usize);
+            chunks.push(a);
+            rest = b;
+        }
+        let rest_lights = Shading {
+            ambient: 0.0,
+            ..*shading
+        };
+        chunks
+            .into_par_iter()
+            .enumerate()
+            .with_min_len(64)
+            .for_each(|(si, out)| {
+                let base = offsets[si] as usize;
+                let pts = &points[base..base + out.len()];
+                let color = strand_colors.map_or(DEFAULT_HAIR_COLOR, |c| c[si]);
+                for (v, o) in out.iter_mut().enumerate() {
+                    // Tangent by central differences (one-sided at the ends).
+                    let (a, b) = (pts[v.saturating_sub(1)], pts[(v + 1).min(pts.len() - 1)]);
+                    let tangent = (b - a).normalize_or(Vec3::Y);
+                    let to_eye = (eye - pts[v]).normalize_or(Vec3::Z);
+                    let mut c = Vec3::ZERO;
+                    for (l, &to_light) in to_lights.iter().enumerate() {
+                        let tr = if shadows { trans[l][base + v] } else { 1.0 };
+                        let sh = if l == 0 { shading } else { &rest_lights };
+                        c += kajiya_kay(sh, color, tangent, to_light, to_eye, tr);
+                    }
+                    *o = c;
+                }
+            });
+    }
+
+    /// Bins `hair` for drawing on `canvas` with the colours of the last
+    /// [`Self::shade`], in groups `groups` (strand boundaries, see
+    /// [`Canvas::draw_hair`]).
+    pub fn draw(
+        &self,
+        hair: &Hair,
+        camera: &Camera,
+        look: &HairLook,
+        groups: &[u32],
+        canvas: &mut Canvas,
+    ) {
+        assert_eq!(
+            self.colors.len(),
+            hair.point_count(),
+            "shade runs before draw"
+        );
+        canvas.draw_hair(
+            camera,
+            hair.points(),
+            hair.offsets(),
+            &self.colors,
+            look,
+            groups,
+        );
+    }
+}
+
+/// Draws `head` into `canvas`'s opaque layer, `shade(point, normal)`
+/// giving the colour of a visible surface point (the hair drawn after it
+/// is hidden where the head is in front, whatever the colour).
+pub fn draw_head(
+    canvas: &mut Canvas,
+    camera: &Camera,
+    head: &Head,
+    shade: impl Fn(Vec3, Vec3) -> Vec3 + Sync,
+) {
+    match head.mesh() {
+        Some(m) => canvas.draw_mesh(camera, m.positions(), m.normals(), m.triangles(), shade),
+        None => canvas.draw_sphere(
+            camera,
+            &Sphere {
+                center: head.center(),
+                radius: head.settings().radius,
+            },
+            shade,
+        ),
+    }
+}

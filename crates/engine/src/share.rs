@@ -1,0 +1,209 @@
+//! A share of a scene's hair, held away from the frame pipeline (a cluster
+//! worker's): whole groups of strands (and their wisps), stepped, posed,
+//! filled into density maps, filtered, shaded and rasterized into a partial
+//! picture where they are, by the same stage code as in one process.
+
+use std::ops::Range;
+use std::time::Instant;
+
+use glam::Vec3;
+use raster::{Canvas, HairLayer};
+use shadow::{DensityMap, Fiber, FillStats, LightFrame, Transmittance};
+use strands::Hair;
+
+use crate::part::draw_head;
+use crate::{
+    Animator, DrawJob, EngineError, FrameStats, HairPart, Head, PosePlan, PoseReport, Scene,
+    StepPlan, step_wisps,
+};
+
+/// Whole groups `groups` of a scene's drawn hair (see [`crate::Groups`]).
+#[derive(Debug)]
+pub struct Share {
+    anim: Animator,
+    groups: Range<usize>,
+    head: Option<Head>,
+    /// The share's drawn strands as last posed, and that hair's version.
+    posed: Option<(u64, Hair)>,
+    part: HairPart,
+    canvas: Option<Canvas>,
+}
+
+/// Milliseconds of the stages of one [`Share::draw`].
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct DrawTimes {
+    pub filter_ms: f64,
+    pub shade_ms: f64,
+    pub raster_ms: f64,
+}
+
+fn ms(since: Instant) -> f64 {
+    since.elapsed().as_secs_f64() * 1e3
+}
+
+impl Share {
+    /// Groups `groups` of `scene`'s hair, at rest.
+    pub fn new(scene: &Scene, groups: Range<usize>) -> Result<Share, EngineError> {
+        let anim = Animator::new(scene)?;
+        let n = anim.groups().count();
+        if groups.start > groups.end || groups.end > n {
+            return Err(EngineError::Executor(format!(
+                "groups {}..{} of a scene of {n}",
+                groups.start, groups.end
+            )));
+        }
+        let head = scene
+            .head
+            .as_ref()
+            .map(|h| Head::load(h, scene))
+            .transpose()?;
+        Ok(Share {
+            anim,
+            groups,
+            head,
+            posed: None,
+            part: HairPart::default(),
+            canvas: None,
+        })
+    }
+
+    /// The share's groups.
+    pub fn groups(&self) -> Range<usize> {
+        self.groups.clone()
+    }
+
+    /// The share's wisps (empty for hair that is not simulated).
+    pub fn wisps(&self) -> Range<usize> {
+        self.anim.groups().wisp_range(self.groups.clone())
+    }
+
+    /// The scene's whole animator, of which the share steps its wisps.
+    pub fn animator(&self) -> &Animator {
+        &self.anim
+    }
+
+    /// The animator, to set the state of the share's wisps.
+    pub fn animator_mut(&mut self) -> &mut Animator {
+        &mut self.anim
+    }
+
+    /// `plan`'s steps on the share's wisps, with `accel` the self-collision
+    /// accelerations of their guide points.
+    pub fn step(&mut self, plan: &StepPlan, accel: Option<&[Vec3]>, stats: &mut FrameStats) {
+        let wisps = self.wisps();
+        step_wisps(&mut self.anim, wisps, plan, accel, stats);
+    }
+
+    /// Poses the share's strands as `plan` says and reports on them.
+    pub fn pose(&mut self, plan: &PosePlan) -> PoseReport {
+        let hair = self
+            .anim
+            .pose_part(self.groups.clone(), plan.head, &plan.drawn_bodies);
+        let report = PoseReport::of(&hair, plan);
+        self.posed = Some((plan.version, hair));
+        report
+    }
+
+    /// The share's strands as posed last, when they are hair `version`.
+    pub fn posed(&self, version: u64) -> Result<&Hair, EngineError> {
+        match &self.posed {
+            Some((v, hair)) if *v == version => Ok(hair),
+            Some((v, _)) => Err(EngineError::Executor(format!(
+                "the posed strands are hair version {v}, not {version}"
+            ))),
+            None => Err(EngineError::Executor(
+                "no strands posed here yet".to_string(),
+            )),
+        }
+    }
+
+    /// Adds the density of the share's strands, posed as hair `version`,
+    /// to `map`.
+    pub fn deposit(
+        &self,
+        version: u64,
+        map: &mut DensityMap,
+        fiber: &Fiber,
+    ) -> Result<FillStats, EngineError> {
+        let hair = self.posed(version)?;
+        Ok(map.deposit(hair, 0..hair.strand_count(), fiber))
+    }
+
+    /// The columns of a map in `frame` that filtering the share's strands
+    /// posed as hair `version` reads (see [`shadow::columns_read`]).
+    pub fn columns_read(
+        &self,
+        version: u64,
+        frame: &LightFrame,
+        filter: bool,
+    ) -> Result<Vec<u64>, EngineError> {
+        Ok(shadow::columns_read(
+            frame,
+            self.posed(version)?.points(),
+            filter,
+        ))
+    }
+
+    /// Filters the transmittance of `maps` (one per light, holding at
+    /// least [`Self::columns_read`]) at the share's vertices, shades them
+    /// and rasterizes them behind the head: the share's partial picture.
+    pub fn draw(
+        &mut self,
+        job: &DrawJob,
+        maps: &[Transmittance],
+    ) -> Result<(HairLayer, DrawTimes), EngineError> {
+        let mut times = DrawTimes::default();
+        let hair = match &self.posed {
+            Some((v, hair)) if *v == job.version => hair,
+            _ => {
+                return Err(EngineError::Executor(format!(
+                    "no strands posed here as hair version {}",
+                    job.version
+                )));
+            }
+        };
+        if job.shadows {
+            if maps.len() != job.to_lights.len() {
+                return Err(EngineError::Executor(format!(
+                    "{} maps for {} lights",
+                    maps.len(),
+                    job.to_lights.len()
+                )));
+            }
+            let t = Instant::now();
+            self.part.filter(hair, maps.len(), |l, pts, out| {
+                maps[l].lookup(pts, job.filter, out)
+            });
+            times.filter_ms = ms(t);
+        }
+        let t = Instant::now();
+        self.part.shade(
+            hair,
+            job.camera.position,
+            &job.shading,
+            &job.to_lights,
+            job.shadows,
+        );
+        times.shade_ms = ms(t);
+        let t = Instant::now();
+        let (w, h) = (job.camera.width(), job.camera.height());
+        let canvas = match &mut self.canvas {
+            Some(c) if c.width() == w && c.height() == h => {
+                c.clear();
+                c
+            }
+            _ => self.canvas.insert(Canvas::new(w, h)?),
+        };
+        // The head's depth alone hides the hair behind it.
+        if let Some(head) = &mut self.head {
+            head.set_pose(job.head);
+            draw_head(canvas, &job.camera, head, |_, _| Vec3::ZERO);
+        }
+        let groups = self.anim.groups().within(self.groups.clone());
+        self.part
+            .draw(hair, &job.camera, &job.look, &groups, canvas);
+        let layer = canvas.layer();
+        times.raster_ms = ms(t);
+        Ok((layer, times))
+    }
+}

@@ -1,0 +1,168 @@
+//! Drawing elsewhere: hair split into shares of whole groups, each
+//! stepped, posed, filled, filtered, shaded and rasterized on its own (as
+//! cluster workers do, here in one process), composited to the same bytes
+//! as one process, frame after frame.
+
+use std::ops::Range;
+use std::path::Path;
+
+use engine::{
+    Animator, DrawJob, DrawReport, EngineError, Executor, FrameStats, PosePlan, PoseReport, Scene,
+    Sequence, Share, StepPlan,
+};
+use shadow::{DensityMap, Fiber, FillStats, Transmittance};
+use strands::Hair;
+
+/// The shares of a scene's hair, in this process.
+#[derive(Debug)]
+struct Shares {
+    shares: Vec<Share>,
+    fiber: Fiber,
+    /// Each light's last sweep, as a slab of every column.
+    maps: Vec<Option<(shadow::LightFrame, shadow::ColumnSlab)>>,
+}
+
+impl Shares {
+    fn new(scene: &Scene, split: &[Range<usize>]) -> Shares {
+        Shares {
+            shares: split
+                .iter()
+                .map(|g| Share::new(scene, g.clone()).unwrap())
+                .collect(),
+            fiber: scene.fiber,
+            maps: vec![None; scene.lights.len()],
+        }
+    }
+}
+
+impl Executor for Shares {
+    fn simulate(
+        &mut self,
+        anim: &mut Animator,
+        plan: &StepPlan,
+        stats: &mut FrameStats,
+    ) -> Result<(), EngineError> {
+        let per = anim.points_per_wisp();
+        for s in &mut self.shares {
+            let w = s.wisps();
+            let accel = plan
+                .accel
+                .as_ref()
+                .map(|a| a[w.start * per..w.end * per].to_vec());
+            s.step(plan, accel.as_deref(), stats);
+            for i in w {
+                anim.set_wisp_state(i, s.animator().wisp_state(i).unwrap().clone())?;
+            }
+        }
+        Ok(())
+    }
+
+    fn fill(
+        &mut self,
+        _light: usize,
+        map: &mut DensityMap,
+        _hair: &Hair,
+        fiber: &Fiber,
+        version: Option<u64>,
+    ) -> Result<FillStats, EngineError> {
+        let v = version.expect("posed hair");
+        let mut total = FillStats::default();
+        for s in &self.shares {
+            total = total + s.deposit(v, map, fiber)?;
+        }
+        Ok(total)
+    }
+
+    fn sweep(&mut self, light: usize, map: &DensityMap) -> Result<Transmittance, EngineError> {
+        let frame = *map.frame();
+        self.maps[light] = Some((frame, shadow::sweep(map, 0..frame.columns() as u32)));
+        Ok(Transmittance::compute(map))
+    }
+
+    fn draws(&self) -> bool {
+        true
+    }
+
+    fn pose(&mut self, plan: &PosePlan) -> Result<PoseReport, EngineError> {
+        let mut reports = self.shares.iter_mut().map(|s| s.pose(plan));
+        let first = reports.next().unwrap();
+        Ok(reports.fold(first, |a, b| a.union(&b)))
+    }
+
+    fn draw(&mut self, job: &DrawJob) -> Result<DrawReport, EngineError> {
+        let maps: Vec<_> = if job.shadows {
+            self.maps.iter().map(|m| m.clone().unwrap()).collect()
+        } else {
+            Vec::new()
+        };
+        let mut out = DrawReport::default();
+        for s in &mut self.shares {
+            // Each share sees only the columns its own strands read.
+            let mine: Vec<Transmittance> = maps
+                .iter()
+                .map(|(frame, slab)| {
+                    let need = s.columns_read(job.version, frame, job.filter).unwrap();
+                    Transmittance::assemble(*frame, [slab.keep(&need)]).unwrap()
+                })
+                .collect();
+            let (layer, _) = s.draw(job, &mine)?;
+            out.layers.push(layer);
+        }
+        let _ = &self.fiber;
+        Ok(out)
+    }
+}
+
+fn scene(text: &str) -> Scene {
+    Scene::from_toml_str(text, Path::new("shares.toml")).unwrap()
+}
+
+fn frames(scene: &Scene, split: Option<&[Range<usize>]>, n: usize) -> Vec<image::RgbImage> {
+    let mut seq = Sequence::new(scene).unwrap();
+    if let Some(split) = split {
+        seq.set_executor(Box::new(Shares::new(scene, split)))
+            .unwrap();
+    }
+    (0..n)
+        .map(|_| seq.next_frame().unwrap().0.clone())
+        .collect()
+}
+
+/// One share of all six groups, three even shares, and uneven ones.
+#[allow(clippy::single_range_in_vec_init)]
+const SPLITS: [&[Range<usize>]; 3] = [&[0..6], &[0..2, 2..4, 4..6], &[0..1, 1..5, 5..6]];
+
+#[test]
+fn a_dancing_simulated_groom_drawn_in_shares_is_the_same_bytes() {
+    for extra in [
+        "",
+        "[effects]\nself_shadow = false\n",
+        "[[light]]\ndirection = [0.9, -0.35, -0.25]\n[[light]]\ndirection = [-0.3, -1, 0.2]\n",
+    ] {
+        let s = scene(&format!(
+            "[hair]\nstrands_per_wisp = 3\n[render]\nwidth = 120\nheight = 80\n[shadow]\ncells = 48\n\
+             [animation]\nmotion = \"dance\"\n[dynamics]\nsettle = 0.1\n{extra}"
+        ));
+        let one = frames(&s, None, 4);
+        assert!(one[3] != one[1], "the hair moves");
+        for split in SPLITS {
+            let shared = frames(&s, Some(split), 4);
+            for (f, (a, b)) in one.iter().zip(&shared).enumerate() {
+                assert!(a == b, "{extra:?} split {split:?}: frame {f} differs");
+            }
+        }
+    }
+}
+
+#[test]
+fn rigid_hair_on_a_moving_head_drawn_in_shares_is_the_same_bytes() {
+    let s = scene(
+        "[hair]\nstrands_per_wisp = 3\n[render]\nwidth = 120\nheight = 80\n[shadow]\ncells = 48\n\
+         [effects]\ndynamics = false\n[animation]\nmotion = \"dance\"\n",
+    );
+    let one = frames(&s, None, 3);
+    assert!(one[2] != one[0], "the head moves");
+    for split in SPLITS {
+        assert!(frames(&s, Some(split), 3) == one, "split {split:?}");
+    }
+}
