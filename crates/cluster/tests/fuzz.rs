@@ -59,6 +59,54 @@ fn check_all(bytes: &[u8]) {
                 assert!(states.iter().all(|(w, s)| *w < 134 && s.pos.len() == per));
             }
         }
+        if let Some(r) = &m.report {
+            check_report(r);
+        }
+    }
+    if let Ok(m) = pb::PosePlan::decode(bytes)
+        && let Ok(p) = wire::pose_plan_from_pb(&m)
+    {
+        assert!(p.head.is_finite() && p.anchor.is_finite());
+        assert!(p.lights.len() <= wire::MAX_LIGHTS);
+    }
+    if let Ok(m) = pb::PoseReport::decode(bytes) {
+        check_report(&m);
+    }
+    if let Ok(m) = pb::ColumnChunk::decode(bytes)
+        && let Ok(bits) = wire::columns_from_pb(&m.columns_read, f.columns())
+    {
+        assert_eq!(bits.len(), f.columns().div_ceil(64));
+    }
+    if let Ok(m) = pb::DrawChunk::decode(bytes) {
+        if let Some(j) = &m.job
+            && let Ok(job) = wire::job_from_pb(j)
+        {
+            assert!(job.camera.width() >= 1 && job.to_lights.len() <= wire::MAX_LIGHTS);
+        }
+        let mut reader = wire::ColumnsReader::new(1);
+        if reader.add(&m).is_ok()
+            && let Ok(maps) = reader.finish()
+        {
+            // Whatever was accepted looks up finite, in [0, 1].
+            let t = maps[0].transmittance(Vec3::ZERO, true);
+            assert!((0.0..=1.0).contains(&t), "{t}");
+        }
+    }
+    if let Ok(m) = pb::LayerChunk::decode(bytes) {
+        let mut reader = wire::LayerReader::new(m.width.min(64), m.height.min(64));
+        if reader.add(&m).is_ok() {
+            let layer = reader.finish().unwrap();
+            assert!(layer.pixels().len() <= 64 * 64);
+        }
+    }
+}
+
+fn check_report(r: &pb::PoseReport) {
+    for lights in [0, 1, 2] {
+        if let Ok(rep) = wire::report_from_pb(r, lights) {
+            assert_eq!(rep.extents.len(), lights);
+            assert!(rep.bounds.is_empty() || rep.bounds.min.cmple(rep.bounds.max).all());
+        }
     }
 }
 
@@ -110,8 +158,23 @@ proptest! {
         map.deposit(&hair, 0..1, &shadow::Fiber::new(0.1, 0.5).unwrap());
         let columns = wire::column_chunks(&map, 0..f.columns()).remove(0);
         let full = 0..f.columns() as u32;
-        let slab = wire::slab_chunks(&shadow::sweep(&occupied_map(&f), full)).remove(0);
-        for msg in [deposit.encode_to_vec(), columns.encode_to_vec(), slab.encode_to_vec()] {
+        let swept = shadow::sweep(&occupied_map(&f), full);
+        let slab = wire::slab_chunks(&swept).remove(0);
+        let draw = wire::draw_columns(0, &f, &[swept], None).remove(0);
+        let mut layer_canvas = raster::Canvas::new(8, 8).unwrap();
+        let cam = raster::Camera::new(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, 40.0, 8, 8).unwrap();
+        let look = raster::HairLook { fiber_width: 0.1, opacity: 0.8, depth_ref: 5.0 };
+        let pts = [Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 0.0)];
+        layer_canvas.draw_hair(&cam, &pts, &[0, 2], &[Vec3::ONE; 2], &look, &[]);
+        let layer = wire::layer_chunks(&layer_canvas.layer(), &engine::DrawTimes::default()).remove(0);
+        let messages = [
+            deposit.encode_to_vec(),
+            columns.encode_to_vec(),
+            slab.encode_to_vec(),
+            draw.encode_to_vec(),
+            layer.encode_to_vec(),
+        ];
+        for msg in messages {
             let mut b = msg;
             for &(at, x) in &flips {
                 if !b.is_empty() {

@@ -533,3 +533,153 @@ impl LayerReader {
             .map_err(|e| bad(e.to_string()))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Affine3A;
+
+    #[test]
+    fn pose_plans_reports_and_jobs_round_trip_exactly() {
+        let plan = PosePlan {
+            version: 9,
+            head: Affine3A::from_rotation_y(0.3) * Affine3A::from_translation(Vec3::X),
+            drawn_bodies: vec![sim::Body {
+                center: Vec3::new(0.0, -16.0, -3.0),
+                radius: 6.0,
+            }],
+            lights: vec![Light::directional(Vec3::new(0.9, -0.35, -0.25)).unwrap()],
+            anchor: Vec3::new(0.1, 2.0, -3.0),
+        };
+        assert_eq!(pose_plan_from_pb(&pose_plan_to_pb(&plan)).unwrap(), plan);
+        let report = PoseReport {
+            bounds: Bounds {
+                min: Vec3::splat(-2.0),
+                max: Vec3::new(3.0, 1.0, 2.0),
+            },
+            extents: vec![
+                Extent {
+                    lo: Vec3::splat(-1.0),
+                    hi: Vec3::ONE,
+                },
+                Extent::EMPTY,
+            ],
+        };
+        assert_eq!(report_from_pb(&report_to_pb(&report), 2).unwrap(), report);
+        assert!(report_from_pb(&report_to_pb(&report), 1).is_err());
+        let camera = Camera::new(Vec3::new(0.0, 8.0, 90.0), Vec3::ZERO, 30.0, 64, 48).unwrap();
+        let job = DrawJob {
+            version: 3,
+            camera,
+            look: HairLook {
+                fiber_width: 0.1,
+                opacity: 0.85,
+                depth_ref: 90.0,
+            },
+            shading: Shading::default(),
+            to_lights: vec![Vec3::new(-0.9, 0.35, 0.25).normalize()],
+            shadows: true,
+            filter: false,
+            head: plan.head,
+        };
+        assert_eq!(job_from_pb(&job_to_pb(&job)).unwrap(), job);
+        let mut bad = job_to_pb(&job);
+        bad.width = 100_000;
+        assert!(job_from_pb(&bad).is_err());
+        let mut bad = job_to_pb(&job);
+        bad.to_lights = vec![0.0, 2.0, 0.0];
+        assert!(job_from_pb(&bad).is_err());
+    }
+
+    #[test]
+    fn column_bitmaps_round_trip_and_refuse_columns_past_the_map() {
+        let mut bits = vec![0u64; 3];
+        bits[0] = 1 | 1 << 40;
+        bits[2] = 1 << 3;
+        let packed = columns_to_pb(&bits);
+        assert_eq!(columns_from_pb(&packed, 150).unwrap(), bits);
+        // Column 131 is past a map of 130 columns.
+        assert!(columns_from_pb(&packed, 130).is_err());
+    }
+
+    #[test]
+    fn partial_pictures_round_trip_across_chunks_and_malformed_ones_are_refused() {
+        let n = PIXELS_PER_CHUNK + 10;
+        let pixels: Vec<u32> = (0..n as u32).map(|i| 3 * i + 1).collect();
+        let sums: Vec<Sums> = (0..n as i64)
+            .map(|i| Sums {
+                rgbw: [i, 2 * i, 3 * i + 1, 1 << 40],
+                absorb: i as u64 * 7,
+            })
+            .collect();
+        let layer = HairLayer::from_parts(1000, 1000, pixels, sums).unwrap();
+        let times = engine::DrawTimes {
+            filter_ms: 1.0,
+            shade_ms: 2.0,
+            raster_ms: 3.0,
+        };
+        let chunks = layer_chunks(&layer, &times);
+        assert_eq!(chunks.len(), 2);
+        let mut r = LayerReader::new(1000, 1000);
+        for c in &chunks {
+            r.add(c).unwrap();
+        }
+        assert_eq!(r.times, times);
+        assert_eq!(r.finish().unwrap(), layer);
+        // Another size, a pixel past the picture, bytes left over.
+        assert!(LayerReader::new(10, 10).add(&chunks[0]).is_err());
+        let mut c = chunks[1].clone();
+        c.pixels.push(0x7f);
+        let mut r = LayerReader::new(1000, 1000);
+        r.add(&chunks[0]).unwrap();
+        assert!(r.add(&c).is_err());
+        let small = HairLayer::from_parts(4, 4, vec![15], vec![Sums::ZERO]).unwrap();
+        let c = layer_chunks(&small, &times).remove(0);
+        assert!(LayerReader::new(4, 4).add(&c).is_ok());
+        let mut wide = c.clone();
+        wide.pixels = vec![16];
+        assert!(LayerReader::new(4, 4).add(&wide).is_err());
+    }
+
+    #[test]
+    fn swept_columns_a_worker_reads_round_trip_into_the_same_transmittance() {
+        let light = Light::directional(Vec3::new(0.3, -1.0, 0.2)).unwrap();
+        let frame = LightFrame::centered(&light, Vec3::ZERO, 4.0, 12).unwrap();
+        let mut map = shadow::DensityMap::new(frame);
+        let mut hair = strands::Hair::new();
+        for s in 0..12 {
+            let x = -1.5 + 0.25 * s as f32;
+            hair.push_strand(&[Vec3::new(x, 1.5, -1.0), Vec3::new(x * 0.5, -1.5, 1.0)])
+                .unwrap();
+        }
+        map.deposit(&hair, 0..12, &shadow::Fiber::new(0.05, 0.6).unwrap());
+        let whole = shadow::Transmittance::compute(&map);
+        let cols = frame.columns() as u32;
+        let slabs = [
+            shadow::sweep(&map, 0..cols / 2),
+            shadow::sweep(&map, cols / 2..cols),
+        ];
+        let read = shadow::columns_read(&frame, hair.points(), true);
+        for keep in [None, Some(&read[..])] {
+            let mut r = ColumnsReader::new(1);
+            for c in draw_columns(0, &frame, &slabs, keep) {
+                r.add(&c).unwrap();
+            }
+            let t = r.finish().unwrap().remove(0);
+            for &p in hair.points() {
+                assert_eq!(
+                    t.optical_depth(p, true).to_bits(),
+                    whole.optical_depth(p, true).to_bits()
+                );
+            }
+        }
+        // A column twice, and a light's columns before its frame, are refused.
+        let mut chunks = draw_columns(0, &frame, &slabs, None);
+        chunks[0].column_steps[1] = 0;
+        let mut r = ColumnsReader::new(1);
+        assert!(chunks.iter().try_for_each(|c| r.add(c)).is_err());
+        let mut chunks = draw_columns(0, &frame, &slabs, None);
+        chunks[0].map = None;
+        assert!(ColumnsReader::new(1).add(&chunks[0]).is_err());
+    }
+}
