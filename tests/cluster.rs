@@ -76,6 +76,18 @@ fn s(p: &Path) -> &str {
 /// `frames` frames of `scene` by `render` into `local` (which must work)
 /// and by a coordinator of `workers` into `remote`: the coordinator's output.
 fn render_both(scene: &Path, workers: &str, frames: &str, local: &Path, remote: &Path) -> Output {
+    render_both_drawing(scene, workers, frames, local, remote, "workers")
+}
+
+/// [`render_both`] with the hair drawn where `draw` says.
+fn render_both_drawing(
+    scene: &Path,
+    workers: &str,
+    frames: &str,
+    local: &Path,
+    remote: &Path,
+    draw: &str,
+) -> Output {
     let o = run(&["render", s(scene), "--frames", frames, "-o", s(local)]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     run(&[
@@ -85,6 +97,8 @@ fn render_both(scene: &Path, workers: &str, frames: &str, local: &Path, remote: 
         workers,
         "--frames",
         frames,
+        "--draw",
+        draw,
         "-o",
         s(remote),
     ])
@@ -105,11 +119,16 @@ fn three_workers_render_the_same_bytes_as_one_process_and_stop_on_sigterm() {
         .collect::<Vec<_>>()
         .join(",");
 
-    // A still (frame 0) and a short animation.
-    for (frames, name) in [("1", "still_%d.png"), ("3", "anim_%d.png")] {
+    // A still (frame 0) and a short animation, drawn on the workers (the
+    // default) and on the coordinator (the paper's scheme).
+    for (frames, name, draw) in [
+        ("1", "still_%d.png", "workers"),
+        ("3", "anim_%d.png", "workers"),
+        ("3", "paper_%d.png", "coordinator"),
+    ] {
         let local = dir.join(format!("local_{name}"));
         let remote = dir.join(format!("remote_{name}"));
-        let o = render_both(&scene, &list, frames, &local, &remote);
+        let o = render_both_drawing(&scene, &list, frames, &local, &remote, draw);
         let e = String::from_utf8_lossy(&o.stderr);
         assert!(o.status.success(), "{e}");
         assert!(e.contains("3 workers, bytes on the wire: frame 0"), "{e}");
@@ -118,7 +137,7 @@ fn three_workers_render_the_same_bytes_as_one_process_and_stop_on_sigterm() {
             let b = std::fs::read(remote.to_str().unwrap().replace("%d", &i.to_string())).unwrap();
             assert!(
                 a == b,
-                "frame {i} of {frames} differs between one process and three workers"
+                "frame {i} of {frames} differs between one process and three workers ({draw} drawing)"
             );
         }
     }
