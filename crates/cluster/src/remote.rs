@@ -533,9 +533,9 @@ impl RemoteExecutor {
         let frame = *map.frame();
         let requests = self.deposit_requests(id, light as u32, &frame, hair, version);
         let posed = requests.first().is_some_and(|(_, c)| c[0].posed);
-        if self.draw == DrawAt::Workers && !posed {
+        if !posed && hair.strand_count() == 0 {
             return Err(ClusterError::Setup(format!(
-                "the workers hold hair version {:?}, not {version:?}",
+                "the workers hold hair version {:?}, not {version:?}, and no strands were given",
                 self.posed
             )));
         }

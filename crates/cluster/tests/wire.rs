@@ -346,6 +346,23 @@ fn three_workers_give_the_local_animation_byte_for_byte_drawing_anywhere() {
 }
 
 #[test]
+fn another_shadow_method_draws_on_the_coordinator_with_the_same_bytes() {
+    // The peer methods need all the hair in one place: the coordinator
+    // poses and draws it, the workers still simulate and fill the
+    // self-collisions' map.
+    let text = format!("{DANCE}\n[shadow]\nmethod = \"opacity-shadow-map\"\n");
+    let scene = Scene::from_toml_str(&text, std::path::Path::new("osm.toml")).unwrap();
+    let want = local_frames(&scene, 3);
+    let addrs: Vec<String> = (0..2).map(|_| start_worker().to_string()).collect();
+    let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::Workers, 20)).unwrap();
+    let mut seq = Sequence::new(&scene).unwrap();
+    seq.set_executor(Box::new(remote)).unwrap();
+    for (i, w) in want.iter().enumerate() {
+        assert!(seq.next_frame().unwrap().0 == w, "frame {i}");
+    }
+}
+
+#[test]
 fn rigid_hair_drawn_on_workers_is_the_local_animation() {
     let text = format!("{DANCE}\n[effects]\ndynamics = false\n");
     let scene = Scene::from_toml_str(&text, std::path::Path::new("rigid.toml")).unwrap();

@@ -12,7 +12,7 @@ use strands::Bounds;
 
 use super::{
     CELLS_PER_CHUNK, Malformed, Runs, affines_from_floats, bad, bodies_from_floats,
-    bodies_to_floats, frame_from_pb, frame_to_pb, unpack_runs,
+    bodies_to_floats, column_count, frame_from_pb, frame_to_pb, unpack_runs,
 };
 use crate::pb;
 
@@ -343,15 +343,7 @@ impl ColumnsReader {
         }
         let (frame, slab) = self.lights[l].as_mut().expect("set above");
         let n = frame.n_cells as usize;
-        let count = c.column_steps.len();
-        if c.lo.len() != count || c.hi.len() != count || c.front.len() != count {
-            return Err(bad(format!(
-                "{count} columns with {} lo, {} hi and {} front values",
-                c.lo.len(),
-                c.hi.len(),
-                c.front.len()
-            )));
-        }
+        let count = column_count(&c.column_steps, &c.lo, &c.hi, &c.front)?;
         let mut need = 0usize;
         let mut col = 0u64;
         let mut cols = Vec::with_capacity(count);

@@ -210,20 +210,32 @@ pub fn add_columns(map: &mut DensityMap, d: &Columns) {
     }
 }
 
+/// How many columns a chunk's parallel lists describe: as many steps as
+/// lo, hi and front values, or the chunk is malformed.
+pub(crate) fn column_count(
+    steps: &[u32],
+    lo: &[u32],
+    hi: &[u32],
+    front: &[f32],
+) -> Result<usize, Malformed> {
+    let count = steps.len();
+    if lo.len() != count || hi.len() != count || front.len() != count {
+        return Err(bad(format!(
+            "{count} columns with {} lo, {} hi and {} front values",
+            lo.len(),
+            hi.len(),
+            front.len()
+        )));
+    }
+    Ok(count)
+}
+
 /// Decodes the columns of one chunk and checks that they fit a map in
 /// `frame`: ascending indices in range, spans, fronts, and exactly the
 /// cells the spans hold.
 pub fn decode_columns(frame: &LightFrame, c: &pb::ColumnChunk) -> Result<Columns, Malformed> {
     let n = frame.n_cells as usize;
-    let count = c.column_steps.len();
-    if c.lo.len() != count || c.hi.len() != count || c.front.len() != count {
-        return Err(bad(format!(
-            "{count} columns with {} lo, {} hi and {} front values",
-            c.lo.len(),
-            c.hi.len(),
-            c.front.len()
-        )));
-    }
+    let count = column_count(&c.column_steps, &c.lo, &c.hi, &c.front)?;
     let mut out = Columns {
         columns: Vec::with_capacity(count),
         metas: Vec::with_capacity(count),
