@@ -356,8 +356,22 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
             r.wire.summary()
         );
     }
-    let labels: Vec<String> = rows.iter().map(|r| r.label.clone()).collect();
+    // Short labels that fit under a bar: "1 proc", and the worker count
+    // with W (workers draw) or C (the coordinator draws).
+    let labels: Vec<String> = rows
+        .iter()
+        .map(|r| match r.draw {
+            None => "1 proc".to_string(),
+            Some(cluster::DrawAt::Workers) => format!("{} W", r.workers),
+            Some(cluster::DrawAt::Coordinator) => format!("{} C", r.workers),
+        })
+        .collect();
     let values: Vec<f64> = rows.iter().map(|r| r.frame_ms).collect();
+    let short = a
+        .scene
+        .as_deref()
+        .and_then(|p| p.file_name())
+        .map_or("built-in".to_string(), |f| f.to_string_lossy().into_owned());
     let limits = match (nodes.cpu_limited(), nodes.bandwidth_limited()) {
         (true, true) => format!(
             ", {} cores/node, {} Mbit/s",
@@ -369,7 +383,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
         (false, false) => String::new(),
     };
     let img = crate::plot::bars(
-        &format!("median frame ms, {name}, {cores} cores{limits}"),
+        &format!("frame ms, {short}{limits}"),
         "ms",
         &labels,
         &values,
