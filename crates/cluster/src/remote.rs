@@ -63,7 +63,7 @@ pub struct Options {
 
 /// The hair the workers share, learnt from the frame's animator.
 #[derive(Debug)]
-struct Hair_ {
+struct SharedHair {
     /// Drawn strands of each group: the weights for sharing groups out.
     strands: Vec<u64>,
     /// Wisp boundaries of the groups, for simulated hair.
@@ -89,7 +89,7 @@ pub struct RemoteExecutor {
     source: SceneSource,
     /// Whether lookups filter (the workers' columns read depend on it).
     filter: bool,
-    hair: Option<Hair_>,
+    hair: Option<SharedHair>,
     /// Each live worker's groups, once assigned.
     shares: Option<Vec<Range<usize>>>,
     /// The hair version the workers posed last, that pose's plan and
@@ -178,7 +178,7 @@ impl RemoteExecutor {
         }
     }
 
-    fn hair(&self) -> Result<&Hair_, ClusterError> {
+    fn hair(&self) -> Result<&SharedHair, ClusterError> {
         self.hair
             .as_ref()
             .ok_or_else(|| ClusterError::Setup("the executor was not attached to the hair".into()))
@@ -775,7 +775,7 @@ impl Executor for RemoteExecutor {
             .map(|w| anim.wisp_state(w).cloned())
             .collect::<Option<Vec<_>>>()
             .ok_or_else(|| EngineError::Executor("a wisp without a state".into()))?;
-        self.hair = Some(Hair_ {
+        self.hair = Some(SharedHair {
             strands,
             wisps: groups.wisps.clone(),
             points_per_wisp: anim.points_per_wisp(),

@@ -12,7 +12,7 @@ use std::sync::{Arc, Mutex};
 use std::ops::Range;
 
 use engine::{FrameStats, Scene, SceneSource, Share, StepPlan};
-use shadow::{ColumnSlab, DensityMap, Fiber, LightFrame};
+use shadow::{ColumnSlab, DensityMap, Fiber, FillStats, LightFrame};
 use strands::Hair;
 use tokio_stream::Stream;
 use tonic::{Request, Response, Status, Streaming};
@@ -168,35 +168,23 @@ impl Worker for WorkerService {
             }
             let (version, filter) = (first.version, first.filter);
             with_share(&self.held, move |share| {
-                let mut map = WorkerService::map_in(&maps, frame);
-                let stats = share.deposit(version, &mut map, &fiber).map_err(refused)?;
-                let read = share
-                    .columns_read(version, &frame, filter)
-                    .map_err(refused)?;
-                let mut chunks = wire::column_chunks(&map, 0..frame.columns());
-                WorkerService::give_back(&maps, map);
-                if let Some(c) = chunks.last_mut() {
-                    c.samples = stats.samples;
-                    c.out_of_map = stats.out_of_map;
-                    c.columns_read = wire::columns_to_pb(&read);
-                }
-                Ok(chunks)
+                deposit_reply(&maps, frame, |map| {
+                    let stats = share.deposit(version, map, &fiber).map_err(refused)?;
+                    let read = share
+                        .columns_read(version, &frame, filter)
+                        .map_err(refused)?;
+                    Ok((stats, Some(read)))
+                })
             })
             .await?
         } else {
             tokio::task::spawn_blocking(move || {
-                let mut map = WorkerService::map_in(&maps, frame);
-                let stats = map.deposit(&hair, 0..hair.strand_count(), &fiber);
-                let mut chunks = wire::column_chunks(&map, 0..frame.columns());
-                WorkerService::give_back(&maps, map);
-                if let Some(c) = chunks.last_mut() {
-                    c.samples = stats.samples;
-                    c.out_of_map = stats.out_of_map;
-                }
-                chunks
+                deposit_reply(&maps, frame, |map| {
+                    Ok((map.deposit(&hair, 0..hair.strand_count(), &fiber), None))
+                })
             })
             .await
-            .map_err(|e| Status::internal(format!("deposit task failed: {e}")))?
+            .map_err(|e| Status::internal(format!("deposit task failed: {e}")))??
         };
         let mut chunks = chunks;
         if let Some(c) = chunks.first_mut() {
@@ -388,6 +376,28 @@ impl Worker for WorkerService {
         .await?;
         Ok(Response::new(stream_of(chunks)))
     }
+}
+
+/// A Deposit's reply: a pooled map in `frame`, filled by `fill`, as
+/// column chunks, the last one carrying the fill's counts and, for posed
+/// strands, the columns their lookups read.
+fn deposit_reply(
+    maps: &Mutex<Vec<DensityMap>>,
+    frame: LightFrame,
+    fill: impl FnOnce(&mut DensityMap) -> Result<(FillStats, Option<Vec<u64>>), Status>,
+) -> Result<Vec<pb::ColumnChunk>, Status> {
+    let mut map = WorkerService::map_in(maps, frame);
+    let (stats, read) = fill(&mut map)?;
+    let mut chunks = wire::column_chunks(&map, 0..frame.columns());
+    WorkerService::give_back(maps, map);
+    if let Some(c) = chunks.last_mut() {
+        c.samples = stats.samples;
+        c.out_of_map = stats.out_of_map;
+        if let Some(read) = read {
+            c.columns_read = wire::columns_to_pb(&read);
+        }
+    }
+    Ok(chunks)
 }
 
 /// The state of the share's wisps, as chunks.

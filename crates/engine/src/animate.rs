@@ -414,3 +414,20 @@ fn push_out_all(hair: &mut Hair, bodies: &[Body]) {
         .par_chunks_mut(4096)
         .for_each(|pts| pts.iter_mut().for_each(|p| sim::push_out(p, bodies)));
 }
+#[cfg(test)]
+mod tests {
+    use super::split_by;
+
+    #[test]
+    fn splits_cover_everything_in_order_and_balance_weight() {
+        for (len, parts) in [(0, 3), (1, 3), (10, 3), (100, 1), (7, 7)] {
+            let s = split_by(len, parts, |i| (i % 5) as u64 + 1);
+            assert_eq!(s.len(), parts);
+            assert_eq!(s[0].start, 0);
+            assert_eq!(s[parts - 1].end, len);
+            assert!(s.windows(2).all(|w| w[0].end == w[1].start));
+        }
+        let s = split_by(90, 3, |_| 1);
+        assert_eq!(s, vec![0..30, 30..60, 60..90]);
+    }
+}

@@ -232,11 +232,6 @@ impl Sequence {
         Ok(())
     }
 
-    /// The executor the stages run through.
-    pub fn executor(&self) -> &dyn Executor {
-        self.executor.as_ref()
-    }
-
     /// The drawn hair as last posed in this process (when the executor
     /// draws elsewhere, the hair as it stood before).
     pub fn hair(&self) -> &strands::Hair {

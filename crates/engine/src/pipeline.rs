@@ -130,11 +130,6 @@ impl ShadowPipeline {
         self.head.as_ref().map_or(Affine3A::IDENTITY, Head::pose)
     }
 
-    /// The lights' methods' settings: whether lookups are filtered.
-    pub fn method(&self, l: usize) -> &dyn ShadowMethod {
-        self.lights[l].method.as_ref()
-    }
-
     /// The density map of the first light, when the method fills one and
     /// has been built.
     pub fn density_map(&self) -> Option<&shadow::DensityMap> {
