@@ -718,7 +718,7 @@ impl RemoteExecutor {
             "draw",
             self.deadline,
             move |mut w, chunks| async move {
-                let s = w
+                let mut s = w
                     .client
                     .draw(tokio_stream::iter(chunks))
                     .await
@@ -726,7 +726,12 @@ impl RemoteExecutor {
                     .into_inner();
                 let mut reader = wire::LayerReader::new(width, height);
                 let mut bytes = 0u64;
-                for c in collect(&w.addr, "draw", s).await? {
+                // Each chunk is decoded as it comes, while the rest travel.
+                while let Some(c) = s
+                    .message()
+                    .await
+                    .map_err(|e| call_error(&w.addr, "draw", e))?
+                {
                     bytes += c.encoded_len() as u64;
                     reader.add(&c).map_err(|e| malformed(&w.addr, e))?;
                 }

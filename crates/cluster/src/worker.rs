@@ -369,12 +369,14 @@ impl Worker for WorkerService {
             reader.add(&c).map_err(invalid)?;
         }
         let maps = reader.finish().map_err(invalid)?;
-        let chunks = with_share(&self.held, move |share| {
-            let (layer, times) = share.draw(&job, &maps).map_err(refused)?;
-            Ok(wire::layer_chunks(&layer, &times))
+        let (layer, times) = with_share(&self.held, move |share| {
+            share.draw(&job, &maps).map_err(refused)
         })
         .await?;
-        Ok(Response::new(stream_of(chunks)))
+        // Each chunk is encoded as the reply gets to it: the first travels
+        // (and is decoded) while the next is encoded.
+        let chunks = wire::LayerChunks::new(layer, times).map(Ok);
+        Ok(Response::new(Box::pin(tokio_stream::iter(chunks))))
     }
 }
 

@@ -335,8 +335,8 @@ impl Sequence {
                 self.renderer.frame_on(bounds)?;
                 let job = self.renderer.draw_job(version, fx.self_shadow)?;
                 let start = Instant::now();
-                let drawn = self.executor.draw(&job)?;
-                let img = self.renderer.compose(&drawn.layers, fx.self_shadow)?;
+                let ex = self.executor.as_mut();
+                let (img, drawn) = self.renderer.compose(fx.self_shadow, || ex.draw(&job))?;
                 let ms = start.elapsed().as_secs_f64() * 1e3;
                 if fx.self_shadow {
                     stats.record(Stage::Filter, drawn.filter_ms);

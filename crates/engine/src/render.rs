@@ -5,11 +5,11 @@
 use std::time::Instant;
 
 use glam::{Affine3A, Vec3};
-use raster::{Camera, Canvas, HairLayer};
+use raster::{Camera, Canvas};
 use strands::{Bounds, Hair};
 
 use crate::part::draw_head;
-use crate::{DrawJob, EngineError, HairPart, Scene, ShadowPipeline};
+use crate::{DrawJob, DrawReport, EngineError, HairPart, Scene, ShadowPipeline};
 
 pub use crate::part::DEFAULT_HAIR_COLOR;
 
@@ -302,17 +302,31 @@ impl Renderer {
         Ok(canvas.resolve(background))
     }
 
-    /// The head drawn here and the hair of `layers` (drawn elsewhere, see
-    /// [`Self::draw_job`]) over it: the same bytes as [`Self::draw`] of all
-    /// that hair.
+    /// The head drawn here while `hair` draws the hair elsewhere (see
+    /// [`Self::draw_job`]), then the partial pictures it returns over the
+    /// head: the same bytes as [`Self::draw`] of all that hair. The two run
+    /// at once, so the head costs the frame nothing while remote workers
+    /// draw.
     pub fn compose(
         &mut self,
-        layers: &[HairLayer],
         shadows: bool,
-    ) -> Result<image::RgbImage, EngineError> {
+        hair: impl FnOnce() -> Result<DrawReport, EngineError> + Send,
+    ) -> Result<(image::RgbImage, DrawReport), EngineError> {
         let background = self.scene.render.background;
-        let (_, canvas) = self.canvas_with_head(shadows)?;
-        if let Some(l) = layers
+        // The hair's call waits on the network in a thread of its own (not
+        // one of rayon's, which the head and any in-process drawing need).
+        let (drawn, head) = std::thread::scope(|s| {
+            let drawn = s.spawn(hair);
+            let head = self.canvas_with_head(shadows).map(|_| ());
+            let drawn = drawn
+                .join()
+                .unwrap_or_else(|p| std::panic::resume_unwind(p));
+            (drawn, head)
+        });
+        let (drawn, ()) = (drawn?, head?);
+        let canvas = self.canvas.as_ref().expect("drawn above");
+        if let Some(l) = drawn
+            .layers
             .iter()
             .find(|l| l.width() != canvas.width() || l.height() != canvas.height())
         {
@@ -324,6 +338,7 @@ impl Renderer {
                 canvas.height()
             )));
         }
-        Ok(canvas.resolve_layers(background, layers))
+        let img = canvas.resolve_layers(background, &drawn.layers);
+        Ok((img, drawn))
     }
 }

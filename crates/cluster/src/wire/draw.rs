@@ -19,8 +19,9 @@ use crate::pb;
 /// The most lights one scene may have on the wire.
 pub const MAX_LIGHTS: usize = 64;
 
-/// Pixels per partial-picture chunk: about 1.2 MB.
-pub const PIXELS_PER_CHUNK: usize = 64 * 1024;
+/// Pixels per partial-picture chunk: about 300 KB, so that a picture
+/// streams (and is decoded) while the rest of it is encoded and sent.
+pub const PIXELS_PER_CHUNK: usize = 16 * 1024;
 
 /// A vector of `n` floats, each finite.
 fn floats<const N: usize>(what: &str, f: &[f32]) -> Result<[f32; N], Malformed> {
@@ -414,35 +415,72 @@ impl ColumnsReader {
 
 /// A partial picture as chunks; the last carries the worker's times.
 pub fn layer_chunks(layer: &HairLayer, times: &engine::DrawTimes) -> Vec<pb::LayerChunk> {
-    let mut out = Vec::new();
-    let (mut prev, n) = (0u32, layer.pixels().len());
-    for start in (0..n.max(1)).step_by(PIXELS_PER_CHUNK) {
-        let end = (start + PIXELS_PER_CHUNK).min(n);
+    LayerChunks::new(layer.clone(), *times).collect()
+}
+
+/// A partial picture's chunks, encoded one at a time as they are taken
+/// (a reply streams the first while the next is encoded); the last carries
+/// the worker's times.
+#[derive(Debug)]
+pub struct LayerChunks {
+    layer: HairLayer,
+    times: engine::DrawTimes,
+    /// The next pixel entry to encode, and the pixel before it.
+    start: usize,
+    prev: u32,
+    done: bool,
+}
+
+impl LayerChunks {
+    pub fn new(layer: HairLayer, times: engine::DrawTimes) -> LayerChunks {
+        LayerChunks {
+            layer,
+            times,
+            start: 0,
+            prev: 0,
+            done: false,
+        }
+    }
+}
+
+impl Iterator for LayerChunks {
+    type Item = pb::LayerChunk;
+
+    fn next(&mut self) -> Option<pb::LayerChunk> {
+        if self.done {
+            return None;
+        }
+        let (layer, n) = (&self.layer, self.layer.pixels().len());
+        let (start, end) = (self.start, (self.start + PIXELS_PER_CHUNK).min(n));
         let mut c = pb::LayerChunk {
             width: layer.width(),
             height: layer.height(),
             count: (end - start) as u32,
             ..Default::default()
         };
+        c.pixels.reserve(2 * (end - start));
+        c.sums.reserve(16 * (end - start));
         for (&p, s) in layer.pixels()[start..end]
             .iter()
             .zip(&layer.sums()[start..end])
         {
-            encode_varint(u64::from(p - prev), &mut c.pixels);
-            prev = p;
+            encode_varint(u64::from(p - self.prev), &mut c.pixels);
+            self.prev = p;
             for v in s.rgbw {
                 encode_varint(v as u64, &mut c.sums);
             }
             encode_varint(s.absorb, &mut c.sums);
         }
-        out.push(c);
+        self.start = end;
+        if end == n {
+            // An empty picture is one empty chunk.
+            self.done = true;
+            c.filter_ms = self.times.filter_ms;
+            c.shade_ms = self.times.shade_ms;
+            c.raster_ms = self.times.raster_ms;
+        }
+        Some(c)
     }
-    if let Some(last) = out.last_mut() {
-        last.filter_ms = times.filter_ms;
-        last.shade_ms = times.shade_ms;
-        last.raster_ms = times.raster_ms;
-    }
-    out
 }
 
 /// Receives a partial picture's chunks for a frame of `width` x `height`.
