@@ -22,6 +22,16 @@ pub struct WorkerArgs {
     /// probes that cannot present a certificate when TLS is on.
     #[arg(long, value_name = "ADDR")]
     health_listen: Option<SocketAddr>,
+    /// The most coordinators served at once: each Hello opens a session
+    /// (its own scene, hair and maps); more get RESOURCE_EXHAUSTED.
+    #[arg(long, default_value_t = 4, value_name = "N",
+          value_parser = clap::value_parser!(u32).range(1..=256))]
+    max_sessions: u32,
+    /// Seconds after which a session no call used ends (a coordinator
+    /// that died without ending it).
+    #[arg(long, default_value_t = 600, value_name = "SECS",
+          value_parser = clap::value_parser!(u64).range(1..=86_400))]
+    session_idle: u64,
 }
 
 /// Mutual TLS (all three files, or none: plain gRPC, for loopback and
@@ -74,9 +84,13 @@ impl ClientTlsArgs {
 
 /// Serves until SIGTERM or Ctrl-C.
 pub fn worker(args: WorkerArgs) -> anyhow::Result<()> {
+    let service = cluster::worker::WorkerService::new(cluster::worker::SessionLimits {
+        max_sessions: args.max_sessions as usize,
+        idle: std::time::Duration::from_secs(args.session_idle),
+    });
     let service = match args.exit_after_steps {
-        Some(n) => cluster::worker::WorkerService::exiting_after_steps(n),
-        None => cluster::worker::WorkerService::default(),
+        Some(n) => service.exiting_after_steps(n),
+        None => service,
     };
     let tls = args.tls.load()?;
     if tls.is_none() && !args.listen.ip().is_loopback() {
@@ -127,6 +141,11 @@ pub struct CoordinatorArgs {
     /// to the last received.
     #[arg(long, default_value_t = 30.0, value_name = "SECONDS")]
     deadline: f64,
+    /// Seconds to connect to a worker and hear its Hello; a worker that
+    /// does not answer in time is left out (with a warning) and the run
+    /// carries on over the others.
+    #[arg(long, default_value_t = 5.0, value_name = "SECONDS")]
+    connect_timeout: f64,
     /// Where the drawn hair is posed, filtered, shaded and rasterized:
     /// `workers` (each its own strands; the coordinator composites their
     /// partial pictures) or `coordinator` (the paper's scheme: workers
@@ -143,16 +162,21 @@ pub struct CoordinatorArgs {
 /// `render` with the density map filled and swept by the workers: the same
 /// bytes as one process.
 pub fn coordinator(args: CoordinatorArgs) -> anyhow::Result<()> {
-    if !(args.deadline.is_finite() && args.deadline > 0.0 && args.deadline <= 86_400.0) {
-        return Err(super::usage(format!(
-            "--deadline {}: must be in (0, 86400] seconds",
-            args.deadline
-        )));
+    for (flag, v) in [
+        ("--deadline", args.deadline),
+        ("--connect-timeout", args.connect_timeout),
+    ] {
+        if !(v.is_finite() && v > 0.0 && v <= 86_400.0) {
+            return Err(super::usage(format!(
+                "{flag} {v}: must be in (0, 86400] seconds"
+            )));
+        }
     }
     let remote = super::render::Remote {
         workers: args.workers,
         options: cluster::Options {
             deadline: Duration::from_secs_f64(args.deadline),
+            connect_timeout: Duration::from_secs_f64(args.connect_timeout),
             tls: args.tls.load()?,
             draw: args.draw.into(),
         },

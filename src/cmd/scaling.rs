@@ -226,6 +226,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
             let addrs: Vec<String> = procs.iter().map(|p| p.addr.clone()).collect();
             let options = cluster::Options {
                 deadline: Duration::from_secs(120),
+                connect_timeout: Duration::from_secs(10),
                 tls: None,
                 draw,
             };

@@ -110,10 +110,34 @@ pub struct Timing {
     pub workers_lost: u32,
 }
 
+/// Names a session in the metadata of every call (see
+/// [`crate::worker::SESSION_KEY`]).
+#[derive(Debug, Clone)]
+pub struct SessionHeader(tonic::metadata::AsciiMetadataValue);
+
+impl SessionHeader {
+    /// The header of session `id`, as a worker's Hello reply named it.
+    pub fn new(id: &str) -> Option<SessionHeader> {
+        id.parse().ok().map(SessionHeader)
+    }
+}
+
+impl tonic::service::Interceptor for SessionHeader {
+    fn call(&mut self, mut req: tonic::Request<()>) -> Result<tonic::Request<()>, tonic::Status> {
+        req.metadata_mut()
+            .insert(crate::worker::SESSION_KEY, self.0.clone());
+        Ok(req)
+    }
+}
+
+/// A worker client whose calls name its session.
+pub type SessionClient =
+    WorkerClient<tonic::service::interceptor::InterceptedService<Channel, SessionHeader>>;
+
 #[derive(Debug, Clone)]
 pub(crate) struct Remote {
     pub(crate) addr: String,
-    pub(crate) client: WorkerClient<Channel>,
+    pub(crate) client: SessionClient,
 }
 
 /// The endpoint of the worker at `addr`: connect and call timeouts of
@@ -154,7 +178,7 @@ pub(crate) async fn hello(
         .connect()
         .await
         .map_err(|e| err(root_cause(&e)))?;
-    let mut client = WorkerClient::new(channel)
+    let mut client = WorkerClient::new(channel.clone())
         .max_decoding_message_size(wire::MAX_MESSAGE_BYTES)
         .max_encoding_message_size(wire::MAX_MESSAGE_BYTES);
     let reply = client
@@ -166,6 +190,10 @@ pub(crate) async fn hello(
         .await
         .map_err(|s| match s.code() {
             tonic::Code::FailedPrecondition => ClusterError::Version {
+                addr: addr.to_string(),
+                msg: s.message().to_string(),
+            },
+            tonic::Code::ResourceExhausted => ClusterError::Version {
                 addr: addr.to_string(),
                 msg: s.message().to_string(),
             },
@@ -188,10 +216,19 @@ pub(crate) async fn hello(
             ),
         });
     }
+    let Some(header) = SessionHeader::new(&reply.session).filter(|_| !reply.session.is_empty())
+    else {
+        return Err(err(format!(
+            "the worker opened no usable session ({:?})",
+            reply.session
+        )));
+    };
     tracing::info!(addr, worker = reply.worker, "worker ready");
     Ok(Remote {
         addr: addr.to_string(),
-        client,
+        client: WorkerClient::with_interceptor(channel, header)
+            .max_decoding_message_size(wire::MAX_MESSAGE_BYTES)
+            .max_encoding_message_size(wire::MAX_MESSAGE_BYTES),
     })
 }
 

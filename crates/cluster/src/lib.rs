@@ -20,7 +20,7 @@ pub mod tls;
 pub mod wire;
 pub mod worker;
 
-pub use client::{Timing, Traffic};
+pub use client::{SessionClient, SessionHeader, Timing, Traffic};
 pub use remote::{DrawAt, Options, RemoteExecutor};
 pub use tls::Tls;
 

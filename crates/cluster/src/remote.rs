@@ -56,6 +56,9 @@ impl DrawAt {
 pub struct Options {
     /// Bounds every call, from its first byte sent to its last received.
     pub deadline: Duration,
+    /// Bounds connecting to a worker and its Hello: a worker that does
+    /// not answer in time is left out of the run.
+    pub connect_timeout: Duration,
     /// Mutual TLS on every connection, when given.
     pub tls: Option<Tls>,
     pub draw: DrawAt,
@@ -124,14 +127,58 @@ impl RemoteExecutor {
             .enable_all()
             .build()
             .map_err(|e| ClusterError::Setup(format!("cannot start the network runtime: {e}")))?;
+        distinct(addrs)?;
         let (fiber, deadline, tls) = (scene.fiber, options.deadline, options.tls.as_ref());
-        let workers = rt.block_on(async {
+        let connect = options.connect_timeout.min(deadline);
+        // All at once, each bounded by the connect timeout.
+        let answers = rt.block_on(async {
+            let calls = addrs.iter().map(|addr| async move {
+                match tokio::time::timeout(connect, hello(addr, &fiber, connect, tls)).await {
+                    Ok(r) => r,
+                    Err(_) => Err(ClusterError::Connect {
+                        addr: addr.clone(),
+                        msg: format!("no answer within {} s", connect.as_secs_f64()),
+                    }),
+                }
+            });
             let mut out = Vec::with_capacity(addrs.len());
-            for addr in addrs {
-                out.push(hello(addr, &fiber, deadline, tls).await?);
+            for c in calls {
+                out.push(c.await);
             }
-            Ok::<_, ClusterError>(out)
-        })?;
+            out
+        });
+        // A worker that cannot be reached or does not answer is left out,
+        // as one lost mid-run would be; one that refuses (another protocol
+        // version, no room for another session) stops the run: it is set
+        // up wrong.
+        let mut workers = Vec::with_capacity(addrs.len());
+        let mut missing = Vec::new();
+        for a in answers {
+            match a {
+                Ok(w) => workers.push(w),
+                Err(e @ ClusterError::Connect { .. }) => missing.push(e),
+                Err(e) => return Err(e),
+            }
+        }
+        if workers.is_empty() {
+            return Err(match missing.len() {
+                1 => missing.remove(0),
+                _ => ClusterError::Setup(format!(
+                    "no worker answered: {}",
+                    missing
+                        .iter()
+                        .map(|e| e.to_string())
+                        .collect::<Vec<_>>()
+                        .join("; ")
+                )),
+            });
+        }
+        for e in &missing {
+            tracing::warn!(error = %e, "worker left out of the run");
+        }
+        // A Hello opened a session on each; the rest of the frame's
+        // calls run with the full deadline.
+        let workers: Vec<Remote> = workers;
         Ok(RemoteExecutor {
             rt,
             workers,
@@ -761,6 +808,56 @@ impl RemoteExecutor {
             x.draw_compute_ms += slowest;
         });
         Ok(report)
+    }
+}
+
+/// Refuses a list naming one worker twice (the same address, or two that
+/// resolve to the same socket): it would be counted as two, and its
+/// sessions would share one process.
+fn distinct(addrs: &[String]) -> Result<(), ClusterError> {
+    use std::net::ToSocketAddrs;
+    let mut seen: Vec<(std::net::SocketAddr, &str)> = Vec::new();
+    for a in addrs {
+        if let Some(b) = seen.iter().map(|s| s.1).find(|b| *b == a) {
+            return Err(ClusterError::Setup(format!("worker {b} is given twice")));
+        }
+        // An address that does not resolve is reported when dialled.
+        let resolved: Vec<_> = a.to_socket_addrs().map(|r| r.collect()).unwrap_or_default();
+        for r in resolved {
+            if let Some((_, b)) = seen.iter().find(|s| s.0 == r) {
+                return Err(ClusterError::Setup(format!(
+                    "workers {b} and {a} are the same worker ({r})"
+                )));
+            }
+            seen.push((r, a));
+        }
+        if !seen.iter().any(|s| s.1 == a) {
+            seen.push((std::net::SocketAddr::from(([0, 0, 0, 0], 0)), a));
+        }
+    }
+    Ok(())
+}
+
+impl Drop for RemoteExecutor {
+    /// Ends this coordinator's session on every live worker (best effort:
+    /// a worker that does not answer ends it when it has been idle long
+    /// enough).
+    fn drop(&mut self) {
+        let workers = std::mem::take(&mut self.workers);
+        if workers.is_empty() || tokio::runtime::Handle::try_current().is_ok() {
+            return;
+        }
+        self.rt.block_on(async move {
+            let ends = workers.into_iter().map(|mut w| {
+                tokio::spawn(async move {
+                    let end = w.client.end(pb::EndRequest {});
+                    let _ = tokio::time::timeout(Duration::from_secs(2), end).await;
+                })
+            });
+            for e in ends.collect::<Vec<_>>() {
+                let _ = e.await;
+            }
+        });
     }
 }
 

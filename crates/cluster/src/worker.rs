@@ -5,9 +5,11 @@
 //! gRPC service, with grpc.health.v1 health and server reflection. The
 //! stages are the engine's own ([`engine::Share`]).
 
+use std::collections::HashMap;
 use std::net::SocketAddr;
 use std::pin::Pin;
 use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 
 use std::ops::Range;
 
@@ -22,18 +24,48 @@ use crate::{ClusterError, Tls, pb, wire};
 
 type Chunks<T> = Pin<Box<dyn Stream<Item = Result<T, Status>> + Send>>;
 
-/// The worker's state: the fiber of the coordinator it serves, its share
-/// of the scene's hair, and density maps kept between calls (their memory,
-/// not their content).
+/// The gRPC metadata key that names a call's session.
+pub const SESSION_KEY: &str = "wisplight-session";
+
+/// How many sessions a worker holds at once, and how long an unused one
+/// lives.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SessionLimits {
+    pub max_sessions: usize,
+    pub idle: Duration,
+}
+
+impl Default for SessionLimits {
+    /// Four sessions; ten minutes idle.
+    fn default() -> SessionLimits {
+        SessionLimits {
+            max_sessions: 4,
+            idle: Duration::from_secs(600),
+        }
+    }
+}
+
+/// The worker: its sessions, one per coordinator it serves, each with its
+/// own state, none seeing another's.
 #[derive(Debug, Default)]
 pub struct WorkerService {
-    fiber: Mutex<Option<Fiber>>,
-    maps: Arc<Mutex<Vec<DensityMap>>>,
-    held: Arc<Mutex<Option<Held>>>,
+    sessions: Mutex<HashMap<String, Arc<Session>>>,
+    limits: SessionLimits,
     /// Fault injection for tests: the process exits (as if killed) when
     /// this many Step calls have arrived.
     exit_after_steps: Option<u64>,
     steps: std::sync::atomic::AtomicU64,
+}
+
+/// What one coordinator's calls share: the fiber it said Hello with, its
+/// share of the scene's hair, and density maps kept between calls (their
+/// memory, not their content).
+#[derive(Debug)]
+struct Session {
+    fiber: Fiber,
+    maps: Arc<Mutex<Vec<DensityMap>>>,
+    held: Arc<Mutex<Option<Held>>>,
+    last_used: Mutex<Instant>,
 }
 
 /// A share of a scene's hair and the scene it came from (a new Assign of
@@ -58,25 +90,72 @@ fn stream_of<T: Send + 'static>(items: Vec<T>) -> Chunks<T> {
     Box::pin(tokio_stream::iter(items.into_iter().map(Ok)))
 }
 
+/// A new session id: 128 random bits, in hex (unguessable: only the
+/// coordinator that opened a session can name it).
+fn session_id() -> Result<String, Status> {
+    let mut b = [0u8; 16];
+    getrandom::fill(&mut b)
+        .map_err(|e| Status::internal(format!("no randomness for a session id: {e}")))?;
+    Ok(b.iter().map(|x| format!("{x:02x}")).collect())
+}
+
 fn poisoned<T>(_: T) -> Status {
     Status::internal("worker state poisoned")
 }
 
 impl WorkerService {
-    /// A worker that exits its process, as if killed, when the `n`-th Step
-    /// call arrives (fault-injection tests of the coordinator).
-    pub fn exiting_after_steps(n: u64) -> WorkerService {
+    /// A worker holding at most `limits` sessions.
+    pub fn new(limits: SessionLimits) -> WorkerService {
         WorkerService {
-            exit_after_steps: Some(n),
+            limits,
             ..WorkerService::default()
         }
     }
 
-    fn fiber(&self) -> Result<Fiber, Status> {
-        self.fiber
-            .lock()
-            .map_err(poisoned)?
-            .ok_or_else(|| Status::failed_precondition("call Hello first (protocol version check)"))
+    /// A worker that exits its process, as if killed, when the `n`-th Step
+    /// call arrives (fault-injection tests of the coordinator).
+    pub fn exiting_after_steps(mut self, n: u64) -> WorkerService {
+        self.exit_after_steps = Some(n);
+        self
+    }
+
+    /// The session a call names in its metadata, marked used now.
+    fn session(&self, meta: &tonic::metadata::MetadataMap) -> Result<Arc<Session>, Status> {
+        let Some(id) = meta.get(SESSION_KEY) else {
+            return Err(Status::failed_precondition(
+                "the call names no session: call Hello first and send its session id",
+            ));
+        };
+        let id = id.to_str().unwrap_or_default();
+        let sessions = self.sessions.lock().map_err(poisoned)?;
+        let s = sessions.get(id).cloned().ok_or_else(|| {
+            Status::failed_precondition(format!(
+                "session {:.8}... is not open on this worker (ended, idle too long, or never opened)",
+                id
+            ))
+        })?;
+        *s.last_used.lock().map_err(poisoned)? = Instant::now();
+        Ok(s)
+    }
+
+    /// Ends the sessions unused for longer than the idle limit; how many.
+    pub fn end_idle(&self) -> usize {
+        let Ok(mut sessions) = self.sessions.lock() else {
+            return 0;
+        };
+        let idle = self.limits.idle;
+        let before = sessions.len();
+        sessions.retain(|_, s| {
+            s.last_used
+                .lock()
+                .map(|t| t.elapsed() < idle)
+                .unwrap_or(false)
+        });
+        let ended = before - sessions.len();
+        if ended > 0 {
+            tracing::info!(ended, left = sessions.len(), "idle sessions ended");
+        }
+        ended
     }
 
     /// A map in `frame`, empty, from the pool when one is free.
@@ -133,11 +212,48 @@ impl Worker for WorkerService {
         }
         let fiber = Fiber::new(r.fiber_width, r.fiber_opacity)
             .map_err(|e| Status::invalid_argument(e.to_string()))?;
-        *self.fiber.lock().map_err(poisoned)? = Some(fiber);
+        self.end_idle();
+        let id = session_id()?;
+        {
+            let mut sessions = self.sessions.lock().map_err(poisoned)?;
+            if sessions.len() >= self.limits.max_sessions {
+                return Err(Status::resource_exhausted(format!(
+                    "this worker already holds {} sessions, its limit (--max-sessions); \
+                     one ends when its coordinator finishes or after {} s unused",
+                    sessions.len(),
+                    self.limits.idle.as_secs()
+                )));
+            }
+            sessions.insert(
+                id.clone(),
+                Arc::new(Session {
+                    fiber,
+                    maps: Arc::default(),
+                    held: Arc::default(),
+                    last_used: Mutex::new(Instant::now()),
+                }),
+            );
+            tracing::info!(session = %&id[..8], sessions = sessions.len(), "session opened");
+        }
         Ok(Response::new(pb::HelloReply {
             protocol_version: wire::PROTOCOL_VERSION,
             worker: format!("wisplight-worker {}", env!("CARGO_PKG_VERSION")),
+            session: id,
         }))
+    }
+
+    async fn end(&self, req: Request<pb::EndRequest>) -> Result<Response<pb::EndReply>, Status> {
+        self.session(req.metadata())?;
+        let id = req
+            .metadata()
+            .get(SESSION_KEY)
+            .and_then(|v| v.to_str().ok())
+            .unwrap_or_default()
+            .to_string();
+        let mut sessions = self.sessions.lock().map_err(poisoned)?;
+        sessions.remove(&id);
+        tracing::info!(session = %&id[..id.len().min(8)], sessions = sessions.len(), "session ended");
+        Ok(Response::new(pb::EndReply {}))
     }
 
     type DepositStream = Chunks<pb::ColumnChunk>;
@@ -146,7 +262,8 @@ impl Worker for WorkerService {
         &self,
         req: Request<Streaming<pb::DepositChunk>>,
     ) -> Result<Response<Self::DepositStream>, Status> {
-        let fiber = self.fiber()?;
+        let session = self.session(req.metadata())?;
+        let fiber = session.fiber;
         let mut stream = req.into_inner();
         let first = stream
             .message()
@@ -159,7 +276,7 @@ impl Worker for WorkerService {
         while let Some(c) = stream.message().await? {
             wire::add_strands(&mut hair, &c).map_err(invalid)?;
         }
-        let maps = self.maps.clone();
+        let maps = session.maps.clone();
         let chunks = if first.posed {
             if hair.strand_count() > 0 {
                 return Err(Status::invalid_argument(
@@ -167,7 +284,7 @@ impl Worker for WorkerService {
                 ));
             }
             let (version, filter) = (first.version, first.filter);
-            with_share(&self.held, move |share| {
+            with_share(&session.held, move |share| {
                 deposit_reply(&maps, frame, |map| {
                     let stats = share.deposit(version, map, &fiber).map_err(refused)?;
                     let read = share
@@ -199,7 +316,7 @@ impl Worker for WorkerService {
         &self,
         req: Request<Streaming<pb::AssignChunk>>,
     ) -> Result<Response<pb::AssignReply>, Status> {
-        self.fiber()?;
+        let session = self.session(req.metadata())?;
         let mut stream = req.into_inner();
         let first = stream
             .message()
@@ -233,7 +350,7 @@ impl Worker for WorkerService {
         for (path, data) in files {
             source.files.insert(path.into(), data.into());
         }
-        let held = self.held.clone();
+        let held = session.held.clone();
         let reply = tokio::task::spawn_blocking(move || {
             let mut slot = held.lock().map_err(poisoned)?;
             let h = build_share(slot.take(), source, groups, &states)?;
@@ -260,14 +377,14 @@ impl Worker for WorkerService {
         &self,
         req: Request<pb::StepRequest>,
     ) -> Result<Response<Self::StepStream>, Status> {
-        self.fiber()?;
+        let session = self.session(req.metadata())?;
         let n = 1 + self.steps.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
         if self.exit_after_steps.is_some_and(|k| n >= k) {
             tracing::error!(step = n, "fault injection: exiting");
             std::process::exit(3);
         }
         let r = req.into_inner();
-        let chunks = with_share(&self.held, move |share| {
+        let chunks = with_share(&session.held, move |share| {
             let start = std::time::Instant::now();
             let (plan, accel) = step_plan(&r, share).map_err(invalid)?;
             let mut stats = FrameStats::new(r.frame_id, 0.0);
@@ -291,9 +408,9 @@ impl Worker for WorkerService {
     }
 
     async fn pose(&self, req: Request<pb::PosePlan>) -> Result<Response<pb::PoseReport>, Status> {
-        self.fiber()?;
+        let session = self.session(req.metadata())?;
         let plan = wire::pose_plan_from_pb(&req.into_inner()).map_err(invalid)?;
-        let report = with_share(&self.held, move |share| Ok(share.pose(&plan))).await?;
+        let report = with_share(&session.held, move |share| Ok(share.pose(&plan))).await?;
         Ok(Response::new(wire::report_to_pb(&report)))
     }
 
@@ -303,7 +420,7 @@ impl Worker for WorkerService {
         &self,
         req: Request<Streaming<pb::ColumnChunk>>,
     ) -> Result<Response<Self::SweepStream>, Status> {
-        self.fiber()?;
+        let session = self.session(req.metadata())?;
         let mut stream = req.into_inner();
         let first = stream
             .message()
@@ -317,7 +434,7 @@ impl Worker for WorkerService {
                 frame.columns()
             )));
         }
-        let maps = self.maps.clone();
+        let maps = session.maps.clone();
         // On an error the map is dropped (the pool makes another).
         let mut map = WorkerService::map_in(&maps, frame);
         wire::merge_columns(&mut map, &first).map_err(invalid)?;
@@ -346,7 +463,7 @@ impl Worker for WorkerService {
         &self,
         req: Request<Streaming<pb::DrawChunk>>,
     ) -> Result<Response<Self::DrawStream>, Status> {
-        self.fiber()?;
+        let session = self.session(req.metadata())?;
         let mut stream = req.into_inner();
         let first = stream
             .message()
@@ -369,7 +486,7 @@ impl Worker for WorkerService {
             reader.add(&c).map_err(invalid)?;
         }
         let maps = reader.finish().map_err(invalid)?;
-        let (layer, times) = with_share(&self.held, move |share| {
+        let (layer, times) = with_share(&session.held, move |share| {
             share.draw(&job, &maps).map_err(refused)
         })
         .await?;
@@ -546,7 +663,20 @@ pub async fn serve(
         .register_encoded_file_descriptor_set(tonic_health::pb::FILE_DESCRIPTOR_SET)
         .build_v1alpha()
         .map_err(|e| ClusterError::Setup(e.to_string()))?;
-    let worker = WorkerServer::new(service)
+    // Idle sessions end even when no Hello comes to notice them.
+    let service = Arc::new(service);
+    let sweeper = {
+        let service = service.clone();
+        let every =
+            (service.limits.idle / 4).clamp(Duration::from_millis(50), Duration::from_secs(30));
+        tokio::spawn(async move {
+            loop {
+                tokio::time::sleep(every).await;
+                service.end_idle();
+            }
+        })
+    };
+    let worker = WorkerServer::from_arc(service)
         .max_decoding_message_size(wire::MAX_MESSAGE_BYTES)
         .max_encoding_message_size(wire::MAX_MESSAGE_BYTES);
     let mut server = tonic::transport::Server::builder();
@@ -583,6 +713,7 @@ pub async fn serve(
         .serve_with_incoming_shutdown(incoming, shutdown)
         .await
         .map_err(|e| ClusterError::Serve(e.to_string()));
+    sweeper.abort();
     let _ = stop.send(true);
     if let Some(h) = health_server {
         match h.await {

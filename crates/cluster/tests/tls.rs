@@ -46,6 +46,7 @@ fn fiber() -> Fiber {
 fn options(tls: Option<&Tls>, secs: u64) -> cluster::Options {
     cluster::Options {
         deadline: Duration::from_secs(secs),
+        connect_timeout: Duration::from_secs(5),
         tls: tls.cloned(),
         // The strands are sent for any hair.
         draw: cluster::DrawAt::Coordinator,

@@ -26,19 +26,25 @@ fn start_stoppable_worker() -> (SocketAddr, tokio::sync::oneshot::Sender<()>) {
     common::start_worker_with(cluster::worker::Listen::default())
 }
 
-/// A client of the worker at `addr` that has said Hello.
-async fn greeted_client(addr: SocketAddr) -> WorkerClient<tonic::transport::Channel> {
-    let mut c = WorkerClient::connect(format!("http://{addr}"))
+/// A client of the worker at `addr` that has said Hello, naming the
+/// session it opened in every call.
+async fn greeted_client(addr: SocketAddr) -> cluster::SessionClient {
+    let channel = tonic::transport::Endpoint::from_shared(format!("http://{addr}"))
+        .unwrap()
+        .connect()
         .await
         .unwrap();
-    c.hello(pb::HelloRequest {
-        protocol_version: wire::PROTOCOL_VERSION,
-        fiber_width: 0.1,
-        fiber_opacity: 0.5,
-    })
-    .await
-    .unwrap();
-    c
+    let id = WorkerClient::new(channel.clone())
+        .hello(pb::HelloRequest {
+            protocol_version: wire::PROTOCOL_VERSION,
+            fiber_width: 0.1,
+            fiber_opacity: 0.5,
+        })
+        .await
+        .unwrap()
+        .into_inner()
+        .session;
+    WorkerClient::with_interceptor(channel, cluster::SessionHeader::new(&id).unwrap())
 }
 
 /// A small simulated scene: the smooth style, thinned, on a dancing head.
@@ -71,6 +77,7 @@ fn local_frames(scene: &Scene, frames: usize) -> Vec<image::RgbImage> {
 fn options(draw: DrawAt, secs: u64) -> Options {
     Options {
         deadline: Duration::from_secs(secs),
+        connect_timeout: Duration::from_secs(5),
         tls: None,
         draw,
     }
@@ -133,6 +140,7 @@ fn a_worker_refuses_another_protocol_version_and_calls_before_hello() {
             .unwrap_err();
         assert_eq!(e.code(), tonic::Code::FailedPrecondition);
         assert!(e.message().contains("Hello"), "{}", e.message());
+        assert!(e.message().contains("session"), "{}", e.message());
         let e = c
             .hello(pb::HelloRequest {
                 protocol_version: wire::PROTOCOL_VERSION + 1,
@@ -564,4 +572,66 @@ fn malformed_assign_and_step_calls_get_an_error_and_the_worker_lives_on() {
         }
         assert!(samples > 0);
     });
+}
+
+#[test]
+fn workers_silent_or_unreachable_at_startup_are_left_out_and_the_run_carries_on() {
+    let scene = Scene::from_toml_str(DANCE, std::path::Path::new("dance.toml")).unwrap();
+    let want = local_frames(&scene, 3);
+    // Accepts connections and never answers.
+    let silent = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let silent_addr = silent.local_addr().unwrap();
+    std::thread::spawn(move || {
+        let mut held = Vec::new();
+        for c in silent.incoming().flatten() {
+            held.push(c);
+        }
+    });
+    // Nothing listens here.
+    let unreachable = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap();
+    let addrs = vec![
+        start_worker().to_string(),
+        silent_addr.to_string(),
+        unreachable.to_string(),
+        start_worker().to_string(),
+    ];
+    let mut o = options(DrawAt::Workers, 20);
+    o.connect_timeout = Duration::from_secs(1);
+    let t = std::time::Instant::now();
+    let remote = RemoteExecutor::connect(&addrs, &scene, &o).unwrap();
+    assert_eq!(remote.worker_count(), 2);
+    assert!(t.elapsed() < Duration::from_secs(10), "{:?}", t.elapsed());
+    let mut seq = Sequence::new(&scene).unwrap();
+    seq.set_executor(Box::new(remote)).unwrap();
+    for (i, w) in want.iter().enumerate() {
+        assert!(seq.next_frame().unwrap().0 == w, "frame {i}");
+    }
+    // None answering: the run fails, naming them.
+    let none = [silent_addr.to_string(), unreachable.to_string()];
+    let e = RemoteExecutor::connect(&none, &scene, &o)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains(&silent_addr.to_string()) && e.contains(&unreachable.to_string()),
+        "{e}"
+    );
+}
+
+#[test]
+fn one_worker_given_twice_is_refused() {
+    let scene = Scene::default();
+    let a = start_worker();
+    let o = options(DrawAt::Workers, 5);
+    for twice in [
+        vec![a.to_string(), a.to_string()],
+        vec![a.to_string(), format!("localhost:{}", a.port())],
+    ] {
+        let e = RemoteExecutor::connect(&twice, &scene, &o)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("twice") || e.contains("same worker"), "{e}");
+    }
 }

@@ -10,6 +10,15 @@ use cluster::worker::Listen;
 /// flight finish, new ones find no server). A dropped switch never stops
 /// the worker.
 pub fn start_worker_with(listen: Listen) -> (SocketAddr, tokio::sync::oneshot::Sender<()>) {
+    start_service(cluster::worker::WorkerService::default(), listen)
+}
+
+/// [`start_worker_with`] for `service`.
+#[allow(dead_code)]
+pub fn start_service(
+    service: cluster::worker::WorkerService,
+    listen: Listen,
+) -> (SocketAddr, tokio::sync::oneshot::Sender<()>) {
     let (tx, rx) = std::sync::mpsc::channel();
     let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
     std::thread::spawn(move || {
@@ -19,7 +28,7 @@ pub fn start_worker_with(listen: Listen) -> (SocketAddr, tokio::sync::oneshot::S
             .build()
             .unwrap();
         rt.block_on(cluster::worker::serve(
-            cluster::worker::WorkerService::default(),
+            service,
             "127.0.0.1:0".parse().unwrap(),
             &listen,
             move |a| tx.send(a).unwrap(),

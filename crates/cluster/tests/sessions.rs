@@ -1,0 +1,265 @@
+//! Sessions: several coordinators share workers and each gets exactly its
+//! own pictures; a stray client changes nothing; calls that name no open
+//! session are refused; a worker holds a bounded number of sessions and
+//! ends idle ones.
+
+mod common;
+
+use std::net::SocketAddr;
+use std::time::Duration;
+
+use cluster::pb::worker_client::WorkerClient;
+use cluster::worker::{Listen, SessionLimits, WorkerService};
+use cluster::{DrawAt, Options, RemoteExecutor, pb, wire};
+use engine::{Scene, Sequence};
+
+const DANCE: &str = r#"
+[hair]
+style = "smooth"
+strands_per_wisp = 4
+
+[render]
+width = 160
+height = 90
+
+[animation]
+motion = "dance"
+fps = 30
+
+[dynamics]
+settle = 0.1
+"#;
+
+/// Another scene on the same workers: other hair, another fiber.
+const CURLY: &str = r#"
+[hair]
+style = "curly"
+strands_per_wisp = 3
+
+[fiber]
+width = 0.2
+opacity = 0.6
+
+[render]
+width = 120
+height = 80
+
+[shadow]
+cells = 48
+
+[animation]
+motion = "dance"
+
+[dynamics]
+settle = 0.1
+"#;
+
+fn scene(text: &str) -> Scene {
+    Scene::from_toml_str(text, std::path::Path::new("s.toml")).unwrap()
+}
+
+fn local_frames(scene: &Scene, frames: usize) -> Vec<image::RgbImage> {
+    let mut seq = Sequence::new(scene).unwrap();
+    (0..frames)
+        .map(|_| seq.next_frame().unwrap().0.clone())
+        .collect()
+}
+
+fn on_workers(scene: &Scene, addrs: &[String]) -> Sequence {
+    let options = Options {
+        deadline: Duration::from_secs(20),
+        connect_timeout: Duration::from_secs(5),
+        tls: None,
+        draw: DrawAt::Workers,
+    };
+    let remote = RemoteExecutor::connect(addrs, scene, &options).unwrap();
+    let mut seq = Sequence::new(scene).unwrap();
+    seq.set_executor(Box::new(remote)).unwrap();
+    seq
+}
+
+fn hello(fiber_width: f32) -> pb::HelloRequest {
+    pb::HelloRequest {
+        protocol_version: wire::PROTOCOL_VERSION,
+        fiber_width,
+        fiber_opacity: 0.5,
+    }
+}
+
+async fn client(addr: SocketAddr) -> WorkerClient<tonic::transport::Channel> {
+    WorkerClient::connect(format!("http://{addr}"))
+        .await
+        .unwrap()
+}
+
+#[test]
+fn two_coordinators_on_the_same_workers_each_get_their_own_pictures() {
+    let (a, b) = (scene(DANCE), scene(CURLY));
+    let (want_a, want_b) = (local_frames(&a, 4), local_frames(&b, 4));
+    assert!(
+        want_a[3] != want_a[1] && want_b[3] != want_b[1],
+        "the hair moves"
+    );
+    let addrs: Vec<String> = (0..3)
+        .map(|_| common::start_worker_with(Listen::default()).0.to_string())
+        .collect();
+    let mut seq_a = on_workers(&a, &addrs);
+    let mut seq_b = on_workers(&b, &addrs[1..]);
+    // Frames interleaved, call after call on the shared workers.
+    for f in 0..4 {
+        assert!(seq_a.next_frame().unwrap().0 == &want_a[f], "A's frame {f}");
+        assert!(seq_b.next_frame().unwrap().0 == &want_b[f], "B's frame {f}");
+    }
+}
+
+#[test]
+fn a_stray_hello_mid_render_changes_nothing() {
+    let a = scene(DANCE);
+    let want = local_frames(&a, 4);
+    let (addr, _stop) = common::start_worker_with(Listen::default());
+    let mut seq = on_workers(&a, &[addr.to_string()]);
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    for (f, w) in want.iter().enumerate() {
+        if f == 1 {
+            // Another client, another fiber: its own session.
+            let r = rt
+                .block_on(async { client(addr).await.hello(hello(3.0)).await })
+                .unwrap();
+            assert_eq!(r.into_inner().session.len(), 32);
+        }
+        assert!(seq.next_frame().unwrap().0 == w, "frame {f}");
+    }
+}
+
+#[test]
+fn calls_naming_no_open_session_are_refused_and_change_nothing() {
+    let (addr, _stop) = common::start_worker_with(Listen::default());
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let channel = tonic::transport::Endpoint::from_shared(format!("http://{addr}"))
+            .unwrap()
+            .connect()
+            .await
+            .unwrap();
+        let id = WorkerClient::new(channel.clone())
+            .hello(hello(0.1))
+            .await
+            .unwrap()
+            .into_inner()
+            .session;
+        let named = |id: &str| {
+            WorkerClient::with_interceptor(
+                channel.clone(),
+                cluster::SessionHeader::new(id).unwrap(),
+            )
+        };
+        // An open session is served (a Step before Assign: refused for
+        // that reason, not for the session).
+        let e = named(&id)
+            .step(pb::StepRequest::default())
+            .await
+            .unwrap_err();
+        assert!(e.message().contains("Assign"), "{}", e.message());
+        // No session, a made-up one, a guessed prefix.
+        let e = client(addr)
+            .await
+            .step(pb::StepRequest::default())
+            .await
+            .unwrap_err();
+        assert_eq!(e.code(), tonic::Code::FailedPrecondition);
+        assert!(e.message().contains("names no session"), "{}", e.message());
+        for other in ["0123456789abcdef0123456789abcdef", &id[..16]] {
+            let e = named(other)
+                .step(pb::StepRequest::default())
+                .await
+                .unwrap_err();
+            assert_eq!(e.code(), tonic::Code::FailedPrecondition);
+            assert!(e.message().contains("not open"), "{}", e.message());
+        }
+        // Ended: refused from then on, the End itself too.
+        named(&id).end(pb::EndRequest {}).await.unwrap();
+        for _ in 0..2 {
+            let e = named(&id).end(pb::EndRequest {}).await.unwrap_err();
+            assert_eq!(e.code(), tonic::Code::FailedPrecondition);
+        }
+        let e = named(&id)
+            .step(pb::StepRequest::default())
+            .await
+            .unwrap_err();
+        assert!(e.message().contains("not open"), "{}", e.message());
+    });
+}
+
+#[test]
+fn a_worker_holds_at_most_its_sessions_and_ends_idle_ones() {
+    let limits = SessionLimits {
+        max_sessions: 2,
+        idle: Duration::from_millis(400),
+    };
+    let (addr, _stop) = common::start_service(WorkerService::new(limits), Listen::default());
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let mut c = client(addr).await;
+        let first = c.hello(hello(0.1)).await.unwrap().into_inner().session;
+        let second = c.hello(hello(0.1)).await.unwrap().into_inner().session;
+        assert_ne!(first, second);
+        // A fiber that is not physical opens nothing.
+        for width in [-1.0, f32::NAN, f32::INFINITY] {
+            let e = c.hello(hello(width)).await.unwrap_err();
+            assert_eq!(e.code(), tonic::Code::InvalidArgument, "{width}");
+        }
+        let e = c.hello(hello(0.1)).await.unwrap_err();
+        assert_eq!(e.code(), tonic::Code::ResourceExhausted);
+        assert!(e.message().contains("--max-sessions"), "{}", e.message());
+        // A coordinator refused this way says which limit.
+        let refused = tokio::task::spawn_blocking(move || {
+            RemoteExecutor::connect(
+                &[addr.to_string()],
+                &scene(DANCE),
+                &Options {
+                    deadline: Duration::from_secs(5),
+                    connect_timeout: Duration::from_secs(5),
+                    tls: None,
+                    draw: DrawAt::Workers,
+                },
+            )
+            .unwrap_err()
+            .to_string()
+        })
+        .await
+        .unwrap();
+        assert!(refused.contains("--max-sessions"), "{refused}");
+        // Unused, both end; new ones open.
+        tokio::time::sleep(Duration::from_millis(900)).await;
+        let named = WorkerClient::with_interceptor(
+            tonic::transport::Endpoint::from_shared(format!("http://{addr}"))
+                .unwrap()
+                .connect()
+                .await
+                .unwrap(),
+            cluster::SessionHeader::new(&first).unwrap(),
+        )
+        .step(pb::StepRequest::default())
+        .await
+        .unwrap_err();
+        assert!(named.message().contains("not open"), "{}", named.message());
+        c.hello(hello(0.1)).await.unwrap();
+        c.hello(hello(0.1)).await.unwrap();
+    });
+}
+
+#[test]
+fn a_coordinator_ends_its_sessions_when_it_is_done() {
+    let limits = SessionLimits {
+        max_sessions: 1,
+        idle: Duration::from_secs(600),
+    };
+    let (addr, _stop) = common::start_service(WorkerService::new(limits), Listen::default());
+    let a = scene(DANCE);
+    for _ in 0..3 {
+        // Each run's session is ended when its executor goes: the next
+        // coordinator finds room on a worker that holds one session.
+        let mut seq = on_workers(&a, &[addr.to_string()]);
+        seq.next_frame().unwrap();
+    }
+}
