@@ -8,6 +8,7 @@
 use std::collections::HashMap;
 use std::net::SocketAddr;
 use std::pin::Pin;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -97,6 +98,16 @@ fn session_id() -> Result<String, Status> {
     getrandom::fill(&mut b)
         .map_err(|e| Status::internal(format!("no randomness for a session id: {e}")))?;
     Ok(b.iter().map(|x| format!("{x:02x}")).collect())
+}
+
+/// Sets its flag when dropped: a call's work, running off the async
+/// threads, learns that the call is gone.
+struct StopOnDrop(Arc<AtomicBool>);
+
+impl Drop for StopOnDrop {
+    fn drop(&mut self) {
+        self.0.store(true, Ordering::Relaxed);
+    }
 }
 
 fn poisoned<T>(_: T) -> Status {
@@ -378,17 +389,28 @@ impl Worker for WorkerService {
         req: Request<pb::StepRequest>,
     ) -> Result<Response<Self::StepStream>, Status> {
         let session = self.session(req.metadata())?;
-        let n = 1 + self.steps.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+        let n = 1 + self.steps.fetch_add(1, Ordering::SeqCst);
         if self.exit_after_steps.is_some_and(|k| n >= k) {
             tracing::error!(step = n, "fault injection: exiting");
             std::process::exit(3);
         }
         let r = req.into_inner();
+        // Set when this call is dropped (cancelled, or past its deadline):
+        // the steps stop at the next one and the share is free again.
+        let stop = Arc::new(AtomicBool::new(false));
+        let _stop_on_drop = StopOnDrop(stop.clone());
         let chunks = with_share(&session.held, move |share| {
             let start = std::time::Instant::now();
             let (plan, accel) = step_plan(&r, share).map_err(invalid)?;
             let mut stats = FrameStats::new(r.frame_id, 0.0);
-            share.step(&plan, accel.as_deref(), &mut stats);
+            let go = || !stop.load(Ordering::Relaxed);
+            if !share.step_while(&plan, accel.as_deref(), &mut stats, go) {
+                return Err(Status::cancelled(format!(
+                    "the Step was cancelled after {} of {} time steps",
+                    stats.steps,
+                    plan.heads.len()
+                )));
+            }
             let report = share.pose(&plan.pose);
             let mut chunks = share_chunks(share)?;
             if let Some(c) = chunks.last_mut() {

@@ -635,3 +635,54 @@ fn one_worker_given_twice_is_refused() {
         assert!(e.contains("twice") || e.contains("same worker"), "{e}");
     }
 }
+
+#[test]
+fn a_step_past_its_deadline_stops_and_frees_the_worker_for_the_next_call() {
+    let addr = start_worker();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let mut c = greeted_client(addr).await;
+        // A share of group 0, at rest.
+        let scene = Scene::from_toml_str(DANCE, std::path::Path::new("d")).unwrap();
+        let anim = engine::Animator::new(&scene).unwrap();
+        let wisps = anim.groups().wisp_range(0..1);
+        let mut assign = vec![pb::AssignChunk {
+            scene_toml: DANCE.to_string(),
+            scene_path: "dance.toml".into(),
+            first_group: 0,
+            end_group: 1,
+            ..Default::default()
+        }];
+        let states = wire::wisp_chunks(0, wisps.map(|w| anim.wisp_state(w).unwrap()));
+        assign.extend(states.into_iter().map(|s| pb::AssignChunk {
+            state: Some(s),
+            ..Default::default()
+        }));
+        c.assign(tokio_stream::iter(assign)).await.unwrap();
+        let head = glam::Affine3A::IDENTITY.to_cols_array().to_vec();
+        let pose = pb::PosePlan {
+            version: 1,
+            head: head.clone(),
+            lights: vec![0.0, -1.0, 0.0],
+            anchor: vec![0.0; 3],
+            ..Default::default()
+        };
+        // The most steps a call may ask for: seconds of work, far past
+        // this call's deadline.
+        let steps = wire::MAX_STEPS;
+        let mut long = tonic::Request::new(pb::StepRequest {
+            heads: head.repeat(steps),
+            body_counts: vec![0; steps],
+            pose: Some(pose.clone()),
+            ..Default::default()
+        });
+        long.set_timeout(Duration::from_millis(300));
+        assert!(c.step(long).await.is_err());
+        // Served at once: had the steps gone on, this call's two seconds
+        // would pass while they held the share.
+        let mut next = tonic::Request::new(pose);
+        next.set_timeout(Duration::from_secs(2));
+        let r = c.pose(next).await;
+        assert!(r.is_ok(), "{r:?}");
+    });
+}

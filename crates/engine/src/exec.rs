@@ -225,7 +225,23 @@ pub fn step_wisps(
     accel: Option<&[Vec3]>,
     stats: &mut FrameStats,
 ) {
+    step_wisps_while(anim, wisps, plan, accel, stats, || true);
+}
+
+/// [`step_wisps`], stopping before any step when `go()` says no (a call
+/// cancelled or past its deadline): whether every step ran.
+pub fn step_wisps_while(
+    anim: &mut Animator,
+    wisps: std::ops::Range<usize>,
+    plan: &StepPlan,
+    accel: Option<&[Vec3]>,
+    stats: &mut FrameStats,
+    go: impl Fn() -> bool,
+) -> bool {
     for (head, bodies) in plan.heads.iter().zip(&plan.bodies) {
+        if !go() {
+            return false;
+        }
         stats.time(Stage::Simulate, || {
             anim.integrate(wisps.clone(), head, accel)
         });
@@ -236,4 +252,5 @@ pub fn step_wisps(
         }
         stats.steps += 1;
     }
+    true
 }

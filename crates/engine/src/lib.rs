@@ -29,6 +29,7 @@ pub mod share;
 pub use animate::{Animator, GROUPS, Groups, split_by};
 pub use exec::{
     DrawJob, DrawReport, Executor, LocalExecutor, PosePlan, PoseReport, StepPlan, step_wisps,
+    step_wisps_while,
 };
 pub use frames::{FrameStats, Sequence, Stage, StageRecord};
 pub use head::Head;

@@ -14,7 +14,7 @@ use strands::Hair;
 use crate::part::draw_head;
 use crate::{
     Animator, DrawJob, EngineError, FrameStats, HairPart, Head, PosePlan, PoseReport, Scene,
-    StepPlan, step_wisps,
+    StepPlan, step_wisps, step_wisps_while,
 };
 
 /// Whole groups `groups` of a scene's drawn hair (see [`crate::Groups`]).
@@ -92,6 +92,19 @@ impl Share {
     pub fn step(&mut self, plan: &StepPlan, accel: Option<&[Vec3]>, stats: &mut FrameStats) {
         let wisps = self.wisps();
         step_wisps(&mut self.anim, wisps, plan, accel, stats);
+    }
+
+    /// [`Self::step`], stopping before any step when `go()` says no:
+    /// whether every step ran (otherwise the wisps stand part-way).
+    pub fn step_while(
+        &mut self,
+        plan: &StepPlan,
+        accel: Option<&[Vec3]>,
+        stats: &mut FrameStats,
+        go: impl Fn() -> bool,
+    ) -> bool {
+        let wisps = self.wisps();
+        step_wisps_while(&mut self.anim, wisps, plan, accel, stats, go)
     }
 
     /// Poses the share's strands as `plan` says and reports on them.
