@@ -339,9 +339,35 @@ impl Worker for WorkerService {
             path: first.scene_path.clone().into(),
             files: Default::default(),
         };
+        if first.scene_toml.len() > wire::MAX_SCENE_TEXT {
+            return Err(Status::resource_exhausted(format!(
+                "a scene of {} bytes: at most {} (wire::MAX_SCENE_TEXT)",
+                first.scene_toml.len(),
+                wire::MAX_SCENE_TEXT
+            )));
+        }
         let mut states: Vec<pb::WispChunk> = Vec::new();
         let mut files: Vec<(String, Vec<u8>)> = Vec::new();
+        // What the call has made this worker keep, checked before each
+        // chunk is kept.
+        let (mut file_bytes, mut state_floats) = (0usize, 0usize);
         let mut take = |c: pb::AssignChunk| -> Result<(), Status> {
+            file_bytes += c.file_data.len() + c.file_path.len();
+            if file_bytes > wire::MAX_FILE_BYTES {
+                return Err(Status::resource_exhausted(format!(
+                    "data files of more than {} bytes (wire::MAX_FILE_BYTES)",
+                    wire::MAX_FILE_BYTES
+                )));
+            }
+            if let Some(w) = &c.state {
+                state_floats += w.pos.len() + w.prev.len();
+                if state_floats > wire::MAX_STATE_FLOATS {
+                    return Err(Status::resource_exhausted(format!(
+                        "wisp states of more than {} values (wire::MAX_STATE_FLOATS)",
+                        wire::MAX_STATE_FLOATS
+                    )));
+                }
+            }
             states.extend(c.state);
             if !c.file_path.is_empty() {
                 files.push((c.file_path, Vec::new()));

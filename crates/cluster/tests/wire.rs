@@ -686,3 +686,48 @@ fn a_step_past_its_deadline_stops_and_frees_the_worker_for_the_next_call() {
         assert!(r.is_ok(), "{r:?}");
     });
 }
+
+#[test]
+fn an_assign_past_the_limits_is_refused_saying_which() {
+    let addr = start_worker();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let mut c = greeted_client(addr).await;
+        let huge = pb::AssignChunk {
+            scene_toml: "#".repeat(wire::MAX_SCENE_TEXT + 1),
+            scene_path: "big.toml".into(),
+            first_group: 0,
+            end_group: 1,
+            ..Default::default()
+        };
+        let e = c.assign(tokio_stream::iter(vec![huge])).await.unwrap_err();
+        assert_eq!(e.code(), tonic::Code::ResourceExhausted, "{}", e.message());
+        assert!(e.message().contains("MAX_SCENE_TEXT"), "{}", e.message());
+        // Data files: chunk after chunk, refused once past the limit.
+        let first = pb::AssignChunk {
+            scene_toml: DANCE.into(),
+            scene_path: "dance.toml".into(),
+            first_group: 0,
+            end_group: 1,
+            file_path: "groom.tfx".into(),
+            ..Default::default()
+        };
+        let piece = pb::AssignChunk {
+            file_data: vec![7; 48 << 20],
+            ..Default::default()
+        };
+        let n = wire::MAX_FILE_BYTES / (48 << 20) + 1;
+        let chunks = std::iter::once(first).chain(std::iter::repeat_n(piece, n));
+        let e = c.assign(tokio_stream::iter(chunks)).await.unwrap_err();
+        assert_eq!(e.code(), tonic::Code::ResourceExhausted, "{}", e.message());
+        assert!(e.message().contains("MAX_FILE_BYTES"), "{}", e.message());
+        // The worker lives on.
+        let ok = c.step(pb::StepRequest::default()).await.unwrap_err();
+        assert_eq!(
+            ok.code(),
+            tonic::Code::FailedPrecondition,
+            "{}",
+            ok.message()
+        );
+    });
+}

@@ -31,8 +31,20 @@ pub const CELLS_PER_CHUNK: usize = 256 * 1024;
 /// the 4 MiB default.
 pub const MAX_MESSAGE_BYTES: usize = 64 << 20;
 
-/// The most points one worker takes in one Deposit call.
-pub const MAX_POINTS: usize = 200_000_000;
+/// The most points (and the most strands) one worker takes in one
+/// Deposit call: 32 M, about 400 MB of points and 128 MB of offsets.
+pub const MAX_POINTS: usize = 32_000_000;
+
+/// The longest scene text an Assign may carry (16 MiB).
+pub const MAX_SCENE_TEXT: usize = 16 << 20;
+
+/// The most bytes of data files (grooms, head meshes) one Assign may
+/// carry (256 MiB).
+pub const MAX_FILE_BYTES: usize = 256 << 20;
+
+/// The most wisp-state values (3 per guide point now and 3 a step ago)
+/// one Assign may carry: 64 M values, 256 MB.
+pub const MAX_STATE_FLOATS: usize = 64 << 20;
 
 /// A message that does not hold what the protocol says.
 #[derive(Debug, thiserror::Error)]
@@ -129,6 +141,10 @@ pub fn add_strands(hair: &mut Hair, c: &pb::DepositChunk) -> Result<(), Malforme
     }
     if hair.point_count() as u64 + total > MAX_POINTS as u64 {
         return Err(bad(format!("more than {MAX_POINTS} points in one call")));
+    }
+    // Strands of no point cost memory too.
+    if (hair.strand_count() + c.strand_lengths.len()) as u64 > MAX_POINTS as u64 {
+        return Err(bad(format!("more than {MAX_POINTS} strands in one call")));
     }
     let mut at = 0usize;
     let mut buf = Vec::new();
