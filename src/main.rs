@@ -47,6 +47,38 @@ enum Command {
     Bench(cmd::bench::Bench),
 }
 
+/// On SIGINT or SIGTERM: removes the temporary file of every output still
+/// being written and exits (130 or 143), so an interrupted render leaves
+/// neither a partial picture nor a hidden temporary file. The signals are
+/// registered before this returns.
+fn exit_cleanly_on_signals() {
+    use tokio::signal::unix::{SignalKind, signal};
+    let Ok(rt) = tokio::runtime::Builder::new_current_thread()
+        .enable_io()
+        .build()
+    else {
+        return;
+    };
+    let registered = {
+        let _in = rt.enter();
+        signal(SignalKind::terminate()).and_then(|t| Ok((t, signal(SignalKind::interrupt())?)))
+    };
+    let Ok((mut term, mut int)) = registered else {
+        return;
+    };
+    std::thread::spawn(move || {
+        let (name, code) = rt.block_on(async {
+            tokio::select! {
+                _ = term.recv() => ("SIGTERM", 143),
+                _ = int.recv() => ("SIGINT", 130),
+            }
+        });
+        raster::remove_temporaries();
+        eprintln!("error: stopped by {name}; outputs not finished were removed");
+        std::process::exit(code);
+    });
+}
+
 fn main() -> ExitCode {
     // A bug is still reported on one line, never as a trace.
     std::panic::set_hook(Box::new(|info| {
@@ -76,6 +108,10 @@ fn main() -> ExitCode {
         .with_target(false)
         .init();
 
+    // Commands that write pictures leave no partial file when stopped.
+    if matches!(cli.command, Command::Render(_) | Command::Coordinator(_)) {
+        exit_cleanly_on_signals();
+    }
     let result = init_threads(cli.threads).and_then(|()| match cli.command {
         Command::Render(args) => cmd::render::run(args),
         Command::Probe(args) => cmd::probe::run(args),

@@ -738,3 +738,53 @@ fn a_head_mesh_renders_and_a_bad_one_is_named_with_its_line() {
         "{e}"
     );
 }
+
+/// The files in `dir`, hidden ones included, sorted.
+fn names_in(dir: &Path) -> Vec<String> {
+    let mut n: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    n.sort();
+    n
+}
+
+#[test]
+fn a_render_stopped_by_a_signal_leaves_no_file_and_a_killed_ones_leftover_goes() {
+    for (signal, code) in [("TERM", 143), ("INT", 130)] {
+        let dir = scratch(&format!("signal-{signal}"));
+        // What a render killed outright (SIGKILL) left behind: a process
+        // that is gone (pids stay below 2^22 on Linux).
+        std::fs::write(dir.join(".out.gif.4999999.tmp"), b"half a gif").unwrap();
+        let child = Command::new(env!("CARGO_BIN_EXE_wisplight"))
+            .args(["render", "--frames", "1000", "-o"])
+            .arg(dir.join("out.gif"))
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        // Until this render's own temporary file is there (and the old one gone).
+        let own = format!(".out.gif.{}.tmp", child.id());
+        let mut seen = false;
+        for _ in 0..600 {
+            if names_in(&dir) == vec![own.clone()] {
+                seen = true;
+                break;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(100));
+        }
+        assert!(seen, "{:?}", names_in(&dir));
+        let kill = Command::new("kill")
+            .args([format!("-{signal}"), child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(kill.success());
+        let out = child.wait_with_output().unwrap();
+        assert_eq!(out.status.code(), Some(code), "{}", stderr(&out));
+        assert!(
+            stderr(&out).contains(&format!("SIG{signal}")),
+            "{}",
+            stderr(&out)
+        );
+        assert!(names_in(&dir).is_empty(), "{:?}", names_in(&dir));
+    }
+}

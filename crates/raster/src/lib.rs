@@ -18,7 +18,9 @@ mod shade;
 pub use camera::Camera;
 pub use canvas::{Canvas, HairLayer, HairLook, MAX_PIXELS, Sphere, Sums, to_srgb8};
 pub use gif::GifWriter;
-pub use png::{AtomicFile, encode_png, write_atomic, write_bytes_atomic, write_png_atomic};
+pub use png::{
+    AtomicFile, encode_png, remove_temporaries, write_atomic, write_bytes_atomic, write_png_atomic,
+};
 pub use shade::{Shading, kajiya_kay};
 
 /// The largest image side, in pixels.

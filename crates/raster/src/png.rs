@@ -127,7 +127,11 @@ impl AtomicFile {
             name.to_string_lossy(),
             std::process::id()
         ));
+        remove_stale(dir, &name.to_string_lossy());
         let file = std::fs::File::create(&tmp).map_err(write_err)?;
+        if let Ok(mut t) = TEMPORARIES.lock() {
+            t.push(tmp.clone());
+        }
         Ok(AtomicFile {
             path: path.to_owned(),
             tmp: Some(tmp),
@@ -164,10 +168,55 @@ impl AtomicFile {
 impl Drop for AtomicFile {
     fn drop(&mut self) {
         // Not committed, or the commit failed: no partial file stays.
-        if let Some(tmp) = &self.tmp
-            && (self.out.take().is_some() || tmp.exists())
-        {
-            let _ = std::fs::remove_file(tmp);
+        if let Some(tmp) = &self.tmp {
+            if self.out.take().is_some() || tmp.exists() {
+                let _ = std::fs::remove_file(tmp);
+            }
+            if let Ok(mut t) = TEMPORARIES.lock() {
+                t.retain(|p| p != tmp);
+            }
+        }
+    }
+}
+
+/// The temporary files of this process's outputs not yet in place.
+static TEMPORARIES: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+/// Removes the temporary file of every output still being written: for a
+/// program about to exit on a signal, which leaves no partial file.
+pub fn remove_temporaries() {
+    if let Ok(t) = TEMPORARIES.lock() {
+        for p in t.iter() {
+            let _ = std::fs::remove_file(p);
+        }
+    }
+}
+
+/// Removes the temporary files `.NAME.PID.tmp` in `dir` left by processes
+/// that are gone (killed outright while writing `NAME`).
+fn remove_stale(dir: &Path, name: &str) {
+    // Whether a process lives is read from /proc (Linux); elsewhere
+    // nothing is removed.
+    if !Path::new("/proc/self").exists() {
+        return;
+    }
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    let prefix = format!(".{name}.");
+    for e in entries.flatten() {
+        let file = e.file_name();
+        let Some(pid) = file
+            .to_str()
+            .and_then(|f| f.strip_prefix(&prefix))
+            .and_then(|f| f.strip_suffix(".tmp"))
+            .and_then(|p| p.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        // Another live process's file is its own.
+        if pid != std::process::id() && !Path::new(&format!("/proc/{pid}")).exists() {
+            let _ = std::fs::remove_file(e.path());
         }
     }
 }
