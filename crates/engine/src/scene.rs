@@ -206,6 +206,23 @@ pub enum HairSource {
 /// At most this many points written out in `hair.strands`.
 pub const MAX_INLINE_POINTS: usize = 100_000;
 
+/// The largest scene text (16 MiB): checked before it is parsed.
+pub const MAX_SCENE_BYTES: usize = 16 << 20;
+
+/// The most lights a scene may have: each fills and sweeps a map of its own.
+pub const MAX_LIGHTS: usize = 16;
+
+/// The most bodies a scene may have: each is tested at every guide point
+/// of every time step.
+pub const MAX_BODIES: usize = 256;
+
+/// The most density-map cells of all the lights' maps together (about
+/// 1 GB of quanta): 512^3 for two lights, 256^3 for sixteen.
+pub const MAX_MAP_CELLS: u64 = 1 << 28;
+
+/// The most keyframes of a keyframed motion.
+pub const MAX_KEYFRAMES: usize = 10_000;
+
 /// The shadow method and its settings (see [`MethodConfig`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ShadowSettings {
@@ -337,15 +354,33 @@ impl Scene {
     /// Reads and validates a scene file; relative paths inside it are
     /// relative to the file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|cause| SceneError::Io {
+        let io = |cause| SceneError::Io {
             path: path.to_owned(),
             cause,
-        })?;
+        };
+        // The size first: a huge file is refused before it is read.
+        let size = std::fs::metadata(path).map_err(io)?.len();
+        if size > MAX_SCENE_BYTES as u64 {
+            return Err(SceneError::Parse {
+                path: path.to_owned(),
+                message: format!(
+                    "a scene file of {size} bytes: at most {MAX_SCENE_BYTES} (put strands in a \
+                     groom file, hair.file)"
+                ),
+            });
+        }
+        let text = std::fs::read_to_string(path).map_err(io)?;
         Scene::from_toml_str(&text, path)
     }
 
     /// Parses scene text; `path` names it in errors and anchors relative paths.
     pub fn from_toml_str(text: &str, path: &Path) -> Result<Scene, SceneError> {
+        if text.len() > MAX_SCENE_BYTES {
+            return Err(SceneError::Parse {
+                path: path.to_owned(),
+                message: format!("a scene of {} bytes: at most {MAX_SCENE_BYTES}", text.len()),
+            });
+        }
         let raw: RawScene = toml::from_str(text).map_err(|e| SceneError::Parse {
             path: path.to_owned(),
             message: one_line(&e.to_string()),
@@ -742,6 +777,13 @@ impl Validator<'_> {
         if raw_lights.is_empty() {
             return Err(self.invalid("light", "[]", "needs at least one light"));
         }
+        if raw_lights.len() > MAX_LIGHTS {
+            return Err(self.invalid(
+                "light",
+                format!("({} tables)", raw_lights.len()),
+                format!("at most {MAX_LIGHTS} lights"),
+            ));
+        }
         let lights = raw_lights
             .iter()
             .map(|l| {
@@ -756,6 +798,18 @@ impl Validator<'_> {
             .collect::<Result<Vec<_>, _>>()?;
 
         let shadow = self.shadow(raw.shadow)?;
+        let cells = u64::from(shadow.cells());
+        if cells.pow(3) * lights.len() as u64 > MAX_MAP_CELLS {
+            return Err(self.invalid(
+                "shadow.cells",
+                cells,
+                format!(
+                    "{} lights of {cells}^3 cells pass the {MAX_MAP_CELLS} map cells a scene \
+                     may have: fewer cells or fewer lights",
+                    lights.len()
+                ),
+            ));
+        }
         let c = raw.camera;
         let vec3 = |field: &'static str, v: Option<[f32; 3]>| -> Result<Option<Vec3>, SceneError> {
             match v {
@@ -928,6 +982,66 @@ mod tests {
 
     fn parse(text: &str) -> Result<Scene, SceneError> {
         Scene::from_toml_str(text, Path::new("dir/scene.toml"))
+    }
+
+    #[test]
+    fn counts_a_scene_multiplies_are_bounded_before_any_work() {
+        let many = |table: &str, body: &str, n: usize| {
+            (0..n)
+                .map(|i| format!("[[{table}]]\n{}\n", body.replace("{i}", &i.to_string())))
+                .collect::<String>()
+        };
+        let cases = [
+            (
+                many("light", "direction = [1, -1, {i}]", MAX_LIGHTS + 1),
+                "at most 16 lights",
+            ),
+            (
+                many("body", "center = [0, {i}, 0]\nradius = 1", MAX_BODIES + 1),
+                "at most 256 bodies",
+            ),
+            (
+                format!(
+                    "[animation]\nmotion = \"keyframes\"\n{}",
+                    many("animation.key", "time = {i}", MAX_KEYFRAMES + 1)
+                ),
+                "at most 10000 keyframes",
+            ),
+            (
+                format!(
+                    "[shadow]\ncells = 512\n{}",
+                    many("light", "direction = [1, -1, {i}]", 3)
+                ),
+                "map cells",
+            ),
+        ];
+        for (text, says) in cases {
+            let e = parse(&text).unwrap_err().to_string();
+            assert!(e.contains(says), "{e}");
+        }
+        assert!(
+            parse(&format!(
+                "[shadow]\ncells = 512\n{}",
+                many("light", "direction = [1, -1, {i}]", 2)
+            ))
+            .is_ok()
+        );
+        // Too long a text, and too big a file: refused before parsing.
+        let long = "#".repeat(MAX_SCENE_BYTES + 1);
+        let e = Scene::from_toml_str(&long, Path::new("big.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("at most"), "{e}");
+        let dir = std::env::temp_dir().join(format!("wisplight-scene-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("big.toml");
+        std::fs::File::create(&file)
+            .unwrap()
+            .set_len(MAX_SCENE_BYTES as u64 + 1)
+            .unwrap();
+        let e = Scene::load(&file).unwrap_err().to_string();
+        assert!(e.contains("hair.file"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

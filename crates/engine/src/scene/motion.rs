@@ -207,9 +207,15 @@ impl Validator<'_> {
             }
             "keyframes" => {
                 refuse("animation.amplitude", a.amplitude.is_some(), "dance")?;
-                let keys: Vec<Keyframe> = a
-                    .key
-                    .unwrap_or_default()
+                let raw_keys = a.key.unwrap_or_default();
+                if raw_keys.len() > super::MAX_KEYFRAMES {
+                    return Err(self.invalid(
+                        "animation.key",
+                        format!("({} tables)", raw_keys.len()),
+                        format!("at most {} keyframes", super::MAX_KEYFRAMES),
+                    ));
+                }
+                let keys: Vec<Keyframe> = raw_keys
                     .into_iter()
                     .map(|k| Keyframe {
                         time: k.time,
@@ -311,8 +317,15 @@ impl Validator<'_> {
     }
 
     pub(super) fn bodies(&self, b: Option<Vec<RawBody>>) -> Result<Vec<BodySettings>, SceneError> {
-        b.unwrap_or_default()
-            .into_iter()
+        let b = b.unwrap_or_default();
+        if b.len() > super::MAX_BODIES {
+            return Err(self.invalid(
+                "body",
+                format!("({} tables)", b.len()),
+                format!("at most {} bodies", super::MAX_BODIES),
+            ));
+        }
+        b.into_iter()
             .map(|b| {
                 let center = Vec3::from_array(b.center);
                 if !center.is_finite() {
