@@ -104,9 +104,12 @@ pub fn worker(args: WorkerArgs) -> anyhow::Result<()> {
         tls,
         health: args.health_listen,
     };
-    cluster::worker::run(service, args.listen, &listen, |addr| {
+    cluster::worker::run(service, args.listen, &listen, |b| {
         // println! flushes at the newline, even into a pipe.
-        println!("listening on {addr}");
+        println!("listening on {}", b.addr);
+        if let Some(h) = b.health {
+            println!("health on {h}");
+        }
     })
     .context("worker failed")
 }

@@ -680,6 +680,14 @@ pub struct Listen {
     pub health: Option<SocketAddr>,
 }
 
+/// The addresses a worker serves on, once bound (port 0 picked free
+/// ones): the worker's, and its plain health port's, if any.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Bound {
+    pub addr: SocketAddr,
+    pub health: Option<SocketAddr>,
+}
+
 /// Serves a worker on `addr` (port 0 picks a free port) until `shutdown`
 /// completes; `bound` is called with the address actually bound, before
 /// the first request is served.
@@ -687,7 +695,7 @@ pub async fn serve(
     service: WorkerService,
     addr: SocketAddr,
     listen: &Listen,
-    bound: impl FnOnce(SocketAddr),
+    bound: impl FnOnce(Bound),
     shutdown: impl std::future::Future<Output = ()> + Send,
 ) -> Result<(), ClusterError> {
     let incoming = tonic::transport::server::TcpIncoming::bind(addr)
@@ -735,10 +743,12 @@ pub async fn serve(
     }
     // The health port stops when the worker has.
     let (stop, stopped) = tokio::sync::watch::channel(false);
+    let mut health_addr = None;
     let health_server = match listen.health {
         Some(h) => {
             let incoming = tonic::transport::server::TcpIncoming::bind(h)
                 .map_err(|e| ClusterError::Bind(h, e))?;
+            health_addr = Some(incoming.local_addr().map_err(|e| ClusterError::Bind(h, e))?);
             let mut stopped = stopped.clone();
             let probe = health_service.clone();
             Some(tokio::spawn(async move {
@@ -752,7 +762,10 @@ pub async fn serve(
         }
         None => None,
     };
-    bound(local);
+    bound(Bound {
+        addr: local,
+        health: health_addr,
+    });
     let served = server
         .add_service(health_service)
         .add_service(reflection_v1)
@@ -779,7 +792,7 @@ pub fn run(
     service: WorkerService,
     addr: SocketAddr,
     listen: &Listen,
-    bound: impl FnOnce(SocketAddr),
+    bound: impl FnOnce(Bound),
 ) -> Result<(), ClusterError> {
     let rt = tokio::runtime::Builder::new_multi_thread()
         .enable_all()

@@ -31,7 +31,7 @@ pub fn start_service(
             service,
             "127.0.0.1:0".parse().unwrap(),
             &listen,
-            move |a| tx.send(a).unwrap(),
+            move |b| tx.send(b.addr).unwrap(),
             async {
                 if stopped.await.is_err() {
                     std::future::pending::<()>().await;
