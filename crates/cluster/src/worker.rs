@@ -110,6 +110,20 @@ impl Drop for StopOnDrop {
     }
 }
 
+/// Logs a refused call at the default level, with its peer and the
+/// reason, and passes the result on.
+fn logged<T>(
+    peer: Option<SocketAddr>,
+    call: &'static str,
+    r: Result<T, Status>,
+) -> Result<T, Status> {
+    if let Err(s) = &r {
+        let peer = peer.map_or_else(|| "unknown".to_string(), |p| p.to_string());
+        tracing::warn!(%peer, call, code = ?s.code(), reason = s.message(), "call refused");
+    }
+    r
+}
+
 fn poisoned<T>(_: T) -> Status {
     Status::internal("worker state poisoned")
 }
@@ -213,58 +227,66 @@ impl Worker for WorkerService {
         &self,
         req: Request<pb::HelloRequest>,
     ) -> Result<Response<pb::HelloReply>, Status> {
-        let r = req.into_inner();
-        if r.protocol_version != wire::PROTOCOL_VERSION {
-            return Err(Status::failed_precondition(format!(
-                "this worker speaks wisplight protocol version {}, the coordinator version {}",
-                wire::PROTOCOL_VERSION,
-                r.protocol_version
-            )));
-        }
-        let fiber = Fiber::new(r.fiber_width, r.fiber_opacity)
-            .map_err(|e| Status::invalid_argument(e.to_string()))?;
-        self.end_idle();
-        let id = session_id()?;
-        {
-            let mut sessions = self.sessions.lock().map_err(poisoned)?;
-            if sessions.len() >= self.limits.max_sessions {
-                return Err(Status::resource_exhausted(format!(
-                    "this worker already holds {} sessions, its limit (--max-sessions); \
-                     one ends when its coordinator finishes or after {} s unused",
-                    sessions.len(),
-                    self.limits.idle.as_secs()
+        let peer = req.remote_addr();
+        let served = async move {
+            let r = req.into_inner();
+            if r.protocol_version != wire::PROTOCOL_VERSION {
+                return Err(Status::failed_precondition(format!(
+                    "this worker speaks wisplight protocol version {}, the coordinator version {}",
+                    wire::PROTOCOL_VERSION,
+                    r.protocol_version
                 )));
             }
-            sessions.insert(
-                id.clone(),
-                Arc::new(Session {
-                    fiber,
-                    maps: Arc::default(),
-                    held: Arc::default(),
-                    last_used: Mutex::new(Instant::now()),
-                }),
-            );
-            tracing::info!(session = %&id[..8], sessions = sessions.len(), "session opened");
-        }
-        Ok(Response::new(pb::HelloReply {
-            protocol_version: wire::PROTOCOL_VERSION,
-            worker: format!("wisplight-worker {}", env!("CARGO_PKG_VERSION")),
-            session: id,
-        }))
+            let fiber = Fiber::new(r.fiber_width, r.fiber_opacity)
+                .map_err(|e| Status::invalid_argument(e.to_string()))?;
+            self.end_idle();
+            let id = session_id()?;
+            {
+                let mut sessions = self.sessions.lock().map_err(poisoned)?;
+                if sessions.len() >= self.limits.max_sessions {
+                    return Err(Status::resource_exhausted(format!(
+                        "this worker already holds {} sessions, its limit (--max-sessions); \
+                         one ends when its coordinator finishes or after {} s unused",
+                        sessions.len(),
+                        self.limits.idle.as_secs()
+                    )));
+                }
+                sessions.insert(
+                    id.clone(),
+                    Arc::new(Session {
+                        fiber,
+                        maps: Arc::default(),
+                        held: Arc::default(),
+                        last_used: Mutex::new(Instant::now()),
+                    }),
+                );
+                tracing::info!(session = %&id[..8], sessions = sessions.len(), "session opened");
+            }
+            Ok(Response::new(pb::HelloReply {
+                protocol_version: wire::PROTOCOL_VERSION,
+                worker: format!("wisplight-worker {}", env!("CARGO_PKG_VERSION")),
+                session: id,
+            }))
+        };
+        logged(peer, "Hello", served.await)
     }
 
     async fn end(&self, req: Request<pb::EndRequest>) -> Result<Response<pb::EndReply>, Status> {
-        self.session(req.metadata())?;
-        let id = req
-            .metadata()
-            .get(SESSION_KEY)
-            .and_then(|v| v.to_str().ok())
-            .unwrap_or_default()
-            .to_string();
-        let mut sessions = self.sessions.lock().map_err(poisoned)?;
-        sessions.remove(&id);
-        tracing::info!(session = %&id[..id.len().min(8)], sessions = sessions.len(), "session ended");
-        Ok(Response::new(pb::EndReply {}))
+        let peer = req.remote_addr();
+        let served = async move {
+            self.session(req.metadata())?;
+            let id = req
+                .metadata()
+                .get(SESSION_KEY)
+                .and_then(|v| v.to_str().ok())
+                .unwrap_or_default()
+                .to_string();
+            let mut sessions = self.sessions.lock().map_err(poisoned)?;
+            sessions.remove(&id);
+            tracing::info!(session = %&id[..id.len().min(8)], sessions = sessions.len(), "session ended");
+            Ok(Response::new(pb::EndReply {}))
+        };
+        logged(peer, "End", served.await)
     }
 
     type DepositStream = Chunks<pb::ColumnChunk>;
@@ -273,139 +295,147 @@ impl Worker for WorkerService {
         &self,
         req: Request<Streaming<pb::DepositChunk>>,
     ) -> Result<Response<Self::DepositStream>, Status> {
-        let session = self.session(req.metadata())?;
-        let fiber = session.fiber;
-        let mut stream = req.into_inner();
-        let first = stream
-            .message()
-            .await?
-            .ok_or_else(|| Status::invalid_argument("an empty Deposit call"))?;
-        let frame = wire::frame_from_pb(first.map.as_ref()).map_err(invalid)?;
-        let (frame_id, light) = (first.frame_id, first.light);
-        let mut hair = Hair::new();
-        wire::add_strands(&mut hair, &first).map_err(invalid)?;
-        while let Some(c) = stream.message().await? {
-            wire::add_strands(&mut hair, &c).map_err(invalid)?;
-        }
-        let maps = session.maps.clone();
-        let chunks = if first.posed {
-            if hair.strand_count() > 0 {
-                return Err(Status::invalid_argument(
-                    "a posed Deposit carries no strands",
-                ));
+        let peer = req.remote_addr();
+        let served = async move {
+            let session = self.session(req.metadata())?;
+            let fiber = session.fiber;
+            let mut stream = req.into_inner();
+            let first = stream
+                .message()
+                .await?
+                .ok_or_else(|| Status::invalid_argument("an empty Deposit call"))?;
+            let frame = wire::frame_from_pb(first.map.as_ref()).map_err(invalid)?;
+            let (frame_id, light) = (first.frame_id, first.light);
+            let mut hair = Hair::new();
+            wire::add_strands(&mut hair, &first).map_err(invalid)?;
+            while let Some(c) = stream.message().await? {
+                wire::add_strands(&mut hair, &c).map_err(invalid)?;
             }
-            let (version, filter) = (first.version, first.filter);
-            with_share(&session.held, move |share| {
-                deposit_reply(&maps, frame, |map| {
-                    let stats = share.deposit(version, map, &fiber).map_err(refused)?;
-                    let read = share
-                        .columns_read(version, &frame, filter)
-                        .map_err(refused)?;
-                    Ok((stats, Some(read)))
+            let maps = session.maps.clone();
+            let chunks = if first.posed {
+                if hair.strand_count() > 0 {
+                    return Err(Status::invalid_argument(
+                        "a posed Deposit carries no strands",
+                    ));
+                }
+                let (version, filter) = (first.version, first.filter);
+                with_share(&session.held, move |share| {
+                    deposit_reply(&maps, frame, |map| {
+                        let stats = share.deposit(version, map, &fiber).map_err(refused)?;
+                        let read = share
+                            .columns_read(version, &frame, filter)
+                            .map_err(refused)?;
+                        Ok((stats, Some(read)))
+                    })
                 })
-            })
-            .await?
-        } else {
-            tokio::task::spawn_blocking(move || {
-                deposit_reply(&maps, frame, |map| {
-                    Ok((map.deposit(&hair, 0..hair.strand_count(), &fiber), None))
+                .await?
+            } else {
+                tokio::task::spawn_blocking(move || {
+                    deposit_reply(&maps, frame, |map| {
+                        Ok((map.deposit(&hair, 0..hair.strand_count(), &fiber), None))
+                    })
                 })
-            })
-            .await
-            .map_err(|e| Status::internal(format!("deposit task failed: {e}")))??
+                .await
+                .map_err(|e| Status::internal(format!("deposit task failed: {e}")))??
+            };
+            let mut chunks = chunks;
+            if let Some(c) = chunks.first_mut() {
+                c.frame_id = frame_id;
+                c.light = light;
+            }
+            tracing::debug!(frame_id, light, chunks = chunks.len(), "deposit done");
+            Ok(Response::new(stream_of(chunks)))
         };
-        let mut chunks = chunks;
-        if let Some(c) = chunks.first_mut() {
-            c.frame_id = frame_id;
-            c.light = light;
-        }
-        tracing::debug!(frame_id, light, chunks = chunks.len(), "deposit done");
-        Ok(Response::new(stream_of(chunks)))
+        logged(peer, "Deposit", served.await)
     }
 
     async fn assign(
         &self,
         req: Request<Streaming<pb::AssignChunk>>,
     ) -> Result<Response<pb::AssignReply>, Status> {
-        let session = self.session(req.metadata())?;
-        let mut stream = req.into_inner();
-        let first = stream
-            .message()
-            .await?
-            .ok_or_else(|| Status::invalid_argument("an empty Assign call"))?;
-        let groups = first.first_group as usize..first.end_group as usize;
-        let mut source = SceneSource {
-            text: first.scene_toml.as_str().into(),
-            path: first.scene_path.clone().into(),
-            files: Default::default(),
-        };
-        if first.scene_toml.len() > wire::MAX_SCENE_TEXT {
-            return Err(Status::resource_exhausted(format!(
-                "a scene of {} bytes: at most {} (wire::MAX_SCENE_TEXT)",
-                first.scene_toml.len(),
-                wire::MAX_SCENE_TEXT
-            )));
-        }
-        let mut states: Vec<pb::WispChunk> = Vec::new();
-        let mut files: Vec<(String, Vec<u8>)> = Vec::new();
-        // What the call has made this worker keep, checked before each
-        // chunk is kept.
-        let (mut file_bytes, mut state_floats) = (0usize, 0usize);
-        let mut take = |c: pb::AssignChunk| -> Result<(), Status> {
-            file_bytes += c.file_data.len() + c.file_path.len();
-            if file_bytes > wire::MAX_FILE_BYTES {
+        let peer = req.remote_addr();
+        let served = async move {
+            let session = self.session(req.metadata())?;
+            let mut stream = req.into_inner();
+            let first = stream
+                .message()
+                .await?
+                .ok_or_else(|| Status::invalid_argument("an empty Assign call"))?;
+            let groups = first.first_group as usize..first.end_group as usize;
+            let mut source = SceneSource {
+                text: first.scene_toml.as_str().into(),
+                path: first.scene_path.clone().into(),
+                files: Default::default(),
+            };
+            if first.scene_toml.len() > wire::MAX_SCENE_TEXT {
                 return Err(Status::resource_exhausted(format!(
-                    "data files of more than {} bytes (wire::MAX_FILE_BYTES)",
-                    wire::MAX_FILE_BYTES
+                    "a scene of {} bytes: at most {} (wire::MAX_SCENE_TEXT)",
+                    first.scene_toml.len(),
+                    wire::MAX_SCENE_TEXT
                 )));
             }
-            if let Some(w) = &c.state {
-                state_floats += w.pos.len() + w.prev.len();
-                if state_floats > wire::MAX_STATE_FLOATS {
+            let mut states: Vec<pb::WispChunk> = Vec::new();
+            let mut files: Vec<(String, Vec<u8>)> = Vec::new();
+            // What the call has made this worker keep, checked before each
+            // chunk is kept.
+            let (mut file_bytes, mut state_floats) = (0usize, 0usize);
+            let mut take = |c: pb::AssignChunk| -> Result<(), Status> {
+                file_bytes += c.file_data.len() + c.file_path.len();
+                if file_bytes > wire::MAX_FILE_BYTES {
                     return Err(Status::resource_exhausted(format!(
-                        "wisp states of more than {} values (wire::MAX_STATE_FLOATS)",
-                        wire::MAX_STATE_FLOATS
+                        "data files of more than {} bytes (wire::MAX_FILE_BYTES)",
+                        wire::MAX_FILE_BYTES
                     )));
                 }
-            }
-            states.extend(c.state);
-            if !c.file_path.is_empty() {
-                files.push((c.file_path, Vec::new()));
-            }
-            if !c.file_data.is_empty() {
-                let (_, data) = files
-                    .last_mut()
-                    .ok_or_else(|| Status::invalid_argument("file data before any file's path"))?;
-                data.extend_from_slice(&c.file_data);
-            }
-            Ok(())
-        };
-        take(first)?;
-        while let Some(c) = stream.message().await? {
-            take(c)?;
-        }
-        for (path, data) in files {
-            source.files.insert(path.into(), data.into());
-        }
-        let held = session.held.clone();
-        let reply = tokio::task::spawn_blocking(move || {
-            let mut slot = held.lock().map_err(poisoned)?;
-            let h = build_share(slot.take(), source, groups, &states)?;
-            let anim = h.share.animator();
-            let wisps = h.share.wisps();
-            let reply = pb::AssignReply {
-                points_per_wisp: anim.points_per_wisp() as u32,
-                groups: anim.groups().count() as u32,
-                first_wisp: wisps.start as u32,
-                end_wisp: wisps.end as u32,
+                if let Some(w) = &c.state {
+                    state_floats += w.pos.len() + w.prev.len();
+                    if state_floats > wire::MAX_STATE_FLOATS {
+                        return Err(Status::resource_exhausted(format!(
+                            "wisp states of more than {} values (wire::MAX_STATE_FLOATS)",
+                            wire::MAX_STATE_FLOATS
+                        )));
+                    }
+                }
+                states.extend(c.state);
+                if !c.file_path.is_empty() {
+                    files.push((c.file_path, Vec::new()));
+                }
+                if !c.file_data.is_empty() {
+                    let (_, data) = files.last_mut().ok_or_else(|| {
+                        Status::invalid_argument("file data before any file's path")
+                    })?;
+                    data.extend_from_slice(&c.file_data);
+                }
+                Ok(())
             };
-            tracing::info!(groups = ?h.share.groups(), wisps = ?wisps, "share assigned");
-            *slot = Some(h);
-            Ok::<_, Status>(reply)
-        })
-        .await
-        .map_err(|e| Status::internal(format!("assign task failed: {e}")))??;
-        Ok(Response::new(reply))
+            take(first)?;
+            while let Some(c) = stream.message().await? {
+                take(c)?;
+            }
+            for (path, data) in files {
+                source.files.insert(path.into(), data.into());
+            }
+            let held = session.held.clone();
+            let reply = tokio::task::spawn_blocking(move || {
+                let mut slot = held.lock().map_err(poisoned)?;
+                let h = build_share(slot.take(), source, groups, &states)?;
+                let anim = h.share.animator();
+                let wisps = h.share.wisps();
+                let reply = pb::AssignReply {
+                    points_per_wisp: anim.points_per_wisp() as u32,
+                    groups: anim.groups().count() as u32,
+                    first_wisp: wisps.start as u32,
+                    end_wisp: wisps.end as u32,
+                };
+                tracing::info!(groups = ?h.share.groups(), wisps = ?wisps, "share assigned");
+                *slot = Some(h);
+                Ok::<_, Status>(reply)
+            })
+            .await
+            .map_err(|e| Status::internal(format!("assign task failed: {e}")))??;
+            Ok(Response::new(reply))
+        };
+        logged(peer, "Assign", served.await)
     }
 
     type StepStream = Chunks<pb::WispChunk>;
@@ -414,52 +444,60 @@ impl Worker for WorkerService {
         &self,
         req: Request<pb::StepRequest>,
     ) -> Result<Response<Self::StepStream>, Status> {
-        let session = self.session(req.metadata())?;
-        let n = 1 + self.steps.fetch_add(1, Ordering::SeqCst);
-        if self.exit_after_steps.is_some_and(|k| n >= k) {
-            tracing::error!(step = n, "fault injection: exiting");
-            std::process::exit(3);
-        }
-        let r = req.into_inner();
-        // Set when this call is dropped (cancelled, or past its deadline):
-        // the steps stop at the next one and the share is free again.
-        let stop = Arc::new(AtomicBool::new(false));
-        let _stop_on_drop = StopOnDrop(stop.clone());
-        let chunks = with_share(&session.held, move |share| {
-            let start = std::time::Instant::now();
-            let (plan, accel) = step_plan(&r, share).map_err(invalid)?;
-            let mut stats = FrameStats::new(r.frame_id, 0.0);
-            let go = || !stop.load(Ordering::Relaxed);
-            if !share.step_while(&plan, accel.as_deref(), &mut stats, go) {
-                return Err(Status::cancelled(format!(
-                    "the Step was cancelled after {} of {} time steps",
-                    stats.steps,
-                    plan.heads.len()
-                )));
+        let peer = req.remote_addr();
+        let served = async move {
+            let session = self.session(req.metadata())?;
+            let n = 1 + self.steps.fetch_add(1, Ordering::SeqCst);
+            if self.exit_after_steps.is_some_and(|k| n >= k) {
+                tracing::error!(step = n, "fault injection: exiting");
+                std::process::exit(3);
             }
-            let report = share.pose(&plan.pose);
-            let mut chunks = share_chunks(share)?;
-            if let Some(c) = chunks.last_mut() {
-                c.compute_ms = start.elapsed().as_secs_f64() * 1e3;
-                c.report = Some(wire::report_to_pb(&report));
-            }
-            tracing::debug!(
-                frame_id = r.frame_id,
-                version = plan.pose.version,
-                steps = stats.steps,
-                "step done"
-            );
-            Ok(chunks)
-        })
-        .await?;
-        Ok(Response::new(stream_of(chunks)))
+            let r = req.into_inner();
+            // Set when this call is dropped (cancelled, or past its deadline):
+            // the steps stop at the next one and the share is free again.
+            let stop = Arc::new(AtomicBool::new(false));
+            let _stop_on_drop = StopOnDrop(stop.clone());
+            let chunks = with_share(&session.held, move |share| {
+                let start = std::time::Instant::now();
+                let (plan, accel) = step_plan(&r, share).map_err(invalid)?;
+                let mut stats = FrameStats::new(r.frame_id, 0.0);
+                let go = || !stop.load(Ordering::Relaxed);
+                if !share.step_while(&plan, accel.as_deref(), &mut stats, go) {
+                    return Err(Status::cancelled(format!(
+                        "the Step was cancelled after {} of {} time steps",
+                        stats.steps,
+                        plan.heads.len()
+                    )));
+                }
+                let report = share.pose(&plan.pose);
+                let mut chunks = share_chunks(share)?;
+                if let Some(c) = chunks.last_mut() {
+                    c.compute_ms = start.elapsed().as_secs_f64() * 1e3;
+                    c.report = Some(wire::report_to_pb(&report));
+                }
+                tracing::debug!(
+                    frame_id = r.frame_id,
+                    version = plan.pose.version,
+                    steps = stats.steps,
+                    "step done"
+                );
+                Ok(chunks)
+            })
+            .await?;
+            Ok(Response::new(stream_of(chunks)))
+        };
+        logged(peer, "Step", served.await)
     }
 
     async fn pose(&self, req: Request<pb::PosePlan>) -> Result<Response<pb::PoseReport>, Status> {
-        let session = self.session(req.metadata())?;
-        let plan = wire::pose_plan_from_pb(&req.into_inner()).map_err(invalid)?;
-        let report = with_share(&session.held, move |share| Ok(share.pose(&plan))).await?;
-        Ok(Response::new(wire::report_to_pb(&report)))
+        let peer = req.remote_addr();
+        let served = async move {
+            let session = self.session(req.metadata())?;
+            let plan = wire::pose_plan_from_pb(&req.into_inner()).map_err(invalid)?;
+            let report = with_share(&session.held, move |share| Ok(share.pose(&plan))).await?;
+            Ok(Response::new(wire::report_to_pb(&report)))
+        };
+        logged(peer, "Pose", served.await)
     }
 
     type SweepStream = Chunks<pb::SlabChunk>;
@@ -468,41 +506,45 @@ impl Worker for WorkerService {
         &self,
         req: Request<Streaming<pb::ColumnChunk>>,
     ) -> Result<Response<Self::SweepStream>, Status> {
-        let session = self.session(req.metadata())?;
-        let mut stream = req.into_inner();
-        let first = stream
-            .message()
-            .await?
-            .ok_or_else(|| Status::invalid_argument("an empty Sweep call"))?;
-        let frame = wire::frame_from_pb(first.map.as_ref()).map_err(invalid)?;
-        let (lo, hi) = (first.first_column, first.end_column);
-        if lo > hi || hi as usize > frame.columns() {
-            return Err(Status::invalid_argument(format!(
-                "columns {lo}..{hi} in a map of {} columns",
-                frame.columns()
-            )));
-        }
-        let maps = session.maps.clone();
-        // On an error the map is dropped (the pool makes another).
-        let mut map = WorkerService::map_in(&maps, frame);
-        wire::merge_columns(&mut map, &first).map_err(invalid)?;
-        while let Some(c) = stream.message().await? {
-            wire::merge_columns(&mut map, &c).map_err(invalid)?;
-        }
-        let chunks = tokio::task::spawn_blocking(move || {
-            let slab: ColumnSlab = shadow::sweep(&map, lo..hi);
-            WorkerService::give_back(&maps, map);
-            wire::slab_chunks(&slab)
-        })
-        .await
-        .map_err(|e| Status::internal(format!("sweep task failed: {e}")))?;
-        tracing::debug!(
-            frame_id = first.frame_id,
-            light = first.light,
-            columns = hi - lo,
-            "sweep done"
-        );
-        Ok(Response::new(stream_of(chunks)))
+        let peer = req.remote_addr();
+        let served = async move {
+            let session = self.session(req.metadata())?;
+            let mut stream = req.into_inner();
+            let first = stream
+                .message()
+                .await?
+                .ok_or_else(|| Status::invalid_argument("an empty Sweep call"))?;
+            let frame = wire::frame_from_pb(first.map.as_ref()).map_err(invalid)?;
+            let (lo, hi) = (first.first_column, first.end_column);
+            if lo > hi || hi as usize > frame.columns() {
+                return Err(Status::invalid_argument(format!(
+                    "columns {lo}..{hi} in a map of {} columns",
+                    frame.columns()
+                )));
+            }
+            let maps = session.maps.clone();
+            // On an error the map is dropped (the pool makes another).
+            let mut map = WorkerService::map_in(&maps, frame);
+            wire::merge_columns(&mut map, &first).map_err(invalid)?;
+            while let Some(c) = stream.message().await? {
+                wire::merge_columns(&mut map, &c).map_err(invalid)?;
+            }
+            let chunks = tokio::task::spawn_blocking(move || {
+                let slab: ColumnSlab = shadow::sweep(&map, lo..hi);
+                WorkerService::give_back(&maps, map);
+                wire::slab_chunks(&slab)
+            })
+            .await
+            .map_err(|e| Status::internal(format!("sweep task failed: {e}")))?;
+            tracing::debug!(
+                frame_id = first.frame_id,
+                light = first.light,
+                columns = hi - lo,
+                "sweep done"
+            );
+            Ok(Response::new(stream_of(chunks)))
+        };
+        logged(peer, "Sweep", served.await)
     }
 
     type DrawStream = Chunks<pb::LayerChunk>;
@@ -511,37 +553,41 @@ impl Worker for WorkerService {
         &self,
         req: Request<Streaming<pb::DrawChunk>>,
     ) -> Result<Response<Self::DrawStream>, Status> {
-        let session = self.session(req.metadata())?;
-        let mut stream = req.into_inner();
-        let first = stream
-            .message()
-            .await?
-            .ok_or_else(|| Status::invalid_argument("an empty Draw call"))?;
-        let job = first
-            .job
-            .as_ref()
-            .ok_or_else(|| Status::invalid_argument("a Draw call's first chunk carries the job"))?;
-        let job = wire::job_from_pb(job).map_err(invalid)?;
-        let mut reader =
-            wire::ColumnsReader::new(if job.shadows { job.to_lights.len() } else { 0 });
-        if first.map.is_some() || !first.column_steps.is_empty() {
-            reader.add(&first).map_err(invalid)?;
-        }
-        while let Some(c) = stream.message().await? {
-            if c.job.is_some() {
-                return Err(Status::invalid_argument("a Draw call carries one job"));
+        let peer = req.remote_addr();
+        let served = async move {
+            let session = self.session(req.metadata())?;
+            let mut stream = req.into_inner();
+            let first = stream
+                .message()
+                .await?
+                .ok_or_else(|| Status::invalid_argument("an empty Draw call"))?;
+            let job = first.job.as_ref().ok_or_else(|| {
+                Status::invalid_argument("a Draw call's first chunk carries the job")
+            })?;
+            let job = wire::job_from_pb(job).map_err(invalid)?;
+            let mut reader =
+                wire::ColumnsReader::new(if job.shadows { job.to_lights.len() } else { 0 });
+            if first.map.is_some() || !first.column_steps.is_empty() {
+                reader.add(&first).map_err(invalid)?;
             }
-            reader.add(&c).map_err(invalid)?;
-        }
-        let maps = reader.finish().map_err(invalid)?;
-        let (layer, times) = with_share(&session.held, move |share| {
-            share.draw(&job, &maps).map_err(refused)
-        })
-        .await?;
-        // Each chunk is encoded as the reply gets to it: the first travels
-        // (and is decoded) while the next is encoded.
-        let chunks = wire::LayerChunks::new(layer, times).map(Ok);
-        Ok(Response::new(Box::pin(tokio_stream::iter(chunks))))
+            while let Some(c) = stream.message().await? {
+                if c.job.is_some() {
+                    return Err(Status::invalid_argument("a Draw call carries one job"));
+                }
+                reader.add(&c).map_err(invalid)?;
+            }
+            let maps = reader.finish().map_err(invalid)?;
+            let (layer, times) = with_share(&session.held, move |share| {
+                share.draw(&job, &maps).map_err(refused)
+            })
+            .await?;
+            // Each chunk is encoded as the reply gets to it: the first travels
+            // (and is decoded) while the next is encoded.
+            let chunks = wire::LayerChunks::new(layer, times).map(Ok);
+            let stream: Chunks<pb::LayerChunk> = Box::pin(tokio_stream::iter(chunks));
+            Ok(Response::new(stream))
+        };
+        logged(peer, "Draw", served.await)
     }
 }
 
@@ -748,7 +794,11 @@ pub async fn serve(
         Some(h) => {
             let incoming = tonic::transport::server::TcpIncoming::bind(h)
                 .map_err(|e| ClusterError::Bind(h, e))?;
-            health_addr = Some(incoming.local_addr().map_err(|e| ClusterError::Bind(h, e))?);
+            health_addr = Some(
+                incoming
+                    .local_addr()
+                    .map_err(|e| ClusterError::Bind(h, e))?,
+            );
             let mut stopped = stopped.clone();
             let probe = health_service.clone();
             Some(tokio::spawn(async move {
