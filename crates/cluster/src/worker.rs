@@ -25,6 +25,50 @@ use crate::{ClusterError, Tls, pb, wire};
 
 type Chunks<T> = Pin<Box<dyn Stream<Item = Result<T, Status>> + Send>>;
 
+/// The most density-map cells the calls of all sessions hold at once:
+/// 2^28 cells, 1 GiB of quanta (two maps of 512^3 cells, 64 of 128^3).
+/// A call whose map would pass it waits for others to finish; a map
+/// larger than all of it is refused.
+pub const MAP_BUDGET_CELLS: u64 = 1 << 28;
+
+/// The granule of the map budget: 2^16 cells.
+const MAP_UNIT: u64 = 1 << 16;
+
+/// The most cells a map kept between calls (a session's pool) may have:
+/// 2^22 (16 MiB of quanta); larger maps are dropped after their call.
+const POOLED_CELLS: u64 = 1 << 22;
+
+/// The worker's budget of density-map cells held by calls at once.
+#[derive(Debug, Clone)]
+struct MapBudget(Arc<tokio::sync::Semaphore>);
+
+impl Default for MapBudget {
+    fn default() -> MapBudget {
+        MapBudget(Arc::new(tokio::sync::Semaphore::new(
+            (MAP_BUDGET_CELLS / MAP_UNIT) as usize,
+        )))
+    }
+}
+
+impl MapBudget {
+    /// Waits until a map in `frame` fits the budget; held until dropped.
+    async fn hold(&self, frame: &LightFrame) -> Result<tokio::sync::OwnedSemaphorePermit, Status> {
+        let cells = u64::from(frame.n_cells).pow(3);
+        if cells > MAP_BUDGET_CELLS {
+            return Err(Status::resource_exhausted(format!(
+                "a map of {}^3 cells is more than this worker holds (MAP_BUDGET_CELLS = {MAP_BUDGET_CELLS})",
+                frame.n_cells
+            )));
+        }
+        let units = cells.div_ceil(MAP_UNIT) as u32;
+        self.0
+            .clone()
+            .acquire_many_owned(units)
+            .await
+            .map_err(|_| Status::unavailable("the worker is stopping"))
+    }
+}
+
 /// The gRPC metadata key that names a call's session.
 pub const SESSION_KEY: &str = "wisplight-session";
 
@@ -52,6 +96,9 @@ impl Default for SessionLimits {
 pub struct WorkerService {
     sessions: Mutex<HashMap<String, Arc<Session>>>,
     limits: SessionLimits,
+    /// The density-map cells all calls hold at once, in units of
+    /// [`MAP_UNIT`] cells (see [`MAP_BUDGET_CELLS`]).
+    maps_budget: MapBudget,
     /// Fault injection for tests: the process exits (as if killed) when
     /// this many Step calls have arrived.
     exit_after_steps: Option<u64>,
@@ -196,6 +243,9 @@ impl WorkerService {
     }
 
     fn give_back(maps: &Mutex<Vec<DensityMap>>, map: DensityMap) {
+        if u64::from(map.frame().n_cells).pow(3) > POOLED_CELLS {
+            return;
+        }
         if let Ok(mut m) = maps.lock()
             && m.len() < 4
         {
@@ -312,6 +362,8 @@ impl Worker for WorkerService {
                 wire::add_strands(&mut hair, &c).map_err(invalid)?;
             }
             let maps = session.maps.clone();
+            // Held until the map is back in the pool or dropped.
+            let budget = self.maps_budget.hold(&frame).await?;
             let chunks = if first.posed {
                 if hair.strand_count() > 0 {
                     return Err(Status::invalid_argument(
@@ -338,6 +390,7 @@ impl Worker for WorkerService {
                 .await
                 .map_err(|e| Status::internal(format!("deposit task failed: {e}")))??
             };
+            drop(budget);
             let mut chunks = chunks;
             if let Some(c) = chunks.first_mut() {
                 c.frame_id = frame_id;
@@ -523,6 +576,7 @@ impl Worker for WorkerService {
                 )));
             }
             let maps = session.maps.clone();
+            let budget = self.maps_budget.hold(&frame).await?;
             // On an error the map is dropped (the pool makes another).
             let mut map = WorkerService::map_in(&maps, frame);
             wire::merge_columns(&mut map, &first).map_err(invalid)?;
@@ -532,6 +586,7 @@ impl Worker for WorkerService {
             let chunks = tokio::task::spawn_blocking(move || {
                 let slab: ColumnSlab = shadow::sweep(&map, lo..hi);
                 WorkerService::give_back(&maps, map);
+                drop(budget);
                 wire::slab_chunks(&slab)
             })
             .await
