@@ -74,12 +74,8 @@ fn s(p: &Path) -> &str {
 }
 
 /// `frames` frames of `scene` by `render` into `local` (which must work)
-/// and by a coordinator of `workers` into `remote`: the coordinator's output.
-fn render_both(scene: &Path, workers: &str, frames: &str, local: &Path, remote: &Path) -> Output {
-    render_both_drawing(scene, workers, frames, local, remote, "workers")
-}
-
-/// [`render_both`] with the hair drawn where `draw` says.
+/// and by a coordinator of `workers` into `remote`, the hair drawn where
+/// `draw` says: the coordinator's output.
 fn render_both_drawing(
     scene: &Path,
     workers: &str,
@@ -155,22 +151,47 @@ fn a_worker_killed_mid_animation_changes_no_byte_and_is_reported() {
     let dir = scratch("kill");
     let scene = dir.join("scene.toml");
     std::fs::write(&scene, SCENE).unwrap();
-    // The second worker exits, as if killed, at its fifth Step call: the
-    // settling of frame 0 takes three (0.1 s at 30 fps), so it dies in
-    // frame 2.
-    let workers = [
-        Worker::start(),
-        Worker::start_with(&["--exit-after-steps", "5"]),
-        Worker::start(),
-    ];
+    // The second worker is killed (SIGKILL) once the coordinator has
+    // written its third frame: mid-animation, at whatever stage it is in.
+    let mut workers = [Worker::start(), Worker::start(), Worker::start()];
     let list = workers
         .iter()
         .map(|w| w.addr.as_str())
         .collect::<Vec<_>>()
         .join(",");
+    let (frames, n) = ("12", 12);
     let local = dir.join("local_%d.png");
     let remote = dir.join("remote_%d.png");
-    let o = render_both(&scene, &list, "5", &local, &remote);
+    let o = run(&["render", s(&scene), "--frames", frames, "-o", s(&local)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let coordinator = Command::new(bin())
+        .args([
+            "coordinator",
+            s(&scene),
+            "--workers",
+            &list,
+            "--frames",
+            frames,
+            "-o",
+        ])
+        .arg(&remote)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let third = dir.join("remote_2.png");
+    for _ in 0..3000 {
+        if third.exists() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    assert!(third.exists(), "the coordinator wrote its third frame");
+    let killed = dir.join(format!("remote_{}.png", n - 1));
+    assert!(!killed.exists(), "the last frame is not written yet");
+    workers[1].child.kill().unwrap();
+    workers[1].child.wait().unwrap();
+    let o = coordinator.wait_with_output().unwrap();
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{e}");
     assert!(
@@ -179,7 +200,7 @@ fn a_worker_killed_mid_animation_changes_no_byte_and_is_reported() {
             && e.contains("1 lost on the way"),
         "the loss is logged with the worker's address: {e}"
     );
-    for i in 0..5 {
+    for i in 0..n {
         let a = std::fs::read(local.to_str().unwrap().replace("%d", &i.to_string())).unwrap();
         let b = std::fs::read(remote.to_str().unwrap().replace("%d", &i.to_string())).unwrap();
         assert!(a == b, "frame {i} differs after a worker died");

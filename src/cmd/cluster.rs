@@ -12,10 +12,6 @@ pub struct WorkerArgs {
     /// stdout names the bound address: `listening on 127.0.0.1:43125`.
     #[arg(long, default_value = "127.0.0.1:0", value_name = "ADDR")]
     listen: SocketAddr,
-    /// Fault injection for tests: exit, as if killed, when the N-th Step
-    /// call arrives.
-    #[arg(long, hide = true, value_name = "N")]
-    exit_after_steps: Option<u64>,
     #[command(flatten)]
     tls: TlsArgs,
     /// Also serve grpc.health.v1 alone, in plain gRPC, on this address: for
@@ -88,10 +84,6 @@ pub fn worker(args: WorkerArgs) -> anyhow::Result<()> {
         max_sessions: args.max_sessions as usize,
         idle: std::time::Duration::from_secs(args.session_idle),
     });
-    let service = match args.exit_after_steps {
-        Some(n) => service.exiting_after_steps(n),
-        None => service,
-    };
     let tls = args.tls.load()?;
     if tls.is_none() && !args.listen.ip().is_loopback() {
         tracing::warn!(
@@ -105,10 +97,13 @@ pub fn worker(args: WorkerArgs) -> anyhow::Result<()> {
         health: args.health_listen,
     };
     cluster::worker::run(service, args.listen, &listen, |b| {
-        // println! flushes at the newline, even into a pipe.
-        println!("listening on {}", b.addr);
+        // Each line flushed at once, even into a pipe; a reader that has
+        // gone (one that wanted the first line alone) stops nothing.
+        use std::io::Write;
+        let mut out = std::io::stdout().lock();
+        let _ = writeln!(out, "listening on {}", b.addr).and_then(|()| out.flush());
         if let Some(h) = b.health {
-            println!("health on {h}");
+            let _ = writeln!(out, "health on {h}").and_then(|()| out.flush());
         }
     })
     .context("worker failed")

@@ -99,10 +99,6 @@ pub struct WorkerService {
     /// The density-map cells all calls hold at once, in units of
     /// [`MAP_UNIT`] cells (see [`MAP_BUDGET_CELLS`]).
     maps_budget: MapBudget,
-    /// Fault injection for tests: the process exits (as if killed) when
-    /// this many Step calls have arrived.
-    exit_after_steps: Option<u64>,
-    steps: std::sync::atomic::AtomicU64,
 }
 
 /// What one coordinator's calls share: the fiber it said Hello with, its
@@ -182,13 +178,6 @@ impl WorkerService {
             limits,
             ..WorkerService::default()
         }
-    }
-
-    /// A worker that exits its process, as if killed, when the `n`-th Step
-    /// call arrives (fault-injection tests of the coordinator).
-    pub fn exiting_after_steps(mut self, n: u64) -> WorkerService {
-        self.exit_after_steps = Some(n);
-        self
     }
 
     /// The session a call names in its metadata, marked used now.
@@ -500,11 +489,6 @@ impl Worker for WorkerService {
         let peer = req.remote_addr();
         let served = async move {
             let session = self.session(req.metadata())?;
-            let n = 1 + self.steps.fetch_add(1, Ordering::SeqCst);
-            if self.exit_after_steps.is_some_and(|k| n >= k) {
-                tracing::error!(step = n, "fault injection: exiting");
-                std::process::exit(3);
-            }
             let r = req.into_inner();
             // Set when this call is dropped (cancelled, or past its deadline):
             // the steps stop at the next one and the share is free again.
