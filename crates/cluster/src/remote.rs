@@ -176,9 +176,6 @@ impl RemoteExecutor {
         for e in &missing {
             tracing::warn!(error = %e, "worker left out of the run");
         }
-        // A Hello opened a session on each; the rest of the frame's
-        // calls run with the full deadline.
-        let workers: Vec<Remote> = workers;
         Ok(RemoteExecutor {
             rt,
             workers,
@@ -816,23 +813,19 @@ impl RemoteExecutor {
 /// sessions would share one process.
 fn distinct(addrs: &[String]) -> Result<(), ClusterError> {
     use std::net::ToSocketAddrs;
-    let mut seen: Vec<(std::net::SocketAddr, &str)> = Vec::new();
-    for a in addrs {
-        if let Some(b) = seen.iter().map(|s| s.1).find(|b| *b == a) {
-            return Err(ClusterError::Setup(format!("worker {b} is given twice")));
+    let mut resolved: Vec<(std::net::SocketAddr, &str)> = Vec::new();
+    for (i, a) in addrs.iter().enumerate() {
+        if addrs[..i].contains(a) {
+            return Err(ClusterError::Setup(format!("worker {a} is given twice")));
         }
         // An address that does not resolve is reported when dialled.
-        let resolved: Vec<_> = a.to_socket_addrs().map(|r| r.collect()).unwrap_or_default();
-        for r in resolved {
-            if let Some((_, b)) = seen.iter().find(|s| s.0 == r) {
+        for r in a.to_socket_addrs().into_iter().flatten() {
+            if let Some((_, b)) = resolved.iter().find(|s| s.0 == r && s.1 != a) {
                 return Err(ClusterError::Setup(format!(
                     "workers {b} and {a} are the same worker ({r})"
                 )));
             }
-            seen.push((r, a));
-        }
-        if !seen.iter().any(|s| s.1 == a) {
-            seen.push((std::net::SocketAddr::from(([0, 0, 0, 0], 0)), a));
+            resolved.push((r, a));
         }
     }
     Ok(())

@@ -167,6 +167,29 @@ fn logged<T>(
     r
 }
 
+/// The session id a call's metadata names.
+fn named_session(meta: &tonic::metadata::MetadataMap) -> Result<&str, Status> {
+    let id = meta.get(SESSION_KEY).ok_or_else(|| {
+        Status::failed_precondition(
+            "the call names no session: call Hello first and send its session id",
+        )
+    })?;
+    Ok(id.to_str().unwrap_or_default())
+}
+
+fn not_open(id: &str) -> Status {
+    Status::failed_precondition(format!(
+        "session {id:.8}... is not open on this worker (ended, idle too long, or never opened)"
+    ))
+}
+
+/// The first message of a client stream; a stream of none is refused.
+async fn first_message<T>(s: &mut Streaming<T>, call: &str) -> Result<T, Status> {
+    s.message()
+        .await?
+        .ok_or_else(|| Status::invalid_argument(format!("an empty {call} call")))
+}
+
 fn poisoned<T>(_: T) -> Status {
     Status::internal("worker state poisoned")
 }
@@ -182,19 +205,9 @@ impl WorkerService {
 
     /// The session a call names in its metadata, marked used now.
     fn session(&self, meta: &tonic::metadata::MetadataMap) -> Result<Arc<Session>, Status> {
-        let Some(id) = meta.get(SESSION_KEY) else {
-            return Err(Status::failed_precondition(
-                "the call names no session: call Hello first and send its session id",
-            ));
-        };
-        let id = id.to_str().unwrap_or_default();
+        let id = named_session(meta)?;
         let sessions = self.sessions.lock().map_err(poisoned)?;
-        let s = sessions.get(id).cloned().ok_or_else(|| {
-            Status::failed_precondition(format!(
-                "session {:.8}... is not open on this worker (ended, idle too long, or never opened)",
-                id
-            ))
-        })?;
+        let s = sessions.get(id).cloned().ok_or_else(|| not_open(id))?;
         *s.last_used.lock().map_err(poisoned)? = Instant::now();
         Ok(s)
     }
@@ -313,15 +326,9 @@ impl Worker for WorkerService {
     async fn end(&self, req: Request<pb::EndRequest>) -> Result<Response<pb::EndReply>, Status> {
         let peer = req.remote_addr();
         let served = async move {
-            self.session(req.metadata())?;
-            let id = req
-                .metadata()
-                .get(SESSION_KEY)
-                .and_then(|v| v.to_str().ok())
-                .unwrap_or_default()
-                .to_string();
+            let id = named_session(req.metadata())?;
             let mut sessions = self.sessions.lock().map_err(poisoned)?;
-            sessions.remove(&id);
+            sessions.remove(id).ok_or_else(|| not_open(id))?;
             tracing::info!(session = %&id[..id.len().min(8)], sessions = sessions.len(), "session ended");
             Ok(Response::new(pb::EndReply {}))
         };
@@ -339,10 +346,7 @@ impl Worker for WorkerService {
             let session = self.session(req.metadata())?;
             let fiber = session.fiber;
             let mut stream = req.into_inner();
-            let first = stream
-                .message()
-                .await?
-                .ok_or_else(|| Status::invalid_argument("an empty Deposit call"))?;
+            let first = first_message(&mut stream, "Deposit").await?;
             let frame = wire::frame_from_pb(first.map.as_ref()).map_err(invalid)?;
             let (frame_id, light) = (first.frame_id, first.light);
             let mut hair = Hair::new();
@@ -399,10 +403,7 @@ impl Worker for WorkerService {
         let served = async move {
             let session = self.session(req.metadata())?;
             let mut stream = req.into_inner();
-            let first = stream
-                .message()
-                .await?
-                .ok_or_else(|| Status::invalid_argument("an empty Assign call"))?;
+            let first = first_message(&mut stream, "Assign").await?;
             let groups = first.first_group as usize..first.end_group as usize;
             let mut source = SceneSource {
                 text: first.scene_toml.as_str().into(),
@@ -547,10 +548,7 @@ impl Worker for WorkerService {
         let served = async move {
             let session = self.session(req.metadata())?;
             let mut stream = req.into_inner();
-            let first = stream
-                .message()
-                .await?
-                .ok_or_else(|| Status::invalid_argument("an empty Sweep call"))?;
+            let first = first_message(&mut stream, "Sweep").await?;
             let frame = wire::frame_from_pb(first.map.as_ref()).map_err(invalid)?;
             let (lo, hi) = (first.first_column, first.end_column);
             if lo > hi || hi as usize > frame.columns() {
@@ -596,10 +594,7 @@ impl Worker for WorkerService {
         let served = async move {
             let session = self.session(req.metadata())?;
             let mut stream = req.into_inner();
-            let first = stream
-                .message()
-                .await?
-                .ok_or_else(|| Status::invalid_argument("an empty Draw call"))?;
+            let first = first_message(&mut stream, "Draw").await?;
             let job = first.job.as_ref().ok_or_else(|| {
                 Status::invalid_argument("a Draw call's first chunk carries the job")
             })?;

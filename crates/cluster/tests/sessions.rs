@@ -13,22 +13,7 @@ use cluster::worker::{Listen, SessionLimits, WorkerService};
 use cluster::{DrawAt, Options, RemoteExecutor, pb, wire};
 use engine::{Scene, Sequence};
 
-const DANCE: &str = r#"
-[hair]
-style = "smooth"
-strands_per_wisp = 4
-
-[render]
-width = 160
-height = 90
-
-[animation]
-motion = "dance"
-fps = 30
-
-[dynamics]
-settle = 0.1
-"#;
+use common::{DANCE, local_frames};
 
 /// Another scene on the same workers: other hair, another fiber.
 const CURLY: &str = r#"
@@ -56,13 +41,6 @@ settle = 0.1
 
 fn scene(text: &str) -> Scene {
     Scene::from_toml_str(text, std::path::Path::new("s.toml")).unwrap()
-}
-
-fn local_frames(scene: &Scene, frames: usize) -> Vec<image::RgbImage> {
-    let mut seq = Sequence::new(scene).unwrap();
-    (0..frames)
-        .map(|_| seq.next_frame().unwrap().0.clone())
-        .collect()
 }
 
 fn on_workers(scene: &Scene, addrs: &[String]) -> Sequence {

@@ -47,31 +47,7 @@ async fn greeted_client(addr: SocketAddr) -> cluster::SessionClient {
     WorkerClient::with_interceptor(channel, cluster::SessionHeader::new(&id).unwrap())
 }
 
-/// A small simulated scene: the smooth style, thinned, on a dancing head.
-const DANCE: &str = r#"
-[hair]
-style = "smooth"
-strands_per_wisp = 4
-
-[render]
-width = 160
-height = 90
-
-[animation]
-motion = "dance"
-fps = 30
-
-[dynamics]
-settle = 0.1
-"#;
-
-/// `frames` pictures of `scene` in one process.
-fn local_frames(scene: &Scene, frames: usize) -> Vec<image::RgbImage> {
-    let mut seq = Sequence::new(scene).unwrap();
-    (0..frames)
-        .map(|_| seq.next_frame().unwrap().0.clone())
-        .collect()
-}
+use common::{DANCE, local_frames};
 
 /// How tests run workers: drawing where `draw` says, deadline `secs`.
 fn options(draw: DrawAt, secs: u64) -> Options {

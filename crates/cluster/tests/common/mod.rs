@@ -4,6 +4,35 @@ use std::net::SocketAddr;
 use std::time::Duration;
 
 use cluster::worker::Listen;
+use engine::{Scene, Sequence};
+
+/// A small simulated scene: the smooth style, thinned, on a dancing head.
+#[allow(dead_code)]
+pub const DANCE: &str = r#"
+[hair]
+style = "smooth"
+strands_per_wisp = 4
+
+[render]
+width = 160
+height = 90
+
+[animation]
+motion = "dance"
+fps = 30
+
+[dynamics]
+settle = 0.1
+"#;
+
+/// `frames` pictures of `scene` in one process.
+#[allow(dead_code)]
+pub fn local_frames(scene: &Scene, frames: usize) -> Vec<image::RgbImage> {
+    let mut seq = Sequence::new(scene).unwrap();
+    (0..frames)
+        .map(|_| seq.next_frame().unwrap().0.clone())
+        .collect()
+}
 
 /// A worker on a free localhost port in a background runtime, listening as
 /// `listen` says, and a switch that stops it (the server closes; calls in
