@@ -128,25 +128,32 @@ impl RemoteExecutor {
             .build()
             .map_err(|e| ClusterError::Setup(format!("cannot start the network runtime: {e}")))?;
         distinct(addrs)?;
-        let (fiber, deadline, tls) = (scene.fiber, options.deadline, options.tls.as_ref());
+        let (fiber, deadline) = (scene.fiber, options.deadline);
         let connect = options.connect_timeout.min(deadline);
         // All at once, each bounded by the connect timeout.
         let answers = rt.block_on(async {
-            let calls = addrs.iter().map(|addr| async move {
-                match tokio::time::timeout(connect, hello(addr, &fiber, connect, tls)).await {
-                    Ok(r) => r,
-                    Err(_) => Err(ClusterError::Connect {
-                        addr: addr.clone(),
-                        msg: format!("no answer within {} s", connect.as_secs_f64()),
-                    }),
-                }
-            });
-            let mut out = Vec::with_capacity(addrs.len());
+            let calls: Vec<_> = addrs
+                .iter()
+                .map(|addr| {
+                    let (addr, tls) = (addr.clone(), options.tls.clone());
+                    tokio::spawn(async move {
+                        let greet = hello(&addr, &fiber, connect, tls.as_ref());
+                        match tokio::time::timeout(connect, greet).await {
+                            Ok(r) => r,
+                            Err(_) => Err(ClusterError::Connect {
+                                msg: format!("no answer within {} s", connect.as_secs_f64()),
+                                addr,
+                            }),
+                        }
+                    })
+                })
+                .collect();
+            let mut out = Vec::with_capacity(calls.len());
             for c in calls {
-                out.push(c.await);
+                out.push(c.await.map_err(|e| ClusterError::Setup(e.to_string()))?);
             }
-            out
-        });
+            Ok::<_, ClusterError>(out)
+        })?;
         // A worker that cannot be reached or does not answer is left out,
         // as one lost mid-run would be; one that refuses (another protocol
         // version, no room for another session) stops the run: it is set
