@@ -15,6 +15,7 @@ pub mod pb {
 }
 
 mod client;
+pub mod codec;
 pub mod remote;
 pub mod tls;
 pub mod wire;

@@ -271,6 +271,106 @@ fn malformed_messages_get_an_error_and_the_worker_lives_on() {
     });
 }
 
+/// Sends `bytes` as the request of unary call `path`, as they are.
+async fn raw_call(addr: SocketAddr, path: &'static str, bytes: Vec<u8>) -> tonic::Status {
+    let channel = tonic::transport::Endpoint::from_shared(format!("http://{addr}"))
+        .unwrap()
+        .connect()
+        .await
+        .unwrap();
+    let mut grpc = tonic::client::Grpc::new(channel);
+    grpc.ready().await.unwrap();
+    let codec = RawBytes::<pb::HelloReply>::default();
+    grpc.unary(
+        tonic::Request::new(bytes),
+        tonic::codegen::http::uri::PathAndQuery::from_static(path),
+        codec,
+    )
+    .await
+    .unwrap_err()
+}
+
+/// Encodes raw bytes, decodes replies as `U`.
+#[derive(Debug, Default)]
+struct RawBytes<U>(std::marker::PhantomData<U>);
+
+#[derive(Debug, Default)]
+struct RawEncoder;
+
+impl tonic::codec::Encoder for RawEncoder {
+    type Item = Vec<u8>;
+    type Error = tonic::Status;
+    fn encode(
+        &mut self,
+        item: Vec<u8>,
+        buf: &mut tonic::codec::EncodeBuf<'_>,
+    ) -> Result<(), tonic::Status> {
+        use prost::bytes::BufMut;
+        buf.put_slice(&item);
+        Ok(())
+    }
+}
+
+impl<U: prost::Message + Default + Send + 'static> tonic::codec::Codec for RawBytes<U> {
+    type Encode = Vec<u8>;
+    type Decode = U;
+    type Encoder = RawEncoder;
+    type Decoder = tonic_prost::ProstDecoder<U>;
+    fn encoder(&mut self) -> RawEncoder {
+        RawEncoder
+    }
+    fn decoder(&mut self) -> Self::Decoder {
+        tonic_prost::ProstDecoder::default()
+    }
+}
+
+#[test]
+fn undecodable_bytes_and_unphysical_fibers_are_invalid_arguments() {
+    let addr = start_worker();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        // A field tag of 0 and a truncated varint: not a protobuf message.
+        for bytes in [vec![0u8, 1], vec![0x08, 0xff]] {
+            let e = raw_call(addr, "/wisplight.v1.Worker/Hello", bytes.clone()).await;
+            assert_eq!(e.code(), tonic::Code::InvalidArgument, "{bytes:?}: {}", e.message());
+            assert!(e.message().contains("HelloRequest"), "{}", e.message());
+        }
+        let mut c = WorkerClient::connect(format!("http://{addr}"))
+            .await
+            .unwrap();
+        for (width, opacity) in [
+            (0.0, 0.5),
+            (-0.1, 0.5),
+            (f32::NAN, 0.5),
+            (f32::INFINITY, 0.5),
+            (0.1, 1.5),
+            (0.1, -0.5),
+            (0.1, f32::NAN),
+        ] {
+            let e = c
+                .hello(pb::HelloRequest {
+                    protocol_version: wire::PROTOCOL_VERSION,
+                    fiber_width: width,
+                    fiber_opacity: opacity,
+                })
+                .await
+                .unwrap_err();
+            assert_eq!(e.code(), tonic::Code::InvalidArgument, "{width} {opacity}");
+            assert!(e.message().contains("fiber"), "{}", e.message());
+        }
+        // The worker lives on: a physical Hello opens a session.
+        let ok = c
+            .hello(pb::HelloRequest {
+                protocol_version: wire::PROTOCOL_VERSION,
+                fiber_width: 0.1,
+                fiber_opacity: 0.0,
+            })
+            .await
+            .unwrap();
+        assert_eq!(ok.into_inner().session.len(), 32);
+    });
+}
+
 #[test]
 fn a_worker_answers_health_checks_for_itself_and_the_server() {
     use tonic_health::pb::health_client::HealthClient;

@@ -620,7 +620,7 @@ impl Validator<'_> {
         if v.is_finite() && v >= 0.0 {
             Ok(v)
         } else {
-            Err(self.invalid(field, v, "must be a finite number >= 0"))
+            Err(self.invalid(field, v, "must be a finite number > 0"))
         }
     }
 
@@ -762,7 +762,7 @@ impl Validator<'_> {
         let opacity = raw.fiber.opacity.unwrap_or(DEFAULT_FIBER_OPACITY);
         let fiber = Fiber::new(width, opacity).map_err(|e| match e {
             shadow::ShadowError::FiberWidth(v) => {
-                self.invalid("fiber.width", v, "must be a finite number >= 0")
+                self.invalid("fiber.width", v, "must be a finite number > 0")
             }
             _ => self.invalid("fiber.opacity", opacity, "must be in [0, 1]"),
         })?;

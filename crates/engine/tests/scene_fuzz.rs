@@ -228,7 +228,7 @@ fn check(text: &str) -> Result<(), TestCaseError> {
             prop_assert!(m.starts_with("fuzz.toml"), "the file is not named: {}", m);
         }
         Ok(s) => {
-            prop_assert!(s.fiber.width().is_finite() && s.fiber.width() >= 0.0);
+            prop_assert!(s.fiber.width().is_finite() && s.fiber.width() > 0.0);
             prop_assert!((0.0..=1.0).contains(&s.fiber.opacity()));
             prop_assert!(
                 (1..=512).contains(&s.shadow.cells()) || s.shadow.method.name() == "reference"

@@ -25,7 +25,7 @@ pub struct Fiber {
 
 impl Fiber {
     pub fn new(width: f32, opacity: f32) -> Result<Fiber, ShadowError> {
-        if !(width.is_finite() && width >= 0.0) {
+        if !(width.is_finite() && width > 0.0) {
             return Err(ShadowError::FiberWidth(width));
         }
         if !(0.0..=1.0).contains(&opacity) {
@@ -62,6 +62,8 @@ mod tests {
         assert!(Fiber::new(0.1, 1.5).is_err());
         assert!(Fiber::new(0.1, f32::NAN).is_err());
         assert_eq!(Fiber::new(0.1, 0.5).unwrap().cross_section(), 0.05);
-        assert!(Fiber::new(0.0, 0.0).is_ok());
+        // A fiber of no width stops no light: not a fiber.
+        assert!(Fiber::new(0.0, 0.5).is_err());
+        assert!(Fiber::new(1e-6, 0.0).is_ok());
     }
 }

@@ -36,7 +36,7 @@ pub use transmittance::{ColumnSlab, DEPTH_STEP, Span, Transmittance, columns_rea
 /// Errors of the shadow stages.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum ShadowError {
-    #[error("fiber width {0} is not a finite number >= 0")]
+    #[error("fiber width {0} is not a finite number > 0")]
     FiberWidth(f32),
     #[error("fiber opacity {0} is not in [0, 1]")]
     FiberOpacity(f32),
