@@ -28,6 +28,15 @@ pub struct WorkerArgs {
     #[arg(long, default_value_t = 600, value_name = "SECS",
           value_parser = clap::value_parser!(u64).range(1..=86_400))]
     session_idle: u64,
+    /// The worker's memory budget, MiB: the density maps its calls hold,
+    /// the strands they receive, each session's scene, files, states and
+    /// share of the hair. A map waits for room; received data past it gets
+    /// RESOURCE_EXHAUSTED. Resident memory stays under this plus
+    /// `--max-sessions` x 146 MiB of kept maps, 16 MiB per call in flight
+    /// and the program itself (see proto/README.md).
+    #[arg(long, default_value_t = 2048, value_name = "MIB",
+          value_parser = clap::value_parser!(u64).range(64..=1 << 30))]
+    max_memory_mib: u64,
 }
 
 /// Mutual TLS (all three files, or none: plain gRPC, for loopback and
@@ -83,6 +92,7 @@ pub fn worker(args: WorkerArgs) -> anyhow::Result<()> {
     let service = cluster::worker::WorkerService::new(cluster::worker::SessionLimits {
         max_sessions: args.max_sessions as usize,
         idle: std::time::Duration::from_secs(args.session_idle),
+        max_memory: args.max_memory_mib << 20,
     });
     let tls = args.tls.load()?;
     if tls.is_none() && !args.listen.ip().is_loopback() {

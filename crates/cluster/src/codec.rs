@@ -51,7 +51,10 @@ impl<U: Message + Default> Decoder for Checked<U> {
         U::decode(buf).map(Some).map_err(|e| {
             Status::invalid_argument(format!(
                 "not a protobuf {}: {e}",
-                std::any::type_name::<U>().rsplit("::").next().unwrap_or("message")
+                std::any::type_name::<U>()
+                    .rsplit("::")
+                    .next()
+                    .unwrap_or("message")
             ))
         })
     }

@@ -295,13 +295,18 @@ impl RemoteExecutor {
         let mut sent = 0u64;
         for (w, share) in self.workers.iter().zip(&shares) {
             let wisps = wisp_range(share);
+            let mut text = wire::text_pieces(&self.source.text, wire::TEXT_PIECE_BYTES);
             let mut chunks = vec![pb::AssignChunk {
-                scene_toml: self.source.text.to_string(),
+                scene_toml: text.next().unwrap_or_default().to_string(),
                 scene_path: self.source.path.to_string_lossy().into_owned(),
                 first_group: share.start as u32,
                 end_group: share.end as u32,
                 ..Default::default()
             }];
+            chunks.extend(text.map(|t| pb::AssignChunk {
+                scene_toml: t.to_string(),
+                ..Default::default()
+            }));
             if !wisps.is_empty() {
                 let states = &hair.states[wisps.clone()];
                 chunks.extend(wire::wisp_chunks(wisps.start, states).into_iter().map(|s| {

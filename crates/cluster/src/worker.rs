@@ -25,49 +25,127 @@ use crate::{ClusterError, Tls, pb, wire};
 
 type Chunks<T> = Pin<Box<dyn Stream<Item = Result<T, Status>> + Send>>;
 
-/// The most density-map cells the calls of all sessions hold at once:
-/// 2^28 cells, 1 GiB of quanta (two maps of 512^3 cells, 64 of 128^3).
-/// A call whose map would pass it waits for others to finish; a map
-/// larger than all of it is refused.
-pub const MAP_BUDGET_CELLS: u64 = 1 << 28;
-
-/// The granule of the map budget: 2^16 cells.
-const MAP_UNIT: u64 = 1 << 16;
-
 /// The most cells a map kept between calls (a session's pool) may have:
 /// 2^22 (16 MiB of quanta); larger maps are dropped after their call.
 const POOLED_CELLS: u64 = 1 << 22;
 
-/// The worker's budget of density-map cells held by calls at once.
-#[derive(Debug, Clone)]
-struct MapBudget(Arc<tokio::sync::Semaphore>);
+/// The most maps a session keeps between calls.
+const POOLED_MAPS: usize = 4;
 
-impl Default for MapBudget {
-    fn default() -> MapBudget {
-        MapBudget(Arc::new(tokio::sync::Semaphore::new(
-            (MAP_BUDGET_CELLS / MAP_UNIT) as usize,
-        )))
-    }
+/// The most deposit scratch points a pooled map keeps (12 MiB).
+const POOLED_SCRATCH_POINTS: usize = 1 << 20;
+
+/// What a session's pool of maps may hold at most, outside the memory
+/// budget: [`POOLED_MAPS`] maps of [`POOLED_CELLS`] cells (161 a side)
+/// with their scratch (about 146 MiB).
+pub const POOL_BYTES: u64 =
+    POOLED_MAPS as u64 * (DensityMap::bytes_for(161) + POOLED_SCRATCH_POINTS as u64 * 20);
+
+/// Memory is budgeted in granules of 64 KiB.
+const GRANULE: u64 = 1 << 16;
+
+/// Bytes a received point costs until its call ends: its coordinates, and
+/// their copy in map coordinates while it is deposited.
+const POINT_BYTES: u64 = 24;
+
+/// Bytes a received strand costs until its call ends: its offset, and
+/// its range along the light while it is deposited.
+const STRAND_BYTES: u64 = 12;
+
+/// The worker's memory budget (`--max-memory-mib`): every density map a
+/// call holds, every strand a Deposit receives, and each session's scene,
+/// data files, wisp states and share of the hair. A map waits for room (a
+/// call holding one finishes without asking for more); received data that
+/// does not fit is refused with RESOURCE_EXHAUSTED.
+#[derive(Debug, Clone)]
+struct Memory {
+    free: Arc<tokio::sync::Semaphore>,
+    total: u64,
 }
 
-impl MapBudget {
-    /// Waits until a map in `frame` fits the budget; held until dropped.
-    async fn hold(&self, frame: &LightFrame) -> Result<tokio::sync::OwnedSemaphorePermit, Status> {
-        let cells = u64::from(frame.n_cells).pow(3);
-        if cells > MAP_BUDGET_CELLS {
-            return Err(Status::resource_exhausted(format!(
-                "a map of {}^3 cells is more than this worker holds (MAP_BUDGET_CELLS = {MAP_BUDGET_CELLS})",
-                frame.n_cells
-            )));
+type Held64k = tokio::sync::OwnedSemaphorePermit;
+
+impl Memory {
+    fn new(total: u64) -> Memory {
+        let units = (total / GRANULE).min(tokio::sync::Semaphore::MAX_PERMITS as u64);
+        Memory {
+            free: Arc::new(tokio::sync::Semaphore::new(units as usize)),
+            total: units * GRANULE,
         }
-        let units = cells.div_ceil(MAP_UNIT) as u32;
-        self.0
+    }
+
+    fn units(bytes: u64) -> u32 {
+        bytes.div_ceil(GRANULE).min(u64::from(u32::MAX)) as u32
+    }
+
+    fn too_much(&self, bytes: u64, what: &str) -> Status {
+        Status::resource_exhausted(format!(
+            "{what} would take {} MiB of this worker's memory budget of {} MiB, \
+             of which {} MiB are free (--max-memory-mib)",
+            bytes.div_ceil(1 << 20),
+            self.total >> 20,
+            (self.free.available_permits() as u64 * GRANULE) >> 20
+        ))
+    }
+
+    /// Waits until `bytes` fit; held until dropped. More than the whole
+    /// budget is refused.
+    async fn wait_for(&self, bytes: u64, what: &str) -> Result<Held64k, Status> {
+        if bytes > self.total {
+            return Err(self.too_much(bytes, what));
+        }
+        self.free
             .clone()
-            .acquire_many_owned(units)
+            .acquire_many_owned(Memory::units(bytes))
             .await
             .map_err(|_| Status::unavailable("the worker is stopping"))
     }
+
+    /// A map in `frame`, once it fits.
+    async fn map(&self, frame: &LightFrame) -> Result<Held64k, Status> {
+        let what = format!("a density map of {}^3 cells", frame.n_cells);
+        self.wait_for(DensityMap::bytes_for(frame.n_cells), &what)
+            .await
+    }
+
+    /// Takes `bytes` now, into `held`, or refuses.
+    fn take(&self, held: &mut Option<Held64k>, bytes: u64, what: &str) -> Result<(), Status> {
+        if bytes == 0 {
+            return Ok(());
+        }
+        let p = self
+            .free
+            .clone()
+            .try_acquire_many_owned(Memory::units(bytes))
+            .map_err(|_| self.too_much(bytes, what))?;
+        match held {
+            Some(h) => h.merge(p),
+            None => *held = Some(p),
+        }
+        Ok(())
+    }
 }
+
+/// What a share of a scene may come to hold, estimated before it is built
+/// from the scene's drawn segments and picture:
+/// `SHARE_BYTES_PER_SEGMENT * segments + CANVAS_BYTES_PER_PIXEL * pixels`.
+fn share_bytes(scene: &Scene) -> Result<u64, engine::EngineError> {
+    let pixels = u64::from(scene.render.width) * u64::from(scene.render.height);
+    Ok(engine::drawn_segments(scene)? * SHARE_BYTES_PER_SEGMENT + pixels * CANVAS_BYTES_PER_PIXEL)
+}
+
+/// Bytes a drawn segment of the scene costs a worker's share, at most:
+/// the whole hair at rest and posed (every share keeps the scene's
+/// animator), and the share's own vertices' transmittance, colours and
+/// screen vertices. Measured: see the worker's memory test.
+const SHARE_BYTES_PER_SEGMENT: u64 = 256;
+
+/// Bytes a picture's pixel costs a worker's share: its partial picture's
+/// sums and marks, the opaque depth and colour it draws behind.
+const CANVAS_BYTES_PER_PIXEL: u64 = 48;
+
+/// The default memory budget: 2 GiB.
+pub const DEFAULT_MAX_MEMORY: u64 = 2 << 30;
 
 /// The gRPC metadata key that names a call's session.
 pub const SESSION_KEY: &str = "wisplight-session";
@@ -78,27 +156,34 @@ pub const SESSION_KEY: &str = "wisplight-session";
 pub struct SessionLimits {
     pub max_sessions: usize,
     pub idle: Duration,
+    /// The memory budget of all sessions and calls, bytes.
+    pub max_memory: u64,
 }
 
 impl Default for SessionLimits {
-    /// Four sessions; ten minutes idle.
+    /// Four sessions; ten minutes idle; 2 GiB.
     fn default() -> SessionLimits {
         SessionLimits {
             max_sessions: 4,
             idle: Duration::from_secs(600),
+            max_memory: DEFAULT_MAX_MEMORY,
         }
     }
 }
 
 /// The worker: its sessions, one per coordinator it serves, each with its
 /// own state, none seeing another's.
-#[derive(Debug, Default)]
+#[derive(Debug)]
 pub struct WorkerService {
     sessions: Mutex<HashMap<String, Arc<Session>>>,
     limits: SessionLimits,
-    /// The density-map cells all calls hold at once, in units of
-    /// [`MAP_UNIT`] cells (see [`MAP_BUDGET_CELLS`]).
-    maps_budget: MapBudget,
+    memory: Memory,
+}
+
+impl Default for WorkerService {
+    fn default() -> WorkerService {
+        WorkerService::new(SessionLimits::default())
+    }
 }
 
 /// What one coordinator's calls share: the fiber it said Hello with, its
@@ -118,6 +203,9 @@ struct Session {
 struct Held {
     source: SceneSource,
     share: Share,
+    /// The memory budget the scene, its files, the states and the share
+    /// take, given back when the share is dropped.
+    _memory: Option<Held64k>,
 }
 
 fn invalid(e: wire::Malformed) -> Status {
@@ -151,6 +239,22 @@ impl Drop for StopOnDrop {
     fn drop(&mut self) {
         self.0.store(true, Ordering::Relaxed);
     }
+}
+
+/// A call's stop switch, kept by the call's future, and the question its
+/// work asks between runs: go on? (No, once the call is dropped.)
+fn stop_switch() -> (
+    StopOnDrop,
+    impl Fn() -> bool + Send + Sync + Clone + 'static,
+) {
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    (StopOnDrop(stop), move || !flag.load(Ordering::Relaxed))
+}
+
+/// What a call whose caller has gone answers (nobody reads it).
+fn cancelled(call: &str) -> Status {
+    Status::cancelled(format!("the {call} was cancelled"))
 }
 
 /// Logs a refused call at the default level, with its peer and the
@@ -198,8 +302,9 @@ impl WorkerService {
     /// A worker holding at most `limits` sessions.
     pub fn new(limits: SessionLimits) -> WorkerService {
         WorkerService {
+            sessions: Mutex::default(),
+            memory: Memory::new(limits.max_memory),
             limits,
-            ..WorkerService::default()
         }
     }
 
@@ -244,12 +349,13 @@ impl WorkerService {
         }
     }
 
-    fn give_back(maps: &Mutex<Vec<DensityMap>>, map: DensityMap) {
+    fn give_back(maps: &Mutex<Vec<DensityMap>>, mut map: DensityMap) {
         if u64::from(map.frame().n_cells).pow(3) > POOLED_CELLS {
             return;
         }
+        map.trim_scratch(POOLED_SCRATCH_POINTS);
         if let Ok(mut m) = maps.lock()
-            && m.len() < 4
+            && m.len() < POOLED_MAPS
         {
             m.push(map);
         }
@@ -350,13 +456,24 @@ impl Worker for WorkerService {
             let frame = wire::frame_from_pb(first.map.as_ref()).map_err(invalid)?;
             let (frame_id, light) = (first.frame_id, first.light);
             let mut hair = Hair::new();
-            wire::add_strands(&mut hair, &first).map_err(invalid)?;
+            // The strands' memory, held until the call ends.
+            let mut received = None;
+            let mut add = |c: &pb::DepositChunk| -> Result<(), Status> {
+                let bytes = c.points.len() as u64 / 3 * POINT_BYTES
+                    + c.strand_lengths.len() as u64 * STRAND_BYTES;
+                self.memory
+                    .take(&mut received, bytes, "the Deposit's strands")?;
+                wire::add_strands(&mut hair, c).map_err(invalid)
+            };
+            add(&first)?;
             while let Some(c) = stream.message().await? {
-                wire::add_strands(&mut hair, &c).map_err(invalid)?;
+                add(&c)?;
             }
             let maps = session.maps.clone();
             // Held until the map is back in the pool or dropped.
-            let budget = self.maps_budget.hold(&frame).await?;
+            let budget = (self.memory.map(&frame).await?, received);
+            // The deposit stops between runs of strands once the call is gone.
+            let (_stop_on_drop, go) = stop_switch();
             let chunks = if first.posed {
                 if hair.strand_count() > 0 {
                     return Err(Status::invalid_argument(
@@ -365,8 +482,12 @@ impl Worker for WorkerService {
                 }
                 let (version, filter) = (first.version, first.filter);
                 with_share(&session.held, move |share| {
+                    let _budget = budget;
                     deposit_reply(&maps, frame, |map| {
-                        let stats = share.deposit(version, map, &fiber).map_err(refused)?;
+                        let stats = share
+                            .deposit_while(version, map, &fiber, go)
+                            .map_err(refused)?
+                            .ok_or_else(|| cancelled("Deposit"))?;
                         let read = share
                             .columns_read(version, &frame, filter)
                             .map_err(refused)?;
@@ -376,14 +497,17 @@ impl Worker for WorkerService {
                 .await?
             } else {
                 tokio::task::spawn_blocking(move || {
+                    let _budget = budget;
                     deposit_reply(&maps, frame, |map| {
-                        Ok((map.deposit(&hair, 0..hair.strand_count(), &fiber), None))
+                        let stats = map
+                            .deposit_while(&hair, 0..hair.strand_count(), &fiber, go)
+                            .ok_or_else(|| cancelled("Deposit"))?;
+                        Ok((stats, None))
                     })
                 })
                 .await
                 .map_err(|e| Status::internal(format!("deposit task failed: {e}")))??
             };
-            drop(budget);
             let mut chunks = chunks;
             if let Some(c) = chunks.first_mut() {
                 c.frame_id = frame_id;
@@ -405,24 +529,33 @@ impl Worker for WorkerService {
             let mut stream = req.into_inner();
             let first = first_message(&mut stream, "Assign").await?;
             let groups = first.first_group as usize..first.end_group as usize;
-            let mut source = SceneSource {
-                text: first.scene_toml.as_str().into(),
-                path: first.scene_path.clone().into(),
-                files: Default::default(),
-            };
-            if first.scene_toml.len() > wire::MAX_SCENE_TEXT {
-                return Err(Status::resource_exhausted(format!(
-                    "a scene of {} bytes: at most {} (wire::MAX_SCENE_TEXT)",
-                    first.scene_toml.len(),
-                    wire::MAX_SCENE_TEXT
-                )));
-            }
+            let path = first.scene_path.clone();
+            let mut text = String::new();
             let mut states: Vec<pb::WispChunk> = Vec::new();
             let mut files: Vec<(String, Vec<u8>)> = Vec::new();
             // What the call has made this worker keep, checked before each
             // chunk is kept.
             let (mut file_bytes, mut state_floats) = (0usize, 0usize);
+            // What the Assign received, in the memory budget; kept with the
+            // share it makes.
+            let mut received = None;
+            let memory = self.memory.clone();
             let mut take = |c: pb::AssignChunk| -> Result<(), Status> {
+                // The scene text may come in pieces, one a chunk.
+                if text.len() + c.scene_toml.len() > wire::MAX_SCENE_TEXT {
+                    return Err(Status::resource_exhausted(format!(
+                        "a scene of more than {} bytes (wire::MAX_SCENE_TEXT)",
+                        wire::MAX_SCENE_TEXT
+                    )));
+                }
+                let bytes = c.scene_toml.len() + c.file_data.len() + c.file_path.len();
+                let floats = c.state.as_ref().map_or(0, |w| w.pos.len() + w.prev.len());
+                memory.take(
+                    &mut received,
+                    (bytes + 4 * floats) as u64,
+                    "the Assign's scene, data files and wisp states",
+                )?;
+                text.push_str(&c.scene_toml);
                 file_bytes += c.file_data.len() + c.file_path.len();
                 if file_bytes > wire::MAX_FILE_BYTES {
                     return Err(Status::resource_exhausted(format!(
@@ -430,14 +563,12 @@ impl Worker for WorkerService {
                         wire::MAX_FILE_BYTES
                     )));
                 }
-                if let Some(w) = &c.state {
-                    state_floats += w.pos.len() + w.prev.len();
-                    if state_floats > wire::MAX_STATE_FLOATS {
-                        return Err(Status::resource_exhausted(format!(
-                            "wisp states of more than {} values (wire::MAX_STATE_FLOATS)",
-                            wire::MAX_STATE_FLOATS
-                        )));
-                    }
+                state_floats += floats;
+                if state_floats > wire::MAX_STATE_FLOATS {
+                    return Err(Status::resource_exhausted(format!(
+                        "wisp states of more than {} values (wire::MAX_STATE_FLOATS)",
+                        wire::MAX_STATE_FLOATS
+                    )));
                 }
                 states.extend(c.state);
                 if !c.file_path.is_empty() {
@@ -455,13 +586,18 @@ impl Worker for WorkerService {
             while let Some(c) = stream.message().await? {
                 take(c)?;
             }
+            let mut source = SceneSource {
+                text: text.into(),
+                path: path.into(),
+                files: Default::default(),
+            };
             for (path, data) in files {
                 source.files.insert(path.into(), data.into());
             }
             let held = session.held.clone();
             let reply = tokio::task::spawn_blocking(move || {
                 let mut slot = held.lock().map_err(poisoned)?;
-                let h = build_share(slot.take(), source, groups, &states)?;
+                let h = build_share(slot.take(), source, groups, &states, &memory, received)?;
                 let anim = h.share.animator();
                 let wisps = h.share.wisps();
                 let reply = pb::AssignReply {
@@ -493,13 +629,11 @@ impl Worker for WorkerService {
             let r = req.into_inner();
             // Set when this call is dropped (cancelled, or past its deadline):
             // the steps stop at the next one and the share is free again.
-            let stop = Arc::new(AtomicBool::new(false));
-            let _stop_on_drop = StopOnDrop(stop.clone());
+            let (_stop_on_drop, go) = stop_switch();
             let chunks = with_share(&session.held, move |share| {
                 let start = std::time::Instant::now();
                 let (plan, accel) = step_plan(&r, share).map_err(invalid)?;
                 let mut stats = FrameStats::new(r.frame_id, 0.0);
-                let go = || !stop.load(Ordering::Relaxed);
                 if !share.step_while(&plan, accel.as_deref(), &mut stats, go) {
                     return Err(Status::cancelled(format!(
                         "the Step was cancelled after {} of {} time steps",
@@ -558,21 +692,24 @@ impl Worker for WorkerService {
                 )));
             }
             let maps = session.maps.clone();
-            let budget = self.maps_budget.hold(&frame).await?;
+            let budget = self.memory.map(&frame).await?;
             // On an error the map is dropped (the pool makes another).
             let mut map = WorkerService::map_in(&maps, frame);
             wire::merge_columns(&mut map, &first).map_err(invalid)?;
             while let Some(c) = stream.message().await? {
                 wire::merge_columns(&mut map, &c).map_err(invalid)?;
             }
+            // The sweep stops between runs of columns once the call is gone.
+            let (_stop_on_drop, go) = stop_switch();
             let chunks = tokio::task::spawn_blocking(move || {
-                let slab: ColumnSlab = shadow::sweep(&map, lo..hi);
+                let slab: Option<ColumnSlab> = shadow::sweep_while(&map, lo..hi, go);
                 WorkerService::give_back(&maps, map);
                 drop(budget);
-                wire::slab_chunks(&slab)
+                slab.map(|s| wire::slab_chunks(&s))
+                    .ok_or_else(|| cancelled("Sweep"))
             })
             .await
-            .map_err(|e| Status::internal(format!("sweep task failed: {e}")))?;
+            .map_err(|e| Status::internal(format!("sweep task failed: {e}")))??;
             tracing::debug!(
                 frame_id = first.frame_id,
                 light = first.light,
@@ -601,17 +738,26 @@ impl Worker for WorkerService {
             let job = wire::job_from_pb(job).map_err(invalid)?;
             let mut reader =
                 wire::ColumnsReader::new(if job.shadows { job.to_lights.len() } else { 0 });
+            // The swept columns' memory, held until the picture is drawn.
+            let mut received = None;
+            let mut add = |c: &pb::DrawChunk| -> Result<(), Status> {
+                let bytes = wire::ColumnsReader::bytes_to_add(c);
+                self.memory
+                    .take(&mut received, bytes, "the Draw's swept columns")?;
+                reader.add(c).map_err(invalid)
+            };
             if first.map.is_some() || !first.column_steps.is_empty() {
-                reader.add(&first).map_err(invalid)?;
+                add(&first)?;
             }
             while let Some(c) = stream.message().await? {
                 if c.job.is_some() {
                     return Err(Status::invalid_argument("a Draw call carries one job"));
                 }
-                reader.add(&c).map_err(invalid)?;
+                add(&c)?;
             }
             let maps = reader.finish().map_err(invalid)?;
             let (layer, times) = with_share(&session.held, move |share| {
+                let _received = received;
                 share.draw(&job, &maps).map_err(refused)
             })
             .await?;
@@ -661,20 +807,33 @@ fn share_chunks(share: &Share) -> Result<Vec<pb::WispChunk>, Status> {
 /// Builds the share an Assign call asks for (off the async threads: the
 /// scene's hair is generated here), keeping the old one's hair when the
 /// scene and groups are the same.
+/// The share of `groups` of the scene `source` says, with wisp `states`:
+/// `old` when it is of the same scene and groups, else a new one, whose
+/// memory (estimated before it is built) joins `received` in the budget.
 fn build_share(
     old: Option<Held>,
     source: SceneSource,
     groups: Range<usize>,
     states: &[pb::WispChunk],
+    memory: &Memory,
+    mut received: Option<Held64k>,
 ) -> Result<Held, Status> {
     let mut held = match old {
         Some(h) if h.source == source && h.share.groups() == groups => h,
-        _ => {
+        old => {
+            drop(old);
             let scene = Scene::from_source(&source)
                 .map_err(|e| Status::invalid_argument(format!("the scene: {e}")))?;
+            let bytes = share_bytes(&scene)
+                .map_err(|e| Status::invalid_argument(format!("the scene's hair: {e}")))?;
+            memory.take(&mut received, bytes, "the scene's hair and picture")?;
             let share = Share::new(&scene, groups)
                 .map_err(|e| Status::invalid_argument(format!("the scene's hair: {e}")))?;
-            Held { source, share }
+            Held {
+                source,
+                share,
+                _memory: received,
+            }
         }
     };
     let share = &mut held.share;

@@ -173,6 +173,7 @@ fn a_worker_holds_at_most_its_sessions_and_ends_idle_ones() {
     let limits = SessionLimits {
         max_sessions: 2,
         idle: Duration::from_millis(400),
+        ..SessionLimits::default()
     };
     let (addr, _stop) = common::start_service(WorkerService::new(limits), Listen::default());
     let rt = tokio::runtime::Runtime::new().unwrap();
@@ -231,6 +232,7 @@ fn a_coordinator_ends_its_sessions_when_it_is_done() {
     let limits = SessionLimits {
         max_sessions: 1,
         idle: Duration::from_secs(600),
+        ..SessionLimits::default()
     };
     let (addr, _stop) = common::start_service(WorkerService::new(limits), Listen::default());
     let a = scene(DANCE);

@@ -332,7 +332,12 @@ fn undecodable_bytes_and_unphysical_fibers_are_invalid_arguments() {
         // A field tag of 0 and a truncated varint: not a protobuf message.
         for bytes in [vec![0u8, 1], vec![0x08, 0xff]] {
             let e = raw_call(addr, "/wisplight.v1.Worker/Hello", bytes.clone()).await;
-            assert_eq!(e.code(), tonic::Code::InvalidArgument, "{bytes:?}: {}", e.message());
+            assert_eq!(
+                e.code(),
+                tonic::Code::InvalidArgument,
+                "{bytes:?}: {}",
+                e.message()
+            );
             assert!(e.message().contains("HelloRequest"), "{}", e.message());
         }
         let mut c = WorkerClient::connect(format!("http://{addr}"))
@@ -769,14 +774,18 @@ fn an_assign_past_the_limits_is_refused_saying_which() {
     let rt = tokio::runtime::Runtime::new().unwrap();
     rt.block_on(async {
         let mut c = greeted_client(addr).await;
-        let huge = pb::AssignChunk {
-            scene_toml: "#".repeat(wire::MAX_SCENE_TEXT + 1),
-            scene_path: "big.toml".into(),
-            first_group: 0,
-            end_group: 1,
-            ..Default::default()
-        };
-        let e = c.assign(tokio_stream::iter(vec![huge])).await.unwrap_err();
+        // Scene text in pieces of 1 MiB, one byte past the limit in all.
+        let text = "#".repeat(wire::MAX_SCENE_TEXT + 1);
+        let huge: Vec<pb::AssignChunk> = wire::text_pieces(&text, wire::TEXT_PIECE_BYTES)
+            .map(|t| pb::AssignChunk {
+                scene_toml: t.to_string(),
+                scene_path: "big.toml".into(),
+                end_group: 1,
+                ..Default::default()
+            })
+            .collect();
+        assert_eq!(huge.len(), 17);
+        let e = c.assign(tokio_stream::iter(huge)).await.unwrap_err();
         assert_eq!(e.code(), tonic::Code::ResourceExhausted, "{}", e.message());
         assert!(e.message().contains("MAX_SCENE_TEXT"), "{}", e.message());
         // Data files: chunk after chunk, refused once past the limit.
@@ -789,10 +798,10 @@ fn an_assign_past_the_limits_is_refused_saying_which() {
             ..Default::default()
         };
         let piece = pb::AssignChunk {
-            file_data: vec![7; 48 << 20],
+            file_data: vec![7; 8 << 20],
             ..Default::default()
         };
-        let n = wire::MAX_FILE_BYTES / (48 << 20) + 1;
+        let n = wire::MAX_FILE_BYTES / (8 << 20) + 1;
         let chunks = std::iter::once(first).chain(std::iter::repeat_n(piece, n));
         let e = c.assign(tokio_stream::iter(chunks)).await.unwrap_err();
         assert_eq!(e.code(), tonic::Code::ResourceExhausted, "{}", e.message());

@@ -45,6 +45,24 @@ pub fn build_hair(scene: &Scene) -> Result<Hair, EngineError> {
     Ok(resample(&control, scene.subdivide))
 }
 
+/// The drawn segments [`build_hair`] makes of a scene's hair, counted
+/// without making them (a loaded groom is loaded, not resampled). Checked
+/// against [`MAX_SEGMENTS`].
+pub fn drawn_segments(scene: &Scene) -> Result<u64, EngineError> {
+    let sub = u64::from(scene.subdivide);
+    let segs = match &scene.hair {
+        HairSource::Style(p) => u64::from(p.wisps) * u64::from(p.strands_per_wisp) * 31 * sub,
+        HairSource::File { path, follow } => {
+            let guides = strands::load_with(path, |p| scene.data_file(p))?;
+            let per = follow.as_ref().map_or(1, |f| u64::from(f.followers) + 1);
+            guides.segment_count() as u64 * per * sub
+        }
+        HairSource::Inline(hair) => hair.segment_count() as u64 * sub,
+    };
+    check_size(segs)?;
+    Ok(segs)
+}
+
 fn check_size(segments: u64) -> Result<(), EngineError> {
     if segments > MAX_SEGMENTS {
         return Err(EngineError::TooLarge {

@@ -138,8 +138,21 @@ impl Share {
         map: &mut DensityMap,
         fiber: &Fiber,
     ) -> Result<FillStats, EngineError> {
+        self.deposit_while(version, map, fiber, || true)
+            .map(|s| s.unwrap_or_default())
+    }
+
+    /// [`deposit`](Self::deposit), asking `go` between runs of strands
+    /// (see [`DensityMap::deposit_while`]): `Ok(None)` when it said stop.
+    pub fn deposit_while(
+        &self,
+        version: u64,
+        map: &mut DensityMap,
+        fiber: &Fiber,
+        go: impl Fn() -> bool,
+    ) -> Result<Option<FillStats>, EngineError> {
         let hair = self.posed(version)?;
-        Ok(map.deposit(hair, 0..hair.strand_count(), fiber))
+        Ok(map.deposit_while(hair, 0..hair.strand_count(), fiber, go))
     }
 
     /// The columns of a map in `frame` that filtering the share's strands

@@ -20,6 +20,10 @@ pub const DEPTH_QUANTUM: f64 = 1.0 / (1u64 << 20) as f64;
 /// The largest map side, in cells. 512^3 cells already take 512 MiB.
 pub const MAX_CELLS: u32 = 512;
 
+/// The most points one run of [`DensityMap::deposit_while`] deposits
+/// between two questions whether to go on.
+pub const DEPOSIT_RUN_POINTS: usize = 1 << 20;
+
 const EMPTY_LO: u16 = u16::MAX;
 
 /// The density map: per cell, the optical depth `tau = kappa * ds` that hair
@@ -159,6 +163,25 @@ impl DensityMap {
 
     pub fn frame(&self) -> &LightFrame {
         &self.frame
+    }
+
+    /// The bytes a map of `n_cells` a side allocates when made (its
+    /// deposit scratch apart): the cells' quanta, per column its meta and
+    /// body index, per block of columns its meta.
+    pub const fn bytes_for(n_cells: u32) -> u64 {
+        let n = n_cells as u64;
+        let meta = std::mem::size_of::<ColumnMeta>() as u64;
+        n * n * n * 4 + n * n * (meta + 4) + (n + 1) * (n + 1) * meta
+    }
+
+    /// Frees the deposit scratch if it holds more than `points` points or
+    /// strands (at most `20 * points` bytes are kept: 12 a point, 8 a
+    /// strand), so that a map kept between calls keeps no memory the next
+    /// may not need.
+    pub fn trim_scratch(&mut self, points: usize) {
+        if self.scratch.pts.capacity() > points || self.scratch.z_range.capacity() > points {
+            self.scratch = Scratch::default();
+        }
     }
 
     /// Moves the map to a new frame (a moved light or hair), emptying it and
@@ -342,6 +365,45 @@ impl DensityMap {
                 }
             });
         stats
+    }
+
+    /// [`deposit`](Self::deposit) in runs of at most
+    /// [`DEPOSIT_RUN_POINTS`] points, asking `go` before each: `None` when
+    /// it said stop (the map then holds some of the strands). The same
+    /// cells as one deposit of them all.
+    pub fn deposit_while(
+        &mut self,
+        hair: &Hair,
+        strands: Range<usize>,
+        fiber: &Fiber,
+        go: impl Fn() -> bool,
+    ) -> Option<FillStats> {
+        self.deposit_runs(hair, strands, fiber, DEPOSIT_RUN_POINTS, go)
+    }
+
+    fn deposit_runs(
+        &mut self,
+        hair: &Hair,
+        strands: Range<usize>,
+        fiber: &Fiber,
+        run_points: usize,
+        go: impl Fn() -> bool,
+    ) -> Option<FillStats> {
+        let offsets = hair.offsets();
+        let mut stats = FillStats::default();
+        let mut s = strands.start;
+        while s < strands.end {
+            if !go() {
+                return None;
+            }
+            let mut e = s + 1;
+            while e < strands.end && (offsets[e + 1] - offsets[s]) as usize <= run_points {
+                e += 1;
+            }
+            stats = stats + self.deposit(hair, s..e, fiber);
+            s = e;
+        }
+        Some(stats)
     }
 
     /// Adds an opaque body (a head) to the map: every column whose centre
@@ -733,6 +795,51 @@ fn add_at(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn deposits_in_runs_give_the_cells_of_one_and_stop_when_told() {
+        let light = crate::Light::directional(Vec3::new(0.3, -0.9, 0.1)).unwrap();
+        let frame = LightFrame::centered(&light, Vec3::ZERO, 8.0, 16).unwrap();
+        let mut hair = Hair::new();
+        for s in 0..40 {
+            let f = s as f32 * 0.13;
+            let pts: Vec<Vec3> = (0..1 + s % 6)
+                .map(|i| Vec3::new(f - 2.5, 0.4 * i as f32 - 1.0, (f * i as f32).sin()))
+                .collect();
+            hair.push_strand(&pts).unwrap();
+        }
+        let fiber = Fiber::new(0.05, 0.7).unwrap();
+        let mut whole = DensityMap::new(frame);
+        let all = whole.fill(&hair, &fiber);
+        let mut runs = DensityMap::new(frame);
+        let asked = std::cell::Cell::new(0);
+        let go = || {
+            asked.set(asked.get() + 1);
+            true
+        };
+        let stats = runs.deposit_runs(&hair, 0..hair.strand_count(), &fiber, 7, go);
+        assert_eq!(stats, Some(all));
+        assert!(asked.get() > 10, "{} runs", asked.get());
+        for col in 0..frame.columns() {
+            assert_eq!(whole.meta(col), runs.meta(col), "column {col}");
+            assert_eq!(
+                whole.column(col, 0..16),
+                runs.column(col, 0..16),
+                "column {col}"
+            );
+        }
+        // Told to stop after two runs: no answer, and no more runs.
+        asked.set(0);
+        let go = || {
+            asked.set(asked.get() + 1);
+            asked.get() <= 2
+        };
+        assert_eq!(
+            runs.deposit_runs(&hair, 0..hair.strand_count(), &fiber, 7, go),
+            None
+        );
+        assert_eq!(asked.get(), 3);
+    }
 
     #[test]
     fn hair_quanta_leave_out_the_bodies_and_only_them() {

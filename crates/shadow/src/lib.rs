@@ -24,14 +24,19 @@ mod peers;
 pub mod reference;
 mod transmittance;
 
-pub use density::{ColumnMeta, DEPTH_QUANTUM, DensityMap, FillStats, MAX_CELLS};
+pub use density::{
+    ColumnMeta, DEPOSIT_RUN_POINTS, DEPTH_QUANTUM, DensityMap, FillStats, MAX_CELLS,
+};
 pub use fiber::Fiber;
 pub use frame::{Extent, Light, LightFrame};
 pub use method::{
     Beyond, DensityMapMethod, MethodConfig, OPAQUE_DEPTH, OpacityMode, ShadowInput, ShadowMethod,
 };
 pub use occluder::{Occluder, OccluderView};
-pub use transmittance::{ColumnSlab, DEPTH_STEP, Span, Transmittance, columns_read, sweep};
+pub use transmittance::{
+    ColumnSlab, DEPTH_STEP, SWEEP_RUN_COLUMNS, Span, Transmittance, columns_read, sweep,
+    sweep_while,
+};
 
 /// Errors of the shadow stages.
 #[derive(Debug, thiserror::Error, PartialEq)]

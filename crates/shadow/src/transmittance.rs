@@ -137,12 +137,29 @@ impl ColumnSlab {
 /// sums, each rounded once to a step, make the result independent of how
 /// columns are split.
 pub fn sweep(density: &DensityMap, columns: Range<u32>) -> ColumnSlab {
+    sweep_while(density, columns, || true).expect("never told to stop")
+}
+
+/// The most columns [`sweep_while`] sweeps between two questions whether
+/// to go on.
+pub const SWEEP_RUN_COLUMNS: usize = 4096;
+
+/// [`sweep`], asking `go` before each run of [`SWEEP_RUN_COLUMNS`]
+/// columns: `None` when it said stop.
+pub fn sweep_while(
+    density: &DensityMap,
+    columns: Range<u32>,
+    go: impl Fn() -> bool,
+) -> Option<ColumnSlab> {
     let mut slab = ColumnSlab::layout(density, columns.clone());
     slab.depth = vec![0; slab.cells()];
-    for (col, s) in columns.zip(&slab.spans) {
+    for (i, (col, s)) in columns.zip(&slab.spans).enumerate() {
+        if i % SWEEP_RUN_COLUMNS == 0 && !go() {
+            return None;
+        }
         sweep_span(density, col as usize, *s, &mut slab.depth, 0, |x| x);
     }
-    slab
+    Some(slab)
 }
 
 /// The span of column `col` of `density` whose depths start at `start`.
@@ -647,6 +664,24 @@ mod tests {
         let split = Transmittance::assemble(big, slabs).unwrap();
         assert_eq!(Transmittance::compute(&map), split);
         assert!(map.span(0).is_none() && split.stored_cells() > 1000);
+        // Asked before each run of columns; told to stop, it stops.
+        let asked = std::cell::Cell::new(0);
+        let count = || {
+            asked.set(asked.get() + 1);
+            true
+        };
+        assert_eq!(
+            sweep_while(&map, 0..9216, count),
+            Some(sweep(&map, 0..9216))
+        );
+        assert_eq!(asked.get(), 9216usize.div_ceil(SWEEP_RUN_COLUMNS));
+        asked.set(0);
+        let once = || {
+            asked.set(asked.get() + 1);
+            asked.get() == 1
+        };
+        assert_eq!(sweep_while(&map, 0..9216, once), None);
+        assert_eq!(asked.get(), 2);
 
         let frame = LightFrame::fit(&light, hair.points(), 16).unwrap();
         let mut map = DensityMap::new(frame);

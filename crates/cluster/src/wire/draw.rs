@@ -7,7 +7,7 @@ use engine::{DrawJob, PosePlan, PoseReport};
 use glam::{Affine3A, Vec3};
 use prost::encoding::{decode_varint, encode_varint};
 use raster::{Camera, HairLayer, HairLook, Shading, Sums};
-use shadow::{ColumnSlab, Extent, Light, LightFrame, Span};
+use shadow::{ColumnSlab, Extent, Light, LightFrame, MAX_CELLS, Span};
 use strands::Bounds;
 
 use super::{
@@ -313,6 +313,19 @@ impl ColumnsReader {
             next: None,
             current: None,
         }
+    }
+
+    /// The most bytes [`add`](Self::add)ing `c` allocates, for a budget
+    /// to admit before: 8 a depth (the depth and its step, unpacked), and
+    /// for a light's frame a span per column.
+    pub fn bytes_to_add(c: &pb::DrawChunk) -> u64 {
+        let cells: u64 =
+            c.lo.iter()
+                .zip(&c.hi)
+                .map(|(&lo, &hi)| u64::from(hi.saturating_sub(lo)) + 1)
+                .sum();
+        let side = c.map.as_ref().map_or(0, |m| m.n_cells.min(MAX_CELLS)) as u64;
+        cells * 8 + side * side * std::mem::size_of::<Span>() as u64
     }
 
     pub fn add(&mut self, c: &pb::DrawChunk) -> Result<(), Malformed> {

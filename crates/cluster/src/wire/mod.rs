@@ -18,7 +18,7 @@ pub use draw::*;
 
 /// The protocol version this build speaks. A coordinator and a worker of
 /// different versions refuse each other.
-pub const PROTOCOL_VERSION: u32 = 6;
+pub const PROTOCOL_VERSION: u32 = 7;
 
 /// Points per Deposit chunk: 3 floats each, 1.5 MB.
 pub const POINTS_PER_CHUNK: usize = 128 * 1024;
@@ -26,10 +26,30 @@ pub const POINTS_PER_CHUNK: usize = 128 * 1024;
 /// Density cells or depths per column or slab chunk: at most about 1.3 MB.
 pub const CELLS_PER_CHUNK: usize = 256 * 1024;
 
-/// The largest message either side decodes. Chunks stay far below it; only
-/// a single strand of more than about 350,000 points would need more than
-/// the 4 MiB default.
-pub const MAX_MESSAGE_BYTES: usize = 64 << 20;
+/// The largest message either side decodes (16 MiB): each call in flight
+/// buffers at most one. Chunks stay far below it; a Step's head motions
+/// and accelerations, sent whole, are what comes nearest.
+pub const MAX_MESSAGE_BYTES: usize = 16 << 20;
+
+/// The largest piece of a text (a scene) one message carries: 1 MiB.
+pub const TEXT_PIECE_BYTES: usize = 1 << 20;
+
+/// `text` in pieces of at most `max` bytes (at least one: an empty text
+/// is one empty piece), each cut at a character boundary.
+pub fn text_pieces(text: &str, max: usize) -> impl Iterator<Item = &str> {
+    let max = max.max(4);
+    let mut rest = Some(text);
+    std::iter::from_fn(move || {
+        let t = rest?;
+        let mut cut = t.len().min(max);
+        while !t.is_char_boundary(cut) {
+            cut -= 1;
+        }
+        let (piece, after) = t.split_at(cut);
+        rest = (!after.is_empty()).then_some(after);
+        Some(piece)
+    })
+}
 
 /// The most points (and the most strands) one worker takes in one
 /// Deposit call: 32 M, about 400 MB of points and 128 MB of offsets.
@@ -667,6 +687,21 @@ pub fn wisps_from_chunk(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn text_pieces_cut_at_characters_and_join_to_the_text() {
+        let text = "aé€😀".repeat(50);
+        for max in [1, 4, 5, 7, 64, 1000] {
+            let pieces: Vec<&str> = text_pieces(&text, max).collect();
+            assert_eq!(pieces.concat(), text);
+            assert!(
+                pieces
+                    .iter()
+                    .all(|p| p.len() <= max.max(4) && !p.is_empty())
+            );
+        }
+        assert_eq!(text_pieces("", 8).collect::<Vec<_>>(), vec![""]);
+    }
 
     #[test]
     fn packed_values_round_trip_and_runs_shrink_zeros() {
