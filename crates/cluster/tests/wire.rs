@@ -816,3 +816,61 @@ fn an_assign_past_the_limits_is_refused_saying_which() {
         );
     });
 }
+
+/// A Deposit of `strands` two-point strands across a map of `cells` a
+/// side and out beyond it on both sides: each cut into `4 * cells` pieces,
+/// the most a segment is.
+fn crossing_deposit(cells: u32, strands: usize) -> Vec<pb::DepositChunk> {
+    let light = Light::directional(Vec3::X).unwrap();
+    let frame = LightFrame::centered(&light, Vec3::ZERO, 2.0, cells).unwrap();
+    let mut hair = strands::Hair::new();
+    for s in 0..strands {
+        let t = s as f32 / strands as f32 * 1.8 - 0.9;
+        hair.push_strand(&[Vec3::new(-4.0, t, -0.9), Vec3::new(4.0, -t, 0.9)])
+            .unwrap();
+    }
+    wire::deposit_chunks(1, 0, &frame, &hair, 0..strands)
+}
+
+#[test]
+fn a_deposit_past_its_deadline_stops_and_gives_its_memory_back() {
+    // Room for one map of 256^3 cells (64 MiB) and the strands below.
+    let map = shadow::DensityMap::bytes_for(256);
+    let limits = cluster::worker::SessionLimits {
+        max_memory: map + (40 << 20),
+        ..Default::default()
+    };
+    let service = cluster::worker::WorkerService::new(limits);
+    let (addr, _stop) = common::start_service(service, cluster::worker::Listen::default());
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let mut c = greeted_client(addr).await;
+        // 300,000 strands of 1024 pieces: about 5 s of work here, far past this
+        // call's deadline.
+        let mut long = tonic::Request::new(tokio_stream::iter(crossing_deposit(256, 300_000)));
+        long.set_timeout(Duration::from_millis(500));
+        let t = std::time::Instant::now();
+        assert!(c.deposit(long).await.is_err());
+        let sent = t.elapsed();
+        // The next map fits only once the first is given back: at once,
+        // had the deposit stopped; seconds later otherwise.
+        let mut next = tonic::Request::new(tokio_stream::iter(crossing_deposit(256, 10)));
+        next.set_timeout(Duration::from_secs(2));
+        let r = c.deposit(next).await;
+        assert!(r.is_ok(), "{r:?} (the first call took {sent:?})");
+        // Received strands past the budget are refused, saying which limit.
+        let e = c
+            .deposit(tokio_stream::iter(crossing_deposit(8, 5_000_000)))
+            .await
+            .unwrap_err();
+        assert_eq!(e.code(), tonic::Code::ResourceExhausted, "{}", e.message());
+        assert!(e.message().contains("--max-memory-mib"), "{}", e.message());
+        // A map larger than the whole budget is refused, not waited for.
+        let e = c
+            .deposit(tokio_stream::iter(crossing_deposit(512, 1)))
+            .await
+            .unwrap_err();
+        assert_eq!(e.code(), tonic::Code::ResourceExhausted, "{}", e.message());
+        assert!(e.message().contains("512^3"), "{}", e.message());
+    });
+}

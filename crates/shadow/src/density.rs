@@ -20,9 +20,10 @@ pub const DEPTH_QUANTUM: f64 = 1.0 / (1u64 << 20) as f64;
 /// The largest map side, in cells. 512^3 cells already take 512 MiB.
 pub const MAX_CELLS: u32 = 512;
 
-/// The most points one run of [`DensityMap::deposit_while`] deposits
-/// between two questions whether to go on.
-pub const DEPOSIT_RUN_POINTS: usize = 1 << 20;
+/// About the most work (points and segment pieces) one run of
+/// [`DensityMap::deposit_while`] does between two questions whether to go
+/// on: 2^22, some tens of milliseconds (a single strand may be more).
+pub const DEPOSIT_RUN_WORK: u64 = 1 << 22;
 
 const EMPTY_LO: u16 = u16::MAX;
 
@@ -367,8 +368,8 @@ impl DensityMap {
         stats
     }
 
-    /// [`deposit`](Self::deposit) in runs of at most
-    /// [`DEPOSIT_RUN_POINTS`] points, asking `go` before each: `None` when
+    /// [`deposit`](Self::deposit) in runs of about [`DEPOSIT_RUN_WORK`]
+    /// points and pieces, asking `go` before each: `None` when
     /// it said stop (the map then holds some of the strands). The same
     /// cells as one deposit of them all.
     pub fn deposit_while(
@@ -378,7 +379,7 @@ impl DensityMap {
         fiber: &Fiber,
         go: impl Fn() -> bool,
     ) -> Option<FillStats> {
-        self.deposit_runs(hair, strands, fiber, DEPOSIT_RUN_POINTS, go)
+        self.deposit_runs(hair, strands, fiber, DEPOSIT_RUN_WORK, go)
     }
 
     fn deposit_runs(
@@ -386,18 +387,39 @@ impl DensityMap {
         hair: &Hair,
         strands: Range<usize>,
         fiber: &Fiber,
-        run_points: usize,
+        run_work: u64,
         go: impl Fn() -> bool,
     ) -> Option<FillStats> {
         let offsets = hair.offsets();
+        let points = hair.points();
+        // A strand's work: a point each, and each segment's pieces (see
+        // `deposit`), at most `4 n` a segment, bounded above by its
+        // length over `ds`.
+        let (inv_ds, cap) = (1.0 / self.frame.ds, 4 * self.n as u64);
+        let work = |s: usize| -> u64 {
+            let pts = &points[offsets[s] as usize..offsets[s + 1] as usize];
+            let pieces: u64 = pts
+                .windows(2)
+                .map(|w| {
+                    let m = (w[1] - w[0]).length() * inv_ds;
+                    if m.is_finite() { (m.ceil() as u64).min(cap) } else { cap }
+                })
+                .sum();
+            pts.len() as u64 + pieces
+        };
         let mut stats = FillStats::default();
         let mut s = strands.start;
         while s < strands.end {
             if !go() {
                 return None;
             }
-            let mut e = s + 1;
-            while e < strands.end && (offsets[e + 1] - offsets[s]) as usize <= run_points {
+            let (mut e, mut done) = (s + 1, work(s));
+            while e < strands.end {
+                let w = work(e);
+                if done + w > run_work {
+                    break;
+                }
+                done += w;
                 e += 1;
             }
             stats = stats + self.deposit(hair, s..e, fiber);

@@ -25,7 +25,7 @@ pub mod reference;
 mod transmittance;
 
 pub use density::{
-    ColumnMeta, DEPOSIT_RUN_POINTS, DEPTH_QUANTUM, DensityMap, FillStats, MAX_CELLS,
+    ColumnMeta, DEPOSIT_RUN_WORK, DEPTH_QUANTUM, DensityMap, FillStats, MAX_CELLS,
 };
 pub use fiber::Fiber;
 pub use frame::{Extent, Light, LightFrame};
