@@ -32,7 +32,7 @@ pub struct WorkerArgs {
     /// the strands they receive, each session's scene, files, states and
     /// share of the hair. A map waits for room; received data past it gets
     /// RESOURCE_EXHAUSTED. Resident memory stays under this plus
-    /// `--max-sessions` x 146 MiB of kept maps, 16 MiB per call in flight
+    /// `--max-sessions` x 86 MiB of kept maps, 16 MiB per call in flight
     /// and the program itself (see proto/README.md).
     #[arg(long, default_value_t = 2048, value_name = "MIB",
           value_parser = clap::value_parser!(u64).range(64..=1 << 30))]

@@ -32,12 +32,12 @@ const POOLED_CELLS: u64 = 1 << 22;
 /// The most maps a session keeps between calls.
 const POOLED_MAPS: usize = 4;
 
-/// The most deposit scratch points a pooled map keeps (12 MiB).
-const POOLED_SCRATCH_POINTS: usize = 1 << 20;
+/// The most deposit scratch points a pooled map keeps (5 MiB).
+const POOLED_SCRATCH_POINTS: usize = 1 << 18;
 
 /// What a session's pool of maps may hold at most, outside the memory
 /// budget: [`POOLED_MAPS`] maps of [`POOLED_CELLS`] cells (161 a side)
-/// with their scratch (about 146 MiB).
+/// with their scratch (about 86 MiB).
 pub const POOL_BYTES: u64 =
     POOLED_MAPS as u64 * (DensityMap::bytes_for(161) + POOLED_SCRATCH_POINTS as u64 * 20);
 

@@ -402,7 +402,11 @@ impl DensityMap {
                 .windows(2)
                 .map(|w| {
                     let m = (w[1] - w[0]).length() * inv_ds;
-                    if m.is_finite() { (m.ceil() as u64).min(cap) } else { cap }
+                    if m.is_finite() {
+                        (m.ceil() as u64).min(cap)
+                    } else {
+                        cap
+                    }
                 })
                 .sum();
             pts.len() as u64 + pieces

@@ -24,9 +24,7 @@ mod peers;
 pub mod reference;
 mod transmittance;
 
-pub use density::{
-    ColumnMeta, DEPOSIT_RUN_WORK, DEPTH_QUANTUM, DensityMap, FillStats, MAX_CELLS,
-};
+pub use density::{ColumnMeta, DEPOSIT_RUN_WORK, DEPTH_QUANTUM, DensityMap, FillStats, MAX_CELLS};
 pub use fiber::Fiber;
 pub use frame::{Extent, Light, LightFrame};
 pub use method::{
