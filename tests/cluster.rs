@@ -1,6 +1,7 @@
 //! Cluster mode as a user runs it: three worker processes on localhost
 //! (ephemeral ports), a coordinator, and the same bytes as `render`, even
-//! when a worker dies mid-animation.
+//! when a worker dies mid-animation, and two coordinators sharing workers
+//! (and a silent address) each get their own pictures.
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
@@ -243,6 +244,55 @@ fn a_coordinator_without_reachable_workers_says_which_and_fails() {
         "0",
     ]);
     assert_eq!(o.status.code(), Some(2));
+}
+
+/// Another scene: other hair, another fiber, another size.
+const CURLY: &str = "[hair]\nstyle = \"curly\"\nstrands_per_wisp = 3\n\n[fiber]\nwidth = 0.2\nopacity = 0.6\n\n[render]\nwidth = 120\nheight = 80\n\n[shadow]\ncells = 48\n\n[animation]\nmotion = \"dance\"\n\n[dynamics]\nsettle = 0.1\n";
+
+#[test]
+fn two_coordinators_share_workers_and_a_silent_one_each_getting_its_own_pictures() {
+    let dir = scratch("shared");
+    let workers: Vec<Worker> = (0..2).map(|_| Worker::start()).collect();
+    // Accepts connections and never answers.
+    let silent = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let list = format!(
+        "{},{},{}",
+        workers[0].addr,
+        silent.local_addr().unwrap(),
+        workers[1].addr
+    );
+    let runs: Vec<(&str, PathBuf, PathBuf, Child)> = [("smooth", SCENE), ("curly", CURLY)]
+        .into_iter()
+        .map(|(name, text)| {
+            let scene = dir.join(format!("{name}.toml"));
+            std::fs::write(&scene, text).unwrap();
+            let out = dir.join(format!("{name}_remote_%d.png"));
+            let child = Command::new(bin())
+                .args(["coordinator", s(&scene), "--workers", &list])
+                .args(["--connect-timeout", "2", "--frames", "4", "-o", s(&out)])
+                .stderr(Stdio::piped())
+                .spawn()
+                .unwrap();
+            (name, scene, out, child)
+        })
+        .collect();
+    for (name, scene, out, child) in runs {
+        let o = child.wait_with_output().unwrap();
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{name}: {e}");
+        assert!(e.contains(&silent.local_addr().unwrap().to_string()), "{e}");
+        assert!(e.contains("2 workers, bytes on the wire"), "{e}");
+        let local = dir.join(format!("{name}_local_%d.png"));
+        let r = run(&["render", s(&scene), "--frames", "4", "-o", s(&local)]);
+        assert!(r.status.success());
+        for i in 0..4 {
+            let frame = |p: &Path| p.to_str().unwrap().replace("%d", &i.to_string());
+            assert!(
+                std::fs::read(frame(&local)).unwrap() == std::fs::read(frame(&out)).unwrap(),
+                "frame {i} of {name} differs from one process"
+            );
+        }
+    }
 }
 
 #[test]
