@@ -95,6 +95,7 @@ fn main() -> ExitCode {
         eprintln!("error: internal error{at}: {message} (a bug in wisplight; please report it)");
     }));
     let cli = Cli::parse();
+    cmd::set_quiet(cli.quiet);
     let level = match (cli.quiet, cli.verbose) {
         (true, _) => tracing::Level::ERROR,
         (_, 0) => tracing::Level::WARN,

@@ -190,6 +190,10 @@ fn render_without_a_scene_writes_the_built_in_picture() {
         vec![std::ffi::OsString::from("hair.png")],
         "no temporary file left"
     );
+    // The summary line names the output; -q leaves stderr empty.
+    assert!(stderr(&o).contains("wrote "), "{}", stderr(&o));
+    let o = wisplight(&["render", "-q", "-o", out.to_str().unwrap()]);
+    assert!(o.status.success() && o.stderr.is_empty(), "{}", stderr(&o));
 }
 
 #[test]

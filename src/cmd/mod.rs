@@ -9,9 +9,31 @@ pub mod render;
 pub mod scaling;
 
 use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::Context;
 use engine::Scene;
+
+static QUIET: AtomicBool = AtomicBool::new(false);
+
+/// `-q`: only errors on stderr, the summary lines of a run too.
+pub fn set_quiet(quiet: bool) {
+    QUIET.store(quiet, Ordering::Relaxed);
+}
+
+/// A summary line on stderr, unless `-q` asked for errors only.
+macro_rules! say {
+    ($($arg:tt)*) => {
+        if !$crate::cmd::quiet() {
+            eprintln!($($arg)*);
+        }
+    };
+}
+pub(crate) use say;
+
+pub fn quiet() -> bool {
+    QUIET.load(Ordering::Relaxed)
+}
 
 /// A mistake in the command line itself (an option's value, or options
 /// that do not go together): exit status 2, like clap's own usage errors.

@@ -187,7 +187,7 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
         } else {
             String::new()
         };
-        eprintln!(
+        super::say!(
             "{workers} workers{lost}, bytes on the wire: frame 0 {}",
             first.summary()
         );
@@ -195,12 +195,12 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
         let mut later: Vec<_> = wire[1..].to_vec();
         later.sort_by_key(cluster::Traffic::total);
         if let Some(m) = later.get(later.len() / 2) {
-            eprintln!("  median later frame {}", m.summary());
+            super::say!("  median later frame {}", m.summary());
         }
     }
     let mut frame_ms: Vec<f64> = all.iter().map(FrameStats::total_ms).collect();
     let hair = seq.hair();
-    eprintln!(
+    super::say!(
         "wrote {written} ({n} frame{}, {}x{}, {} segments, {}, median frame {:.1} ms, {:.0} ms in all)",
         if n == 1 { "" } else { "s" },
         scene.render.width,

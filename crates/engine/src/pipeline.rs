@@ -13,6 +13,15 @@ use crate::{EngineError, Executor, HairSource, Head, LocalExecutor, Scene};
 /// than a real groom.
 pub const MAX_SEGMENTS: u64 = 100_000_000;
 
+/// How far off an opaque surface its lookups of the hair's shadow go,
+/// along its normal, in map cells (see
+/// [`ShadowPipeline::transmittance_off_surface`]).
+pub const HEAD_NORMAL_BIAS: f32 = 1.5;
+
+/// How far towards the light an opaque surface's lookups go, in map
+/// cells, past the rounding of its deposit's front.
+pub const HEAD_LIGHT_BIAS: f32 = 0.5;
+
 /// Builds the hair a scene describes: generated or loaded, with follow
 /// strands when asked, then Catmull-Rom resampled into drawn points.
 pub fn build_hair(scene: &Scene) -> Result<Hair, EngineError> {
@@ -233,13 +242,26 @@ impl ShadowPipeline {
         }
     }
 
-    /// Transmittance of light `l` at `p`, looked up `bias_cells` cells
-    /// towards the light (a shadow bias for surfaces that are themselves in
-    /// the map, like the head).
-    pub fn transmittance_at(&self, l: usize, p: Vec3, bias_cells: f32) -> f32 {
+    /// Transmittance of light `l` at a point `p` of an opaque surface (the
+    /// head) of unit normal `n`, looked up off the surface, at
+    ///
+    /// ```text
+    /// p' = p + ds (HEAD_NORMAL_BIAS n - HEAD_LIGHT_BIAS L)
+    /// ```
+    ///
+    /// with `L` the light's direction into the map and `ds` its cell size.
+    /// The surface's own opaque deposit starts where each column enters
+    /// it, and the lookup blends four columns: on a surface sloped to the
+    /// light a neighbour column enters up to `ds tan(theta)` nearer the
+    /// light, and a lookup at `p` itself reads that deposit as a pattern of
+    /// dots and stripes (shadow acne). Off the surface along its normal,
+    /// every column the lookup blends enters behind `p'`, so only the
+    /// hair's shadow is read, smooth at the map's resolution.
+    pub fn transmittance_off_surface(&self, l: usize, p: Vec3, n: Vec3) -> f32 {
         let m = &self.lights[l].method;
         let f = m.frame().expect("density runs before lookups");
-        m.transmittance(p - f.axes[0] * (bias_cells * f.ds))
+        let n = n.normalize_or_zero();
+        m.transmittance(p + (n * HEAD_NORMAL_BIAS - f.axes[0] * HEAD_LIGHT_BIAS) * f.ds)
     }
 
     /// The lights, in scene order.

@@ -272,9 +272,9 @@ impl Renderer {
                 for (l, &to_light) in to_lights.iter().enumerate() {
                     let lambert = n.dot(to_light).max(0.0);
                     if lambert > 0.0 {
-                        // 1.5 cells towards the light: past the head's own deposit.
+                        // Off the surface: past the head's own deposit.
                         let tr = if head_shadow {
-                            pipeline.transmittance_at(l, p, 1.5)
+                            pipeline.transmittance_off_surface(l, p, n)
                         } else {
                             1.0
                         };

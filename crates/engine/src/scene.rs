@@ -1093,7 +1093,7 @@ mod tests {
         let e = parse("[fiber]\nwidth = nan\n").unwrap_err().to_string();
         assert_eq!(
             e,
-            "dir/scene.toml: fiber.width = NaN: must be a finite number >= 0"
+            "dir/scene.toml: fiber.width = NaN: must be a finite number > 0"
         );
         let e = parse("[light]\ndirection = [0, 0, 0]\n")
             .unwrap_err()
