@@ -539,7 +539,7 @@ fn every_bad_input_gets_one_line_naming_it_and_the_right_exit_status() {
         ("[hair]\nfile = \"nan.hair\"\n", &["nan.hair", "not finite"]),
         (
             "[hair]\nfile = \"nowhere.hair\"\n",
-            &["nowhere.hair", "cannot read"],
+            &["scene.toml: hair.file", "nowhere.hair", "cannot read"],
         ),
         (
             "[hair]\nfile = \"groom.obj\"\n",

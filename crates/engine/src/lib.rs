@@ -47,8 +47,12 @@ pub use share::{DrawTimes, Share};
 pub enum EngineError {
     #[error(transparent)]
     Scene(#[from] SceneError),
-    #[error(transparent)]
-    Load(#[from] strands::LoadError),
+    /// The groom a scene's `hair.file` names does not load.
+    #[error("{}: hair.file: {error}", scene.display())]
+    Load {
+        scene: std::path::PathBuf,
+        error: strands::LoadError,
+    },
     #[error(transparent)]
     Mesh(#[from] strands::MeshLoadError),
     #[error(transparent)]

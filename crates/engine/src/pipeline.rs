@@ -35,7 +35,7 @@ pub fn build_hair(scene: &Scene) -> Result<Hair, EngineError> {
             WispModel::generate(p).interpolate()
         }
         HairSource::File { path, follow } => {
-            let guides = strands::load_with(path, |p| scene.data_file(p))?;
+            let guides = load_groom(scene, path)?;
             match follow {
                 Some(f) => {
                     check_size(
@@ -54,6 +54,14 @@ pub fn build_hair(scene: &Scene) -> Result<Hair, EngineError> {
     Ok(resample(&control, scene.subdivide))
 }
 
+/// The groom `path` of `scene`'s `hair.file`; an error names both.
+fn load_groom(scene: &Scene, path: &std::path::Path) -> Result<Hair, EngineError> {
+    strands::load_with(path, |p| scene.data_file(p)).map_err(|error| EngineError::Load {
+        scene: scene.source.path.clone(),
+        error,
+    })
+}
+
 /// The drawn segments [`build_hair`] makes of a scene's hair, counted
 /// without making them (a loaded groom is loaded, not resampled). Checked
 /// against [`MAX_SEGMENTS`].
@@ -62,7 +70,7 @@ pub fn drawn_segments(scene: &Scene) -> Result<u64, EngineError> {
     let segs = match &scene.hair {
         HairSource::Style(p) => u64::from(p.wisps) * u64::from(p.strands_per_wisp) * 31 * sub,
         HairSource::File { path, follow } => {
-            let guides = strands::load_with(path, |p| scene.data_file(p))?;
+            let guides = load_groom(scene, path)?;
             let per = follow.as_ref().map_or(1, |f| u64::from(f.followers) + 1);
             guides.segment_count() as u64 * per * sub
         }

@@ -17,8 +17,10 @@ pub struct GifWriter {
     encoder: gif::Encoder<AtomicFile>,
     width: u16,
     height: u16,
-    /// Frame delay, hundredths of a second.
-    delay: u16,
+    /// Seconds per frame.
+    frame_s: f64,
+    /// Frames written.
+    frames: u64,
 }
 
 impl std::fmt::Debug for GifWriter {
@@ -26,7 +28,7 @@ impl std::fmt::Debug for GifWriter {
         f.debug_struct("GifWriter")
             .field("width", &self.width)
             .field("height", &self.height)
-            .field("delay", &self.delay)
+            .field("frame_s", &self.frame_s)
             .finish()
     }
 }
@@ -43,7 +45,10 @@ impl Write for AtomicFile {
 
 impl GifWriter {
     /// A looping GIF of `width` x `height` frames shown at `fps` frames per
-    /// second (GIF delays are whole hundredths of a second, at least 2).
+    /// second. GIF delays are whole hundredths of a second: frame `i` waits
+    /// `round(100 (i + 1) / fps) - round(100 i / fps)` of them (at least 2,
+    /// what viewers show), so that the delays add up to the animation's
+    /// time (30 fps: 3, 4, 3, 3, 4, 3, ...).
     pub fn create(
         path: &Path,
         width: u32,
@@ -65,12 +70,12 @@ impl GifWriter {
         encoder
             .set_repeat(gif::Repeat::Infinite)
             .map_err(encode_err)?;
-        let delay = (100.0 / fps).round().clamp(2.0, 65535.0) as u16;
         Ok(GifWriter {
             encoder,
             width: w,
             height: h,
-            delay,
+            frame_s: 1.0 / f64::from(fps),
+            frames: 0,
         })
     }
 
@@ -91,7 +96,10 @@ impl GifWriter {
         }
         let mut frame =
             gif::Frame::from_rgb_speed(self.width, self.height, img.as_raw(), QUANTIZE_SPEED);
-        frame.delay = self.delay;
+        let at = |i: u64| (100.0 * i as f64 * self.frame_s).round();
+        let delay = at(self.frames + 1) - at(self.frames);
+        frame.delay = delay.clamp(2.0, 65535.0) as u16;
+        self.frames += 1;
         self.encoder
             .write_frame(&frame)
             .map_err(|e| RasterError::Encode {
@@ -146,6 +154,32 @@ mod tests {
         assert_eq!(n, 3);
         let names: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
         assert_eq!(names.len(), 1, "no temporary file left");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn frame_delays_add_up_to_the_animations_time() {
+        let dir = std::env::temp_dir().join(format!("wisplight-gif-t-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for (fps, frames, want_cs) in [(30.0, 45, 150), (24.0, 48, 200), (60.0, 6, 12)] {
+            let path = dir.join(format!("{fps}.gif"));
+            let mut g = GifWriter::create(&path, 4, 4, fps).unwrap();
+            for _ in 0..frames {
+                g.add(&image::RgbImage::new(4, 4)).unwrap();
+            }
+            g.finish().unwrap();
+            let mut d = gif::DecodeOptions::new()
+                .read_info(std::fs::File::open(&path).unwrap())
+                .unwrap();
+            let mut delays = Vec::new();
+            while let Some(f) = d.read_next_frame().unwrap() {
+                delays.push(u32::from(f.delay));
+            }
+            assert_eq!(delays.len(), frames, "{fps} fps");
+            // 60 fps: every delay is the 2 hundredths viewers show at least.
+            assert_eq!(delays.iter().sum::<u32>(), want_cs, "{fps} fps: {delays:?}");
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -24,12 +24,43 @@ pub enum LoadError {
     UnknownExtension { path: PathBuf },
 }
 
+/// A file's first bytes as text, escaped where not printable ASCII.
+fn magic_text(b: &[u8]) -> String {
+    b.iter()
+        .flat_map(|&c| std::ascii::escape_default(c))
+        .map(char::from)
+        .collect()
+}
+
+/// What a file's first bytes suggest it is, as a note for an error.
+fn format_guess(b: &[u8; 4]) -> &'static str {
+    match b {
+        [b'p', b'l', b'y', _] => " (a PLY file?)",
+        [b'O', b'g', b'a', b'w'] => " (an Alembic Ogawa archive?)",
+        [0x89, b'H', b'D', b'F'] => " (an Alembic HDF5 archive?)",
+        [0x1f, 0x8b, _, _] => " (a gzip-compressed file?)",
+        [0x89, b'P', b'N', b'G'] => " (a PNG picture?)",
+        [b'v' | b'#' | b'o' | b'g', b' ', _, _] => " (an OBJ text file?)",
+        _ if b
+            .iter()
+            .all(|c| c.is_ascii_graphic() || c.is_ascii_whitespace()) =>
+        {
+            " (a text file?)"
+        }
+        _ => "",
+    }
+}
+
 /// What is wrong inside a hair file.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum FormatError {
     #[error("file is {len} bytes, shorter than the {need}-byte header")]
     TruncatedHeader { len: usize, need: usize },
-    #[error("wrong magic {found:?}, expected \"HAIR\"")]
+    #[error(
+        "wrong magic \"{}\"{}, expected \"HAIR\"",
+        magic_text(found),
+        format_guess(found)
+    )]
     BadMagic { found: [u8; 4] },
     #[error(
         "header claims {count} {what}, needing {need} bytes, but only {have} bytes follow the header"
@@ -394,6 +425,13 @@ mod tests {
             parse_hair_format(&f),
             Err(FormatError::BadMagic { .. })
         ));
+        // Shown as text, with a guess at what the file is.
+        f[..4].copy_from_slice(b"ply\n");
+        let e = parse_hair_format(&f).unwrap_err().to_string();
+        assert_eq!(e, "wrong magic \"ply\\n\" (a PLY file?), expected \"HAIR\"");
+        f[..4].copy_from_slice(&[0, 0, 0x80, 0x40]);
+        let e = parse_hair_format(&f).unwrap_err().to_string();
+        assert_eq!(e, "wrong magic \"\\x00\\x00\\x80@\", expected \"HAIR\"");
 
         let f = hair_file(Some(&[2, 1]), &PTS, None, 2, 0);
         assert!(matches!(
