@@ -37,6 +37,11 @@ pub struct WorkerArgs {
     #[arg(long, default_value_t = 2048, value_name = "MIB",
           value_parser = clap::value_parser!(u64).range(64..=1 << 30))]
     max_memory_mib: u64,
+    /// Each session's memory budget, MiB (the most one coordinator's
+    /// scene, share and calls may hold); `--max-memory-mib` when not given.
+    #[arg(long, value_name = "MIB",
+          value_parser = clap::value_parser!(u64).range(16..=1 << 30))]
+    max_session_memory_mib: Option<u64>,
 }
 
 /// Mutual TLS (all three files, or none: plain gRPC, for loopback and
@@ -93,6 +98,7 @@ pub fn worker(args: WorkerArgs) -> anyhow::Result<()> {
         max_sessions: args.max_sessions as usize,
         idle: std::time::Duration::from_secs(args.session_idle),
         max_memory: args.max_memory_mib << 20,
+        max_session_memory: args.max_session_memory_mib.unwrap_or(args.max_memory_mib) << 20,
     });
     let tls = args.tls.load()?;
     if tls.is_none() && !args.listen.ip().is_loopback() {

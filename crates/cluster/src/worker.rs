@@ -52,25 +52,31 @@ const POINT_BYTES: u64 = 24;
 /// its range along the light while it is deposited.
 const STRAND_BYTES: u64 = 12;
 
-/// The worker's memory budget (`--max-memory-mib`): every density map a
-/// call holds, every strand a Deposit receives, and each session's scene,
-/// data files, wisp states and share of the hair. A map waits for room (a
-/// call holding one finishes without asking for more); received data that
-/// does not fit is refused with RESOURCE_EXHAUSTED.
+/// A memory budget: the worker's (`--max-memory-mib`) or one session's
+/// (`--max-session-memory-mib`). It counts every density map a call
+/// holds, every strand and swept column a call receives, and each
+/// session's scene, data files, wisp states and share of the hair. A map
+/// waits for room (a call holding one finishes without asking for more);
+/// received data that does not fit is refused with RESOURCE_EXHAUSTED.
 #[derive(Debug, Clone)]
 struct Memory {
     free: Arc<tokio::sync::Semaphore>,
     total: u64,
+    /// Whose budget, as its messages say it.
+    whose: &'static str,
+    flag: &'static str,
 }
 
 type Held64k = tokio::sync::OwnedSemaphorePermit;
 
 impl Memory {
-    fn new(total: u64) -> Memory {
+    fn new(total: u64, whose: &'static str, flag: &'static str) -> Memory {
         let units = (total / GRANULE).min(tokio::sync::Semaphore::MAX_PERMITS as u64);
         Memory {
             free: Arc::new(tokio::sync::Semaphore::new(units as usize)),
             total: units * GRANULE,
+            whose,
+            flag,
         }
     }
 
@@ -80,11 +86,13 @@ impl Memory {
 
     fn too_much(&self, bytes: u64, what: &str) -> Status {
         Status::resource_exhausted(format!(
-            "{what} would take {} MiB of this worker's memory budget of {} MiB, \
-             of which {} MiB are free (--max-memory-mib)",
+            "{what} would take {} MiB of {} memory budget of {} MiB, \
+             of which {} MiB are free ({})",
             bytes.div_ceil(1 << 20),
+            self.whose,
             self.total >> 20,
-            (self.free.available_permits() as u64 * GRANULE) >> 20
+            (self.free.available_permits() as u64 * GRANULE) >> 20,
+            self.flag
         ))
     }
 
@@ -99,13 +107,6 @@ impl Memory {
             .acquire_many_owned(Memory::units(bytes))
             .await
             .map_err(|_| Status::unavailable("the worker is stopping"))
-    }
-
-    /// A map in `frame`, once it fits.
-    async fn map(&self, frame: &LightFrame) -> Result<Held64k, Status> {
-        let what = format!("a density map of {}^3 cells", frame.n_cells);
-        self.wait_for(DensityMap::bytes_for(frame.n_cells), &what)
-            .await
     }
 
     /// Takes `bytes` now, into `held`, or refuses.
@@ -123,6 +124,40 @@ impl Memory {
             None => *held = Some(p),
         }
         Ok(())
+    }
+}
+
+/// What a call may take: from its session's budget and the worker's.
+#[derive(Debug, Clone)]
+struct Budget {
+    session: Memory,
+    worker: Memory,
+}
+
+/// Memory a [`Budget`] granted, given back when dropped.
+#[derive(Debug, Default)]
+struct Grant {
+    _session: Option<Held64k>,
+    _worker: Option<Held64k>,
+}
+
+impl Budget {
+    /// Takes `bytes` now, into `grant`, or refuses naming the budget.
+    fn take(&self, grant: &mut Grant, bytes: u64, what: &str) -> Result<(), Status> {
+        self.session.take(&mut grant._session, bytes, what)?;
+        self.worker.take(&mut grant._worker, bytes, what)
+    }
+
+    /// A map in `frame`, once it fits both.
+    async fn map(&self, frame: &LightFrame) -> Result<Grant, Status> {
+        let what = format!("a density map of {}^3 cells", frame.n_cells);
+        let bytes = DensityMap::bytes_for(frame.n_cells);
+        let session = self.session.wait_for(bytes, &what).await?;
+        let worker = self.worker.wait_for(bytes, &what).await?;
+        Ok(Grant {
+            _session: Some(session),
+            _worker: Some(worker),
+        })
     }
 }
 
@@ -158,15 +193,19 @@ pub struct SessionLimits {
     pub idle: Duration,
     /// The memory budget of all sessions and calls, bytes.
     pub max_memory: u64,
+    /// The memory budget of each session and its calls, bytes (at most
+    /// `max_memory` counts).
+    pub max_session_memory: u64,
 }
 
 impl Default for SessionLimits {
-    /// Four sessions; ten minutes idle; 2 GiB.
+    /// Four sessions; ten minutes idle; 2 GiB, any of it to one session.
     fn default() -> SessionLimits {
         SessionLimits {
             max_sessions: 4,
             idle: Duration::from_secs(600),
             max_memory: DEFAULT_MAX_MEMORY,
+            max_session_memory: DEFAULT_MAX_MEMORY,
         }
     }
 }
@@ -195,6 +234,8 @@ struct Session {
     maps: Arc<Mutex<Vec<DensityMap>>>,
     held: Arc<Mutex<Option<Held>>>,
     last_used: Mutex<Instant>,
+    /// The session's own memory budget.
+    memory: Memory,
 }
 
 /// A share of a scene's hair and the scene it came from (a new Assign of
@@ -205,7 +246,7 @@ struct Held {
     share: Share,
     /// The memory budget the scene, its files, the states and the share
     /// take, given back when the share is dropped.
-    _memory: Option<Held64k>,
+    _memory: Grant,
 }
 
 fn invalid(e: wire::Malformed) -> Status {
@@ -303,8 +344,16 @@ impl WorkerService {
     pub fn new(limits: SessionLimits) -> WorkerService {
         WorkerService {
             sessions: Mutex::default(),
-            memory: Memory::new(limits.max_memory),
+            memory: Memory::new(limits.max_memory, "this worker's", "--max-memory-mib"),
             limits,
+        }
+    }
+
+    /// What a call of `session` may take: from its budget and the worker's.
+    fn budget(&self, session: &Session) -> Budget {
+        Budget {
+            session: session.memory.clone(),
+            worker: self.memory.clone(),
         }
     }
 
@@ -416,6 +465,11 @@ impl Worker for WorkerService {
                         maps: Arc::default(),
                         held: Arc::default(),
                         last_used: Mutex::new(Instant::now()),
+                        memory: Memory::new(
+                            self.limits.max_session_memory,
+                            "this session's",
+                            "--max-session-memory-mib",
+                        ),
                     }),
                 );
                 tracing::info!(session = %&id[..8], sessions = sessions.len(), "session opened");
@@ -457,11 +511,11 @@ impl Worker for WorkerService {
             let (frame_id, light) = (first.frame_id, first.light);
             let mut hair = Hair::new();
             // The strands' memory, held until the call ends.
-            let mut received = None;
+            let mut received = Grant::default();
             let mut add = |c: &pb::DepositChunk| -> Result<(), Status> {
                 let bytes = c.points.len() as u64 / 3 * POINT_BYTES
                     + c.strand_lengths.len() as u64 * STRAND_BYTES;
-                self.memory
+                self.budget(&session)
                     .take(&mut received, bytes, "the Deposit's strands")?;
                 wire::add_strands(&mut hair, c).map_err(invalid)
             };
@@ -471,7 +525,7 @@ impl Worker for WorkerService {
             }
             let maps = session.maps.clone();
             // Held until the map is back in the pool or dropped.
-            let budget = (self.memory.map(&frame).await?, received);
+            let budget = (self.budget(&session).map(&frame).await?, received);
             // The deposit stops between runs of strands once the call is gone.
             let (_stop_on_drop, go) = stop_switch();
             let chunks = if first.posed {
@@ -538,8 +592,8 @@ impl Worker for WorkerService {
             let (mut file_bytes, mut state_floats) = (0usize, 0usize);
             // What the Assign received, in the memory budget; kept with the
             // share it makes.
-            let mut received = None;
-            let memory = self.memory.clone();
+            let mut received = Grant::default();
+            let memory = self.budget(&session);
             let mut take = |c: pb::AssignChunk| -> Result<(), Status> {
                 // The scene text may come in pieces, one a chunk.
                 if text.len() + c.scene_toml.len() > wire::MAX_SCENE_TEXT {
@@ -692,7 +746,7 @@ impl Worker for WorkerService {
                 )));
             }
             let maps = session.maps.clone();
-            let budget = self.memory.map(&frame).await?;
+            let budget = self.budget(&session).map(&frame).await?;
             // On an error the map is dropped (the pool makes another).
             let mut map = WorkerService::map_in(&maps, frame);
             wire::merge_columns(&mut map, &first).map_err(invalid)?;
@@ -739,10 +793,10 @@ impl Worker for WorkerService {
             let mut reader =
                 wire::ColumnsReader::new(if job.shadows { job.to_lights.len() } else { 0 });
             // The swept columns' memory, held until the picture is drawn.
-            let mut received = None;
+            let mut received = Grant::default();
             let mut add = |c: &pb::DrawChunk| -> Result<(), Status> {
                 let bytes = wire::ColumnsReader::bytes_to_add(c);
-                self.memory
+                self.budget(&session)
                     .take(&mut received, bytes, "the Draw's swept columns")?;
                 reader.add(c).map_err(invalid)
             };
@@ -815,8 +869,8 @@ fn build_share(
     source: SceneSource,
     groups: Range<usize>,
     states: &[pb::WispChunk],
-    memory: &Memory,
-    mut received: Option<Held64k>,
+    memory: &Budget,
+    mut received: Grant,
 ) -> Result<Held, Status> {
     let mut held = match old {
         Some(h) if h.source == source && h.share.groups() == groups => h,

@@ -243,3 +243,62 @@ fn a_coordinator_ends_its_sessions_when_it_is_done() {
         seq.next_frame().unwrap();
     }
 }
+
+#[test]
+fn a_session_past_its_own_memory_is_refused_and_the_others_are_served() {
+    let limits = SessionLimits {
+        max_session_memory: 32 << 20,
+        ..SessionLimits::default()
+    };
+    let (addr, _stop) = common::start_service(WorkerService::new(limits), Listen::default());
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let channel = tonic::transport::Endpoint::from_shared(format!("http://{addr}"))
+            .unwrap()
+            .connect()
+            .await
+            .unwrap();
+        let open = || async {
+            let id = WorkerClient::new(channel.clone())
+                .hello(hello(0.1))
+                .await
+                .unwrap()
+                .into_inner()
+                .session;
+            WorkerClient::with_interceptor(
+                channel.clone(),
+                cluster::SessionHeader::new(&id).unwrap(),
+            )
+        };
+        let (mut a, mut b) = (open().await, open().await);
+        let light = shadow::Light::directional(glam::Vec3::X).unwrap();
+        let frame = shadow::LightFrame::centered(&light, glam::Vec3::ZERO, 2.0, 32).unwrap();
+        // `strands` two-point strands: 60 bytes each received.
+        let deposit = |strands: usize| {
+            let mut hair = strands::Hair::new();
+            for s in 0..strands {
+                let t = s as f32 / strands as f32 - 0.5;
+                hair.push_strand(&[glam::Vec3::new(-0.5, t, 0.0), glam::Vec3::new(0.5, t, 0.1)])
+                    .unwrap();
+            }
+            tokio_stream::iter(wire::deposit_chunks(1, 0, &frame, &hair, 0..strands))
+        };
+        // 60 MB: past this session's 32 MiB, far within the worker's.
+        let e = a.deposit(deposit(1_000_000)).await.unwrap_err();
+        assert_eq!(e.code(), tonic::Code::ResourceExhausted, "{}", e.message());
+        assert!(
+            e.message().contains("--max-session-memory-mib"),
+            "{}",
+            e.message()
+        );
+        // 6 MB: served, in this session and the other.
+        for c in [&mut a, &mut b] {
+            let mut s = c.deposit(deposit(100_000)).await.unwrap().into_inner();
+            let mut samples = 0;
+            while let Some(m) = s.message().await.unwrap() {
+                samples += m.samples;
+            }
+            assert!(samples > 0);
+        }
+    });
+}
