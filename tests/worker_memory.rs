@@ -114,7 +114,7 @@ fn a_worker_stays_under_its_memory_bound_whatever_it_is_sent() {
             c.deposit(tokio_stream(nothing)).await,
             "zero-length strands",
         );
-        assert!(m.contains("--max-memory-mib"), "{m}");
+        assert!(m.contains("memory-mib"), "{m}");
 
         // Data files of 8 MiB a chunk past the budget (320 MiB in all).
         let files = std::iter::once(pb::AssignChunk {
