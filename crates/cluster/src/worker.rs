@@ -512,11 +512,11 @@ impl Worker for WorkerService {
             let mut hair = Hair::new();
             // The strands' memory, held until the call ends.
             let mut received = Grant::default();
+            let memory = self.budget(&session);
             let mut add = |c: &pb::DepositChunk| -> Result<(), Status> {
                 let bytes = c.points.len() as u64 / 3 * POINT_BYTES
                     + c.strand_lengths.len() as u64 * STRAND_BYTES;
-                self.budget(&session)
-                    .take(&mut received, bytes, "the Deposit's strands")?;
+                memory.take(&mut received, bytes, "the Deposit's strands")?;
                 wire::add_strands(&mut hair, c).map_err(invalid)
             };
             add(&first)?;
@@ -525,7 +525,7 @@ impl Worker for WorkerService {
             }
             let maps = session.maps.clone();
             // Held until the map is back in the pool or dropped.
-            let budget = (self.budget(&session).map(&frame).await?, received);
+            let budget = (memory.map(&frame).await?, received);
             // The deposit stops between runs of strands once the call is gone.
             let (_stop_on_drop, go) = stop_switch();
             let chunks = if first.posed {
@@ -794,10 +794,10 @@ impl Worker for WorkerService {
                 wire::ColumnsReader::new(if job.shadows { job.to_lights.len() } else { 0 });
             // The swept columns' memory, held until the picture is drawn.
             let mut received = Grant::default();
+            let memory = self.budget(&session);
             let mut add = |c: &pb::DrawChunk| -> Result<(), Status> {
                 let bytes = wire::ColumnsReader::bytes_to_add(c);
-                self.budget(&session)
-                    .take(&mut received, bytes, "the Draw's swept columns")?;
+                memory.take(&mut received, bytes, "the Draw's swept columns")?;
                 reader.add(c).map_err(invalid)
             };
             if first.map.is_some() || !first.column_steps.is_empty() {

@@ -253,24 +253,10 @@ fn a_session_past_its_own_memory_is_refused_and_the_others_are_served() {
     let (addr, _stop) = common::start_service(WorkerService::new(limits), Listen::default());
     let rt = tokio::runtime::Runtime::new().unwrap();
     rt.block_on(async {
-        let channel = tonic::transport::Endpoint::from_shared(format!("http://{addr}"))
-            .unwrap()
-            .connect()
-            .await
-            .unwrap();
-        let open = || async {
-            let id = WorkerClient::new(channel.clone())
-                .hello(hello(0.1))
-                .await
-                .unwrap()
-                .into_inner()
-                .session;
-            WorkerClient::with_interceptor(
-                channel.clone(),
-                cluster::SessionHeader::new(&id).unwrap(),
-            )
-        };
-        let (mut a, mut b) = (open().await, open().await);
+        let (mut a, mut b) = (
+            common::greeted_client(addr).await,
+            common::greeted_client(addr).await,
+        );
         let light = shadow::Light::directional(glam::Vec3::X).unwrap();
         let frame = shadow::LightFrame::centered(&light, glam::Vec3::ZERO, 2.0, 32).unwrap();
         // `strands` two-point strands: 60 bytes each received.

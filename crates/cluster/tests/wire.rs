@@ -26,28 +26,7 @@ fn start_stoppable_worker() -> (SocketAddr, tokio::sync::oneshot::Sender<()>) {
     common::start_worker_with(cluster::worker::Listen::default())
 }
 
-/// A client of the worker at `addr` that has said Hello, naming the
-/// session it opened in every call.
-async fn greeted_client(addr: SocketAddr) -> cluster::SessionClient {
-    let channel = tonic::transport::Endpoint::from_shared(format!("http://{addr}"))
-        .unwrap()
-        .connect()
-        .await
-        .unwrap();
-    let id = WorkerClient::new(channel.clone())
-        .hello(pb::HelloRequest {
-            protocol_version: wire::PROTOCOL_VERSION,
-            fiber_width: 0.1,
-            fiber_opacity: 0.5,
-        })
-        .await
-        .unwrap()
-        .into_inner()
-        .session;
-    WorkerClient::with_interceptor(channel, cluster::SessionHeader::new(&id).unwrap())
-}
-
-use common::{DANCE, local_frames};
+use common::{DANCE, greeted_client, local_frames};
 
 /// How tests run workers: drawing where `draw` says, deadline `secs`.
 fn options(draw: DrawAt, secs: u64) -> Options {

@@ -71,3 +71,28 @@ pub fn start_service(
     });
     (rx.recv_timeout(Duration::from_secs(10)).unwrap(), stop)
 }
+
+/// A client of the worker at `addr` that has said Hello, naming the
+/// session it opened in every call.
+#[allow(dead_code)]
+pub async fn greeted_client(addr: SocketAddr) -> cluster::SessionClient {
+    let channel = tonic::transport::Endpoint::from_shared(format!("http://{addr}"))
+        .unwrap()
+        .connect()
+        .await
+        .unwrap();
+    let id = cluster::pb::worker_client::WorkerClient::new(channel.clone())
+        .hello(cluster::pb::HelloRequest {
+            protocol_version: cluster::wire::PROTOCOL_VERSION,
+            fiber_width: 0.1,
+            fiber_opacity: 0.5,
+        })
+        .await
+        .unwrap()
+        .into_inner()
+        .session;
+    cluster::pb::worker_client::WorkerClient::with_interceptor(
+        channel,
+        cluster::SessionHeader::new(&id).unwrap(),
+    )
+}
