@@ -137,6 +137,7 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
     // Bytes on the wire of each frame (cluster mode).
     let mut wire: Vec<cluster::Traffic> = Vec::new();
     let mut counted = cluster::Traffic::default();
+    seq.expect_frames(n);
     for _ in 0..n {
         let (img, stats) = seq.next_frame().context("cannot render")?;
         if let Some(t) = traffic.as_ref().and_then(|t| t.lock().ok().map(|t| *t)) {

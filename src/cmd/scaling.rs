@@ -236,6 +236,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
             let mut seq = engine::Sequence::new(&scene).context("cannot set up the scene")?;
             seq.set_executor(Box::new(ex))
                 .context("cannot start the cluster")?;
+            seq.expect_frames(total);
             let mut v: [Vec<f64>; 10] = Default::default();
             let mut frames_traffic = Vec::new();
             let mut identical = true;

@@ -606,39 +606,51 @@ impl RemoteExecutor {
             requests,
             "deposit",
             self.deadline,
-            |mut w, chunks| async move {
-                let s = w
+            move |mut w, chunks| async move {
+                let mut s = w
                     .client
                     .deposit(tokio_stream::iter(chunks))
                     .await
                     .map_err(|s| call_error(&w.addr, "deposit", s))?
                     .into_inner();
-                let got = collect(&w.addr, "deposit", s).await?;
-                Ok((w.addr, got))
+                // Each chunk is decoded as it comes (the other workers'
+                // replies still travel), and checked before the map changes.
+                let mut got = Gathered::default();
+                let mut last = None;
+                while let Some(c) = s
+                    .message()
+                    .await
+                    .map_err(|e| call_error(&w.addr, "deposit", e))?
+                {
+                    let d = wire::decode_columns(&frame, &c).map_err(|e| malformed(&w.addr, e))?;
+                    got.columns.push(d);
+                    got.bytes += c.encoded_len() as u64;
+                    got.samples += c.samples;
+                    got.out_of_map += c.out_of_map;
+                    last = Some(c.columns_read);
+                }
+                if posed {
+                    let last = last.ok_or_else(|| malformed(&w.addr, "an empty Deposit reply"))?;
+                    got.read = Some(
+                        wire::columns_from_pb(&last, frame.columns())
+                            .map_err(|e| malformed(&w.addr, e))?,
+                    );
+                }
+                Ok(got)
             },
         )?;
         // Merge in worker order (integer sums: any order gives the same
-        // map). Every reply is checked before the map changes.
+        // map).
         let mut stats = FillStats::default();
         let mut received = 0u64;
         let mut decoded = Vec::with_capacity(replies.len());
         let mut reads = Vec::with_capacity(replies.len());
-        for (addr, chunks) in &replies {
-            for c in chunks {
-                decoded.push(wire::decode_columns(&frame, c).map_err(|e| malformed(addr, e))?);
-                received += c.encoded_len() as u64;
-                stats.samples += c.samples;
-                stats.out_of_map += c.out_of_map;
-            }
-            if posed {
-                let last = chunks
-                    .last()
-                    .ok_or_else(|| malformed(addr, "an empty Deposit reply"))?;
-                reads.push(
-                    wire::columns_from_pb(&last.columns_read, frame.columns())
-                        .map_err(|e| malformed(addr, e))?,
-                );
-            }
+        for got in replies {
+            received += got.bytes;
+            stats.samples += got.samples;
+            stats.out_of_map += got.out_of_map;
+            decoded.extend(got.columns);
+            reads.extend(got.read);
         }
         for d in &decoded {
             wire::add_columns(map, d);
@@ -818,6 +830,17 @@ impl RemoteExecutor {
         });
         Ok(report)
     }
+}
+
+/// What one worker's Deposit reply held, decoded and checked.
+#[derive(Default)]
+struct Gathered {
+    columns: Vec<wire::Columns>,
+    bytes: u64,
+    samples: u64,
+    out_of_map: u64,
+    /// The columns its strands' lookups read, for posed strands.
+    read: Option<Vec<u64>>,
 }
 
 /// Refuses a list naming one worker twice (the same address, or two that

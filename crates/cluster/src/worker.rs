@@ -25,6 +25,14 @@ use crate::{ClusterError, Tls, pb, wire};
 
 type Chunks<T> = Pin<Box<dyn Stream<Item = Result<T, Status>> + Send>>;
 
+/// Rows of a partial picture rasterized and sent at a time (whole bands
+/// of the canvas's 16): 720 rows go as six stripes.
+const STRIPE_ROWS: u32 = 128;
+
+/// Chunks of a partial picture encoded ahead of the reply: the drawing
+/// waits when the coordinator reads slower.
+const STRIPES_IN_FLIGHT: usize = 8;
+
 /// The most cells a map kept between calls (a session's pool) may have:
 /// 2^22 (16 MiB of quanta); larger maps are dropped after their call.
 const POOLED_CELLS: u64 = 1 << 22;
@@ -810,15 +818,48 @@ impl Worker for WorkerService {
                 add(&c)?;
             }
             let maps = reader.finish().map_err(invalid)?;
-            let (layer, times) = with_share(&session.held, move |share| {
+            // The picture streams a stripe of rows at a time, each sent
+            // (and decoded by the coordinator) while the next is rasterized.
+            let (tx, mut rx) = tokio::sync::mpsc::channel(STRIPES_IN_FLIGHT);
+            let held = session.held.clone();
+            let (width, height) = (job.camera.width(), job.camera.height());
+            tokio::task::spawn_blocking(move || {
                 let _received = received;
-                share.draw(&job, &maps).map_err(refused)
-            })
-            .await?;
-            // Each chunk is encoded as the reply gets to it: the first travels
-            // (and is decoded) while the next is encoded.
-            let chunks = wire::LayerChunks::new(layer, times).map(Ok);
-            let stream: Chunks<pb::LayerChunk> = Box::pin(tokio_stream::iter(chunks));
+                let send = |c: Result<pb::LayerChunk, Status>| tx.blocking_send(c).is_ok();
+                let drawn = (|| {
+                    let mut slot = held.lock().map_err(poisoned)?;
+                    let h = slot.as_mut().ok_or_else(|| {
+                        Status::failed_precondition("no share of the hair here: call Assign first")
+                    })?;
+                    let mut encoder = wire::StripeEncoder::new();
+                    let times = h
+                        .share
+                        .draw_stripes(&job, &maps, STRIPE_ROWS, |stripe| {
+                            for c in encoder.chunks(&stripe) {
+                                if !send(Ok(c)) {
+                                    return Err(engine::EngineError::Executor(
+                                        "the coordinator stopped reading the picture".into(),
+                                    ));
+                                }
+                            }
+                            Ok(())
+                        })
+                        .map_err(refused)?;
+                    Ok(encoder.last(width, height, &times))
+                })();
+                send(drawn);
+            });
+            // A refusal before any pixel is the call's own status.
+            let first = match rx.recv().await {
+                Some(Ok(c)) => c,
+                Some(Err(s)) => return Err(s),
+                None => return Err(Status::internal("the Draw's task ended without a picture")),
+            };
+            let rest = tokio_stream::wrappers::ReceiverStream::new(rx);
+            let stream: Chunks<pb::LayerChunk> = Box::pin(tokio_stream::StreamExt::chain(
+                tokio_stream::once(Ok::<_, Status>(first)),
+                rest,
+            ));
             Ok(Response::new(stream))
         };
         logged(peer, "Draw", served.await)

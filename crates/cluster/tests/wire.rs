@@ -391,6 +391,9 @@ fn three_workers_give_the_local_animation_byte_for_byte_drawing_anywhere() {
         let traffic = remote.traffic();
         let mut seq = Sequence::new(&scene).unwrap();
         seq.set_executor(Box::new(remote)).unwrap();
+        // Each frame runs the next one's stages up to its drawing while
+        // its own picture is composited.
+        seq.expect_frames(want.len() as u64);
         let mut after_first = None;
         for (i, w) in want.iter().enumerate() {
             let (img, _) = seq.next_frame().unwrap();
@@ -460,6 +463,7 @@ fn a_worker_lost_mid_animation_hands_its_work_to_the_survivors() {
         let timing = remote.timing();
         let mut seq = Sequence::new(&scene).unwrap();
         seq.set_executor(Box::new(remote)).unwrap();
+        seq.expect_frames(want.len() as u64);
         let mut stop_b = Some(stop_b);
         for (i, w) in want.iter().enumerate() {
             if i == 3 {

@@ -177,6 +177,25 @@ pub struct Sequence {
     shaded_at: Option<Version>,
     picture: Option<(Version, image::RgbImage)>,
     next: u64,
+    /// Frames the caller will still ask for, when it said.
+    expected: Option<u64>,
+    /// The next frame's stages before its drawing, when they ran ahead.
+    ahead: Option<Result<FrameStats, EngineError>>,
+    /// Threads of their own for compositing while the next frame's stages
+    /// run (on the global pool's threads, which would otherwise wait for
+    /// the compositing to finish).
+    compositor: Option<rayon::ThreadPool>,
+}
+
+/// Half the global pool's threads (at least one), for compositing; none
+/// when no thread can be started (the compositing then shares the global
+/// pool).
+fn compositor_pool() -> Option<rayon::ThreadPool> {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(rayon::current_num_threads().div_ceil(2))
+        .thread_name(|i| format!("wisplight-composite-{i}"))
+        .build()
+        .ok()
 }
 
 /// No hair: what the density fill is handed for hair posed elsewhere.
@@ -215,6 +234,9 @@ impl Sequence {
             shaded_at: None,
             picture: None,
             next: 0,
+            expected: None,
+            ahead: None,
+            compositor: None,
         })
     }
 
@@ -229,6 +251,7 @@ impl Sequence {
         self.collision_at = None;
         self.shaded_at = None;
         self.picture = None;
+        self.ahead = None;
         Ok(())
     }
 
@@ -257,11 +280,107 @@ impl Sequence {
                 || matches!(self.scene.shadow.method, MethodConfig::DensityMap { .. }))
     }
 
+    /// Says that the caller will ask for `frames` more frames (and no
+    /// more). With an executor that draws elsewhere, each frame but the
+    /// last then runs the next frame's stages up to its drawing (the
+    /// simulation, the pose and the shadows, which need only this frame's
+    /// density map, not its picture) while its own picture is composited:
+    /// the workers step and fill while the coordinator composites. The
+    /// pictures are the same bytes; the next frame's stages are timed in
+    /// its own [`FrameStats`].
+    pub fn expect_frames(&mut self, frames: u64) {
+        self.expected = Some(frames);
+    }
+
     /// Renders the next frame: its picture and what each stage did.
     pub fn next_frame(&mut self) -> Result<(&image::RgbImage, FrameStats), EngineError> {
         let index = self.next;
+        let mut stats = match self.ahead.take() {
+            Some(ahead) => ahead?,
+            None => self.before_draw(index)?,
+        };
         // Every log line of the frame (here and in an executor) names it,
         // warnings included.
+        let span = tracing::warn_span!("frame", index).entered();
+        let more = self.expected.is_some_and(|n| n > 1);
+        if let Some(n) = &mut self.expected {
+            *n = n.saturating_sub(1);
+        }
+        let fx = self.scene.effects;
+        let version = self.version;
+        if self.draws_elsewhere() {
+            if self.picture.as_ref().is_none_or(|p| p.0 != version) {
+                let bounds = self.report(&mut stats)?.bounds;
+                self.renderer.frame_on(bounds)?;
+                let job = self.renderer.draw_job(version, fx.self_shadow)?;
+                let start = Instant::now();
+                let ex = self.executor.as_mut();
+                let (composite, drawn) = self
+                    .renderer
+                    .compose_later(fx.self_shadow, || ex.draw(&job))?;
+                let mut ms = start.elapsed().as_secs_f64() * 1e3;
+                drop(span);
+                let (canvas, img) = if more {
+                    // Composited in a thread of its own while the next
+                    // frame's stages run here.
+                    let (resolved, ahead) = std::thread::scope(|s| {
+                        let pool = self.compositor.take().or_else(compositor_pool);
+                        let resolved = s.spawn(|| {
+                            let t = Instant::now();
+                            let out = match &pool {
+                                Some(p) => p.install(|| composite.resolve()),
+                                None => composite.resolve(),
+                            };
+                            (out, t.elapsed().as_secs_f64() * 1e3, pool)
+                        });
+                        let ahead = self.before_draw(index + 1);
+                        let resolved = resolved
+                            .join()
+                            .unwrap_or_else(|p| std::panic::resume_unwind(p));
+                        (resolved, ahead)
+                    });
+                    self.ahead = Some(ahead);
+                    let (out, resolve_ms, pool) = resolved;
+                    self.compositor = pool;
+                    ms += resolve_ms;
+                    out
+                } else {
+                    let t = Instant::now();
+                    let out = composite.resolve();
+                    ms += t.elapsed().as_secs_f64() * 1e3;
+                    out
+                };
+                self.renderer.restore_canvas(canvas);
+                if fx.self_shadow {
+                    stats.record(Stage::Filter, drawn.filter_ms);
+                }
+                stats.record(Stage::Shade, drawn.shade_ms);
+                stats.record(Stage::Draw, ms - drawn.filter_ms - drawn.shade_ms);
+                self.shaded_at = Some(version);
+                self.picture = Some((version, img));
+            }
+        } else {
+            let hair = self.anim.hair();
+            if self.shaded_at != Some(version) {
+                let r = &mut self.renderer;
+                stats.time(Stage::Shade, || r.shade(hair, fx.self_shadow))?;
+                self.shaded_at = Some(version);
+            }
+            if self.picture.as_ref().is_none_or(|p| p.0 != version) {
+                let r = &mut self.renderer;
+                let img = stats.time(Stage::Draw, || r.draw(hair, fx.self_shadow))?;
+                self.picture = Some((version, img));
+            }
+        }
+        self.next += 1;
+        let (_, img) = self.picture.as_ref().expect("drawn above");
+        Ok((img, stats))
+    }
+
+    /// Frame `index`'s stages before its drawing: the motion (simulated
+    /// steps, or a rigid move of the head), the pose and the shadows, each
+    /// only when its inputs changed.
+    fn before_draw(&mut self, index: u64) -> Result<FrameStats, EngineError> {
         let _span = tracing::warn_span!("frame", index).entered();
         let t = index as f32 * self.anim.frame_dt();
         let mut stats = FrameStats::new(index, t);
@@ -329,39 +448,7 @@ impl Sequence {
                 self.collision_at = Some(version);
             }
         }
-        if elsewhere {
-            if self.picture.as_ref().is_none_or(|p| p.0 != version) {
-                let bounds = self.report(&mut stats)?.bounds;
-                self.renderer.frame_on(bounds)?;
-                let job = self.renderer.draw_job(version, fx.self_shadow)?;
-                let start = Instant::now();
-                let ex = self.executor.as_mut();
-                let (img, drawn) = self.renderer.compose(fx.self_shadow, || ex.draw(&job))?;
-                let ms = start.elapsed().as_secs_f64() * 1e3;
-                if fx.self_shadow {
-                    stats.record(Stage::Filter, drawn.filter_ms);
-                }
-                stats.record(Stage::Shade, drawn.shade_ms);
-                stats.record(Stage::Draw, ms - drawn.filter_ms - drawn.shade_ms);
-                self.shaded_at = Some(version);
-                self.picture = Some((version, img));
-            }
-        } else {
-            let hair = self.anim.hair();
-            if self.shaded_at != Some(version) {
-                let r = &mut self.renderer;
-                stats.time(Stage::Shade, || r.shade(hair, fx.self_shadow))?;
-                self.shaded_at = Some(version);
-            }
-            if self.picture.as_ref().is_none_or(|p| p.0 != version) {
-                let r = &mut self.renderer;
-                let img = stats.time(Stage::Draw, || r.draw(hair, fx.self_shadow))?;
-                self.picture = Some((version, img));
-            }
-        }
-        self.next += 1;
-        let (_, img) = self.picture.as_ref().expect("drawn above");
-        Ok((img, stats))
+        Ok(stats)
     }
 
     /// What the drawn hair's last pose reported: measured here the first

@@ -35,7 +35,7 @@ pub use frames::{FrameStats, Sequence, Stage, StageRecord};
 pub use head::Head;
 pub use part::{HairPart, draw_head};
 pub use pipeline::{ShadowPipeline, StageTimes, build_hair, drawn_segments};
-pub use render::{FrameTimes, Renderer};
+pub use render::{Composite, FrameTimes, Renderer};
 pub use scene::{
     Animation, BodySettings, Collision, Dynamics, Effects, HairSource, HeadMesh, HeadSettings,
     Scene, SceneError, SceneSource, ShadowSettings,

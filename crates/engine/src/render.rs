@@ -5,7 +5,7 @@
 use std::time::Instant;
 
 use glam::{Affine3A, Vec3};
-use raster::{Camera, Canvas};
+use raster::{Camera, Canvas, HairLayer};
 use strands::{Bounds, Hair};
 
 use crate::part::draw_head;
@@ -312,6 +312,22 @@ impl Renderer {
         shadows: bool,
         hair: impl FnOnce() -> Result<DrawReport, EngineError> + Send,
     ) -> Result<(image::RgbImage, DrawReport), EngineError> {
+        let (composite, drawn) = self.compose_later(shadows, hair)?;
+        let (canvas, img) = composite.resolve();
+        self.canvas = Some(canvas);
+        Ok((img, drawn))
+    }
+
+    /// [`Self::compose`] up to the compositing, which the returned
+    /// [`Composite`] does wherever it is sent (while this renderer runs the
+    /// next frame's shadows, say); hand its canvas back with
+    /// [`Self::restore_canvas`] before the next draw, or a new one is made.
+    /// The report's layers are in the composite.
+    pub fn compose_later(
+        &mut self,
+        shadows: bool,
+        hair: impl FnOnce() -> Result<DrawReport, EngineError> + Send,
+    ) -> Result<(Composite, DrawReport), EngineError> {
         let background = self.scene.render.background;
         // The hair's call waits on the network in a thread of its own (not
         // one of rayon's, which the head and any in-process drawing need).
@@ -323,22 +339,53 @@ impl Renderer {
                 .unwrap_or_else(|p| std::panic::resume_unwind(p));
             (drawn, head)
         });
-        let (drawn, ()) = (drawn?, head?);
-        let canvas = self.canvas.as_ref().expect("drawn above");
+        let (mut drawn, ()) = (drawn?, head?);
+        let canvas = self.canvas.take().expect("drawn above");
         if let Some(l) = drawn
             .layers
             .iter()
             .find(|l| l.width() != canvas.width() || l.height() != canvas.height())
         {
-            return Err(EngineError::Executor(format!(
+            let msg = format!(
                 "a partial picture of {}x{} for a {}x{} frame",
                 l.width(),
                 l.height(),
                 canvas.width(),
                 canvas.height()
-            )));
+            );
+            self.canvas = Some(canvas);
+            return Err(EngineError::Executor(msg));
         }
-        let img = canvas.resolve_layers(background, &drawn.layers);
-        Ok((img, drawn))
+        let layers = std::mem::take(&mut drawn.layers);
+        Ok((
+            Composite {
+                canvas,
+                layers,
+                background,
+            },
+            drawn,
+        ))
+    }
+
+    /// Gives back the canvas a [`Composite`] resolved on, to be reused.
+    pub fn restore_canvas(&mut self, canvas: Canvas) {
+        self.canvas = Some(canvas);
+    }
+}
+
+/// A frame's head and the partial pictures of its hair, not yet
+/// composited: see [`Renderer::compose_later`].
+#[derive(Debug)]
+pub struct Composite {
+    canvas: Canvas,
+    layers: Vec<HairLayer>,
+    background: Vec3,
+}
+
+impl Composite {
+    /// The finished picture, and the canvas for the renderer to reuse.
+    pub fn resolve(self) -> (Canvas, image::RgbImage) {
+        let img = self.canvas.resolve_layers(self.background, &self.layers);
+        (self.canvas, img)
     }
 }

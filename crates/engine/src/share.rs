@@ -178,6 +178,47 @@ impl Share {
         job: &DrawJob,
         maps: &[Transmittance],
     ) -> Result<(HairLayer, DrawTimes), EngineError> {
+        let (canvas, mut times) = self.bin(job, maps)?;
+        let t = Instant::now();
+        let layer = canvas.layer();
+        times.raster_ms += ms(t);
+        Ok((layer, times))
+    }
+
+    /// [`Self::draw`], the partial picture handed to `emit` a stripe of
+    /// `stripe_rows` rows at a time (rounded up to whole bands), top to
+    /// bottom, each as soon as it is rasterized: a worker sends one stripe
+    /// while it rasterizes the next, and the coordinator decodes it
+    /// meanwhile. The stripes, appended, are [`Self::draw`]'s layer. An
+    /// error from `emit` stops the drawing and is returned.
+    pub fn draw_stripes(
+        &mut self,
+        job: &DrawJob,
+        maps: &[Transmittance],
+        stripe_rows: u32,
+        mut emit: impl FnMut(HairLayer) -> Result<(), EngineError>,
+    ) -> Result<DrawTimes, EngineError> {
+        let (canvas, mut times) = self.bin(job, maps)?;
+        let band = Canvas::BAND_ROWS;
+        let step = stripe_rows.max(1).div_ceil(band) * band;
+        let mut y = 0;
+        while y < canvas.height() {
+            let t = Instant::now();
+            let stripe = canvas.layer_rows(y..(y + step).min(canvas.height()));
+            times.raster_ms += ms(t);
+            emit(stripe)?;
+            y += step;
+        }
+        Ok(times)
+    }
+
+    /// Filters, shades and bins the posed strands for `job`: the canvas
+    /// they are binned on, ready to rasterize, and the times so far.
+    fn bin(
+        &mut self,
+        job: &DrawJob,
+        maps: &[Transmittance],
+    ) -> Result<(&Canvas, DrawTimes), EngineError> {
         let mut times = DrawTimes::default();
         let hair = match &self.posed {
             Some((v, hair)) if *v == job.version => hair,
@@ -213,13 +254,15 @@ impl Share {
         times.shade_ms = ms(t);
         let t = Instant::now();
         let (w, h) = (job.camera.width(), job.camera.height());
-        let canvas = match &mut self.canvas {
-            Some(c) if c.width() == w && c.height() == h => {
-                c.clear();
-                c
-            }
-            _ => self.canvas.insert(Canvas::new(w, h)?),
-        };
+        if !self
+            .canvas
+            .as_ref()
+            .is_some_and(|c| c.width() == w && c.height() == h)
+        {
+            self.canvas = Some(Canvas::new(w, h)?);
+        }
+        let canvas = self.canvas.as_mut().expect("made above");
+        canvas.clear();
         // The head's depth alone hides the hair behind it.
         if let Some(head) = &mut self.head {
             head.set_pose(job.head);
@@ -228,8 +271,7 @@ impl Share {
         let groups = self.anim.groups().within(self.groups.clone());
         self.part
             .draw(hair, &job.camera, &job.look, &groups, canvas);
-        let layer = canvas.layer();
         times.raster_ms = ms(t);
-        Ok((layer, times))
+        Ok((canvas, times))
     }
 }

@@ -463,37 +463,95 @@ impl Iterator for LayerChunks {
         if self.done {
             return None;
         }
-        let (layer, n) = (&self.layer, self.layer.pixels().len());
-        let (start, end) = (self.start, (self.start + PIXELS_PER_CHUNK).min(n));
-        let mut c = pb::LayerChunk {
-            width: layer.width(),
-            height: layer.height(),
-            count: (end - start) as u32,
-            ..Default::default()
-        };
-        c.pixels.reserve(2 * (end - start));
-        c.sums.reserve(16 * (end - start));
-        for (&p, s) in layer.pixels()[start..end]
-            .iter()
-            .zip(&layer.sums()[start..end])
-        {
-            encode_varint(u64::from(p - self.prev), &mut c.pixels);
-            self.prev = p;
-            for v in s.rgbw {
-                encode_varint(v as u64, &mut c.sums);
-            }
-            encode_varint(s.absorb, &mut c.sums);
-        }
+        let n = self.layer.pixels().len();
+        let end = (self.start + PIXELS_PER_CHUNK).min(n);
+        let mut c = encode_pixels(&self.layer, self.start..end, &mut self.prev);
         self.start = end;
         if end == n {
             // An empty picture is one empty chunk.
             self.done = true;
-            c.filter_ms = self.times.filter_ms;
-            c.shade_ms = self.times.shade_ms;
-            c.raster_ms = self.times.raster_ms;
+            set_times(&mut c, &self.times);
         }
         Some(c)
     }
+}
+
+/// Encodes a partial picture sent a stripe of rows at a time, top to
+/// bottom (see [`engine::Share::draw_stripes`]): the chunks of each stripe
+/// as it comes, then [`Self::last`]. The chunks are those of the whole
+/// picture to a [`LayerReader`].
+#[derive(Debug)]
+pub struct StripeEncoder {
+    /// The pixel before the next one encoded.
+    prev: u32,
+}
+
+impl StripeEncoder {
+    pub fn new() -> StripeEncoder {
+        StripeEncoder { prev: 0 }
+    }
+
+    /// The chunks of `stripe` (none for an empty stripe), whose pixels
+    /// follow every earlier stripe's.
+    pub fn chunks(&mut self, stripe: &HairLayer) -> Vec<pb::LayerChunk> {
+        let n = stripe.pixels().len();
+        (0..n)
+            .step_by(PIXELS_PER_CHUNK)
+            .map(|s| encode_pixels(stripe, s..(s + PIXELS_PER_CHUNK).min(n), &mut self.prev))
+            .collect()
+    }
+
+    /// The last chunk, with no pixels: the worker's times.
+    pub fn last(&self, width: u32, height: u32, times: &engine::DrawTimes) -> pb::LayerChunk {
+        let mut c = pb::LayerChunk {
+            width,
+            height,
+            ..Default::default()
+        };
+        set_times(&mut c, times);
+        c
+    }
+}
+
+impl Default for StripeEncoder {
+    fn default() -> StripeEncoder {
+        StripeEncoder::new()
+    }
+}
+
+fn set_times(c: &mut pb::LayerChunk, times: &engine::DrawTimes) {
+    c.filter_ms = times.filter_ms;
+    c.shade_ms = times.shade_ms;
+    c.raster_ms = times.raster_ms;
+}
+
+/// Pixel entries `range` of `layer` as a chunk: each pixel's step from the
+/// one before (`prev`, updated), then its sums, as varints.
+fn encode_pixels(
+    layer: &HairLayer,
+    range: std::ops::Range<usize>,
+    prev: &mut u32,
+) -> pb::LayerChunk {
+    let mut c = pb::LayerChunk {
+        width: layer.width(),
+        height: layer.height(),
+        count: range.len() as u32,
+        ..Default::default()
+    };
+    c.pixels.reserve(2 * range.len());
+    c.sums.reserve(16 * range.len());
+    for (&p, s) in layer.pixels()[range.clone()]
+        .iter()
+        .zip(&layer.sums()[range])
+    {
+        encode_varint(u64::from(p - *prev), &mut c.pixels);
+        *prev = p;
+        for v in s.rgbw {
+            encode_varint(v as u64, &mut c.sums);
+        }
+        encode_varint(s.absorb, &mut c.sums);
+    }
+    c
 }
 
 /// Receives a partial picture's chunks for a frame of `width` x `height`.
@@ -542,7 +600,7 @@ impl LayerReader {
             let step = varint(&mut px)?;
             let p = match at {
                 Some(a) if step == 0 => return Err(bad(format!("pixel {a} comes twice"))),
-                Some(a) => u64::from(a) + step,
+                Some(a) => u64::from(a).saturating_add(step),
                 None => step,
             };
             if p >= total {
@@ -682,6 +740,80 @@ mod tests {
         let mut wide = c.clone();
         wide.pixels = vec![16];
         assert!(LayerReader::new(4, 4).add(&wide).is_err());
+    }
+
+    #[test]
+    fn a_picture_sent_in_stripes_reads_back_as_the_whole() {
+        let width = 1000;
+        let n = 2 * PIXELS_PER_CHUNK + 100;
+        // Dense in the first stripe (two chunks), sparse below.
+        let pixels: Vec<u32> = (0..n as u32)
+            .map(|i| {
+                if i < 20_000 {
+                    i
+                } else {
+                    20_000 + 70 * (i - 20_000)
+                }
+            })
+            .collect();
+        let sums: Vec<Sums> = (0..n as i64)
+            .map(|i| Sums {
+                rgbw: [i, 5 * i, 1, i << 30],
+                absorb: i as u64,
+            })
+            .collect();
+        let whole = HairLayer::from_parts(width, 1000, pixels.clone(), sums.clone()).unwrap();
+        // Stripes of 100 rows (100,000 pixels), one of them empty.
+        let stripe = |rows: std::ops::Range<u32>| {
+            let keep: Vec<usize> = (0..n)
+                .filter(|&i| {
+                    rows.contains(&(pixels[i] / width))
+                        && !(200..300).contains(&(pixels[i] / width))
+                })
+                .collect();
+            HairLayer::from_parts(
+                width,
+                1000,
+                keep.iter().map(|&i| pixels[i]).collect(),
+                keep.iter().map(|&i| sums[i]).collect(),
+            )
+            .unwrap()
+        };
+        let expect = {
+            let keep: Vec<usize> = (0..n)
+                .filter(|&i| !(200..300).contains(&(pixels[i] / width)))
+                .collect();
+            HairLayer::from_parts(
+                width,
+                1000,
+                keep.iter().map(|&i| pixels[i]).collect(),
+                keep.iter().map(|&i| sums[i]).collect(),
+            )
+            .unwrap()
+        };
+        assert!(expect.pixels().len() < whole.pixels().len());
+        let times = engine::DrawTimes {
+            filter_ms: 4.0,
+            shade_ms: 5.0,
+            raster_ms: 6.0,
+        };
+        let mut enc = StripeEncoder::new();
+        let mut chunks = Vec::new();
+        for y in (0..1000).step_by(100) {
+            chunks.extend(enc.chunks(&stripe(y..y + 100)));
+        }
+        chunks.push(enc.last(width, 1000, &times));
+        assert_eq!(
+            chunks.len(),
+            11,
+            "2 chunks, 8 stripes of one, 1 empty, the last"
+        );
+        let mut r = LayerReader::new(width, 1000);
+        for c in &chunks {
+            r.add(c).unwrap();
+        }
+        assert_eq!(r.times, times);
+        assert_eq!(r.finish().unwrap(), expect);
     }
 
     #[test]

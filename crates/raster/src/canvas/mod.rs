@@ -434,9 +434,23 @@ impl Canvas {
     /// (hidden behind the opaque layer where that is in front), for
     /// [`Self::resolve_layers`] elsewhere.
     pub fn layer(&self) -> HairLayer {
+        self.layer_rows(0..self.height as u32)
+    }
+
+    /// Rows are rasterized in bands of this many: [`Self::layer_rows`]
+    /// takes whole bands.
+    pub const BAND_ROWS: u32 = BAND as u32;
+
+    /// [`Self::layer`] of rows `rows` alone: the bands that hold them
+    /// (`rows` should start and end on a multiple of [`Self::BAND_ROWS`],
+    /// or at the last row). A picture's layers of consecutive row ranges,
+    /// appended, are its [`Self::layer`], so a layer can be sent a few
+    /// bands at a time, each as soon as it is rasterized.
+    pub fn layer_rows(&self, rows: std::ops::Range<u32>) -> HairLayer {
         let (w, h) = (self.width, self.height);
-        let bands = h.div_ceil(BAND);
-        let parts: Vec<HairLayer> = (0..bands)
+        let first = rows.start as usize / BAND;
+        let end = (rows.end as usize).min(h).div_ceil(BAND).max(first);
+        let parts: Vec<HairLayer> = (first..end)
             .into_par_iter()
             .map_init(Scratch::default, |scratch, band| {
                 let y0 = band * BAND;
@@ -744,6 +758,25 @@ mod tests {
             .zip(all.sums().iter().copied())
             .collect();
         assert_eq!(added, whole_sums);
+        // Stripes of whole bands (the last one short: 56 rows), appended
+        // in order, are the whole layer, for any stripe height.
+        let whole_canvas = canvas(0..60);
+        for step in [16, 32, 48, 56, 64] {
+            let mut striped = HairLayer::new(80, 56);
+            let mut stripes = 0;
+            for y in (0..56).step_by(step) {
+                let stripe = whole_canvas.layer_rows(y..(y + step as u32).min(56));
+                let rows = y * 80..(y + step as u32).min(56) * 80;
+                assert!(stripe.pixels().iter().all(|p| rows.contains(p)));
+                stripes += usize::from(!stripe.pixels().is_empty());
+                striped.append(stripe);
+            }
+            assert!(
+                stripes > 1 || step > 16,
+                "hair in several stripes of {step}"
+            );
+            assert_eq!(striped, all, "stripes of {step} rows");
+        }
     }
 
     #[test]
