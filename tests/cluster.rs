@@ -315,7 +315,9 @@ fn bench_scaling_reports_every_configuration_and_writes_its_plot() {
     ]);
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let j: serde_json::Value = serde_json::from_str(out.lines().last().unwrap()).unwrap();
+    // With --json, stdout is the JSON alone (the table goes to stderr).
+    let j: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert!(String::from_utf8_lossy(&o.stderr).contains("frame ms"));
     let configs = j["configs"].as_array().unwrap();
     assert_eq!(configs.len(), 2);
     for (c, k) in configs.iter().zip([1, 2]) {

@@ -312,7 +312,15 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
             .find(|r| r.workers == 1 && r.draw == d)
             .map(|r| r.frame_ms)
     };
-    println!(
+    // The table goes to stdout, or beside the log lines when stdout is JSON.
+    let table = |line: String| {
+        if a.json {
+            eprintln!("{line}");
+        } else {
+            println!("{line}");
+        }
+    };
+    table(format!(
         "{:<28} {:>8} {:>7} {:>7} {:>13} {:>6} {:>6} {:>13} {:>7} {:>7} {:>5}",
         "config",
         "frame ms",
@@ -325,13 +333,13 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
         "coord",
         "MB",
         "same"
-    );
+    ));
     for r in &rows {
         let vs1 = match (r.workers, one_worker(r.draw)) {
             (0, _) | (_, None) => "-".to_string(),
             (_, Some(o)) => format!("{:.2}x", o / r.frame_ms),
         };
-        println!(
+        table(format!(
             "{:<28} {:>8.1} {:>7} {:>6.2}x {:>6.1}/{:<6.1} {:>6.1} {:>6.1} {:>6.1}/{:<6.1} {:>7.1} {:>7.3} {:>5}",
             r.label,
             r.frame_ms,
@@ -346,7 +354,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
             r.coordinator_ms,
             r.wire_mb,
             if r.identical { "yes" } else { "NO" }
-        );
+        ));
     }
     eprintln!(
         "bench scaling: medians per frame; step = wall time of the wisps' Step (or Pose) calls / the slowest worker's own compute; fill = Deposit calls and summing the densities; sweep = Sweep calls and assembling the slabs; draw = Draw calls and decoding the partial pictures / the slowest worker's filter, shade and rasterization; coord = the rest of the frame on the coordinator (the self-collision field, and the head and compositing, or with the coordinator drawing: posing, filtering, shading and drawing every strand); MB = bytes on the wire per frame; same = pictures identical to one process"
