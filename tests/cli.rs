@@ -136,6 +136,62 @@ fn a_truncated_hair_file_is_a_clear_error() {
     assert!(e.contains("big.hair") && e.contains("truncated"), "{e}");
 }
 
+/// A USC-HairSalon `.data` file: an i32 strand count, then per strand an
+/// i32 vertex count and f32 xyz per vertex.
+fn usc_data(strands: &[Vec<[f32; 3]>]) -> Vec<u8> {
+    let mut b = (strands.len() as i32).to_le_bytes().to_vec();
+    for s in strands {
+        b.extend_from_slice(&(s.len() as i32).to_le_bytes());
+        for c in s.iter().flatten() {
+            b.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    b
+}
+
+#[test]
+fn a_usc_hairsalon_groom_renders_and_a_cut_one_names_its_strand_and_byte() {
+    let dir = scratch("usc");
+    // A fringe of 200 strands hanging from a ring, and a root-only strand.
+    let mut strands: Vec<Vec<[f32; 3]>> = (0..200)
+        .map(|i| {
+            let a = i as f32 * std::f32::consts::TAU / 200.0;
+            (0..12)
+                .map(|k| [8.0 * a.cos(), 6.0 - 2.0 * k as f32, 8.0 * a.sin()])
+                .collect()
+        })
+        .collect();
+    strands.push(vec![[0.0, 9.0, 0.0]]);
+    let bytes = usc_data(&strands);
+    std::fs::write(dir.join("groom.data"), &bytes).unwrap();
+    let scene = write(&dir, "scene.toml", "[hair]\nfile = \"groom.data\"\n");
+    let out = dir.join("groom.png");
+    let o = wisplight(&["render", &scene, "-o", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // Hair is drawn: a good share of the picture is not the background.
+    let img = image::open(&out).unwrap().to_rgb8();
+    let bg = *img.get_pixel(0, 0);
+    let covered = img.pixels().filter(|p| **p != bg).count();
+    assert!(
+        covered * 50 > img.pixels().len(),
+        "{covered} pixels of hair"
+    );
+    // Cut inside strand 150's vertices.
+    let at = 4 + 150 * (4 + 12 * 12) + 4 + 20;
+    std::fs::write(dir.join("cut.data"), &bytes[..at]).unwrap();
+    let scene = write(&dir, "cut.toml", "[hair]\nfile = \"cut.data\"\n");
+    let o = wisplight(&["render", &scene, "-o", out.to_str().unwrap()]);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    let strand_at = 4 + 150 * (4 + 12 * 12);
+    assert!(
+        e.contains("cut.data")
+            && e.contains("strand 150")
+            && e.contains(&format!("byte {strand_at}")),
+        "{e}"
+    );
+}
+
 #[test]
 fn usage_errors_exit_with_2() {
     assert_eq!(wisplight(&["probe"]).status.code(), Some(2));

@@ -21,7 +21,10 @@ mod style;
 pub use catmull_rom::{resample, resample_into};
 pub use follow::{FollowParams, grow_followers};
 pub use hair::{Bounds, Hair, HairError};
-pub use load::{FormatError, LoadError, load, load_bytes, load_with, parse_hair_format, parse_tfx};
+pub use load::{
+    FormatError, LoadError, load, load_bytes, load_with, parse_hair_format, parse_tfx,
+    parse_usc_data,
+};
 pub use mesh::{
     MAX_MESH_ELEMENTS, Mesh, MeshError, MeshLoadError, load_obj, load_obj_bytes, parse_obj,
 };

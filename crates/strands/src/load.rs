@@ -1,6 +1,7 @@
-//! File loaders: Cem Yuksel's HAIR format and TressFX 4 `.tfx`.
+//! File loaders: Cem Yuksel's HAIR format, TressFX 4 `.tfx` and
+//! USC-HairSalon `.data`.
 //!
-//! Both parsers work on bytes already read, and check every count a header
+//! The parsers work on bytes already read, and check every count a header
 //! claims against the bytes actually present *before* allocating anything
 //! sized by it: a lying header gets an error, not a 10^12-element allocation.
 
@@ -20,7 +21,10 @@ pub enum LoadError {
     },
     #[error("{}: {cause}", path.display())]
     Format { path: PathBuf, cause: FormatError },
-    #[error("{}: unknown hair file type (expected a .hair or .tfx file)", path.display())]
+    #[error(
+        "{}: unknown hair file type (expected .hair, .tfx or USC-HairSalon .data; convert PLY or Alembic curves to one of them, e.g. with hairutil)",
+        path.display()
+    )]
     UnknownExtension { path: PathBuf },
 }
 
@@ -89,14 +93,36 @@ pub enum FormatError {
     TfxVersion(f32),
     #[error("header claims {strands} strands of no vertices")]
     EmptyStrands { strands: u64 },
+    #[error("byte {offset}: a negative {what} count, {count}")]
+    NegativeCount {
+        what: &'static str,
+        count: i64,
+        offset: u64,
+    },
+    #[error(
+        "byte {offset}: strand {strand} claims {count} vertices, needing {need} bytes, but only {have} remain"
+    )]
+    StrandTruncated {
+        strand: u64,
+        count: u64,
+        offset: u64,
+        need: u64,
+        have: u64,
+    },
+    #[error("byte {offset}: {left} bytes left over after the last of {strands} strands")]
+    TrailingBytes {
+        offset: u64,
+        left: u64,
+        strands: u64,
+    },
 }
 
-/// Loads `.hair` or `.tfx` by extension.
+/// Loads `.hair`, `.tfx` or `.data` by extension.
 pub fn load(path: &Path) -> Result<Hair, LoadError> {
     load_with(path, |p| std::fs::read(p).map(std::borrow::Cow::Owned))
 }
 
-/// Loads `.hair` or `.tfx` by extension, its bytes from `read` (called
+/// Loads `.hair`, `.tfx` or `.data` by extension, its bytes from `read` (called
 /// once the extension is known: an unknown one is refused first).
 pub fn load_with<'a>(
     path: &Path,
@@ -110,7 +136,7 @@ pub fn load_with<'a>(
     load_bytes(path, &bytes)
 }
 
-/// Parses the bytes of the file `path` (`.hair` or `.tfx` by extension;
+/// Parses the bytes of the file `path` (`.hair`, `.tfx` or `.data` by extension;
 /// the path names the file in errors).
 pub fn load_bytes(path: &Path, bytes: &[u8]) -> Result<Hair, LoadError> {
     parser(path)?(bytes).map_err(|cause| LoadError::Format {
@@ -130,6 +156,7 @@ fn parser(path: &Path) -> Result<Parser, LoadError> {
     match ext.as_deref() {
         Some("hair") => Ok(parse_hair_format),
         Some("tfx") => Ok(parse_tfx),
+        Some("data") => Ok(parse_usc_data),
         _ => Err(LoadError::UnknownExtension {
             path: path.to_owned(),
         }),
@@ -348,9 +375,159 @@ pub fn parse_tfx(b: &[u8]) -> Result<Hair, FormatError> {
     Ok(hair)
 }
 
+/// Parses a USC-HairSalon `.data` file (the format of the USC-HairSalon
+/// dataset and of the tools that read it, hairutil among them).
+///
+/// Little-endian: an i32 strand count, then per strand an i32 vertex count
+/// and that many f32 xyz. Strands of one vertex (a root with no hair, as
+/// the dataset has) are kept: they draw nothing and deposit nothing. Every
+/// count is checked against the bytes left before anything is allocated
+/// for it, and bytes after the last strand are refused.
+pub fn parse_usc_data(b: &[u8]) -> Result<Hair, FormatError> {
+    let len = b.len() as u64;
+    if b.len() < 4 {
+        return Err(FormatError::TruncatedHeader {
+            len: b.len(),
+            need: 4,
+        });
+    }
+    let count = |at: usize, what: &'static str| -> Result<u64, FormatError> {
+        let c = i32::from_le_bytes(b[at..at + 4].try_into().expect("4 bytes"));
+        u64::try_from(c).map_err(|_| FormatError::NegativeCount {
+            what,
+            count: i64::from(c),
+            offset: at as u64,
+        })
+    };
+    let strands = count(0, "strand")?;
+    // Each strand takes 4 bytes at least.
+    let have = len - 4;
+    if strands * 4 > have {
+        return Err(FormatError::Truncated {
+            what: "strands",
+            count: strands,
+            need: strands * 4,
+            have,
+        });
+    }
+    // No more points than the bytes can hold.
+    let mut hair = Hair::with_capacity(strands as usize, (have / 12) as usize);
+    let mut pts = Vec::new();
+    let mut at = 4usize;
+    for s in 0..strands {
+        if b.len() - at < 4 {
+            return Err(FormatError::StrandTruncated {
+                strand: s,
+                count: 0,
+                offset: at as u64,
+                need: 4,
+                have: (b.len() - at) as u64,
+            });
+        }
+        let n = count(at, "vertex")?;
+        let (need, have) = (n * 12, (b.len() - at - 4) as u64);
+        if need > have {
+            return Err(FormatError::StrandTruncated {
+                strand: s,
+                count: n,
+                offset: at as u64,
+                need,
+                have,
+            });
+        }
+        at += 4;
+        pts.clear();
+        pts.extend((0..n as usize).map(|v| vec3_at(b, at + 12 * v)));
+        hair.push_strand(&pts)?;
+        at += need as usize;
+    }
+    if at != b.len() {
+        return Err(FormatError::TrailingBytes {
+            offset: at as u64,
+            left: (b.len() - at) as u64,
+            strands,
+        });
+    }
+    Ok(hair)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Writes a USC-HairSalon file by the format's description.
+    fn usc_file(strands: &[&[[f32; 3]]]) -> Vec<u8> {
+        let mut b = (strands.len() as i32).to_le_bytes().to_vec();
+        for s in strands {
+            b.extend_from_slice(&(s.len() as i32).to_le_bytes());
+            for p in *s {
+                for c in p {
+                    b.extend_from_slice(&c.to_le_bytes());
+                }
+            }
+        }
+        b
+    }
+
+    #[test]
+    fn reads_usc_data_with_root_only_strands_and_refuses_what_does_not_fit() {
+        let a: &[[f32; 3]] = &[[0.0, 1.0, 2.0], [0.5, -1.0, 2.0], [1.0, -3.0, 2.5]];
+        let root: &[[f32; 3]] = &[[9.0, 9.0, 9.0]];
+        let f = usc_file(&[a, root, &a[..2]]);
+        let h = parse_usc_data(&f).unwrap();
+        assert_eq!((h.strand_count(), h.point_count()), (3, 6));
+        assert_eq!(h.offsets(), &[0, 3, 4, 6]);
+        assert_eq!(h.points()[1], Vec3::new(0.5, -1.0, 2.0));
+        assert_eq!(h.points()[3], Vec3::new(9.0, 9.0, 9.0));
+        assert_eq!(parse_usc_data(&usc_file(&[])).unwrap().strand_count(), 0);
+        // Cut inside the last strand's vertices: names strand 2 and its byte.
+        let cut = &f[..f.len() - 1];
+        assert_eq!(
+            parse_usc_data(cut),
+            Err(FormatError::StrandTruncated {
+                strand: 2,
+                count: 2,
+                offset: 4 + (4 + 36) + (4 + 12),
+                need: 24,
+                have: 23,
+            })
+        );
+        // A count of 2^31 - 1 strands in 16 bytes, a negative vertex count,
+        // a byte too many, too short for a count.
+        let mut lying = usc_file(&[root]);
+        lying[..4].copy_from_slice(&i32::MAX.to_le_bytes());
+        assert!(matches!(
+            parse_usc_data(&lying),
+            Err(FormatError::Truncated { .. })
+        ));
+        let mut negative = usc_file(&[root]);
+        negative[4..8].copy_from_slice(&(-3i32).to_le_bytes());
+        assert_eq!(
+            parse_usc_data(&negative),
+            Err(FormatError::NegativeCount {
+                what: "vertex",
+                count: -3,
+                offset: 4
+            })
+        );
+        let mut extra = f.clone();
+        extra.push(0);
+        assert!(matches!(
+            parse_usc_data(&extra),
+            Err(FormatError::TrailingBytes {
+                left: 1,
+                strands: 3,
+                ..
+            })
+        ));
+        assert!(matches!(
+            parse_usc_data(&[1, 0]),
+            Err(FormatError::TruncatedHeader { .. })
+        ));
+        let mut nan = usc_file(&[a]);
+        nan[8..12].copy_from_slice(&f32::NAN.to_le_bytes());
+        assert!(matches!(parse_usc_data(&nan), Err(FormatError::Hair(_))));
+    }
 
     /// Writes a HAIR file by the format's description (independent of the parser).
     fn hair_file(

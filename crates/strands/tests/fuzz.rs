@@ -5,7 +5,7 @@
 //! gets an error, not an allocation).
 
 use proptest::prelude::*;
-use strands::{parse_hair_format, parse_tfx};
+use strands::{parse_hair_format, parse_tfx, parse_usc_data};
 
 /// A HAIR header (128 bytes): magic, counts, flags, defaults, then `body`.
 fn hair_header(
@@ -59,6 +59,27 @@ fn valid_hair(n: u16) -> Vec<u8> {
     hair_header(u32::from(n), points, 1 | 2 | 16, 0, &body)
 }
 
+/// A valid USC-HairSalon file of `n` strands of `k % 4` points each.
+fn valid_usc(n: u32) -> Vec<u8> {
+    let mut b = (n as i32).to_le_bytes().to_vec();
+    for k in 0..n {
+        b.extend_from_slice(&((k % 4) as i32).to_le_bytes());
+        for p in 0..k % 4 {
+            for c in [p as f32, k as f32, 0.5] {
+                b.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+    }
+    b
+}
+
+/// A USC-HairSalon strand count, then `body`.
+fn usc_header(strands: i32, body: &[u8]) -> Vec<u8> {
+    let mut b = strands.to_le_bytes().to_vec();
+    b.extend_from_slice(body);
+    b
+}
+
 fn valid_tfx(n: u32) -> Vec<u8> {
     let mut body = Vec::new();
     for p in 0..4 * n {
@@ -79,6 +100,11 @@ fn check(bytes: &[u8]) -> Result<(), TestCaseError> {
             bytes.len()
         );
         prop_assert!(h.strand_count() * 2 <= bytes.len() || h.point_count() > 0);
+        prop_assert!(h.points().iter().all(|p| p.is_finite()));
+    }
+    if let Ok(h) = parse_usc_data(bytes) {
+        // 4 bytes a strand, 12 a point, and the strand count.
+        prop_assert_eq!(4 + 4 * h.strand_count() + 12 * h.point_count(), bytes.len());
         prop_assert!(h.points().iter().all(|p| p.is_finite()));
     }
     if let Ok(h) = parse_tfx(bytes) {
@@ -119,13 +145,21 @@ proptest! {
     }
 
     #[test]
+    fn usc_headers_with_any_counts(
+        strands in prop_oneof![0i32..8, Just(i32::MAX), Just(-1), any::<i32>()],
+        body in prop::collection::vec(any::<u8>(), 0..400),
+    ) {
+        check(&usc_header(strands, &body))?;
+    }
+
+    #[test]
     fn valid_files_with_bytes_flipped_or_cut(
         n in 1u16..6,
         flips in prop::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 0..6),
         cut in any::<prop::sample::Index>(),
         do_cut in any::<bool>(),
     ) {
-        for mut bytes in [valid_hair(n), valid_tfx(u32::from(n))] {
+        for mut bytes in [valid_hair(n), valid_tfx(u32::from(n)), valid_usc(u32::from(n) * 3)] {
             for (at, v) in &flips {
                 let i = at.index(bytes.len());
                 bytes[i] = *v;
@@ -144,6 +178,9 @@ fn the_valid_files_of_the_fuzzer_load() {
     assert_eq!((h.strand_count(), h.point_count()), (4, 12));
     let t = parse_tfx(&valid_tfx(4)).unwrap();
     assert_eq!((t.strand_count(), t.point_count()), (4, 16));
+    // Strands of 0, 1, 2, 3, 0, 1 points.
+    let u = parse_usc_data(&valid_usc(6)).unwrap();
+    assert_eq!((u.strand_count(), u.point_count()), (6, 7));
 }
 
 #[test]
@@ -156,6 +193,9 @@ fn headers_that_claim_billions_are_refused_at_once() {
         tfx_header(u32::MAX, u32::MAX, 160, &[0; 64]),
         tfx_header(1, u32::MAX, 160, &[0; 64]),
         tfx_header(0, u32::MAX, 160, &[]),
+        usc_header(i32::MAX, &[]),
+        usc_header(1, &i32::MAX.to_le_bytes()),
+        usc_header(2, &[0xff; 8]),
     ] {
         check(&bytes).unwrap();
     }
