@@ -26,7 +26,8 @@ use strands::Hair;
 use crate::animate::Animator;
 use crate::collide::DensityRepulsion;
 use crate::{
-    EngineError, Executor, LocalExecutor, PosePlan, PoseReport, Renderer, Scene, StepPlan,
+    Composite, EngineError, Executor, LocalExecutor, PosePlan, PoseReport, Renderer, Scene,
+    StepPlan,
 };
 
 /// A stage of a frame.
@@ -187,6 +188,20 @@ pub struct Sequence {
     compositor: Option<rayon::ThreadPool>,
 }
 
+/// `composite` resolved (on `pool`'s threads when given), and its
+/// milliseconds.
+fn resolve_timed(
+    composite: Composite,
+    pool: Option<&rayon::ThreadPool>,
+) -> ((raster::Canvas, image::RgbImage), f64) {
+    let t = Instant::now();
+    let out = match pool {
+        Some(p) => p.install(|| composite.resolve()),
+        None => composite.resolve(),
+    };
+    (out, t.elapsed().as_secs_f64() * 1e3)
+}
+
 /// Half the global pool's threads (at least one), for compositing; none
 /// when no thread can be started (the compositing then shares the global
 /// pool).
@@ -320,36 +335,25 @@ impl Sequence {
                     .compose_later(fx.self_shadow, || ex.draw(&job))?;
                 let mut ms = start.elapsed().as_secs_f64() * 1e3;
                 drop(span);
-                let (canvas, img) = if more {
+                let ((canvas, img), resolve_ms) = if more {
                     // Composited in a thread of its own while the next
                     // frame's stages run here.
+                    let pool = self.compositor.take().or_else(compositor_pool);
                     let (resolved, ahead) = std::thread::scope(|s| {
-                        let pool = self.compositor.take().or_else(compositor_pool);
-                        let resolved = s.spawn(|| {
-                            let t = Instant::now();
-                            let out = match &pool {
-                                Some(p) => p.install(|| composite.resolve()),
-                                None => composite.resolve(),
-                            };
-                            (out, t.elapsed().as_secs_f64() * 1e3, pool)
-                        });
+                        let resolved = s.spawn(|| resolve_timed(composite, pool.as_ref()));
                         let ahead = self.before_draw(index + 1);
                         let resolved = resolved
                             .join()
                             .unwrap_or_else(|p| std::panic::resume_unwind(p));
                         (resolved, ahead)
                     });
-                    self.ahead = Some(ahead);
-                    let (out, resolve_ms, pool) = resolved;
                     self.compositor = pool;
-                    ms += resolve_ms;
-                    out
+                    self.ahead = Some(ahead);
+                    resolved
                 } else {
-                    let t = Instant::now();
-                    let out = composite.resolve();
-                    ms += t.elapsed().as_secs_f64() * 1e3;
-                    out
+                    resolve_timed(composite, None)
                 };
+                ms += resolve_ms;
                 self.renderer.restore_canvas(canvas);
                 if fx.self_shadow {
                     stats.record(Stage::Filter, drawn.filter_ms);

@@ -426,54 +426,17 @@ impl ColumnsReader {
     }
 }
 
-/// A partial picture as chunks; the last carries the worker's times.
+/// A partial picture as chunks; the last carries the worker's times (an
+/// empty picture is one empty chunk).
 pub fn layer_chunks(layer: &HairLayer, times: &engine::DrawTimes) -> Vec<pb::LayerChunk> {
-    LayerChunks::new(layer.clone(), *times).collect()
-}
-
-/// A partial picture's chunks, encoded one at a time as they are taken
-/// (a reply streams the first while the next is encoded); the last carries
-/// the worker's times.
-#[derive(Debug)]
-pub struct LayerChunks {
-    layer: HairLayer,
-    times: engine::DrawTimes,
-    /// The next pixel entry to encode, and the pixel before it.
-    start: usize,
-    prev: u32,
-    done: bool,
-}
-
-impl LayerChunks {
-    pub fn new(layer: HairLayer, times: engine::DrawTimes) -> LayerChunks {
-        LayerChunks {
-            layer,
-            times,
-            start: 0,
-            prev: 0,
-            done: false,
-        }
-    }
-}
-
-impl Iterator for LayerChunks {
-    type Item = pb::LayerChunk;
-
-    fn next(&mut self) -> Option<pb::LayerChunk> {
-        if self.done {
-            return None;
-        }
-        let n = self.layer.pixels().len();
-        let end = (self.start + PIXELS_PER_CHUNK).min(n);
-        let mut c = encode_pixels(&self.layer, self.start..end, &mut self.prev);
-        self.start = end;
-        if end == n {
-            // An empty picture is one empty chunk.
-            self.done = true;
-            set_times(&mut c, &self.times);
-        }
-        Some(c)
-    }
+    let n = layer.pixels().len();
+    let mut prev = 0;
+    let mut chunks: Vec<pb::LayerChunk> = (0..n.max(1))
+        .step_by(PIXELS_PER_CHUNK)
+        .map(|s| encode_pixels(layer, s..(s + PIXELS_PER_CHUNK).min(n), &mut prev))
+        .collect();
+    set_times(chunks.last_mut().expect("one chunk at least"), times);
+    chunks
 }
 
 /// Encodes a partial picture sent a stripe of rows at a time, top to
@@ -763,34 +726,23 @@ mod tests {
             })
             .collect();
         let whole = HairLayer::from_parts(width, 1000, pixels.clone(), sums.clone()).unwrap();
-        // Stripes of 100 rows (100,000 pixels), one of them empty.
-        let stripe = |rows: std::ops::Range<u32>| {
-            let keep: Vec<usize> = (0..n)
-                .filter(|&i| {
-                    rows.contains(&(pixels[i] / width))
-                        && !(200..300).contains(&(pixels[i] / width))
-                })
-                .collect();
+        // The pixels whose rows `keep` says, as a layer.
+        let layer_of = |keep: &dyn Fn(u32) -> bool| {
+            let kept: Vec<usize> = (0..n).filter(|&i| keep(pixels[i] / width)).collect();
             HairLayer::from_parts(
                 width,
                 1000,
-                keep.iter().map(|&i| pixels[i]).collect(),
-                keep.iter().map(|&i| sums[i]).collect(),
+                kept.iter().map(|&i| pixels[i]).collect(),
+                kept.iter().map(|&i| sums[i]).collect(),
             )
             .unwrap()
         };
-        let expect = {
-            let keep: Vec<usize> = (0..n)
-                .filter(|&i| !(200..300).contains(&(pixels[i] / width)))
-                .collect();
-            HairLayer::from_parts(
-                width,
-                1000,
-                keep.iter().map(|&i| pixels[i]).collect(),
-                keep.iter().map(|&i| sums[i]).collect(),
-            )
-            .unwrap()
-        };
+        // Rows 200..300 have no hair: one stripe is empty.
+        let drawn = |row: u32| !(200..300).contains(&row);
+        // Stripes of 100 rows (100,000 pixels).
+        let stripe =
+            |rows: std::ops::Range<u32>| layer_of(&|row| rows.contains(&row) && drawn(row));
+        let expect = layer_of(&drawn);
         assert!(expect.pixels().len() < whole.pixels().len());
         let times = engine::DrawTimes {
             filter_ms: 4.0,
