@@ -1,6 +1,8 @@
 //! The `wisplight` command-line program: the only place that touches the
 //! terminal, parses arguments and turns errors into messages and exit codes.
 
+#![recursion_limit = "256"]
+
 mod cmd;
 mod csv;
 mod plot;

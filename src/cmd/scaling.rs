@@ -118,6 +118,10 @@ struct Row {
     /// Wall time of the Draw calls, and the slowest worker's compute in them.
     draw_ms: f64,
     draw_compute_ms: f64,
+    /// Compositing on the workers: the slowest worker's wait for the
+    /// others' stripes, and its resolving of its band.
+    band_wait_ms: f64,
+    band_composite_ms: f64,
     /// The rest of the frame on the coordinator (with workers drawing: the
     /// head and compositing; with the coordinator drawing: posing,
     /// filtering, shading, drawing); both: the self-collision field.
@@ -142,6 +146,8 @@ impl Row {
             sweep_ms: 0.0,
             draw_ms: 0.0,
             draw_compute_ms: 0.0,
+            band_wait_ms: 0.0,
+            band_composite_ms: 0.0,
             coordinator_ms: frame_ms,
             wire_mb: 0.0,
             wire: cluster::Traffic::default(),
@@ -237,7 +243,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
             seq.set_executor(Box::new(ex))
                 .context("cannot start the cluster")?;
             seq.expect_frames(total);
-            let mut v: [Vec<f64>; 10] = Default::default();
+            let mut v: [Vec<f64>; 12] = Default::default();
             let mut frames_traffic = Vec::new();
             let mut identical = true;
             for f in 0..total {
@@ -265,6 +271,8 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
                         c1.draw_compute_ms - c0.draw_compute_ms,
                         ms - step - pose - fill - sweep - drawn,
                         b1.since(&b0).total() as f64 / 1e6,
+                        c1.band_wait_ms - c0.band_wait_ms,
+                        c1.band_composite_ms - c0.band_composite_ms,
                     ]) {
                         v.push(x);
                     }
@@ -299,6 +307,8 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
                 draw_compute_ms: m[7],
                 coordinator_ms: m[8],
                 wire_mb: m[9],
+                band_wait_ms: m[10],
+                band_composite_ms: m[11],
                 wire,
                 identical,
             });
@@ -321,7 +331,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
         }
     };
     table(format!(
-        "{:<28} {:>8} {:>7} {:>7} {:>13} {:>6} {:>6} {:>13} {:>7} {:>7} {:>5}",
+        "{:<28} {:>8} {:>7} {:>7} {:>13} {:>6} {:>6} {:>13} {:>11} {:>7} {:>7} {:>5}",
         "config",
         "frame ms",
         "vs 1 w",
@@ -330,6 +340,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
         "fill",
         "sweep",
         "draw/slowest",
+        "wait/comp",
         "coord",
         "MB",
         "same"
@@ -340,7 +351,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
             (_, Some(o)) => format!("{:.2}x", o / r.frame_ms),
         };
         table(format!(
-            "{:<28} {:>8.1} {:>7} {:>6.2}x {:>6.1}/{:<6.1} {:>6.1} {:>6.1} {:>6.1}/{:<6.1} {:>7.1} {:>7.3} {:>5}",
+            "{:<28} {:>8.1} {:>7} {:>6.2}x {:>6.1}/{:<6.1} {:>6.1} {:>6.1} {:>6.1}/{:<6.1} {:>5.1}/{:<5.1} {:>7.1} {:>7.3} {:>5}",
             r.label,
             r.frame_ms,
             vs1,
@@ -351,13 +362,15 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
             r.sweep_ms,
             r.draw_ms,
             r.draw_compute_ms,
+            r.band_wait_ms,
+            r.band_composite_ms,
             r.coordinator_ms,
             r.wire_mb,
             if r.identical { "yes" } else { "NO" }
         ));
     }
     eprintln!(
-        "bench scaling: medians per frame; step = wall time of the wisps' Step (or Pose) calls / the slowest worker's own compute; fill = Deposit calls and summing the densities; sweep = Sweep calls and assembling the slabs; draw = Draw calls and decoding the partial pictures / the slowest worker's filter, shade and rasterization; coord = the rest of the frame on the coordinator (the self-collision field, and the head and compositing, or with the coordinator drawing: posing, filtering, shading and drawing every strand); MB = bytes on the wire per frame; same = pictures identical to one process"
+        "bench scaling: medians per frame; step = wall time of the wisps' Step (or Pose) calls / the slowest worker's own compute; fill = Deposit calls and summing the densities; sweep = Sweep calls and assembling the slabs; draw = Draw calls, with the compositing (on the workers, or decoding partial pictures here) / the slowest worker's filter, shade and rasterization; wait/comp = compositing on the workers: the slowest worker's wait for the others' stripes of its band / its resolving of the band; coord = the rest of the frame on the coordinator (the self-collision field, and with one worker the head and compositing, or with the coordinator drawing: posing, filtering, shading and drawing every strand); MB = bytes on the wire per frame; same = pictures identical to one process"
     );
     for r in rows.iter().skip(1) {
         eprintln!(
@@ -428,6 +441,8 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
                 "sweep_ms": r.sweep_ms,
                 "draw_ms": r.draw_ms,
                 "slowest_draw_ms": r.draw_compute_ms,
+                "band_wait_ms": r.band_wait_ms,
+                "band_composite_ms": r.band_composite_ms,
                 "coordinator_ms": r.coordinator_ms,
                 "wire_mb_per_frame": r.wire_mb,
                 "wire_bytes_median_frame": {
@@ -442,6 +457,8 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
                     "pose": r.wire.pose,
                     "draw_sent": r.wire.draw_sent,
                     "layers_received": r.wire.layers_received,
+                    "stripes_between_workers": r.wire.stripes_between_workers,
+                    "bands_received": r.wire.bands_received,
                 },
                 "identical": r.identical,
             })).collect::<Vec<_>>(),

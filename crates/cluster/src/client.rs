@@ -35,6 +35,10 @@ pub struct Traffic {
     pub draw_sent: u64,
     /// Partial pictures received.
     pub layers_received: u64,
+    /// Compositing on the workers: the stripes they sent each other, and
+    /// the finished bands received.
+    pub stripes_between_workers: u64,
+    pub bands_received: u64,
 }
 
 impl Traffic {
@@ -49,6 +53,8 @@ impl Traffic {
             + self.pose
             + self.draw_sent
             + self.layers_received
+            + self.stripes_between_workers
+            + self.bands_received
     }
 
     /// The bytes counted since `earlier`.
@@ -64,6 +70,8 @@ impl Traffic {
             pose: self.pose - earlier.pose,
             draw_sent: self.draw_sent - earlier.draw_sent,
             layers_received: self.layers_received - earlier.layers_received,
+            stripes_between_workers: self.stripes_between_workers - earlier.stripes_between_workers,
+            bands_received: self.bands_received - earlier.bands_received,
         }
     }
 
@@ -71,7 +79,7 @@ impl Traffic {
     pub fn summary(&self) -> String {
         let mb = |b: u64| b as f64 / 1e6;
         format!(
-            "{:.3} MB (wisps: assign {:.3}, steps {:.3}, states in {:.3}; strands out {:.3}; density in {:.3}, out {:.3}; slabs in {:.3}; pose {:.3}; draw out {:.3}, pictures in {:.3})",
+            "{:.3} MB (wisps: assign {:.3}, steps {:.3}, states in {:.3}; strands out {:.3}; density in {:.3}, out {:.3}; slabs in {:.3}; pose {:.3}; draw out {:.3}, pictures in {:.3}; stripes between workers {:.3}, bands in {:.3})",
             mb(self.total()),
             mb(self.assign_sent),
             mb(self.step_sent),
@@ -83,6 +91,8 @@ impl Traffic {
             mb(self.pose),
             mb(self.draw_sent),
             mb(self.layers_received),
+            mb(self.stripes_between_workers),
+            mb(self.bands_received),
         )
     }
 }
@@ -106,6 +116,13 @@ pub struct Timing {
     /// The slowest worker's own compute time in each Draw (filter, shade,
     /// rasterize), summed.
     pub draw_compute_ms: f64,
+    /// Compositing on the workers, per Draw the slowest worker's: waiting
+    /// for the others' stripes, and resolving its band; summed.
+    pub band_wait_ms: f64,
+    pub band_composite_ms: f64,
+    /// Draw rounds whose compositing on the workers failed and was done
+    /// on the coordinator instead.
+    pub composite_fallbacks: u32,
     /// Workers lost and their work handed to the survivors.
     pub workers_lost: u32,
 }
@@ -137,6 +154,8 @@ pub type SessionClient =
 #[derive(Debug, Clone)]
 pub(crate) struct Remote {
     pub(crate) addr: String,
+    /// The session the worker opened for this coordinator.
+    pub(crate) session: String,
     pub(crate) client: SessionClient,
 }
 
@@ -226,6 +245,7 @@ pub(crate) async fn hello(
     tracing::info!(addr, worker = reply.worker, "worker ready");
     Ok(Remote {
         addr: addr.to_string(),
+        session: reply.session.clone(),
         client: WorkerClient::with_interceptor(channel, header)
             .max_decoding_message_size(wire::MAX_MESSAGE_BYTES)
             .max_encoding_message_size(wire::MAX_MESSAGE_BYTES),

@@ -56,6 +56,8 @@ pub enum ClusterError {
     },
     #[error("worker {addr} sent a malformed reply: {msg}")]
     Malformed { addr: String, msg: String },
+    #[error("compositing on the workers failed: {0}")]
+    Composite(String),
 }
 
 impl ClusterError {

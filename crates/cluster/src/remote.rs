@@ -30,6 +30,11 @@ use strands::Hair;
 use crate::client::{Remote, call_error, collect, fan_out, hello, malformed};
 use crate::{ClusterError, Timing, Tls, Traffic, pb, wire};
 
+/// Rows of each band the workers composite (whole canvas bands): bands
+/// dealt to the workers in turn share the hair out evenly; 720 rows make
+/// 15 bands.
+const BAND_ROWS: u32 = 48;
+
 /// Where the drawn hair is posed, filtered, shaded and rasterized.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum DrawAt {
@@ -105,6 +110,16 @@ pub struct RemoteExecutor {
     reads: Vec<Option<Vec<Vec<u64>>>>,
     /// Per light, the frame and slabs of its last sweep.
     swept: Vec<Option<(LightFrame, Vec<ColumnSlab>)>>,
+    /// Whether the workers composite the picture among themselves (two
+    /// or more drawing): on until they fail to twice with none lost.
+    composite: bool,
+    composite_failures: u32,
+    /// Whether the head is shadowed by the hair (the workers resolving
+    /// bands shade it: they get every swept column).
+    head_shadow: bool,
+    /// The name expected in workers' certificates, for their calls to
+    /// each other.
+    tls_domain: Option<String>,
 }
 
 impl RemoteExecutor {
@@ -194,6 +209,13 @@ impl RemoteExecutor {
             filter: scene.shadow.method.filter(),
             reads: vec![None; scene.lights.len()],
             swept: vec![None; scene.lights.len()],
+            composite: true,
+            composite_failures: 0,
+            head_shadow: scene.head.is_some() && scene.effects.head_shadow,
+            tls_domain: options
+                .tls
+                .as_ref()
+                .and_then(|t| t.domain().map(str::to_string)),
             source: scene.source,
             hair: None,
             shares: None,
@@ -832,6 +854,187 @@ impl RemoteExecutor {
     }
 }
 
+impl RemoteExecutor {
+    /// Whether the next Draw is composited on the workers.
+    fn composites_now(&self) -> bool {
+        self.draw == DrawAt::Workers && self.composite && self.workers.len() >= 2
+    }
+
+    /// One Draw round composited on the workers (see [`wire::Bands`]): each
+    /// resolves a band of rows and sends it finished. Any failure fails the
+    /// round (the caller composites the frame here instead); no worker is
+    /// dropped for it.
+    fn draw_composited(&mut self, job: &DrawJob) -> Result<DrawReport, ClusterError> {
+        self.ensure_posed()?;
+        if self.posed != Some(job.version) {
+            return Err(ClusterError::Setup(format!(
+                "the workers hold hair version {:?}, not {}",
+                self.posed, job.version
+            )));
+        }
+        let n = self.workers.len();
+        let (width, height) = (job.camera.width(), job.camera.height());
+        self.calls += 1;
+        let round = self.calls;
+        let peers: Vec<(String, String)> = self
+            .workers
+            .iter()
+            .map(|w| (w.addr.clone(), w.session.clone()))
+            .collect();
+        // Band owners shade the head under the hair's shadow: every column.
+        let all_columns = job.shadows && self.head_shadow;
+        let mut shared = Vec::new();
+        let columns = |ex: &Self, i: usize, out: &mut Vec<pb::DrawChunk>| {
+            for (l, swept) in ex.swept.iter().enumerate() {
+                let (frame, slabs) = swept.as_ref().ok_or_else(|| {
+                    ClusterError::Setup(format!("light {l} was not swept before drawing"))
+                })?;
+                let keep = if all_columns {
+                    None
+                } else {
+                    ex.reads[l].as_ref().and_then(|r| r.get(i))
+                };
+                out.extend(wire::draw_columns(
+                    l as u32,
+                    frame,
+                    slabs,
+                    keep.map(|k| &k[..]),
+                ));
+            }
+            Ok::<_, ClusterError>(())
+        };
+        if job.shadows && all_columns {
+            columns(self, 0, &mut shared)?;
+        }
+        let mut requests = Vec::with_capacity(n);
+        let mut sent = 0u64;
+        for (i, w) in self.workers.iter().enumerate() {
+            let bands = wire::Bands {
+                round,
+                plan: engine::BandPlan::dealt(height, BAND_ROWS, n, i),
+                peers: peers.clone(),
+                wait: self.deadline / 2,
+                tls_domain: self.tls_domain.clone(),
+            };
+            let rows = bands.plan.rows_of(i);
+            let mut chunks = vec![pb::DrawChunk {
+                job: Some(wire::job_to_pb(job)),
+                bands: Some(bands.to_pb()),
+                ..Default::default()
+            }];
+            if job.shadows {
+                if all_columns {
+                    chunks.extend(shared.iter().cloned());
+                } else {
+                    columns(self, i, &mut chunks)?;
+                }
+            }
+            sent += chunks.iter().map(|c| c.encoded_len() as u64).sum::<u64>();
+            requests.push((w.clone(), (chunks, rows)));
+        }
+        let deadline = self.deadline;
+        let t = Instant::now();
+        // Every call's outcome: a failure anywhere fails the round.
+        let replies = self.rt.block_on(async {
+            let tasks: Vec<_> = requests
+                .into_iter()
+                .map(|(mut w, (chunks, rows))| {
+                    tokio::spawn(async move {
+                        let call = async {
+                            let mut s = w
+                                .client
+                                .draw(tokio_stream::iter(chunks))
+                                .await
+                                .map_err(|s| call_error(&w.addr, "draw", s))?
+                                .into_inner();
+                            let mut reader = wire::BandReader::new(width, height, rows);
+                            let mut bytes = 0u64;
+                            while let Some(c) = s
+                                .message()
+                                .await
+                                .map_err(|e| call_error(&w.addr, "draw", e))?
+                            {
+                                bytes += c.encoded_len() as u64;
+                                reader.add(&c).map_err(|e| malformed(&w.addr, e))?;
+                            }
+                            let (times, stripes) = (reader.times, reader.stripes_sent);
+                            let band = reader.finish().map_err(|e| malformed(&w.addr, e))?;
+                            Ok((band, times, bytes, stripes))
+                        };
+                        match tokio::time::timeout(deadline, call).await {
+                            Ok(r) => r,
+                            Err(_) => Err(ClusterError::Deadline {
+                                addr: w.addr.clone(),
+                                stage: "draw",
+                                secs: deadline.as_secs_f64(),
+                            }),
+                        }
+                    })
+                })
+                .collect();
+            let mut out = Vec::with_capacity(tasks.len());
+            for t in tasks {
+                out.push(t.await.map_err(|e| ClusterError::Setup(e.to_string()))?);
+            }
+            Ok::<_, ClusterError>(out)
+        })?;
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        let mut img = image::RgbImage::new(width, height);
+        let mut report = DrawReport::default();
+        let (mut received, mut stripes) = (0u64, 0u64);
+        let (mut slowest, mut wait, mut composite) = (0.0f64, 0.0f64, 0.0f64);
+        let mut errors = Vec::new();
+        for r in replies {
+            match r {
+                Ok((drawn, times, bytes, sent)) => {
+                    tracing::debug!(
+                        bands = drawn.len(),
+                        filter = times.filter_ms,
+                        shade = times.shade_ms,
+                        raster = times.raster_ms,
+                        wait = times.wait_ms,
+                        composite = times.composite_ms,
+                        "band composited"
+                    );
+                    let row = 3 * width as usize;
+                    let buf: &mut [u8] = &mut img;
+                    for (rows, rgb) in drawn {
+                        let at = rows.start as usize * row;
+                        buf[at..at + rgb.len()].copy_from_slice(&rgb);
+                    }
+                    received += bytes;
+                    stripes += sent;
+                    report.filter_ms = report.filter_ms.max(times.filter_ms);
+                    report.shade_ms = report.shade_ms.max(times.shade_ms);
+                    report.raster_ms = report.raster_ms.max(times.raster_ms);
+                    slowest = slowest.max(times.filter_ms + times.shade_ms + times.raster_ms);
+                    wait = wait.max(times.wait_ms);
+                    composite = composite.max(times.composite_ms);
+                }
+                Err(e) => errors.push(e.to_string()),
+            }
+        }
+        self.count(|x| {
+            x.draw_sent += sent;
+            x.bands_received += received;
+            x.stripes_between_workers += stripes;
+        });
+        if !errors.is_empty() {
+            return Err(ClusterError::Composite(errors.join("; ")));
+        }
+        report.wait_ms = wait;
+        report.composite_ms = composite;
+        report.picture = Some(img);
+        self.clock(|x| {
+            x.draw_ms += ms;
+            x.draw_compute_ms += slowest;
+            x.band_wait_ms += wait;
+            x.band_composite_ms += composite;
+        });
+        Ok(report)
+    }
+}
+
 /// What one worker's Deposit reply held, decoded and checked.
 #[derive(Default)]
 struct Gathered {
@@ -969,7 +1172,36 @@ impl Executor for RemoteExecutor {
             .ok_or_else(|| EngineError::Executor("no worker reported its pose".into()))
     }
 
+    fn composites(&self) -> bool {
+        self.composites_now()
+    }
+
     fn draw(&mut self, job: &DrawJob) -> Result<DrawReport, EngineError> {
+        if self.composites_now() {
+            match self.draw_composited(job) {
+                Ok(r) => return Ok(r),
+                Err(e) => {
+                    // The frame is composited here instead, with whichever
+                    // workers answer; a worker that fails that is dropped.
+                    tracing::warn!(error = %e, "compositing on the workers failed; this frame is composited on the coordinator");
+                    self.clock(|t| t.composite_fallbacks += 1);
+                    let before = self.workers.len();
+                    let r = self
+                        .with_survivors(|ex| ex.draw_remote(job))
+                        .map_err(engine_error);
+                    if r.is_ok() && self.workers.len() == before {
+                        self.composite_failures += 1;
+                        if self.composite_failures >= 2 {
+                            self.composite = false;
+                            tracing::warn!(
+                                "the workers failed twice to composite together with none of them lost (can they reach each other at the addresses the coordinator dials? with TLS, do their certificates allow client use?); the coordinator composites from now on"
+                            );
+                        }
+                    }
+                    return r;
+                }
+            }
+        }
         self.with_survivors(|ex| ex.draw_remote(job))
             .map_err(engine_error)
     }

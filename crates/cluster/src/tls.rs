@@ -66,6 +66,11 @@ impl Tls {
         self
     }
 
+    /// The name expected in a worker's certificate, when set.
+    pub fn domain(&self) -> Option<&str> {
+        self.domain.as_deref()
+    }
+
     /// A worker's server side: its own identity, and client certificates
     /// required and checked against the CA.
     pub(crate) fn server_config(&self) -> ServerTlsConfig {
@@ -193,25 +198,30 @@ impl Pki {
         let ca_cert = ca.self_signed(&ca_key).map_err(err)?;
         let issuer = Issuer::new(ca, ca_key);
 
-        let leaf = |sans: Vec<String>, cn: &str, purpose: ExtendedKeyUsagePurpose| {
+        let leaf = |sans: Vec<String>, cn: &str, purposes: &[ExtendedKeyUsagePurpose]| {
             let mut p = CertificateParams::new(sans).map_err(err)?;
             p.distinguished_name.push(DnType::CommonName, cn);
             p.key_usages = vec![KeyUsagePurpose::DigitalSignature];
-            p.extended_key_usages = vec![purpose];
+            p.extended_key_usages = purposes.to_vec();
             p.use_authority_key_identifier_extension = true;
             let key = KeyPair::generate().map_err(err)?;
             let cert = p.signed_by(&key, &issuer).map_err(err)?;
             Ok::<_, ClusterError>((cert.pem(), key.serialize_pem()))
         };
+        // Workers that composite a picture together call each other: their
+        // certificate serves both ends.
         let (worker_cert, worker_key) = leaf(
             names.to_vec(),
             "wisplight worker",
-            ExtendedKeyUsagePurpose::ServerAuth,
+            &[
+                ExtendedKeyUsagePurpose::ServerAuth,
+                ExtendedKeyUsagePurpose::ClientAuth,
+            ],
         )?;
         let (coordinator_cert, coordinator_key) = leaf(
             vec!["wisplight-coordinator".into()],
             "wisplight coordinator",
-            ExtendedKeyUsagePurpose::ClientAuth,
+            &[ExtendedKeyUsagePurpose::ClientAuth],
         )?;
         Ok(Pki {
             ca_cert: ca_cert.pem(),

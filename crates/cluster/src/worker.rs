@@ -15,6 +15,7 @@ use std::time::{Duration, Instant};
 use std::ops::Range;
 
 use engine::{FrameStats, Scene, SceneSource, Share, StepPlan};
+use prost::Message;
 use shadow::{ColumnSlab, DensityMap, Fiber, FillStats, LightFrame};
 use strands::Hair;
 use tokio_stream::Stream;
@@ -225,6 +226,11 @@ pub struct WorkerService {
     sessions: Mutex<HashMap<String, Arc<Session>>>,
     limits: SessionLimits,
     memory: Memory,
+    /// The credentials this worker serves with, to call other workers
+    /// with when they composite a picture together.
+    peer_tls: Option<Tls>,
+    /// Connections to other workers, by address and expected name.
+    peers: Mutex<HashMap<(String, Option<String>), tonic::transport::Channel>>,
 }
 
 impl Default for WorkerService {
@@ -244,6 +250,118 @@ struct Session {
     last_used: Mutex<Instant>,
     /// The session's own memory budget.
     memory: Memory,
+    /// Other workers' stripes of this worker's band, by Draw round.
+    inbox: Arc<Inbox>,
+}
+
+/// The most stripes a session's inbox holds at once (each a whole
+/// Composite call, counted against the memory budget).
+const INBOX_LAYERS: usize = 64;
+
+/// Bytes a received stripe pixel costs: its index and its sums.
+const STRIPE_PIXEL_BYTES: u64 = 4 + std::mem::size_of::<raster::Sums>() as u64;
+
+/// The stripes other workers sent of this worker's band (Composite calls),
+/// until its Draw of that round gathers them.
+#[derive(Debug, Default)]
+struct Inbox {
+    state: Mutex<InboxState>,
+    ready: std::sync::Condvar,
+}
+
+#[derive(Debug, Default)]
+struct InboxState {
+    /// The latest Draw round begun: stripes of earlier rounds are dropped.
+    round: u64,
+    /// Per delivered call: its round, its sender, its stripes and
+    /// their memory.
+    layers: Vec<(u64, u32, raster::HairLayer, Grant)>,
+}
+
+impl Inbox {
+    /// A Draw of `round` begins: earlier rounds' stripes go.
+    fn begin(&self, round: u64) {
+        if let Ok(mut st) = self.state.lock() {
+            st.round = st.round.max(round);
+            let r = st.round;
+            st.layers.retain(|l| l.0 >= r);
+        }
+    }
+
+    /// Keeps a sender's stripes of `round` (stale ones are dropped).
+    fn deliver(
+        &self,
+        round: u64,
+        from: u32,
+        layer: raster::HairLayer,
+        grant: Grant,
+    ) -> Result<(), Status> {
+        let mut st = self.state.lock().map_err(poisoned)?;
+        if round < st.round {
+            return Ok(());
+        }
+        if st.layers.iter().any(|l| l.0 == round && l.1 == from) {
+            return Err(Status::invalid_argument(format!(
+                "the stripes of worker {from} of round {round} come twice"
+            )));
+        }
+        if st.layers.len() >= INBOX_LAYERS {
+            return Err(Status::resource_exhausted(format!(
+                "{INBOX_LAYERS} Composite calls' stripes already wait here"
+            )));
+        }
+        st.layers.push((round, from, layer, grant));
+        self.ready.notify_all();
+        Ok(())
+    }
+
+    /// The stripes of `round` from every worker in `from`, once all came;
+    /// an error naming the workers missing after `wait`, or as soon as
+    /// `go()` says stop.
+    fn gather(
+        &self,
+        round: u64,
+        from: &[u32],
+        wait: Duration,
+        go: impl Fn() -> Result<(), String>,
+    ) -> Result<Vec<raster::HairLayer>, engine::EngineError> {
+        let fail = |m: String| engine::EngineError::Executor(m);
+        let until = Instant::now() + wait;
+        let mut st = self
+            .state
+            .lock()
+            .map_err(|_| fail("worker state poisoned".into()))?;
+        loop {
+            let have = |b: &u32| st.layers.iter().any(|l| l.0 == round && l.1 == *b);
+            let missing: Vec<u32> = from.iter().copied().filter(|b| !have(b)).collect();
+            if missing.is_empty() {
+                let mut out = Vec::with_capacity(from.len());
+                for b in from {
+                    let i = st
+                        .layers
+                        .iter()
+                        .position(|l| l.0 == round && l.1 == *b)
+                        .expect("found above");
+                    out.push(st.layers.swap_remove(i).2);
+                }
+                return Ok(out);
+            }
+            go().map_err(fail)?;
+            let now = Instant::now();
+            if now >= until {
+                return Err(fail(format!(
+                    "no stripes from workers {missing:?} of the round within {} ms",
+                    wait.as_millis()
+                )));
+            }
+            let slice = (until - now).min(Duration::from_millis(20));
+            st = self
+                .ready
+                .wait_timeout(st, slice)
+                .map_err(|_| fail("worker state poisoned".into()))?
+                .0;
+        }
+    }
 }
 
 /// A share of a scene's hair and the scene it came from (a new Assign of
@@ -354,7 +472,46 @@ impl WorkerService {
             sessions: Mutex::default(),
             memory: Memory::new(limits.max_memory, "this worker's", "--max-memory-mib"),
             limits,
+            peer_tls: None,
+            peers: Mutex::default(),
         }
+    }
+
+    /// A client of the worker at `addr`, naming session `session` there:
+    /// one connection per worker, kept.
+    fn peer(
+        &self,
+        addr: &str,
+        session: &str,
+        domain: Option<&str>,
+        timeout: Duration,
+    ) -> Result<crate::client::SessionClient, Status> {
+        let header = crate::client::SessionHeader::new(session)
+            .ok_or_else(|| Status::invalid_argument("a band's session is not a header value"))?;
+        let key = (addr.to_string(), domain.map(str::to_string));
+        let mut peers = self.peers.lock().map_err(poisoned)?;
+        let channel = match peers.get(&key) {
+            Some(c) => c.clone(),
+            None => {
+                let tls = match (&self.peer_tls, domain) {
+                    (Some(t), Some(d)) => Some(t.clone().with_domain(d)),
+                    (t, _) => t.clone(),
+                };
+                let c = crate::client::endpoint(addr, timeout, tls.as_ref())
+                    .map_err(|e| Status::invalid_argument(e.to_string()))?
+                    .connect_lazy();
+                if peers.len() >= 4 * wire::MAX_WORKERS {
+                    peers.clear();
+                }
+                peers.insert(key, c.clone());
+                c
+            }
+        };
+        Ok(
+            crate::pb::worker_client::WorkerClient::with_interceptor(channel, header)
+                .max_decoding_message_size(wire::MAX_MESSAGE_BYTES)
+                .max_encoding_message_size(wire::MAX_MESSAGE_BYTES),
+        )
     }
 
     /// What a call of `session` may take: from its budget and the worker's.
@@ -478,6 +635,7 @@ impl Worker for WorkerService {
                             "this session's",
                             "--max-session-memory-mib",
                         ),
+                        inbox: Arc::default(),
                     }),
                 );
                 tracing::info!(session = %&id[..8], sessions = sessions.len(), "session opened");
@@ -798,6 +956,12 @@ impl Worker for WorkerService {
                 Status::invalid_argument("a Draw call's first chunk carries the job")
             })?;
             let job = wire::job_from_pb(job).map_err(invalid)?;
+            let bands = first
+                .bands
+                .as_ref()
+                .map(|b| wire::Bands::from_pb(b, job.camera.height()))
+                .transpose()
+                .map_err(invalid)?;
             let mut reader =
                 wire::ColumnsReader::new(if job.shadows { job.to_lights.len() } else { 0 });
             // The swept columns' memory, held until the picture is drawn.
@@ -818,6 +982,10 @@ impl Worker for WorkerService {
                 add(&c)?;
             }
             let maps = reader.finish().map_err(invalid)?;
+            if let Some(bands) = bands {
+                let stream = self.draw_band(&session, job, maps, received, bands)?;
+                return Ok(Response::new(stream));
+            }
             // The picture streams a stripe of rows at a time, each sent
             // (and decoded by the coordinator) while the next is rasterized.
             let (tx, mut rx) = tokio::sync::mpsc::channel(STRIPES_IN_FLIGHT);
@@ -863,6 +1031,177 @@ impl Worker for WorkerService {
             Ok(Response::new(stream))
         };
         logged(peer, "Draw", served.await)
+    }
+
+    async fn composite(
+        &self,
+        req: Request<Streaming<pb::LayerChunk>>,
+    ) -> Result<Response<pb::CompositeReply>, Status> {
+        let peer = req.remote_addr();
+        let served = async move {
+            let session = self.session(req.metadata())?;
+            let memory = self.budget(&session);
+            let mut stream = req.into_inner();
+            let first = first_message(&mut stream, "Composite").await?;
+            let (round, from) = (first.round, first.from);
+            let (w, h) = (first.width, first.height);
+            if from as usize >= wire::MAX_WORKERS
+                || w == 0
+                || h == 0
+                || u64::from(w) * u64::from(h) > raster::MAX_PIXELS
+            {
+                return Err(Status::invalid_argument(format!(
+                    "stripes from worker {from} of a {w}x{h} picture (at most {} workers, {} pixels)",
+                    wire::MAX_WORKERS,
+                    raster::MAX_PIXELS
+                )));
+            }
+            let mut reader = wire::LayerReader::new(w, h);
+            let mut grant = Grant::default();
+            let mut add = |c: &pb::LayerChunk| -> Result<(), Status> {
+                let bytes = u64::from(c.count) * STRIPE_PIXEL_BYTES;
+                memory.take(&mut grant, bytes, "a Composite call's stripes")?;
+                reader.add(c).map_err(invalid)
+            };
+            add(&first)?;
+            while let Some(c) = stream.message().await? {
+                add(&c)?;
+            }
+            let layer = reader.finish().map_err(invalid)?;
+            session.inbox.deliver(round, from, layer, grant)?;
+            Ok(Response::new(pb::CompositeReply {}))
+        };
+        logged(peer, "Composite", served.await)
+    }
+}
+
+impl WorkerService {
+    /// A Draw composited on the workers (see [`wire::Bands`]): one
+    /// Composite call to each other band's worker carries this worker's
+    /// stripes of that band while it rasterizes; then the others' stripes
+    /// of its own band are gathered, and the band's finished rows are the
+    /// reply.
+    fn draw_band(
+        &self,
+        session: &Session,
+        job: engine::DrawJob,
+        maps: Vec<shadow::Transmittance>,
+        received: Grant,
+        bands: wire::Bands,
+    ) -> Result<Chunks<pb::LayerChunk>, Status> {
+        let n = bands.plan.workers;
+        let own = bands.plan.own;
+        session.inbox.begin(bands.round);
+        let (width, height) = (job.camera.width(), job.camera.height());
+        let failed: Arc<Mutex<Option<String>>> = Arc::default();
+        let mut senders: Vec<Option<tokio::sync::mpsc::Sender<pb::LayerChunk>>> = vec![None; n];
+        for (b, slot) in senders.iter_mut().enumerate() {
+            if b == own {
+                continue;
+            }
+            let (addr, sid) = &bands.peers[b];
+            let mut client = self.peer(addr, sid, bands.tls_domain.as_deref(), bands.wait)?;
+            let (tx, rx) = tokio::sync::mpsc::channel(STRIPES_IN_FLIGHT);
+            let header = pb::LayerChunk {
+                width,
+                height,
+                round: bands.round,
+                from: own as u32,
+                ..Default::default()
+            };
+            tx.try_send(header)
+                .map_err(|_| Status::internal("a new channel refused its first chunk"))?;
+            *slot = Some(tx);
+            let (failed, addr) = (failed.clone(), addr.clone());
+            tokio::spawn(async move {
+                let stream = tokio_stream::wrappers::ReceiverStream::new(rx);
+                if let Err(s) = client.composite(stream).await
+                    && let Ok(mut f) = failed.lock()
+                {
+                    f.get_or_insert(format!(
+                        "the worker of band {b} ({addr}) did not take this worker's stripes: {:?}: {}",
+                        s.code(),
+                        s.message()
+                    ));
+                }
+            });
+        }
+        let (tx, rx) = tokio::sync::mpsc::channel(STRIPES_IN_FLIGHT);
+        let (held, inbox) = (session.held.clone(), session.inbox.clone());
+        tokio::task::spawn_blocking(move || {
+            let _received = received;
+            let peer_failed = || failed.lock().ok().and_then(|f| f.clone());
+            let drawn = (|| {
+                let mut slot = held.lock().map_err(poisoned)?;
+                let h = slot.as_mut().ok_or_else(|| {
+                    Status::failed_precondition("no share of the hair here: call Assign first")
+                })?;
+                let background = raster::to_srgb8(h.share.background());
+                let senders = std::cell::RefCell::new(senders);
+                let mut encoders: Vec<wire::StripeEncoder> =
+                    (0..n).map(|_| wire::StripeEncoder::new()).collect();
+                let others: Vec<u32> = (0..n as u32).filter(|&b| b != own as u32).collect();
+                let mut stripes_sent = 0u64;
+                let (bands_drawn, times) = h
+                    .share
+                    .draw_band(
+                        &job,
+                        &maps,
+                        &bands.plan,
+                        |b, stripe| {
+                            let senders = senders.borrow();
+                            let to = senders[b].as_ref().expect("a call for each other worker");
+                            for c in encoders[b].chunks(&stripe) {
+                                stripes_sent += c.encoded_len() as u64;
+                                if to.blocking_send(c).is_err() {
+                                    return Err(engine::EngineError::Executor(
+                                        peer_failed().unwrap_or_else(|| {
+                                            format!("the call to worker {b} of the round ended")
+                                        }),
+                                    ));
+                                }
+                            }
+                            Ok(())
+                        },
+                        || {
+                            // The calls' streams end: the others can finish.
+                            senders.borrow_mut().clear();
+                            inbox.gather(bands.round, &others, bands.wait, || {
+                                if tx.is_closed() {
+                                    return Err("the coordinator left the Draw".into());
+                                }
+                                peer_failed().map_or(Ok(()), Err)
+                            })
+                        },
+                    )
+                    .map_err(|e| Status::aborted(e.to_string()))?;
+                let mut chunks = Vec::new();
+                for (rows, rgb) in &bands_drawn {
+                    chunks.extend(wire::band_chunks(
+                        width, height, rows.start, rgb, background,
+                    ));
+                }
+                let mut last = wire::StripeEncoder::new().last(width, height, &times);
+                last.stripes_sent = stripes_sent;
+                chunks.push(last);
+                Ok(chunks)
+            })();
+            match drawn {
+                Ok(chunks) => {
+                    for c in chunks {
+                        if tx.blocking_send(Ok(c)).is_err() {
+                            break;
+                        }
+                    }
+                }
+                Err(s) => {
+                    let _ = tx.blocking_send(Err(s));
+                }
+            }
+        });
+        // The band's rows (or the refusal, as the stream's status) come
+        // once it is resolved.
+        Ok(Box::pin(tokio_stream::wrappers::ReceiverStream::new(rx)))
     }
 }
 
@@ -1053,6 +1392,10 @@ pub async fn serve(
         .register_encoded_file_descriptor_set(tonic_health::pb::FILE_DESCRIPTOR_SET)
         .build_v1alpha()
         .map_err(|e| ClusterError::Setup(e.to_string()))?;
+    // Workers compositing a picture together call each other with the
+    // credentials they serve with.
+    let mut service = service;
+    service.peer_tls = listen.tls.clone();
     // Idle sessions end even when no Hello comes to notice them.
     let service = Arc::new(service);
     let sweeper = {

@@ -98,6 +98,27 @@ fn check_all(bytes: &[u8]) {
             let layer = reader.finish().unwrap();
             assert!(layer.pixels().len() <= 64 * 64);
         }
+        // As a band of finished rows: whatever is accepted fills its rows.
+        let (w, h) = (m.width.min(64), m.height.min(64));
+        let mut bands = wire::BandReader::new(w, h, vec![0..h.min(16), h.min(16)..h]);
+        if bands.add(&m).is_ok() {
+            for (rows, rgb) in bands.finish().into_iter().flatten() {
+                assert_eq!(rgb.len(), (rows.end - rows.start) as usize * 3 * w as usize);
+            }
+        }
+    }
+    if let Ok(m) = pb::DrawChunk::decode(bytes)
+        && let Some(b) = &m.bands
+        && let Ok(bands) = wire::Bands::from_pb(b, 720)
+    {
+        assert!(bands.plan.own < bands.peers.len() && bands.peers.len() <= wire::MAX_WORKERS);
+        assert!(
+            bands
+                .plan
+                .rows_of(bands.plan.own)
+                .iter()
+                .all(|r| r.end <= 720)
+        );
     }
 }
 
@@ -167,7 +188,19 @@ proptest! {
         let pts = [Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 0.0)];
         layer_canvas.draw_hair(&cam, &pts, &[0, 2], &[Vec3::ONE; 2], &look, &[]);
         let layer = wire::layer_chunks(&layer_canvas.layer(), &engine::DrawTimes::default()).remove(0);
+        let rows = layer_canvas.resolve(Vec3::ZERO);
+        let band = wire::band_chunks(8, 8, 0, &rows, [0, 0, 0]).remove(0);
+        let plan = wire::Bands {
+            round: 3,
+            plan: engine::BandPlan::dealt(720, 48, 2, 1),
+            peers: vec![("10.0.0.1:1".into(), "ab".into()), ("10.0.0.2:1".into(), "cd".into())],
+            wait: std::time::Duration::from_secs(1),
+            tls_domain: None,
+        };
+        let banded = pb::DrawChunk { bands: Some(plan.to_pb()), ..Default::default() };
         let messages = [
+            band.encode_to_vec(),
+            banded.encode_to_vec(),
             deposit.encode_to_vec(),
             columns.encode_to_vec(),
             slab.encode_to_vec(),

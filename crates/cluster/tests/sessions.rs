@@ -154,6 +154,34 @@ fn calls_naming_no_open_session_are_refused_and_change_nothing() {
             assert_eq!(e.code(), tonic::Code::FailedPrecondition);
             assert!(e.message().contains("not open"), "{}", e.message());
         }
+        // Another worker's stripes: refused without the session, and as
+        // an absurd picture within it; taken when well formed.
+        let stripes = |w: u32, h: u32| {
+            tokio_stream::iter(vec![pb::LayerChunk {
+                width: w,
+                height: h,
+                round: 1,
+                from: 1,
+                ..Default::default()
+            }])
+        };
+        let e = client(addr)
+            .await
+            .composite(stripes(8, 8))
+            .await
+            .unwrap_err();
+        assert_eq!(e.code(), tonic::Code::FailedPrecondition);
+        let e = named(&id)
+            .composite(stripes(100_000, 100_000))
+            .await
+            .unwrap_err();
+        assert_eq!(e.code(), tonic::Code::InvalidArgument);
+        assert!(e.message().contains("pixels"), "{}", e.message());
+        named(&id).composite(stripes(8, 8)).await.unwrap();
+        // The same worker's stripes of the same round again: refused.
+        let e = named(&id).composite(stripes(8, 8)).await.unwrap_err();
+        assert_eq!(e.code(), tonic::Code::InvalidArgument);
+        assert!(e.message().contains("twice"), "{}", e.message());
         // Ended: refused from then on, the End itself too.
         named(&id).end(pb::EndRequest {}).await.unwrap();
         for _ in 0..2 {

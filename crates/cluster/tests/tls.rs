@@ -1,8 +1,9 @@
 //! Mutual TLS over real sockets on localhost: a coordinator with the
-//! cluster's credentials gets the same bytes as one process; a client with
-//! no certificate, a certificate from another CA or a worker's certificate
-//! is refused by the worker; a coordinator refuses a worker whose
-//! certificate another CA signed or that does not name the host dialled.
+//! cluster's credentials gets the same bytes as one process, with the
+//! workers compositing the pictures among themselves over TLS too; a
+//! client with no certificate or a certificate from another CA is refused
+//! by the worker; a coordinator refuses a worker whose certificate another
+//! CA signed or that does not name the host dialled.
 
 mod common;
 
@@ -94,6 +95,86 @@ fn a_coordinator_with_the_clusters_credentials_gets_the_local_bytes() {
 }
 
 #[test]
+fn workers_composite_among_themselves_over_tls_with_the_local_bytes() {
+    let scene =
+        engine::Scene::from_toml_str(common::DANCE, std::path::Path::new("dance.toml")).unwrap();
+    let want = common::local_frames(&scene, 3);
+    let addrs: Vec<String> = (0..3)
+        .map(|_| start_worker(pki().worker()).to_string())
+        .collect();
+    let mut o = options(Some(&pki().coordinator()), 20);
+    o.draw = cluster::DrawAt::Workers;
+    let remote = RemoteExecutor::connect(&addrs, &scene, &o).unwrap();
+    let (traffic, timing) = (remote.traffic(), remote.timing());
+    let mut seq = engine::Sequence::new(&scene).unwrap();
+    seq.set_executor(Box::new(remote)).unwrap();
+    for (i, w) in want.iter().enumerate() {
+        assert!(seq.next_frame().unwrap().0 == w, "frame {i}");
+    }
+    let t = *traffic.lock().unwrap();
+    assert!(
+        t.stripes_between_workers > 0 && t.bands_received > 0,
+        "{t:?}"
+    );
+    assert_eq!(t.layers_received, 0, "{t:?}");
+    assert_eq!(timing.lock().unwrap().composite_fallbacks, 0);
+}
+
+/// Credentials whose workers may serve but not call (an older kind of
+/// worker certificate): the CA's PEM, the worker's and the coordinator's.
+fn serve_only() -> (Tls, Tls) {
+    use rcgen::{
+        BasicConstraints, CertificateParams, ExtendedKeyUsagePurpose as Eku, IsCa, Issuer, KeyPair,
+    };
+    let mut ca = CertificateParams::new(Vec::<String>::new()).unwrap();
+    ca.is_ca = IsCa::Ca(BasicConstraints::Constrained(0));
+    let ca_key = KeyPair::generate().unwrap();
+    let ca_pem = ca.self_signed(&ca_key).unwrap().pem();
+    let issuer = Issuer::new(ca, ca_key);
+    let leaf = |names: Vec<String>, eku: Eku| {
+        let mut p = CertificateParams::new(names).unwrap();
+        p.extended_key_usages = vec![eku];
+        let key = KeyPair::generate().unwrap();
+        let cert = p.signed_by(&key, &issuer).unwrap();
+        Tls::from_pem(
+            ca_pem.as_bytes(),
+            cert.pem().as_bytes(),
+            key.serialize_pem().as_bytes(),
+        )
+    };
+    (
+        leaf(vec!["127.0.0.1".into()], Eku::ServerAuth),
+        leaf(vec!["wisplight-coordinator".into()], Eku::ClientAuth),
+    )
+}
+
+#[test]
+fn workers_that_cannot_call_each_other_leave_the_compositing_to_the_coordinator() {
+    let scene =
+        engine::Scene::from_toml_str(common::DANCE, std::path::Path::new("dance.toml")).unwrap();
+    let want = common::local_frames(&scene, 4);
+    let (worker, coordinator) = serve_only();
+    let addrs: Vec<String> = (0..2)
+        .map(|_| start_worker(worker.clone()).to_string())
+        .collect();
+    let mut o = options(Some(&coordinator), 20);
+    o.draw = cluster::DrawAt::Workers;
+    let remote = RemoteExecutor::connect(&addrs, &scene, &o).unwrap();
+    let (traffic, timing) = (remote.traffic(), remote.timing());
+    let mut seq = engine::Sequence::new(&scene).unwrap();
+    seq.set_executor(Box::new(remote)).unwrap();
+    for (i, w) in want.iter().enumerate() {
+        assert!(seq.next_frame().unwrap().0 == w, "frame {i}");
+    }
+    // Two rounds fail (the workers refuse each other's certificate), then
+    // the coordinator composites every frame; nobody is dropped.
+    let timing = *timing.lock().unwrap();
+    assert_eq!(timing.composite_fallbacks, 2, "{timing:?}");
+    assert_eq!(timing.workers_lost, 0, "{timing:?}");
+    assert!(traffic.lock().unwrap().layers_received > 0);
+}
+
+#[test]
 fn a_worker_refuses_clients_without_the_clusters_certificate() {
     let addr = start_worker(pki().worker());
     // No TLS at all.
@@ -109,9 +190,9 @@ fn a_worker_refuses_clients_without_the_clusters_certificate() {
     let e = connect(addr, Some(&rogue)).unwrap_err();
     assert!(matches!(e, ClusterError::Connect { .. }), "{e}");
     assert!(e.to_string().contains(&addr.to_string()), "{e}");
-    // A certificate of the right CA made for serving, not for clients.
-    let e = connect(addr, Some(&pki().worker())).unwrap_err();
-    assert!(matches!(e, ClusterError::Connect { .. }), "{e}");
+    // A worker's own certificate serves as a client's too: workers call
+    // each other to composite a picture.
+    assert!(connect(addr, Some(&pki().worker())).is_ok());
     // Health checks are refused the same way.
     assert!(cluster::check_health(&addr.to_string(), Duration::from_secs(5), None).is_err());
     // The worker still serves the right coordinator afterwards.

@@ -388,7 +388,7 @@ fn three_workers_give_the_local_animation_byte_for_byte_drawing_anywhere() {
     for draw in [DrawAt::Workers, DrawAt::Coordinator] {
         let addrs: Vec<String> = (0..3).map(|_| start_worker().to_string()).collect();
         let remote = RemoteExecutor::connect(&addrs, &scene, &options(draw, 20)).unwrap();
-        let traffic = remote.traffic();
+        let (traffic, timing) = (remote.traffic(), remote.timing());
         let mut seq = Sequence::new(&scene).unwrap();
         seq.set_executor(Box::new(remote)).unwrap();
         // Each frame runs the next one's stages up to its drawing while
@@ -411,8 +411,14 @@ fn three_workers_give_the_local_animation_byte_for_byte_drawing_anywhere() {
         assert!(t.step_sent > 0 && t.wisps_received > 0, "{t:?}");
         assert!(t.strands_sent <= 3 * 3 * 100, "{t:?}");
         assert_eq!(t.assign_sent, 0, "assigned once: {t:?}");
-        // Drawing on the workers, partial pictures come back.
-        assert_eq!(t.layers_received > 0, draw == DrawAt::Workers, "{t:?}");
+        // Drawing on the workers, they composite among themselves: their
+        // stripes go to each other and finished bands come back, no
+        // partial picture.
+        let on_workers = draw == DrawAt::Workers;
+        assert_eq!(t.layers_received, 0, "{t:?}");
+        assert_eq!(t.stripes_between_workers > 0, on_workers, "{t:?}");
+        assert_eq!(t.bands_received > 0, on_workers, "{t:?}");
+        assert_eq!(timing.lock().unwrap().composite_fallbacks, 0);
     }
 }
 

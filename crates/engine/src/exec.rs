@@ -111,14 +111,22 @@ pub struct DrawJob {
     pub head: Affine3A,
 }
 
-/// What drawing elsewhere gave: the partial pictures, to composite, and
-/// the slowest share's milliseconds of each stage.
+/// What drawing elsewhere gave: the partial pictures, to composite (or
+/// the finished picture, composited where the hair is), and the slowest
+/// share's milliseconds of each stage.
 #[derive(Debug, Clone, Default)]
 pub struct DrawReport {
     pub layers: Vec<HairLayer>,
+    /// The finished picture, head and background included, when the
+    /// executor composited it (see [`Executor::composites`]).
+    pub picture: Option<image::RgbImage>,
     pub filter_ms: f64,
     pub shade_ms: f64,
     pub raster_ms: f64,
+    /// Compositing where the hair is: waiting for the other shares'
+    /// stripes, and resolving a band.
+    pub wait_ms: f64,
+    pub composite_ms: f64,
 }
 
 /// Where the stages that grow with the hair run. Implementations must give
@@ -159,6 +167,12 @@ pub trait Executor: Send + Sync + std::fmt::Debug {
     /// shades and rasterizes it where it is ([`Self::pose`],
     /// [`Self::draw`]); otherwise the frame does, in this process.
     fn draws(&self) -> bool {
+        false
+    }
+    /// Whether [`Self::draw`] will most likely return the finished picture,
+    /// composited where the hair is, head included (so this process need
+    /// not draw the head); a report without one is composited here.
+    fn composites(&self) -> bool {
         false
     }
     /// Poses the drawn hair as `plan` says, where it is held (after the

@@ -193,7 +193,7 @@ pub struct Sequence {
 fn resolve_timed(
     composite: Composite,
     pool: Option<&rayon::ThreadPool>,
-) -> ((raster::Canvas, image::RgbImage), f64) {
+) -> ((Option<raster::Canvas>, image::RgbImage), f64) {
     let t = Instant::now();
     let out = match pool {
         Some(p) => p.install(|| composite.resolve()),
@@ -330,9 +330,10 @@ impl Sequence {
                 let job = self.renderer.draw_job(version, fx.self_shadow)?;
                 let start = Instant::now();
                 let ex = self.executor.as_mut();
-                let (composite, drawn) = self
-                    .renderer
-                    .compose_later(fx.self_shadow, || ex.draw(&job))?;
+                let elsewhere = ex.composites();
+                let (composite, drawn) =
+                    self.renderer
+                        .compose_later(fx.self_shadow, elsewhere, || ex.draw(&job))?;
                 let mut ms = start.elapsed().as_secs_f64() * 1e3;
                 drop(span);
                 let ((canvas, img), resolve_ms) = if more {

@@ -40,7 +40,7 @@ pub use scene::{
     Animation, BodySettings, Collision, Dynamics, Effects, HairSource, HeadMesh, HeadSettings,
     Scene, SceneError, SceneSource, ShadowSettings,
 };
-pub use share::{DrawTimes, Share};
+pub use share::{BandPlan, DrawTimes, Share};
 
 /// Errors of the engine, each naming what is wrong and where.
 #[derive(Debug, thiserror::Error)]

@@ -136,6 +136,34 @@ impl HairPart {
     }
 }
 
+/// The head's colour at a surface point of unit normal `n`: Lambert under
+/// the hair's shadow,
+///
+/// ```text
+/// Phi = k_a C + sum_l T_l (1 - k_a) C max(n . L_l, 0)
+/// ```
+///
+/// with `C` the head's linear colour, `k_a` the ambient share, `L_l` the
+/// unit direction towards light `l` (`to_lights`) and `T_l` its
+/// transmittance there, `trans(l)` (asked only where the light reaches
+/// the surface).
+pub fn head_lambert(
+    color: Vec3,
+    ambient: f32,
+    to_lights: &[Vec3],
+    n: Vec3,
+    trans: impl Fn(usize) -> f32,
+) -> Vec3 {
+    let mut c = ambient * color;
+    for (l, &to_light) in to_lights.iter().enumerate() {
+        let lambert = n.dot(to_light).max(0.0);
+        if lambert > 0.0 {
+            c += trans(l) * lambert * (1.0 - ambient) * color;
+        }
+    }
+    c
+}
+
 /// Draws `head` into `canvas`'s opaque layer, `shade(point, normal)`
 /// giving the colour of a visible surface point (the hair drawn after it
 /// is hidden where the head is in front, whatever the colour).

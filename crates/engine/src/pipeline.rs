@@ -268,8 +268,7 @@ impl ShadowPipeline {
     pub fn transmittance_off_surface(&self, l: usize, p: Vec3, n: Vec3) -> f32 {
         let m = &self.lights[l].method;
         let f = m.frame().expect("density runs before lookups");
-        let n = n.normalize_or_zero();
-        m.transmittance(p + (n * HEAD_NORMAL_BIAS - f.axes[0] * HEAD_LIGHT_BIAS) * f.ds)
+        m.transmittance(off_surface(f, p, n))
     }
 
     /// The lights, in scene order.
@@ -285,6 +284,14 @@ impl ShadowPipeline {
         self.filter(points, &mut out);
         Ok(out)
     }
+}
+
+/// The point a surface point `p` of normal `n` looks its transmittance up
+/// at in a map of frame `f`: see
+/// [`ShadowPipeline::transmittance_off_surface`].
+pub fn off_surface(f: &shadow::LightFrame, p: Vec3, n: Vec3) -> Vec3 {
+    let n = n.normalize_or_zero();
+    p + (n * HEAD_NORMAL_BIAS - f.axes[0] * HEAD_LIGHT_BIAS) * f.ds
 }
 
 /// Median milliseconds of each shadow stage over repeated runs.

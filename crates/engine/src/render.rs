@@ -8,7 +8,7 @@ use glam::{Affine3A, Vec3};
 use raster::{Camera, Canvas, HairLayer};
 use strands::{Bounds, Hair};
 
-use crate::part::draw_head;
+use crate::part::{draw_head, head_lambert};
 use crate::{DrawJob, DrawReport, EngineError, HairPart, Scene, ShadowPipeline};
 
 pub use crate::part::DEFAULT_HAIR_COLOR;
@@ -266,22 +266,15 @@ impl Renderer {
             let pipeline = &self.shadows;
             let ambient = s.shading.ambient;
             let color = head.settings().color;
-            // Lambert under the hair's shadow: Phi = k_a C + T (1 - k_a) C max(n.l, 0).
             let shade = |p: Vec3, n: Vec3| {
-                let mut c = ambient * color;
-                for (l, &to_light) in to_lights.iter().enumerate() {
-                    let lambert = n.dot(to_light).max(0.0);
-                    if lambert > 0.0 {
-                        // Off the surface: past the head's own deposit.
-                        let tr = if head_shadow {
-                            pipeline.transmittance_off_surface(l, p, n)
-                        } else {
-                            1.0
-                        };
-                        c += tr * lambert * (1.0 - ambient) * color;
+                head_lambert(color, ambient, &to_lights, n, |l| {
+                    // Off the surface: past the head's own deposit.
+                    if head_shadow {
+                        pipeline.transmittance_off_surface(l, p, n)
+                    } else {
+                        1.0
                     }
-                }
-                c
+                })
             };
             draw_head(canvas, &view.camera, head, shade);
         }
@@ -312,9 +305,9 @@ impl Renderer {
         shadows: bool,
         hair: impl FnOnce() -> Result<DrawReport, EngineError> + Send,
     ) -> Result<(image::RgbImage, DrawReport), EngineError> {
-        let (composite, drawn) = self.compose_later(shadows, hair)?;
+        let (composite, drawn) = self.compose_later(shadows, false, hair)?;
         let (canvas, img) = composite.resolve();
-        self.canvas = Some(canvas);
+        self.restore_canvas(canvas);
         Ok((img, drawn))
     }
 
@@ -322,24 +315,47 @@ impl Renderer {
     /// [`Composite`] does wherever it is sent (while this renderer runs the
     /// next frame's shadows, say); hand its canvas back with
     /// [`Self::restore_canvas`] before the next draw, or a new one is made.
-    /// The report's layers are in the composite.
+    /// The report's layers are in the composite. With `head_elsewhere`
+    /// (the executor [composites](crate::Executor::composites)) the head is
+    /// drawn here only when the hair's call returns layers rather than the
+    /// finished picture.
     pub fn compose_later(
         &mut self,
         shadows: bool,
+        head_elsewhere: bool,
         hair: impl FnOnce() -> Result<DrawReport, EngineError> + Send,
     ) -> Result<(Composite, DrawReport), EngineError> {
         let background = self.scene.render.background;
-        // The hair's call waits on the network in a thread of its own (not
-        // one of rayon's, which the head and any in-process drawing need).
-        let (drawn, head) = std::thread::scope(|s| {
-            let drawn = s.spawn(hair);
-            let head = self.canvas_with_head(shadows).map(|_| ());
-            let drawn = drawn
-                .join()
-                .unwrap_or_else(|p| std::panic::resume_unwind(p));
-            (drawn, head)
-        });
-        let (mut drawn, ()) = (drawn?, head?);
+        let mut drawn = if head_elsewhere {
+            let mut drawn = hair()?;
+            if let Some(img) = drawn.picture.take() {
+                return Ok((
+                    Composite {
+                        canvas: None,
+                        layers: Vec::new(),
+                        background,
+                        finished: Some(img),
+                    },
+                    drawn,
+                ));
+            }
+            self.canvas_with_head(shadows)?;
+            drawn
+        } else {
+            // The hair's call waits on the network in a thread of its own
+            // (not one of rayon's, which the head and any in-process
+            // drawing need).
+            let (drawn, head) = std::thread::scope(|s| {
+                let drawn = s.spawn(hair);
+                let head = self.canvas_with_head(shadows).map(|_| ());
+                let drawn = drawn
+                    .join()
+                    .unwrap_or_else(|p| std::panic::resume_unwind(p));
+                (drawn, head)
+            });
+            let (drawn, ()) = (drawn?, head?);
+            drawn
+        };
         let canvas = self.canvas.take().expect("drawn above");
         if let Some(l) = drawn
             .layers
@@ -359,33 +375,43 @@ impl Renderer {
         let layers = std::mem::take(&mut drawn.layers);
         Ok((
             Composite {
-                canvas,
+                canvas: Some(canvas),
                 layers,
                 background,
+                finished: None,
             },
             drawn,
         ))
     }
 
     /// Gives back the canvas a [`Composite`] resolved on, to be reused.
-    pub fn restore_canvas(&mut self, canvas: Canvas) {
-        self.canvas = Some(canvas);
+    pub fn restore_canvas(&mut self, canvas: Option<Canvas>) {
+        if canvas.is_some() {
+            self.canvas = canvas;
+        }
     }
 }
 
 /// A frame's head and the partial pictures of its hair, not yet
-/// composited: see [`Renderer::compose_later`].
+/// composited (or its finished picture): see [`Renderer::compose_later`].
 #[derive(Debug)]
 pub struct Composite {
-    canvas: Canvas,
+    canvas: Option<Canvas>,
     layers: Vec<HairLayer>,
     background: Vec3,
+    finished: Option<image::RgbImage>,
 }
 
 impl Composite {
     /// The finished picture, and the canvas for the renderer to reuse.
-    pub fn resolve(self) -> (Canvas, image::RgbImage) {
-        let img = self.canvas.resolve_layers(self.background, &self.layers);
-        (self.canvas, img)
+    pub fn resolve(self) -> (Option<Canvas>, image::RgbImage) {
+        match (self.finished, self.canvas) {
+            (Some(img), canvas) => (canvas, img),
+            (None, Some(canvas)) => {
+                let img = canvas.resolve_layers(self.background, &self.layers);
+                (Some(canvas), img)
+            }
+            (None, None) => unreachable!("a composite holds a canvas or a picture"),
+        }
     }
 }

@@ -11,7 +11,8 @@ use raster::{Canvas, HairLayer};
 use shadow::{DensityMap, Fiber, FillStats, LightFrame, Transmittance};
 use strands::Hair;
 
-use crate::part::draw_head;
+use crate::part::{draw_head, head_lambert};
+use crate::pipeline::off_surface;
 use crate::{
     Animator, DrawJob, EngineError, FrameStats, HairPart, Head, PosePlan, PoseReport, Scene,
     StepPlan, step_wisps, step_wisps_while,
@@ -27,6 +28,88 @@ pub struct Share {
     posed: Option<(u64, Hair)>,
     part: HairPart,
     canvas: Option<Canvas>,
+    /// What resolving a band of the picture needs of the scene.
+    background: Vec3,
+    head_shadow: bool,
+}
+
+/// How the workers composite a frame's picture among themselves: its rows
+/// cut in bands, dealt out to the workers in turn (band `b` to worker
+/// `b % workers`, so that each gets about as much hair; sort-last
+/// compositing by direct send). Each sends the stripes of its partial
+/// picture in the others' bands to them, and resolves its own bands, with
+/// the head, from its own hair and the stripes the others sent.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BandPlan {
+    /// Band `b` is rows `cuts[b]..cuts[b + 1]`: from 0 to the picture's
+    /// height, ascending, each on a multiple of [`Canvas::BAND_ROWS`]
+    /// (but the last).
+    pub cuts: Vec<u32>,
+    /// The workers the bands are dealt to.
+    pub workers: usize,
+    /// This share's worker.
+    pub own: usize,
+}
+
+impl BandPlan {
+    /// Bands of `rows` rows (rounded up to whole canvas bands) of a
+    /// picture of `height` rows, dealt to `workers` workers.
+    pub fn dealt(height: u32, rows: u32, workers: usize, own: usize) -> BandPlan {
+        let band = Canvas::BAND_ROWS;
+        let step = rows.max(1).div_ceil(band) * band;
+        let mut cuts: Vec<u32> = (0..height.div_ceil(step)).map(|i| i * step).collect();
+        cuts.push(height);
+        BandPlan { cuts, workers, own }
+    }
+
+    /// Rows of band `b`.
+    pub fn rows(&self, b: usize) -> Range<u32> {
+        self.cuts[b]..self.cuts[b + 1]
+    }
+
+    pub fn bands(&self) -> usize {
+        self.cuts.len().saturating_sub(1)
+    }
+
+    /// The worker band `b` belongs to.
+    pub fn owner(&self, b: usize) -> usize {
+        b % self.workers.max(1)
+    }
+
+    /// The rows of each band of worker `w`, top to bottom.
+    pub fn rows_of(&self, w: usize) -> Vec<Range<u32>> {
+        (0..self.bands())
+            .filter(|&b| self.owner(b) == w)
+            .map(|b| self.rows(b))
+            .collect()
+    }
+
+    /// Whether row `row` lies in one of this share's bands.
+    pub fn owns_row(&self, row: u32) -> bool {
+        let b = self.cuts.partition_point(|&c| c <= row);
+        b >= 1 && b < self.cuts.len() && self.owner(b - 1) == self.own
+    }
+
+    /// Checks the plan against a picture of `height` rows.
+    pub fn check(&self, height: u32) -> Result<(), EngineError> {
+        let band = Canvas::BAND_ROWS;
+        let ok = self.cuts.len() >= 2
+            && self.own < self.workers
+            && self.cuts.first() == Some(&0)
+            && self.cuts.last() == Some(&height)
+            && self.cuts.windows(2).all(|w| w[0] < w[1])
+            && self.cuts[..self.cuts.len() - 1]
+                .iter()
+                .all(|c| c.is_multiple_of(band));
+        if ok {
+            Ok(())
+        } else {
+            Err(EngineError::Executor(format!(
+                "bands {:?} (worker {} of {}) do not cut a picture of {height} rows in whole bands of {band}",
+                self.cuts, self.own, self.workers
+            )))
+        }
+    }
 }
 
 /// Milliseconds of the stages of one [`Share::draw`].
@@ -35,6 +118,10 @@ pub struct DrawTimes {
     pub filter_ms: f64,
     pub shade_ms: f64,
     pub raster_ms: f64,
+    /// Compositing on the workers: waiting for the others' stripes of
+    /// this share's band, then resolving it.
+    pub wait_ms: f64,
+    pub composite_ms: f64,
 }
 
 fn ms(since: Instant) -> f64 {
@@ -64,7 +151,14 @@ impl Share {
             posed: None,
             part: HairPart::default(),
             canvas: None,
+            background: scene.render.background,
+            head_shadow: scene.effects.head_shadow,
         })
+    }
+
+    /// The scene's background colour (linear RGB).
+    pub fn background(&self) -> Vec3 {
+        self.background
     }
 
     /// The share's groups.
@@ -178,7 +272,7 @@ impl Share {
         job: &DrawJob,
         maps: &[Transmittance],
     ) -> Result<(HairLayer, DrawTimes), EngineError> {
-        let (canvas, mut times) = self.bin(job, maps)?;
+        let (canvas, mut times) = self.bin(job, maps, None)?;
         let t = Instant::now();
         let layer = canvas.layer();
         times.raster_ms += ms(t);
@@ -198,7 +292,7 @@ impl Share {
         stripe_rows: u32,
         mut emit: impl FnMut(HairLayer) -> Result<(), EngineError>,
     ) -> Result<DrawTimes, EngineError> {
-        let (canvas, mut times) = self.bin(job, maps)?;
+        let (canvas, mut times) = self.bin(job, maps, None)?;
         let band = Canvas::BAND_ROWS;
         let step = stripe_rows.max(1).div_ceil(band) * band;
         let mut y = 0;
@@ -212,12 +306,70 @@ impl Share {
         Ok(times)
     }
 
+    /// [`Self::draw`] composited on the workers, as `plan` says: the
+    /// stripe of each other worker's band handed to `send(worker, stripe)`
+    /// as it is rasterized, top to bottom, then `gather()`'s layers (the
+    /// other shares' stripes of this share's bands) added to this share's
+    /// own hair over the head: each of this share's bands, top to bottom,
+    /// as its rows and their finished 8-bit sRGB pixels, the same bytes as
+    /// those rows of the whole picture drawn in one process.
+    #[allow(clippy::type_complexity)]
+    pub fn draw_band(
+        &mut self,
+        job: &DrawJob,
+        maps: &[Transmittance],
+        plan: &BandPlan,
+        mut send: impl FnMut(usize, HairLayer) -> Result<(), EngineError>,
+        gather: impl FnOnce() -> Result<Vec<HairLayer>, EngineError>,
+    ) -> Result<(Vec<(Range<u32>, Vec<u8>)>, DrawTimes), EngineError> {
+        let height = job.camera.height();
+        plan.check(height)?;
+        let own = plan.rows_of(plan.own);
+        let background = self.background;
+        let (canvas, mut times) = self.bin(job, maps, Some(plan))?;
+        for b in 0..plan.bands() {
+            let to = plan.owner(b);
+            if to == plan.own {
+                continue;
+            }
+            let t = Instant::now();
+            let stripe = canvas.layer_rows(plan.rows(b));
+            times.raster_ms += ms(t);
+            send(to, stripe)?;
+        }
+        // This share's own bands, while the others' stripes travel.
+        let t = Instant::now();
+        let mut layers: Vec<HairLayer> = Vec::with_capacity(plan.workers);
+        for rows in &own {
+            let l = canvas.layer_rows(rows.clone());
+            match layers.first_mut() {
+                Some(all) => all.append_layer(l),
+                None => layers.push(l),
+            }
+        }
+        times.raster_ms += ms(t);
+        let t = Instant::now();
+        layers.extend(gather()?);
+        times.wait_ms = ms(t);
+        let t = Instant::now();
+        let out = own
+            .into_iter()
+            .map(|rows| {
+                let rgb = canvas.resolve_layer_rows(background, &layers, rows.clone());
+                (rows, rgb)
+            })
+            .collect();
+        times.composite_ms = ms(t);
+        Ok((out, times))
+    }
+
     /// Filters, shades and bins the posed strands for `job`: the canvas
     /// they are binned on, ready to rasterize, and the times so far.
     fn bin(
         &mut self,
         job: &DrawJob,
         maps: &[Transmittance],
+        shaded: Option<&BandPlan>,
     ) -> Result<(&Canvas, DrawTimes), EngineError> {
         let mut times = DrawTimes::default();
         let hair = match &self.posed {
@@ -263,10 +415,30 @@ impl Share {
         }
         let canvas = self.canvas.as_mut().expect("made above");
         canvas.clear();
-        // The head's depth alone hides the hair behind it.
+        // The head's depth hides the hair behind it; its colour matters
+        // only in the rows `shaded` (a band this share resolves).
         if let Some(head) = &mut self.head {
             head.set_pose(job.head);
-            draw_head(canvas, &job.camera, head, |_, _| Vec3::ZERO);
+            let head_shadow = job.shadows && self.head_shadow;
+            let (color, ambient) = (head.settings().color, job.shading.ambient);
+            let camera = &job.camera;
+            let shade = |p: Vec3, n: Vec3| {
+                // The row of the pixel centre the point was found at.
+                let row = camera.project(p).map_or(-1.0, |s| s.y.floor());
+                let mine = row >= 0.0 && shaded.is_some_and(|b| b.owns_row(row as u32));
+                if !mine {
+                    return Vec3::ZERO;
+                }
+                head_lambert(color, ambient, &job.to_lights, n, |l| {
+                    if head_shadow {
+                        let m = &maps[l];
+                        m.transmittance(off_surface(m.frame(), p, n), job.filter)
+                    } else {
+                        1.0
+                    }
+                })
+            };
+            draw_head(canvas, camera, head, shade);
         }
         let groups = self.anim.groups().within(self.groups.clone());
         self.part

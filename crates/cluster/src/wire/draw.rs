@@ -295,6 +295,73 @@ pub fn draw_columns(
     out
 }
 
+/// The most workers one Draw round composites among.
+pub const MAX_WORKERS: usize = 256;
+
+/// How one Draw round's picture is composited on the workers: the band
+/// plan, the round, and where each worker is.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Bands {
+    pub round: u64,
+    pub plan: engine::BandPlan,
+    /// Each worker: its address and its session of this coordinator.
+    pub peers: Vec<(String, String)>,
+    pub wait: std::time::Duration,
+    pub tls_domain: Option<String>,
+}
+
+impl Bands {
+    pub fn to_pb(&self) -> pb::BandPlan {
+        pb::BandPlan {
+            round: self.round,
+            cuts: self.plan.cuts.clone(),
+            own: self.plan.own as u32,
+            peers: self.peers.iter().map(|p| p.0.clone()).collect(),
+            sessions: self.peers.iter().map(|p| p.1.clone()).collect(),
+            wait_ms: self.wait.as_millis().min(u128::from(u32::MAX)) as u32,
+            tls_domain: self.tls_domain.clone().unwrap_or_default(),
+        }
+    }
+
+    /// A band plan as sent, for a picture of `height` rows: whole bands,
+    /// 2 to [`MAX_WORKERS`] workers each with an address and a session, a
+    /// wait of at most ten minutes.
+    pub fn from_pb(b: &pb::BandPlan, height: u32) -> Result<Bands, Malformed> {
+        let n = b.peers.len();
+        if !(2..=MAX_WORKERS).contains(&n) || b.sessions.len() != n {
+            return Err(bad(format!(
+                "a band plan of {n} workers and {} sessions (2 to {MAX_WORKERS} workers, a session each)",
+                b.sessions.len()
+            )));
+        }
+        let plan = engine::BandPlan {
+            cuts: b.cuts.clone(),
+            workers: n,
+            own: b.own as usize,
+        };
+        plan.check(height).map_err(|e| bad(e.to_string()))?;
+        let long = |v: &String| v.is_empty() || v.len() > 256;
+        if b.peers.iter().chain(&b.sessions).any(long) || b.tls_domain.len() > 256 {
+            return Err(bad("a worker's address or session is empty or too long"));
+        }
+        if b.wait_ms > 600_000 {
+            return Err(bad(format!("a wait of {} ms for the stripes", b.wait_ms)));
+        }
+        Ok(Bands {
+            round: b.round,
+            plan,
+            peers: b
+                .peers
+                .iter()
+                .cloned()
+                .zip(b.sessions.iter().cloned())
+                .collect(),
+            wait: std::time::Duration::from_millis(u64::from(b.wait_ms)),
+            tls_domain: (!b.tls_domain.is_empty()).then(|| b.tls_domain.clone()),
+        })
+    }
+}
+
 /// Receives the swept columns of a Draw call, light by light, into slabs
 /// of every column (those not sent empty).
 #[derive(Debug)]
@@ -486,6 +553,196 @@ fn set_times(c: &mut pb::LayerChunk, times: &engine::DrawTimes) {
     c.filter_ms = times.filter_ms;
     c.shade_ms = times.shade_ms;
     c.raster_ms = times.raster_ms;
+    c.wait_ms = times.wait_ms;
+    c.composite_ms = times.composite_ms;
+}
+
+/// A chunk's times, when every one is a finite count of milliseconds.
+fn times_of(c: &pb::LayerChunk) -> Option<engine::DrawTimes> {
+    let t = [
+        c.filter_ms,
+        c.shade_ms,
+        c.raster_ms,
+        c.wait_ms,
+        c.composite_ms,
+    ];
+    t.iter()
+        .all(|v| v.is_finite() && *v >= 0.0)
+        .then_some(engine::DrawTimes {
+            filter_ms: t[0],
+            shade_ms: t[1],
+            raster_ms: t[2],
+            wait_ms: t[3],
+            composite_ms: t[4],
+        })
+}
+
+/// Rows of finished pixels a band chunk holds at most (about 250 KB of a
+/// 1280-pixel-wide picture).
+pub const ROWS_PER_CHUNK: u32 = 64;
+
+/// A band's finished rows (8-bit sRGB, row after row, from `first_row`)
+/// as Draw reply chunks: runs of the pixels that are not `background`.
+pub fn band_chunks(
+    width: u32,
+    height: u32,
+    first_row: u32,
+    rgb: &[u8],
+    background: [u8; 3],
+) -> Vec<pb::LayerChunk> {
+    let row_bytes = 3 * width as usize;
+    rgb.chunks(ROWS_PER_CHUNK as usize * row_bytes.max(1))
+        .enumerate()
+        .map(|(k, part)| {
+            let mut c = pb::LayerChunk {
+                width,
+                height,
+                first_row: first_row + k as u32 * ROWS_PER_CHUNK,
+                rows: (part.len() / row_bytes.max(1)) as u32,
+                background: background.to_vec(),
+                ..Default::default()
+            };
+            let mut skip = 0u64;
+            let mut px = part.chunks_exact(3).peekable();
+            while px.peek().is_some() {
+                let mut run = 0u64;
+                while px.next_if(|p| *p == background).is_some() {
+                    skip += 1;
+                }
+                while let Some(p) = px.next_if(|p| *p != background) {
+                    c.rgb.extend_from_slice(p);
+                    run += 1;
+                }
+                if run > 0 {
+                    encode_varint(skip, &mut c.spans);
+                    encode_varint(run, &mut c.spans);
+                    skip = 0;
+                }
+            }
+            c
+        })
+        .collect()
+}
+
+/// Receives one worker's bands of finished rows (`bands`, top to bottom,
+/// each rows of a picture `width` x `height`), in order.
+#[derive(Debug)]
+pub struct BandReader {
+    width: u32,
+    height: u32,
+    bands: Vec<(std::ops::Range<u32>, Vec<u8>)>,
+    /// The band being received.
+    at: usize,
+    background: Option<[u8; 3]>,
+    pub times: engine::DrawTimes,
+    /// Bytes of stripes the worker sent the others, from the last chunk.
+    pub stripes_sent: u64,
+}
+
+impl BandReader {
+    pub fn new(width: u32, height: u32, bands: Vec<std::ops::Range<u32>>) -> BandReader {
+        BandReader {
+            width,
+            height,
+            bands: bands.into_iter().map(|r| (r, Vec::new())).collect(),
+            at: 0,
+            background: None,
+            times: engine::DrawTimes::default(),
+            stripes_sent: 0,
+        }
+    }
+
+    /// The next row band `b` needs.
+    fn next_row(&self, b: usize) -> u32 {
+        let (rows, rgb) = &self.bands[b];
+        rows.start + (rgb.len() / (3 * self.width as usize).max(1)) as u32
+    }
+
+    pub fn add(&mut self, c: &pb::LayerChunk) -> Result<(), Malformed> {
+        if (c.width, c.height) != (self.width, self.height) {
+            return Err(bad(format!(
+                "a band of a {}x{} picture for a frame of {}x{}",
+                c.width, c.height, self.width, self.height
+            )));
+        }
+        if c.count != 0 || !c.pixels.is_empty() || !c.sums.is_empty() {
+            return Err(bad("partial-picture pixels in a band of finished rows"));
+        }
+        if c.rows == 0 && c.spans.is_empty() && c.rgb.is_empty() {
+            if let Some(t) = times_of(c) {
+                self.times = t;
+            }
+            self.stripes_sent = c.stripes_sent;
+            return Ok(());
+        }
+        while self.at < self.bands.len() && self.next_row(self.at) == self.bands[self.at].0.end {
+            self.at += 1;
+        }
+        let Some((rows, _)) = self.bands.get(self.at) else {
+            return Err(bad("rows past the worker's bands"));
+        };
+        let next = self.next_row(self.at);
+        if c.first_row != next || c.rows > rows.end - next {
+            return Err(bad(format!(
+                "rows {}..{} where the band {rows:?} needs row {next}",
+                c.first_row,
+                u64::from(c.first_row) + u64::from(c.rows),
+            )));
+        }
+        let bg: [u8; 3] = c
+            .background
+            .as_slice()
+            .try_into()
+            .map_err(|_| bad(format!("a background of {} bytes", c.background.len())))?;
+        if self.background.is_some_and(|b| b != bg) {
+            return Err(bad("the bands' background changes"));
+        }
+        self.background = Some(bg);
+        let n = c.rows as usize * self.width as usize;
+        let out = &mut self.bands[self.at].1;
+        out.reserve(3 * n);
+        let (mut spans, mut colors, mut at) = (&c.spans[..], &c.rgb[..], 0usize);
+        let varint =
+            |b: &mut &[u8]| decode_varint(b).map_err(|e| bad(format!("a band's runs: {e}")));
+        while !spans.is_empty() {
+            let (skip, run) = (varint(&mut spans)?, varint(&mut spans)?);
+            let end = (at as u64).saturating_add(skip).saturating_add(run);
+            if run == 0 || end > n as u64 || run.saturating_mul(3) > colors.len() as u64 {
+                return Err(bad(format!(
+                    "a run of {run} pixels after {skip} at pixel {at} of a chunk of {n}"
+                )));
+            }
+            for _ in 0..skip {
+                out.extend_from_slice(&bg);
+            }
+            let (sent, rest) = colors.split_at(3 * run as usize);
+            out.extend_from_slice(sent);
+            colors = rest;
+            at = end as usize;
+        }
+        if !colors.is_empty() {
+            return Err(bad("colours left over in a band chunk"));
+        }
+        for _ in at..n {
+            out.extend_from_slice(&bg);
+        }
+        Ok(())
+    }
+
+    /// Each band's rows and their pixels, once every row came.
+    #[allow(clippy::type_complexity)]
+    pub fn finish(self) -> Result<Vec<(std::ops::Range<u32>, Vec<u8>)>, Malformed> {
+        for b in 0..self.bands.len() {
+            if self.next_row(b) != self.bands[b].0.end {
+                return Err(bad(format!(
+                    "the band {:?} ended at row {}",
+                    self.bands[b].0,
+                    self.next_row(b)
+                )));
+            }
+        }
+        Ok(self.bands)
+    }
 }
 
 /// Pixel entries `range` of `layer` as a chunk: each pixel's step from the
@@ -581,13 +838,8 @@ impl LayerReader {
         if !px.is_empty() || !sums.is_empty() {
             return Err(bad("bytes left over in a partial picture chunk"));
         }
-        let t = [c.filter_ms, c.shade_ms, c.raster_ms];
-        if t.iter().all(|v| v.is_finite() && *v >= 0.0) {
-            self.times = engine::DrawTimes {
-                filter_ms: t[0],
-                shade_ms: t[1],
-                raster_ms: t[2],
-            };
+        if let Some(t) = times_of(c) {
+            self.times = t;
         }
         Ok(())
     }
@@ -681,6 +933,8 @@ mod tests {
             filter_ms: 1.0,
             shade_ms: 2.0,
             raster_ms: 3.0,
+            wait_ms: 7.0,
+            composite_ms: 8.0,
         };
         let chunks = layer_chunks(&layer, &times);
         assert_eq!(chunks.len(), 2);
@@ -748,6 +1002,7 @@ mod tests {
             filter_ms: 4.0,
             shade_ms: 5.0,
             raster_ms: 6.0,
+            ..Default::default()
         };
         let mut enc = StripeEncoder::new();
         let mut chunks = Vec::new();
@@ -808,5 +1063,93 @@ mod tests {
         let mut chunks = draw_columns(0, &frame, &slabs, None);
         chunks[0].map = None;
         assert!(ColumnsReader::new(1).add(&chunks[0]).is_err());
+    }
+
+    #[test]
+    fn finished_bands_round_trip_as_runs_and_malformed_ones_are_refused() {
+        let one = std::slice::from_ref(&(16..48));
+        let (w, h) = (100u32, 64u32);
+        let bg = [7u8, 8, 9];
+        // Rows 16..48: background but for a few runs, one across a row end.
+        let mut rgb: Vec<u8> = bg.repeat((w * 32) as usize);
+        for px in [0usize, 1, 2, 99, 100, 101, 1234, 3199] {
+            rgb[3 * px..3 * px + 3].copy_from_slice(&[px as u8, 1, 2]);
+        }
+        let chunks = band_chunks(w, h, 16, &rgb, bg);
+        assert_eq!(chunks.len(), 1);
+        assert!(
+            chunks[0].rgb.len() == 8 * 3,
+            "only the pixels that are not background travel"
+        );
+        let times = engine::DrawTimes {
+            wait_ms: 2.0,
+            composite_ms: 3.0,
+            ..Default::default()
+        };
+        let mut last = StripeEncoder::new().last(w, h, &times);
+        last.stripes_sent = 77;
+        let read = |chunks: &[pb::LayerChunk], bands: &[std::ops::Range<u32>]| {
+            let mut r = BandReader::new(w, h, bands.to_vec());
+            for c in chunks {
+                r.add(c)?;
+            }
+            r.add(&last)?;
+            assert_eq!((r.times, r.stripes_sent), (times, 77));
+            r.finish()
+        };
+        let got = read(&chunks, one).unwrap();
+        assert_eq!(got, vec![(16..48, rgb.clone())]);
+        // Two bands, each whole: another band's rows, rows missing, a run
+        // past the chunk and colours left over are refused.
+        let two = [
+            band_chunks(w, h, 0, &rgb[..(3 * w * 16) as usize], bg),
+            chunks.clone(),
+        ]
+        .concat();
+        assert!(read(&two, &[0..16, 32..64]).is_err());
+        assert!(read(&chunks, &[16..48, 48..64]).is_err());
+        let mut long = chunks[0].clone();
+        long.spans.extend([0x80, 0x19, 1]);
+        assert!(read(&[long], one).is_err());
+        let mut spare = chunks[0].clone();
+        spare.rgb.push(0);
+        assert!(read(&[spare], one).is_err());
+        let mut partial = chunks[0].clone();
+        partial.count = 1;
+        assert!(read(&[partial], one).is_err());
+    }
+
+    #[test]
+    fn band_plans_deal_whole_bands_and_absurd_ones_are_refused() {
+        let plan = engine::BandPlan::dealt(720, 48, 3, 1);
+        assert_eq!(plan.bands(), 15);
+        assert_eq!(plan.rows_of(1)[..2], [48..96, 192..240]);
+        assert!(plan.owns_row(50) && !plan.owns_row(47) && !plan.owns_row(720));
+        let bands = Bands {
+            round: 4,
+            plan: plan.clone(),
+            peers: (0..3)
+                .map(|i| (format!("10.0.0.{i}:7000"), format!("s{i}")))
+                .collect(),
+            wait: std::time::Duration::from_secs(3),
+            tls_domain: Some("workers".into()),
+        };
+        assert_eq!(Bands::from_pb(&bands.to_pb(), 720).unwrap(), bands);
+        // Another height, a cut off the canvas bands, one worker, no session.
+        assert!(Bands::from_pb(&bands.to_pb(), 700).is_err());
+        let mut b = bands.to_pb();
+        b.cuts[1] = 40;
+        assert!(Bands::from_pb(&b, 720).is_err());
+        let mut b = bands.to_pb();
+        b.peers.truncate(1);
+        b.sessions.truncate(1);
+        b.own = 0;
+        assert!(Bands::from_pb(&b, 720).is_err());
+        let mut b = bands.to_pb();
+        b.sessions[2].clear();
+        assert!(Bands::from_pb(&b, 720).is_err());
+        let mut b = bands.to_pb();
+        b.own = 3;
+        assert!(Bands::from_pb(&b, 720).is_err());
     }
 }

@@ -82,6 +82,20 @@ impl HairLayer {
         self.sums.extend(other.sums);
     }
 
+    /// Appends `other`, a layer of the same picture whose pixels all
+    /// follow this layer's (say, the next band of rows down).
+    pub fn append_layer(&mut self, other: HairLayer) {
+        assert!(
+            self.pixels
+                .last()
+                .zip(other.pixels.first())
+                .is_none_or(|(a, b)| a < b)
+                && (self.width, self.height) == (other.width, other.height),
+            "appended layers follow each other in one picture"
+        );
+        self.append(other);
+    }
+
     pub fn width(&self) -> u32 {
         self.width
     }

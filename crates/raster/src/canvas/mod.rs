@@ -372,22 +372,66 @@ impl Canvas {
     /// this canvas's own: the same bytes as drawing all their groups here.
     /// Layers of another size are ignored (the caller checks them).
     pub fn resolve_layers(&self, background: Vec3, layers: &[HairLayer]) -> image::RgbImage {
+        let (w, h) = (self.width as u32, self.height as u32);
+        let buf = self.resolve_rows(background, layers, 0..h);
+        image::RgbImage::from_raw(w, h, buf).expect("one RGB pixel each")
+    }
+
+    /// [`Self::resolve_layers`] of rows `rows` alone (starting on a
+    /// multiple of [`Self::BAND_ROWS`]; clipped to the picture), as 8-bit
+    /// sRGB, row after row: the same bytes as those rows of the whole
+    /// picture. A cluster worker resolves its own band of the picture so.
+    pub fn resolve_rows(
+        &self,
+        background: Vec3,
+        layers: &[HairLayer],
+        rows: std::ops::Range<u32>,
+    ) -> Vec<u8> {
+        self.resolve_rows_with(background, layers, rows, true)
+    }
+
+    /// [`Self::resolve_rows`] of `layers` over this canvas's opaque layer
+    /// alone, without this canvas's own hair (already in `layers`, say
+    /// from [`Self::layer_rows`]): the same bytes.
+    pub fn resolve_layer_rows(
+        &self,
+        background: Vec3,
+        layers: &[HairLayer],
+        rows: std::ops::Range<u32>,
+    ) -> Vec<u8> {
+        self.resolve_rows_with(background, layers, rows, false)
+    }
+
+    fn resolve_rows_with(
+        &self,
+        background: Vec3,
+        layers: &[HairLayer],
+        rows: std::ops::Range<u32>,
+        own_hair: bool,
+    ) -> Vec<u8> {
         let (w, h) = (self.width, self.height);
-        let mut img = image::RgbImage::new(w as u32, h as u32);
+        let (r0, r1) = ((rows.start as usize).min(h), (rows.end as usize).min(h));
+        debug_assert!(r0.is_multiple_of(BAND), "rows start on a band");
+        let mut buf = vec![0u8; r1.saturating_sub(r0) * w * 3];
         let lut = srgb::srgb_table();
         let bg = srgb::encode(lut, background);
-        let buf: &mut [u8] = &mut img;
         let layers: Vec<&HairLayer> = layers
             .iter()
             .filter(|l| l.width() as usize == w && l.height() as usize == h)
             .collect();
         buf.par_chunks_mut(w * BAND * 3).enumerate().for_each_init(
             Scratch::default,
-            |scratch, (band, out)| {
+            |scratch, (k, out)| {
+                let band = r0 / BAND + k;
                 let y0 = band * BAND;
                 let rows = out.len() / (3 * w);
                 // The last group stays in floats, folded as it is composited.
-                let last = self.band_sums(band, rows, scratch, false);
+                let last = if own_hair {
+                    self.band_sums(band, rows, scratch, false)
+                } else {
+                    scratch.ready(rows, w);
+                    NO_REACH
+                };
                 let first = (y0 * w) as u32;
                 for l in &layers {
                     let (pixels, sums) = l.range(first, first + (rows * w) as u32);
@@ -427,7 +471,7 @@ impl Canvas {
                 }
             },
         );
-        img
+        buf
     }
 
     /// This canvas's hair alone, as exact sums at the pixels it touched
@@ -776,6 +820,21 @@ mod tests {
                 "hair in several stripes of {step}"
             );
             assert_eq!(striped, all, "stripes of {step} rows");
+        }
+        // A band of rows resolved where part of the hair was drawn, with
+        // the rest's layers (a cluster worker's band): the whole picture's
+        // rows, with the canvas's own hair rasterized there or brought in
+        // as its layer of those rows.
+        let whole_rgb: &[u8] = &whole;
+        let mine = canvas(0..21);
+        let rest = [canvas(21..33).layer(), canvas(33..60).layer()];
+        for rows in [0..16, 16..48, 48..56, 32..56] {
+            let want = &whole_rgb[rows.start as usize * 240..rows.end as usize * 240];
+            assert_eq!(mine.resolve_rows(bg, &rest, rows.clone()), want, "{rows:?}");
+            let mut all_layers = vec![mine.layer_rows(rows.clone())];
+            all_layers.extend(rest.iter().cloned());
+            let got = mine.resolve_layer_rows(bg, &all_layers, rows.clone());
+            assert_eq!(got, want, "{rows:?}, own hair as a layer");
         }
     }
 
