@@ -161,8 +161,9 @@ pub struct CoordinatorArgs {
     #[arg(long, default_value_t = 5.0, value_name = "SECONDS")]
     connect_timeout: f64,
     /// Where the drawn hair is posed, filtered, shaded and rasterized:
-    /// `workers` (each its own strands; the coordinator composites their
-    /// partial pictures) or `coordinator` (the paper's scheme: workers
+    /// `workers` (each its own strands; with two or more, they composite
+    /// the picture among themselves and must reach each other at the
+    /// addresses given) or `coordinator` (the paper's scheme: workers
     /// simulate, fill and sweep, the coordinator draws every strand).
     /// The pictures are the same bytes either way.
     #[arg(long, value_enum, default_value_t = Draw::Workers, value_name = "WHERE")]

@@ -27,7 +27,7 @@ pub struct ScalingArgs {
           value_parser = clap::value_parser!(u64).range(1..=10_000))]
     frames: u64,
     /// Where the hair is drawn, comma-separated: `workers` (each worker
-    /// its own strands, the coordinator composites), `coordinator` (the
+    /// its own strands, the workers composite), `coordinator` (the
     /// paper's scheme: the coordinator draws every strand), or both.
     #[arg(
         long,

@@ -6,8 +6,10 @@
 //! wisps, weighted by their drawn strands) and, per sweep, a contiguous
 //! share of the columns (weighted by their occupied cells). With
 //! [`DrawAt::Workers`] (the default) a worker also poses, filters, shades
-//! and rasterizes its strands into a partial picture, and the coordinator
-//! composites; with [`DrawAt::Coordinator`] (the paper's scheme) the
+//! and rasterizes its strands into a partial picture, and the workers
+//! composite the picture among themselves, each resolving bands of rows
+//! it owns from the others' stripes (one worker's, or a round that failed,
+//! the coordinator composites); with [`DrawAt::Coordinator`] (the paper's scheme) the
 //! coordinator poses and draws every strand from the wisps' states. When a
 //! worker fails a call (it died, missed the deadline, or sent something
 //! malformed) it is dropped: its share goes to the survivors with the
@@ -38,8 +40,9 @@ const BAND_ROWS: u32 = 48;
 /// Where the drawn hair is posed, filtered, shaded and rasterized.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum DrawAt {
-    /// On the workers, each its own strands; the coordinator composites
-    /// their partial pictures.
+    /// On the workers, each its own strands; with two or more, they
+    /// composite the picture among themselves (bands of rows dealt out),
+    /// otherwise the coordinator composites their partial pictures.
     #[default]
     Workers,
     /// On the coordinator, every strand (the paper's scheme: workers
