@@ -21,8 +21,8 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use engine::{
-    Animator, DrawJob, DrawReport, EngineError, Executor, FrameStats, PosePlan, PoseReport, Scene,
-    SceneSource, Stage, StepPlan, split_by,
+    Animator, DrawJob, DrawReport, EngineError, Executor, FrameStats, PendingPicture, PosePlan,
+    PoseReport, Scene, SceneSource, Stage, StepPlan, split_by,
 };
 use prost::Message;
 use shadow::{ColumnSlab, DensityMap, Fiber, FillStats, LightFrame, Transmittance};
@@ -112,7 +112,7 @@ pub struct RemoteExecutor {
     /// last posed Deposit), in worker order.
     reads: Vec<Option<Vec<Vec<u64>>>>,
     /// Per light, the frame and slabs of its last sweep.
-    swept: Vec<Option<(LightFrame, Vec<ColumnSlab>)>>,
+    swept: Vec<Option<Swept>>,
     /// Whether the workers composite the picture among themselves (two
     /// or more drawing): on until they fail to twice with none lost.
     composite: bool,
@@ -123,6 +123,26 @@ pub struct RemoteExecutor {
     /// The name expected in workers' certificates, for their calls to
     /// each other.
     tls_domain: Option<String>,
+    /// The first failure of a picture left to finish (see
+    /// [`Executor::draw_ahead`]), for [`Executor::redraw`].
+    failure: Arc<Mutex<Option<ClusterError>>>,
+    /// What the workers held when they drew the picture left to finish.
+    drawn: Option<Drawn>,
+}
+
+/// A light's last sweep: its frame and slabs.
+type Swept = Arc<(LightFrame, Vec<ColumnSlab>)>;
+
+/// What drawing a frame again takes, kept while its picture is finished
+/// on the workers and the next frame's stages run.
+#[derive(Debug)]
+struct Drawn {
+    version: u64,
+    states: Vec<WispState>,
+    pose: Option<PosePlan>,
+    swept: Vec<Option<Swept>>,
+    reads: Vec<Option<Vec<Vec<u64>>>>,
+    workers: Vec<String>,
 }
 
 impl RemoteExecutor {
@@ -219,6 +239,8 @@ impl RemoteExecutor {
                 .tls
                 .as_ref()
                 .and_then(|t| t.domain().map(str::to_string)),
+            failure: Arc::default(),
+            drawn: None,
             source: scene.source,
             hair: None,
             shares: None,
@@ -757,7 +779,7 @@ impl RemoteExecutor {
         if self.draw == DrawAt::Workers
             && let Some(s) = self.swept.get_mut(light)
         {
-            *s = Some((frame, slabs));
+            *s = Some(Arc::new((frame, slabs)));
         }
         let ms = t.elapsed().as_secs_f64() * 1e3;
         self.count(|x| {
@@ -787,7 +809,7 @@ impl RemoteExecutor {
             let mut chunks = vec![first.clone()];
             if job.shadows {
                 for (l, swept) in self.swept.iter().enumerate() {
-                    let (frame, slabs) = swept.as_ref().ok_or_else(|| {
+                    let (frame, slabs) = &**swept.as_ref().ok_or_else(|| {
                         ClusterError::Setup(format!("light {l} was not swept before drawing"))
                     })?;
                     // The columns this worker reads; all of them after a loss.
@@ -867,7 +889,7 @@ impl RemoteExecutor {
     /// resolves a band of rows and sends it finished. Any failure fails the
     /// round (the caller composites the frame here instead); no worker is
     /// dropped for it.
-    fn draw_composited(&mut self, job: &DrawJob) -> Result<DrawReport, ClusterError> {
+    fn draw_composited(&mut self, job: &DrawJob, ahead: bool) -> Result<DrawReport, ClusterError> {
         self.ensure_posed()?;
         if self.posed != Some(job.version) {
             return Err(ClusterError::Setup(format!(
@@ -889,7 +911,7 @@ impl RemoteExecutor {
         let mut shared = Vec::new();
         let columns = |ex: &Self, i: usize, out: &mut Vec<pb::DrawChunk>| {
             for (l, swept) in ex.swept.iter().enumerate() {
-                let (frame, slabs) = swept.as_ref().ok_or_else(|| {
+                let (frame, slabs) = &**swept.as_ref().ok_or_else(|| {
                     ClusterError::Setup(format!("light {l} was not swept before drawing"))
                 })?;
                 let keep = if all_columns {
@@ -937,104 +959,199 @@ impl RemoteExecutor {
         }
         let deadline = self.deadline;
         let t = Instant::now();
-        // Every call's outcome: a failure anywhere fails the round.
-        let replies = self.rt.block_on(async {
-            let tasks: Vec<_> = requests
-                .into_iter()
-                .map(|(mut w, (chunks, rows))| {
-                    tokio::spawn(async move {
-                        let call = async {
-                            let mut s = w
-                                .client
-                                .draw(tokio_stream::iter(chunks))
-                                .await
-                                .map_err(|s| call_error(&w.addr, "draw", s))?
-                                .into_inner();
-                            let mut reader = wire::BandReader::new(width, height, rows);
-                            let mut bytes = 0u64;
-                            while let Some(c) = s
-                                .message()
-                                .await
-                                .map_err(|e| call_error(&w.addr, "draw", e))?
-                            {
-                                bytes += c.encoded_len() as u64;
-                                reader.add(&c).map_err(|e| malformed(&w.addr, e))?;
-                            }
-                            let (times, stripes) = (reader.times, reader.stripes_sent);
-                            let band = reader.finish().map_err(|e| malformed(&w.addr, e))?;
-                            Ok((band, times, bytes, stripes))
-                        };
-                        match tokio::time::timeout(deadline, call).await {
-                            Ok(r) => r,
-                            Err(_) => Err(ClusterError::Deadline {
-                                addr: w.addr.clone(),
-                                stage: "draw",
-                                secs: deadline.as_secs_f64(),
-                            }),
+        // Each worker's reply: first the word that it rasterized and sent
+        // its stripes (with its times), then its bands once composited.
+        let (mut drawn, mut tasks) = (Vec::with_capacity(n), Vec::with_capacity(n));
+        for (mut w, (chunks, rows)) in requests {
+            let (said, hear) = tokio::sync::oneshot::channel();
+            drawn.push(hear);
+            tasks.push(self.rt.spawn(async move {
+                let addr = w.addr.clone();
+                let call = async move {
+                    let mut s = w
+                        .client
+                        .draw(tokio_stream::iter(chunks))
+                        .await
+                        .map_err(|s| call_error(&w.addr, "draw", s))?
+                        .into_inner();
+                    let first = s
+                        .message()
+                        .await
+                        .map_err(|e| call_error(&w.addr, "draw", e))?
+                        .filter(|c| c.drawn)
+                        .ok_or_else(|| malformed(&w.addr, "a band reply without its first word"))?;
+                    let mut bytes = first.encoded_len() as u64;
+                    let _ = said.send(first);
+                    let mut reader = wire::BandReader::new(width, height, rows);
+                    // A worker that gave up for another's sake names no
+                    // worker to drop: the one at fault fails on its own.
+                    let failed = |e: tonic::Status| match e.code() {
+                        tonic::Code::Aborted => {
+                            ClusterError::Composite(format!("worker {}: {}", w.addr, e.message()))
                         }
-                    })
-                })
-                .collect();
-            let mut out = Vec::with_capacity(tasks.len());
-            for t in tasks {
-                out.push(t.await.map_err(|e| ClusterError::Setup(e.to_string()))?);
-            }
-            Ok::<_, ClusterError>(out)
-        })?;
-        let ms = t.elapsed().as_secs_f64() * 1e3;
-        let mut img = image::RgbImage::new(width, height);
-        let mut report = DrawReport::default();
-        let (mut received, mut stripes) = (0u64, 0u64);
-        let (mut slowest, mut wait, mut composite) = (0.0f64, 0.0f64, 0.0f64);
-        let mut errors = Vec::new();
-        for r in replies {
-            match r {
-                Ok((drawn, times, bytes, sent)) => {
-                    tracing::debug!(
-                        bands = drawn.len(),
-                        filter = times.filter_ms,
-                        shade = times.shade_ms,
-                        raster = times.raster_ms,
-                        wait = times.wait_ms,
-                        composite = times.composite_ms,
-                        "band composited"
-                    );
-                    let row = 3 * width as usize;
-                    let buf: &mut [u8] = &mut img;
-                    for (rows, rgb) in drawn {
-                        let at = rows.start as usize * row;
-                        buf[at..at + rgb.len()].copy_from_slice(&rgb);
+                        _ => call_error(&w.addr, "draw", e),
+                    };
+                    while let Some(c) = s.message().await.map_err(failed)? {
+                        bytes += c.encoded_len() as u64;
+                        reader.add(&c).map_err(|e| malformed(&w.addr, e))?;
                     }
-                    received += bytes;
-                    stripes += sent;
-                    report.filter_ms = report.filter_ms.max(times.filter_ms);
-                    report.shade_ms = report.shade_ms.max(times.shade_ms);
-                    report.raster_ms = report.raster_ms.max(times.raster_ms);
-                    slowest = slowest.max(times.filter_ms + times.shade_ms + times.raster_ms);
-                    wait = wait.max(times.wait_ms);
-                    composite = composite.max(times.composite_ms);
+                    let (times, stripes) = (reader.times, reader.stripes_sent);
+                    let bands = reader.finish().map_err(|e| malformed(&w.addr, e))?;
+                    Ok(BandReply {
+                        bands,
+                        times,
+                        bytes,
+                        stripes,
+                    })
+                };
+                match tokio::time::timeout(deadline, call).await {
+                    Ok(r) => r,
+                    Err(_) => Err(ClusterError::Deadline {
+                        addr,
+                        stage: "draw",
+                        secs: deadline.as_secs_f64(),
+                    }),
                 }
-                Err(e) => errors.push(e.to_string()),
+            }));
+        }
+        self.count(|x| x.draw_sent += sent);
+        // Until every worker has rasterized: a failure before is this
+        // round's, and the frame is composited here at once.
+        let words = self.rt.block_on(async {
+            let mut out = Vec::with_capacity(n);
+            for hear in drawn {
+                out.push(hear.await.ok());
             }
-        }
-        self.count(|x| {
-            x.draw_sent += sent;
-            x.bands_received += received;
-            x.stripes_between_workers += stripes;
+            out
         });
-        if !errors.is_empty() {
-            return Err(ClusterError::Composite(errors.join("; ")));
+        let mut report = DrawReport::default();
+        let mut slowest = 0.0f64;
+        for w in &words {
+            let Some(c) = w else { continue };
+            report.filter_ms = report.filter_ms.max(c.filter_ms);
+            report.shade_ms = report.shade_ms.max(c.shade_ms);
+            report.raster_ms = report.raster_ms.max(c.raster_ms);
+            slowest = slowest.max(c.filter_ms + c.shade_ms + c.raster_ms);
         }
-        report.wait_ms = wait;
-        report.composite_ms = composite;
-        report.picture = Some(img);
+        let round = BandRound {
+            rt: self.rt.handle().clone(),
+            tasks,
+            width,
+            height,
+            traffic: self.traffic.clone(),
+            timing: self.timing.clone(),
+        };
+        if words.iter().any(Option::is_none) {
+            let e = round.finish().err().unwrap_or_else(|| {
+                ClusterError::Composite("a worker's reply ended before its first word".into())
+            });
+            return Err(ClusterError::Composite(e.to_string()));
+        }
+        let ms = t.elapsed().as_secs_f64() * 1e3;
         self.clock(|x| {
             x.draw_ms += ms;
             x.draw_compute_ms += slowest;
-            x.band_wait_ms += wait;
-            x.band_composite_ms += composite;
         });
+        if ahead {
+            let failure = self.failure.clone();
+            report.pending = Some(PendingPicture::new(move || {
+                round.finish().map_err(|e| {
+                    let msg = e.to_string();
+                    if let Ok(mut f) = failure.lock() {
+                        *f = Some(e);
+                    }
+                    EngineError::Executor(msg)
+                })
+            }));
+        } else {
+            report.picture = Some(
+                round
+                    .finish()
+                    .map_err(|e| ClusterError::Composite(e.to_string()))?,
+            );
+        }
         Ok(report)
+    }
+}
+
+/// One worker's bands of a Draw round composited on the workers.
+struct BandReply {
+    bands: Vec<(Range<u32>, Vec<u8>)>,
+    times: engine::DrawTimes,
+    bytes: u64,
+    stripes: u64,
+}
+
+/// A Draw round composited on the workers, past their rasterization: the
+/// calls still bringing the finished bands.
+struct BandRound {
+    rt: tokio::runtime::Handle,
+    tasks: Vec<tokio::task::JoinHandle<Result<BandReply, ClusterError>>>,
+    width: u32,
+    height: u32,
+    traffic: Arc<Mutex<Traffic>>,
+    timing: Arc<Mutex<Timing>>,
+}
+
+impl BandRound {
+    /// The finished picture, once every worker's bands came: the first
+    /// failure otherwise (the other calls are stopped).
+    fn finish(self) -> Result<image::RgbImage, ClusterError> {
+        let aborts: Vec<_> = self.tasks.iter().map(|t| t.abort_handle()).collect();
+        let replies = self.rt.block_on(async {
+            let mut out = Vec::with_capacity(self.tasks.len());
+            for t in self.tasks {
+                let r = t
+                    .await
+                    .map_err(|e| ClusterError::Setup(e.to_string()))
+                    .and_then(|r| r);
+                if r.is_err() {
+                    aborts.iter().for_each(|a| a.abort());
+                }
+                out.push(r);
+            }
+            out
+        });
+        let mut img = image::RgbImage::new(self.width, self.height);
+        let (mut received, mut stripes) = (0u64, 0u64);
+        let (mut wait, mut composite) = (0.0f64, 0.0f64);
+        let mut first_error = None;
+        for r in replies {
+            match r {
+                Ok(reply) => {
+                    let row = 3 * self.width as usize;
+                    let buf: &mut [u8] = &mut img;
+                    for (rows, rgb) in reply.bands {
+                        let at = rows.start as usize * row;
+                        buf[at..at + rgb.len()].copy_from_slice(&rgb);
+                    }
+                    received += reply.bytes;
+                    stripes += reply.stripes;
+                    wait = wait.max(reply.times.wait_ms);
+                    composite = composite.max(reply.times.composite_ms);
+                }
+                Err(e) => {
+                    if first_error
+                        .as_ref()
+                        .is_none_or(|f: &ClusterError| f.worker().is_none() && e.worker().is_some())
+                    {
+                        first_error = Some(e);
+                    }
+                }
+            }
+        }
+        if let Ok(mut t) = self.traffic.lock() {
+            t.bands_received += received;
+            t.stripes_between_workers += stripes;
+        }
+        if let Some(e) = first_error {
+            return Err(e);
+        }
+        if let Ok(mut t) = self.timing.lock() {
+            t.band_wait_ms += wait;
+            t.band_composite_ms += composite;
+        }
+        Ok(img)
     }
 }
 
@@ -1180,9 +1297,99 @@ impl Executor for RemoteExecutor {
     }
 
     fn draw(&mut self, job: &DrawJob) -> Result<DrawReport, EngineError> {
+        self.draw_with(job, false)
+    }
+
+    fn draw_ahead(&mut self, job: &DrawJob) -> Result<DrawReport, EngineError> {
+        self.draw_with(job, true)
+    }
+
+    fn redraw(&mut self, job: &DrawJob) -> Result<DrawReport, EngineError> {
+        let failed = self.failure.lock().ok().and_then(|mut f| f.take());
+        let Some(then) = self.drawn.take().filter(|d| d.version == job.version) else {
+            return self.draw(job);
+        };
+        // A worker the failure names is dropped (the last one cannot be).
+        if let Some(e) = failed
+            && e.worker()
+                .is_some_and(|a| self.workers.iter().any(|w| w.addr == a))
+        {
+            self.lose_worker(e).map_err(engine_error)?;
+        }
+        let addrs = |ex: &Self| {
+            ex.workers
+                .iter()
+                .map(|w| w.addr.clone())
+                .collect::<Vec<_>>()
+        };
+        let lights = self.swept.len();
+        // Back to the frame drawn: its wisps' states, pose and maps; the
+        // workers are assigned and pose it again.
+        let now = Drawn {
+            version: self.posed.unwrap_or_default(),
+            states: self
+                .hair
+                .as_ref()
+                .map(|h| h.states.clone())
+                .unwrap_or_default(),
+            pose: self.last_pose.clone(),
+            swept: self.swept.clone(),
+            reads: self.reads.clone(),
+            workers: addrs(self),
+        };
+        let report = self.report.clone();
+        let restore = |ex: &mut Self, to: Drawn| {
+            if let Some(h) = &mut ex.hair {
+                h.states = to.states;
+            }
+            ex.last_pose = to.pose;
+            ex.swept = to.swept;
+            ex.reads = if addrs(ex) == to.workers {
+                to.reads
+            } else {
+                vec![None; lights]
+            };
+            ex.shares = None;
+            ex.posed = None;
+        };
+        restore(self, then);
+        tracing::warn!(
+            frame_version = job.version,
+            "drawing the frame again, composited here"
+        );
+        let r = self.with_survivors(|ex| ex.draw_remote(job));
+        // On to the frames after, as they stood.
+        restore(self, now);
+        self.report = report;
+        r.map_err(engine_error)
+    }
+}
+
+impl RemoteExecutor {
+    /// A Draw, composited on the workers when they can (and, `ahead`, its
+    /// picture left to finish while the next frame's stages run),
+    /// otherwise here.
+    fn draw_with(&mut self, job: &DrawJob, ahead: bool) -> Result<DrawReport, EngineError> {
+        self.drawn = None;
         if self.composites_now() {
-            match self.draw_composited(job) {
-                Ok(r) => return Ok(r),
+            match self.draw_composited(job, ahead) {
+                Ok(r) => {
+                    if ahead {
+                        self.drawn = Some(Drawn {
+                            version: job.version,
+                            states: self
+                                .hair
+                                .as_ref()
+                                .map(|h| h.states.clone())
+                                .unwrap_or_default(),
+                            pose: self.last_pose.clone(),
+                            swept: self.swept.clone(),
+                            reads: self.reads.clone(),
+                            workers: self.workers.iter().map(|w| w.addr.clone()).collect(),
+                        });
+                    }
+                    return Ok(r);
+                }
                 Err(e) => {
                     // The frame is composited here instead, with whichever
                     // workers answer; a worker that fails that is dropped.

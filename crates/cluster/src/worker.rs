@@ -1131,25 +1131,23 @@ impl WorkerService {
         tokio::task::spawn_blocking(move || {
             let _received = received;
             let peer_failed = || failed.lock().ok().and_then(|f| f.clone());
+            let mut canvas = None;
             let drawn = (|| {
-                let mut slot = held.lock().map_err(poisoned)?;
-                let h = slot.as_mut().ok_or_else(|| {
-                    Status::failed_precondition("no share of the hair here: call Assign first")
-                })?;
-                let background = raster::to_srgb8(h.share.background());
-                let senders = std::cell::RefCell::new(senders);
-                let mut encoders: Vec<wire::StripeEncoder> =
-                    (0..n).map(|_| wire::StripeEncoder::new()).collect();
                 let others: Vec<u32> = (0..n as u32).filter(|&b| b != own as u32).collect();
                 let mut stripes_sent = 0u64;
-                let (bands_drawn, times) = h
-                    .share
-                    .draw_band(
-                        &job,
-                        &maps,
-                        &bands.plan,
-                        |b, stripe| {
-                            let senders = senders.borrow();
+                // Rasterized and sent under the share's lock, which is then
+                // free for the next frame's calls while this one composites.
+                let (work, background) = {
+                    let mut slot = held.lock().map_err(poisoned)?;
+                    let h = slot.as_mut().ok_or_else(|| {
+                        Status::failed_precondition("no share of the hair here: call Assign first")
+                    })?;
+                    let background = raster::to_srgb8(h.share.background());
+                    let mut encoders: Vec<wire::StripeEncoder> =
+                        (0..n).map(|_| wire::StripeEncoder::new()).collect();
+                    let work = h
+                        .share
+                        .draw_band(&job, &maps, &bands.plan, |b, stripe| {
                             let to = senders[b].as_ref().expect("a call for each other worker");
                             for c in encoders[b].chunks(&stripe) {
                                 stripes_sent += c.encoded_len() as u64;
@@ -1162,19 +1160,35 @@ impl WorkerService {
                                 }
                             }
                             Ok(())
-                        },
-                        || {
-                            // The calls' streams end: the others can finish.
-                            senders.borrow_mut().clear();
-                            inbox.gather(bands.round, &others, bands.wait, || {
-                                if tx.is_closed() {
-                                    return Err("the coordinator left the Draw".into());
-                                }
-                                peer_failed().map_or(Ok(()), Err)
-                            })
-                        },
-                    )
-                    .map_err(|e| Status::aborted(e.to_string()))?;
+                        })
+                        .map_err(|e| Status::aborted(e.to_string()))?;
+                    (work, background)
+                };
+                // The calls' streams end: the others can finish.
+                drop(senders);
+                let mut marker = wire::StripeEncoder::new().last(width, height, &work.times);
+                marker.drawn = true;
+                if tx.blocking_send(Ok(marker)).is_err() {
+                    return Err(cancelled("Draw"));
+                }
+                let t = Instant::now();
+                let gathered = inbox.gather(bands.round, &others, bands.wait, || {
+                    if tx.is_closed() {
+                        return Err("the coordinator left the Draw".into());
+                    }
+                    peer_failed().map_or(Ok(()), Err)
+                });
+                let wait_ms = t.elapsed().as_secs_f64() * 1e3;
+                let gathered = match gathered {
+                    Ok(g) => g,
+                    Err(e) => {
+                        canvas = Some(work.into_canvas());
+                        return Err(Status::aborted(e.to_string()));
+                    }
+                };
+                let (bands_drawn, mut times, done) = work.resolve(gathered);
+                canvas = Some(done);
+                times.wait_ms = wait_ms;
                 let mut chunks = Vec::new();
                 for (rows, rgb) in &bands_drawn {
                     chunks.extend(wire::band_chunks(
@@ -1197,6 +1211,13 @@ impl WorkerService {
                 Err(s) => {
                     let _ = tx.blocking_send(Err(s));
                 }
+            }
+            // The canvas back to the share, for the next frame's draw.
+            if let Some(c) = canvas
+                && let Ok(mut slot) = held.lock()
+                && let Some(h) = slot.as_mut()
+            {
+                h.share.put_canvas(c);
             }
         });
         // The band's rows (or the refusal, as the stream's status) come

@@ -7,11 +7,13 @@
 mod common;
 
 use std::net::SocketAddr;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use cluster::pb::worker_client::WorkerClient;
 use cluster::{DrawAt, Options, RemoteExecutor, pb, wire};
-use engine::{Executor, LocalExecutor, Scene, Sequence};
+use engine::{EngineError, Executor, LocalExecutor, Scene, Sequence};
 use glam::Vec3;
 use shadow::{DensityMap, Fiber, Light, LightFrame};
 use strands::{Style, StyleParams, WispModel};
@@ -862,4 +864,98 @@ fn a_deposit_past_its_deadline_stops_and_gives_its_memory_back() {
         assert_eq!(e.code(), tonic::Code::ResourceExhausted, "{}", e.message());
         assert!(e.message().contains("512^3"), "{}", e.message());
     });
+}
+
+/// Workers whose picture left to finish at the first frame drawn ahead
+/// from hair version `at` on is given up as failed (once its real bands
+/// came): the coordinator draws that frame again after the next frame's
+/// stages ran.
+#[derive(Debug)]
+struct GivesUp {
+    inner: RemoteExecutor,
+    at: u64,
+    gave_up: Arc<AtomicBool>,
+}
+
+impl Executor for GivesUp {
+    fn attach(&mut self, anim: &engine::Animator) -> Result<(), EngineError> {
+        self.inner.attach(anim)
+    }
+    fn simulate(
+        &mut self,
+        anim: &mut engine::Animator,
+        plan: &engine::StepPlan,
+        stats: &mut engine::FrameStats,
+    ) -> Result<(), EngineError> {
+        self.inner.simulate(anim, plan, stats)
+    }
+    fn fill(
+        &mut self,
+        light: usize,
+        map: &mut shadow::DensityMap,
+        hair: &strands::Hair,
+        fiber: &shadow::Fiber,
+        version: Option<u64>,
+    ) -> Result<shadow::FillStats, EngineError> {
+        self.inner.fill(light, map, hair, fiber, version)
+    }
+    fn sweep(
+        &mut self,
+        light: usize,
+        map: &shadow::DensityMap,
+    ) -> Result<shadow::Transmittance, EngineError> {
+        self.inner.sweep(light, map)
+    }
+    fn draws(&self) -> bool {
+        self.inner.draws()
+    }
+    fn composites(&self) -> bool {
+        self.inner.composites()
+    }
+    fn pose(&mut self, plan: &engine::PosePlan) -> Result<engine::PoseReport, EngineError> {
+        self.inner.pose(plan)
+    }
+    fn draw(&mut self, job: &engine::DrawJob) -> Result<engine::DrawReport, EngineError> {
+        self.inner.draw(job)
+    }
+    fn draw_ahead(&mut self, job: &engine::DrawJob) -> Result<engine::DrawReport, EngineError> {
+        let mut r = self.inner.draw_ahead(job)?;
+        if job.version >= self.at && !self.gave_up.load(Ordering::Relaxed) {
+            let real = r.pending.take().expect("composited on the workers");
+            real.wait()?;
+            self.gave_up.store(true, Ordering::Relaxed);
+            r.pending = Some(engine::PendingPicture::new(|| {
+                Err(EngineError::Executor("given up".into()))
+            }));
+        }
+        Ok(r)
+    }
+    fn redraw(&mut self, job: &engine::DrawJob) -> Result<engine::DrawReport, EngineError> {
+        self.inner.redraw(job)
+    }
+}
+
+#[test]
+fn a_picture_given_up_after_the_next_frames_stages_is_drawn_again_with_the_same_bytes() {
+    let scene = Scene::from_toml_str(DANCE, std::path::Path::new("dance.toml")).unwrap();
+    let want = local_frames(&scene, 5);
+    let addrs: Vec<String> = (0..3).map(|_| start_worker().to_string()).collect();
+    let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::Workers, 20)).unwrap();
+    let timing = remote.timing();
+    let gave_up = Arc::new(AtomicBool::new(false));
+    let mut seq = Sequence::new(&scene).unwrap();
+    seq.set_executor(Box::new(GivesUp {
+        inner: remote,
+        at: 3,
+        gave_up: gave_up.clone(),
+    }))
+    .unwrap();
+    seq.expect_frames(want.len() as u64);
+    for (i, w) in want.iter().enumerate() {
+        let (img, _) = seq.next_frame().unwrap();
+        assert!(img == w, "frame {i} differs from one process");
+    }
+    assert!(gave_up.load(Ordering::Relaxed), "a picture was given up");
+    let t = *timing.lock().unwrap();
+    assert_eq!((t.workers_lost, t.composite_fallbacks), (0, 0), "{t:?}");
 }

@@ -111,15 +111,40 @@ pub struct DrawJob {
     pub head: Affine3A,
 }
 
+/// The rest of a picture being finished elsewhere: see
+/// [`Executor::draw_ahead`].
+pub struct PendingPicture(Box<dyn FnOnce() -> Result<image::RgbImage, EngineError> + Send>);
+
+impl PendingPicture {
+    pub fn new(
+        finish: impl FnOnce() -> Result<image::RgbImage, EngineError> + Send + 'static,
+    ) -> PendingPicture {
+        PendingPicture(Box::new(finish))
+    }
+
+    /// Waits for the finished picture.
+    pub fn wait(self) -> Result<image::RgbImage, EngineError> {
+        (self.0)()
+    }
+}
+
+impl std::fmt::Debug for PendingPicture {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("PendingPicture")
+    }
+}
+
 /// What drawing elsewhere gave: the partial pictures, to composite (or
-/// the finished picture, composited where the hair is), and the slowest
-/// share's milliseconds of each stage.
-#[derive(Debug, Clone, Default)]
+/// the finished picture, composited where the hair is, or the promise of
+/// it), and the slowest share's milliseconds of each stage.
+#[derive(Debug, Default)]
 pub struct DrawReport {
     pub layers: Vec<HairLayer>,
     /// The finished picture, head and background included, when the
     /// executor composited it (see [`Executor::composites`]).
     pub picture: Option<image::RgbImage>,
+    /// The finished picture still on its way (see [`Executor::draw_ahead`]).
+    pub pending: Option<PendingPicture>,
     pub filter_ms: f64,
     pub shade_ms: f64,
     pub raster_ms: f64,
@@ -174,6 +199,20 @@ pub trait Executor: Send + Sync + std::fmt::Debug {
     /// not draw the head); a report without one is composited here.
     fn composites(&self) -> bool {
         false
+    }
+    /// [`Self::draw`], free to return once the hair is rasterized and
+    /// before its picture is finished: the report's `pending` then gives
+    /// it, while the caller runs the next frame's stages through this
+    /// executor. When the pending picture fails, [`Self::redraw`] draws
+    /// the frame of `job` again.
+    fn draw_ahead(&mut self, job: &DrawJob) -> Result<DrawReport, EngineError> {
+        self.draw(job)
+    }
+    /// Draws the frame of `job` again after its pending picture failed
+    /// (whatever stages of later frames ran since), as partial pictures
+    /// to composite here or as a finished picture.
+    fn redraw(&mut self, job: &DrawJob) -> Result<DrawReport, EngineError> {
+        self.draw(job)
     }
     /// Poses the drawn hair as `plan` says, where it is held (after the
     /// simulation's steps, if any), and reports on it.

@@ -188,16 +188,24 @@ pub struct Sequence {
     compositor: Option<rayon::ThreadPool>,
 }
 
-/// `composite` resolved (on `pool`'s threads when given), and its
-/// milliseconds.
+/// `composite` waited for and resolved (on `pool`'s threads when given),
+/// and its milliseconds; a picture finished elsewhere that failed gives
+/// back the composite with the error.
+#[allow(clippy::type_complexity)]
 fn resolve_timed(
-    composite: Composite,
+    mut composite: Composite,
     pool: Option<&rayon::ThreadPool>,
-) -> ((Option<raster::Canvas>, image::RgbImage), f64) {
+) -> (
+    Result<(Option<raster::Canvas>, image::RgbImage), (Composite, EngineError)>,
+    f64,
+) {
     let t = Instant::now();
-    let out = match pool {
-        Some(p) => p.install(|| composite.resolve()),
-        None => composite.resolve(),
+    let out = match composite.wait() {
+        Err(e) => Err((composite, e)),
+        Ok(()) => Ok(match pool {
+            Some(p) => p.install(|| composite.resolve()),
+            None => composite.resolve(),
+        }),
     };
     (out, t.elapsed().as_secs_f64() * 1e3)
 }
@@ -330,13 +338,22 @@ impl Sequence {
                 let job = self.renderer.draw_job(version, fx.self_shadow)?;
                 let start = Instant::now();
                 let ex = self.executor.as_mut();
-                let elsewhere = ex.composites();
+                // Ahead of the next frame, the head is drawn here too (while
+                // the hair's call waits): if the picture finished elsewhere
+                // fails once this frame's stages are gone, the frame drawn
+                // again is composited on it.
+                let elsewhere = ex.composites() && !more;
                 let (composite, drawn) =
-                    self.renderer
-                        .compose_later(fx.self_shadow, elsewhere, || ex.draw(&job))?;
+                    self.renderer.compose_later(fx.self_shadow, elsewhere, || {
+                        if more {
+                            ex.draw_ahead(&job)
+                        } else {
+                            ex.draw(&job)
+                        }
+                    })?;
                 let mut ms = start.elapsed().as_secs_f64() * 1e3;
                 drop(span);
-                let ((canvas, img), resolve_ms) = if more {
+                let (finished, resolve_ms) = if more {
                     // Composited in a thread of its own while the next
                     // frame's stages run here.
                     let pool = self.compositor.take().or_else(compositor_pool);
@@ -353,6 +370,26 @@ impl Sequence {
                     resolved
                 } else {
                     resolve_timed(composite, None)
+                };
+                let (canvas, img) = match finished {
+                    Ok(done) => done,
+                    Err((mut composite, e)) => {
+                        let _span = tracing::warn_span!("frame", index).entered();
+                        tracing::warn!(error = %e, "the picture finished elsewhere failed; the frame is drawn again");
+                        let again = self.executor.redraw(&job)?;
+                        let t = Instant::now();
+                        let done = match again.picture {
+                            Some(img) => (None, img),
+                            None if composite.add_layers(again.layers) => composite.resolve(),
+                            None => {
+                                return Err(EngineError::Executor(format!(
+                                    "frame {index} could not be drawn again: {e}"
+                                )));
+                            }
+                        };
+                        ms += t.elapsed().as_secs_f64() * 1e3;
+                        done
+                    }
                 };
                 ms += resolve_ms;
                 self.renderer.restore_canvas(canvas);

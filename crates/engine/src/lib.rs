@@ -28,8 +28,8 @@ pub mod share;
 
 pub use animate::{Animator, GROUPS, Groups, split_by};
 pub use exec::{
-    DrawJob, DrawReport, Executor, LocalExecutor, PosePlan, PoseReport, StepPlan, step_wisps,
-    step_wisps_while,
+    DrawJob, DrawReport, Executor, LocalExecutor, PendingPicture, PosePlan, PoseReport, StepPlan,
+    step_wisps, step_wisps_while,
 };
 pub use frames::{FrameStats, Sequence, Stage, StageRecord};
 pub use head::Head;
@@ -40,7 +40,7 @@ pub use scene::{
     Animation, BodySettings, Collision, Dynamics, Effects, HairSource, HeadMesh, HeadSettings,
     Scene, SceneError, SceneSource, ShadowSettings,
 };
-pub use share::{BandPlan, DrawTimes, Share};
+pub use share::{BandPlan, BandWork, DrawTimes, Share};
 
 /// Errors of the engine, each naming what is wrong and where.
 #[derive(Debug, thiserror::Error)]

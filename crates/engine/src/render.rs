@@ -9,7 +9,7 @@ use raster::{Camera, Canvas, HairLayer};
 use strands::{Bounds, Hair};
 
 use crate::part::{draw_head, head_lambert};
-use crate::{DrawJob, DrawReport, EngineError, HairPart, Scene, ShadowPipeline};
+use crate::{DrawJob, DrawReport, EngineError, HairPart, PendingPicture, Scene, ShadowPipeline};
 
 pub use crate::part::DEFAULT_HAIR_COLOR;
 
@@ -305,7 +305,8 @@ impl Renderer {
         shadows: bool,
         hair: impl FnOnce() -> Result<DrawReport, EngineError> + Send,
     ) -> Result<(image::RgbImage, DrawReport), EngineError> {
-        let (composite, drawn) = self.compose_later(shadows, false, hair)?;
+        let (mut composite, drawn) = self.compose_later(shadows, false, hair)?;
+        composite.wait()?;
         let (canvas, img) = composite.resolve();
         self.restore_canvas(canvas);
         Ok((img, drawn))
@@ -328,16 +329,15 @@ impl Renderer {
         let background = self.scene.render.background;
         let mut drawn = if head_elsewhere {
             let mut drawn = hair()?;
-            if let Some(img) = drawn.picture.take() {
-                return Ok((
-                    Composite {
-                        canvas: None,
-                        layers: Vec::new(),
-                        background,
-                        finished: Some(img),
-                    },
-                    drawn,
-                ));
+            if drawn.picture.is_some() || drawn.pending.is_some() {
+                let composite = Composite {
+                    canvas: None,
+                    layers: Vec::new(),
+                    background,
+                    finished: drawn.picture.take(),
+                    pending: drawn.pending.take(),
+                };
+                return Ok((composite, drawn));
             }
             self.canvas_with_head(shadows)?;
             drawn
@@ -372,16 +372,14 @@ impl Renderer {
             self.canvas = Some(canvas);
             return Err(EngineError::Executor(msg));
         }
-        let layers = std::mem::take(&mut drawn.layers);
-        Ok((
-            Composite {
-                canvas: Some(canvas),
-                layers,
-                background,
-                finished: None,
-            },
-            drawn,
-        ))
+        let composite = Composite {
+            canvas: Some(canvas),
+            layers: std::mem::take(&mut drawn.layers),
+            background,
+            finished: drawn.picture.take(),
+            pending: drawn.pending.take(),
+        };
+        Ok((composite, drawn))
     }
 
     /// Gives back the canvas a [`Composite`] resolved on, to be reused.
@@ -393,18 +391,55 @@ impl Renderer {
 }
 
 /// A frame's head and the partial pictures of its hair, not yet
-/// composited (or its finished picture): see [`Renderer::compose_later`].
+/// composited (or its finished picture, or the promise of it): see
+/// [`Renderer::compose_later`].
 #[derive(Debug)]
 pub struct Composite {
     canvas: Option<Canvas>,
     layers: Vec<HairLayer>,
     background: Vec3,
     finished: Option<image::RgbImage>,
+    pending: Option<PendingPicture>,
 }
 
 impl Composite {
-    /// The finished picture, and the canvas for the renderer to reuse.
+    /// Waits for the picture finished elsewhere, if one is on its way: its
+    /// error when it fails (the composite then holds the head drawn here,
+    /// when it was, for [`Self::add_layers`] of the frame drawn again).
+    pub fn wait(&mut self) -> Result<(), EngineError> {
+        if let Some(p) = self.pending.take() {
+            self.finished = Some(p.wait()?);
+        }
+        Ok(())
+    }
+
+    /// Whether the head was drawn here, to composite partial pictures on.
+    pub fn has_head(&self) -> bool {
+        self.canvas.is_some()
+    }
+
+    /// Adds partial pictures to composite (a frame drawn again), in place
+    /// of a finished picture; false (and nothing changes) when a layer is
+    /// not of this picture's size or no head was drawn here.
+    pub fn add_layers(&mut self, layers: Vec<HairLayer>) -> bool {
+        let Some(c) = &self.canvas else {
+            return false;
+        };
+        if layers
+            .iter()
+            .any(|l| l.width() != c.width() || l.height() != c.height())
+        {
+            return false;
+        }
+        self.finished = None;
+        self.layers.extend(layers);
+        true
+    }
+
+    /// The finished picture, and the canvas for the renderer to reuse
+    /// (after [`Self::wait`]).
     pub fn resolve(self) -> (Option<Canvas>, image::RgbImage) {
+        assert!(self.pending.is_none(), "waited for before resolving");
         match (self.finished, self.canvas) {
             (Some(img), canvas) => (canvas, img),
             (None, Some(canvas)) => {

@@ -112,6 +112,54 @@ impl BandPlan {
     }
 }
 
+/// A share's bands of a picture composited on the workers, rasterized and
+/// waiting for the other workers' stripes (see [`Share::draw_band`]).
+#[derive(Debug)]
+pub struct BandWork {
+    canvas: Canvas,
+    own: Vec<Range<u32>>,
+    /// This share's own hair in its bands.
+    mine: Option<HairLayer>,
+    background: Vec3,
+    /// The times so far: filter, shade, raster.
+    pub times: DrawTimes,
+}
+
+impl BandWork {
+    /// The canvas alone, when the work is given up.
+    pub fn into_canvas(self) -> Canvas {
+        self.canvas
+    }
+
+    /// The other shares' stripes of this share's bands, `others`, added to
+    /// its own hair over the head: each band, top to bottom, as its rows
+    /// and their finished 8-bit sRGB pixels (the same bytes as those rows
+    /// of the whole picture drawn in one process); the times, and the
+    /// canvas, to give back to the share.
+    #[allow(clippy::type_complexity)]
+    pub fn resolve(
+        self,
+        others: Vec<HairLayer>,
+    ) -> (Vec<(Range<u32>, Vec<u8>)>, DrawTimes, Canvas) {
+        let t = Instant::now();
+        let mut layers = others;
+        layers.extend(self.mine);
+        let out = self
+            .own
+            .into_iter()
+            .map(|rows| {
+                let rgb = self
+                    .canvas
+                    .resolve_layer_rows(self.background, &layers, rows.clone());
+                (rows, rgb)
+            })
+            .collect();
+        let mut times = self.times;
+        times.composite_ms = ms(t);
+        (out, times, self.canvas)
+    }
+}
+
 /// Milliseconds of the stages of one [`Share::draw`].
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct DrawTimes {
@@ -306,61 +354,68 @@ impl Share {
         Ok(times)
     }
 
-    /// [`Self::draw`] composited on the workers, as `plan` says: the
-    /// stripe of each other worker's band handed to `send(worker, stripe)`
-    /// as it is rasterized, top to bottom, then `gather()`'s layers (the
-    /// other shares' stripes of this share's bands) added to this share's
-    /// own hair over the head: each of this share's bands, top to bottom,
-    /// as its rows and their finished 8-bit sRGB pixels, the same bytes as
-    /// those rows of the whole picture drawn in one process.
-    #[allow(clippy::type_complexity)]
+    /// [`Self::draw`] composited on the workers, as `plan` says, up to the
+    /// compositing: the stripe of each other worker's band handed to
+    /// `send(worker, stripe)` as it is rasterized, top to bottom, then this
+    /// share's own bands rasterized; [`BandWork::resolve`] finishes them
+    /// with the others' stripes, away from the share (which may meanwhile
+    /// step and fill the next frame). The canvas goes with the work; hand
+    /// it back with [`Self::put_canvas`].
     pub fn draw_band(
         &mut self,
         job: &DrawJob,
         maps: &[Transmittance],
         plan: &BandPlan,
         mut send: impl FnMut(usize, HairLayer) -> Result<(), EngineError>,
-        gather: impl FnOnce() -> Result<Vec<HairLayer>, EngineError>,
-    ) -> Result<(Vec<(Range<u32>, Vec<u8>)>, DrawTimes), EngineError> {
+    ) -> Result<BandWork, EngineError> {
         let height = job.camera.height();
         plan.check(height)?;
         let own = plan.rows_of(plan.own);
         let background = self.background;
-        let (canvas, mut times) = self.bin(job, maps, Some(plan))?;
-        for b in 0..plan.bands() {
-            let to = plan.owner(b);
-            if to == plan.own {
-                continue;
+        let (_, mut times) = self.bin(job, maps, Some(plan))?;
+        let canvas = self.canvas.take().expect("binned above");
+        let sent = (|| {
+            for b in 0..plan.bands() {
+                let to = plan.owner(b);
+                if to == plan.own {
+                    continue;
+                }
+                let t = Instant::now();
+                let stripe = canvas.layer_rows(plan.rows(b));
+                times.raster_ms += ms(t);
+                send(to, stripe)?;
             }
-            let t = Instant::now();
-            let stripe = canvas.layer_rows(plan.rows(b));
-            times.raster_ms += ms(t);
-            send(to, stripe)?;
+            Ok(())
+        })();
+        if let Err(e) = sent {
+            self.canvas = Some(canvas);
+            return Err(e);
         }
         // This share's own bands, while the others' stripes travel.
         let t = Instant::now();
-        let mut layers: Vec<HairLayer> = Vec::with_capacity(plan.workers);
+        let mut mine: Option<HairLayer> = None;
         for rows in &own {
             let l = canvas.layer_rows(rows.clone());
-            match layers.first_mut() {
+            match &mut mine {
                 Some(all) => all.append_layer(l),
-                None => layers.push(l),
+                None => mine = Some(l),
             }
         }
         times.raster_ms += ms(t);
-        let t = Instant::now();
-        layers.extend(gather()?);
-        times.wait_ms = ms(t);
-        let t = Instant::now();
-        let out = own
-            .into_iter()
-            .map(|rows| {
-                let rgb = canvas.resolve_layer_rows(background, &layers, rows.clone());
-                (rows, rgb)
-            })
-            .collect();
-        times.composite_ms = ms(t);
-        Ok((out, times))
+        Ok(BandWork {
+            canvas,
+            own,
+            mine,
+            background,
+            times,
+        })
+    }
+
+    /// Gives back the canvas of a [`BandWork`], for the next draw.
+    pub fn put_canvas(&mut self, canvas: Canvas) {
+        if self.canvas.is_none() {
+            self.canvas = Some(canvas);
+        }
     }
 
     /// Filters, shades and bins the posed strands for `job`: the canvas

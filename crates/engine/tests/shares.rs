@@ -166,3 +166,110 @@ fn rigid_hair_on_a_moving_head_drawn_in_shares_is_the_same_bytes() {
         assert!(frames(&s, Some(split), 3) == one, "split {split:?}");
     }
 }
+
+/// Shares whose pictures are left to finish (as cluster workers composite
+/// them) and, at the `fail`-th, fail to: that frame is drawn again.
+#[derive(Debug)]
+struct Unfinished {
+    shares: Shares,
+    /// Which call of `draw_ahead` leaves a picture that fails (from 1).
+    fail: u64,
+    calls: u64,
+    /// The partial pictures of the frame last drawn ahead, by its version.
+    kept: Option<(u64, Vec<raster::HairLayer>)>,
+    redrawn: std::sync::Arc<std::sync::atomic::AtomicU32>,
+}
+
+impl Executor for Unfinished {
+    fn simulate(
+        &mut self,
+        anim: &mut Animator,
+        plan: &StepPlan,
+        stats: &mut FrameStats,
+    ) -> Result<(), EngineError> {
+        self.shares.simulate(anim, plan, stats)
+    }
+
+    fn fill(
+        &mut self,
+        light: usize,
+        map: &mut DensityMap,
+        hair: &Hair,
+        fiber: &Fiber,
+        version: Option<u64>,
+    ) -> Result<FillStats, EngineError> {
+        self.shares.fill(light, map, hair, fiber, version)
+    }
+
+    fn sweep(&mut self, light: usize, map: &DensityMap) -> Result<Transmittance, EngineError> {
+        self.shares.sweep(light, map)
+    }
+
+    fn draws(&self) -> bool {
+        true
+    }
+
+    fn pose(&mut self, plan: &PosePlan) -> Result<PoseReport, EngineError> {
+        self.shares.pose(plan)
+    }
+
+    fn draw(&mut self, job: &DrawJob) -> Result<DrawReport, EngineError> {
+        self.shares.draw(job)
+    }
+
+    fn draw_ahead(&mut self, job: &DrawJob) -> Result<DrawReport, EngineError> {
+        let mut drawn = self.shares.draw(job)?;
+        let layers = std::mem::take(&mut drawn.layers);
+        self.calls += 1;
+        let fails = self.calls == self.fail;
+        if fails {
+            self.kept = Some((job.version, layers));
+            drawn.pending = Some(engine::PendingPicture::new(|| {
+                Err(EngineError::Executor("a worker went away".into()))
+            }));
+        } else {
+            drawn.layers = layers;
+        }
+        Ok(drawn)
+    }
+
+    fn redraw(&mut self, job: &DrawJob) -> Result<DrawReport, EngineError> {
+        // Later frames' stages ran since: the shares no longer hold this
+        // frame's hair, but what they drew of it is kept.
+        let (v, layers) = self.kept.take().expect("a frame drawn ahead failed");
+        assert_eq!(v, job.version);
+        self.redrawn
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        Ok(DrawReport {
+            layers,
+            ..DrawReport::default()
+        })
+    }
+}
+
+#[test]
+fn a_picture_that_fails_to_finish_is_drawn_again_on_its_own_head() {
+    let s = scene(
+        "[hair]\nstrands_per_wisp = 3\n[render]\nwidth = 120\nheight = 80\n[shadow]\ncells = 48\n\
+         [animation]\nmotion = \"dance\"\n[dynamics]\nsettle = 0.1\n",
+    );
+    let one = frames(&s, None, 5);
+    let redrawn = std::sync::Arc::new(std::sync::atomic::AtomicU32::new(0));
+    let mut seq = Sequence::new(&s).unwrap();
+    seq.set_executor(Box::new(Unfinished {
+        shares: Shares::new(&s, &[0..2, 2..4, 4..6]),
+        fail: 2,
+        calls: 0,
+        kept: None,
+        redrawn: redrawn.clone(),
+    }))
+    .unwrap();
+    // Each frame runs the next one's stages while its picture finishes:
+    // the head the frame drawn again is composited on is its own frame's,
+    // under its own frame's shadow.
+    seq.expect_frames(5);
+    for (f, want) in one.iter().enumerate() {
+        assert!(seq.next_frame().unwrap().0 == want, "frame {f}");
+    }
+    assert_eq!(redrawn.load(std::sync::atomic::Ordering::Relaxed), 1);
+}

@@ -670,9 +670,19 @@ impl BandReader {
         }
         if c.rows == 0 && c.spans.is_empty() && c.rgb.is_empty() {
             if let Some(t) = times_of(c) {
-                self.times = t;
+                if c.drawn {
+                    self.times = engine::DrawTimes {
+                        wait_ms: self.times.wait_ms,
+                        composite_ms: self.times.composite_ms,
+                        ..t
+                    };
+                } else {
+                    self.times = t;
+                }
             }
-            self.stripes_sent = c.stripes_sent;
+            if !c.drawn {
+                self.stripes_sent = c.stripes_sent;
+            }
             return Ok(());
         }
         while self.at < self.bands.len() && self.next_row(self.at) == self.bands[self.at].0.end {
