@@ -38,7 +38,7 @@ pub use pipeline::{ShadowPipeline, StageTimes, build_hair, drawn_segments};
 pub use render::{Composite, FrameTimes, Renderer};
 pub use scene::{
     Animation, BodySettings, Collision, Dynamics, Effects, HairSource, HeadMesh, HeadSettings,
-    Scene, SceneError, SceneSource, ShadowSettings,
+    Placement, Scene, SceneError, SceneSource, ShadowSettings,
 };
 pub use share::{BandPlan, BandWork, DrawTimes, Share};
 

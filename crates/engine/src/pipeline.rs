@@ -34,8 +34,13 @@ pub fn build_hair(scene: &Scene) -> Result<Hair, EngineError> {
             check_size(segs)?;
             WispModel::generate(p).interpolate()
         }
-        HairSource::File { path, follow } => {
-            let guides = load_groom(scene, path)?;
+        HairSource::File {
+            path,
+            follow,
+            place,
+        } => {
+            let mut guides = load_groom(scene, path)?;
+            place.apply(&mut guides);
             match follow {
                 Some(f) => {
                     check_size(
@@ -69,8 +74,13 @@ pub fn drawn_segments(scene: &Scene) -> Result<u64, EngineError> {
     let sub = u64::from(scene.subdivide);
     let segs = match &scene.hair {
         HairSource::Style(p) => u64::from(p.wisps) * u64::from(p.strands_per_wisp) * 31 * sub,
-        HairSource::File { path, follow } => {
-            let guides = load_groom(scene, path)?;
+        HairSource::File {
+            path,
+            follow,
+            place,
+        } => {
+            let mut guides = load_groom(scene, path)?;
+            place.apply(&mut guides);
             let per = follow.as_ref().map_or(1, |f| u64::from(f.followers) + 1);
             guides.segment_count() as u64 * per * sub
         }

@@ -10,6 +10,9 @@
 //! followers = 15            # files: follow strands grown per file strand (default 15 for .tfx, 0 for .hair)
 //! follow_radius = 0.4       # files: root disc radius of follow strands, scene units
 //! tip_spread = 1.5          # files: follow offset at the tip / at the root
+//! scale = 1.0               # files and strands: p' = translate + R_z R_y R_x (scale p)
+//! rotate_deg = [0, 0, 0]    # files and strands: degrees about x, then y, then z
+//! translate = [0, 0, 0]     # files and strands: scene units
 //!
 //! [fiber]
 //! width = 0.1               # effective width w of one drawn strand, scene units
@@ -156,6 +159,9 @@ struct RawHair {
     followers: Option<i64>,
     follow_radius: Option<f32>,
     tip_spread: Option<f32>,
+    scale: Option<f32>,
+    rotate_deg: Option<[f32; 3]>,
+    translate: Option<[f32; 3]>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -197,10 +203,61 @@ pub enum HairSource {
     File {
         path: PathBuf,
         follow: Option<FollowParams>,
+        /// Where the groom goes in the scene (`hair.scale`,
+        /// `hair.rotate_deg`, `hair.translate`), before follow strands grow.
+        place: Placement,
     },
     /// Strands written out in the scene (`hair.strands`): small test
     /// cases and bug reports that need no other file.
     Inline(Hair),
+}
+
+/// How a groom read from a file (or written out in the scene) is placed
+/// in the scene: scaled by `scale` about the origin, then turned by
+/// `rotate_deg` (degrees about x, then y, then z, fixed axes), then moved
+/// by `translate` (scene units):
+///
+/// ```text
+/// p' = translate + R_z R_y R_x (scale p)
+/// ```
+///
+/// For a groom in millimetres, `scale = 0.1` gives centimetres, the
+/// built-in styles' unit; for one whose up axis is +z, `rotate_deg =
+/// [-90, 0, 0]` stands it up along +y.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Placement {
+    pub scale: f32,
+    pub rotate_deg: Vec3,
+    pub translate: Vec3,
+}
+
+impl Placement {
+    pub const IDENTITY: Placement = Placement {
+        scale: 1.0,
+        rotate_deg: Vec3::ZERO,
+        translate: Vec3::ZERO,
+    };
+
+    /// The transform `p -> p'` above.
+    pub fn affine(&self) -> glam::Affine3A {
+        let r = self.rotate_deg * (std::f32::consts::PI / 180.0);
+        let rotation = glam::Quat::from_euler(glam::EulerRot::ZYX, r.z, r.y, r.x);
+        glam::Affine3A::from_scale_rotation_translation(
+            Vec3::splat(self.scale),
+            rotation,
+            self.translate,
+        )
+    }
+
+    /// Places every point of `hair` (nothing to do for the identity).
+    pub fn apply(&self, hair: &mut Hair) {
+        if *self != Placement::IDENTITY {
+            let a = self.affine();
+            hair.points_mut()
+                .iter_mut()
+                .for_each(|p| *p = a.transform_point3(*p));
+        }
+    }
 }
 
 /// At most this many points written out in `hair.strands`.
@@ -650,6 +707,28 @@ impl Validator<'_> {
         }
     }
 
+    /// `hair.scale`, `hair.rotate_deg`, `hair.translate`: finite, the
+    /// scale in (0, 1e6], the offset within 1e9 scene units.
+    fn placement(&self, h: &RawHair) -> Result<Placement, SceneError> {
+        let scale = h.scale.unwrap_or(1.0);
+        if !(scale > 0.0 && scale <= 1e6) {
+            return Err(self.invalid("hair.scale", scale, "must be a number in (0, 1e6]"));
+        }
+        let three = |field: &'static str, v: Option<[f32; 3]>, max: f32| match v {
+            Some(a) if !a.iter().all(|x| x.is_finite() && x.abs() <= max) => Err(self.invalid(
+                field,
+                format!("{a:?}"),
+                format!("each component must be finite, within {max:e}"),
+            )),
+            v => Ok(Vec3::from_array(v.unwrap_or([0.0; 3]))),
+        };
+        Ok(Placement {
+            scale,
+            rotate_deg: three("hair.rotate_deg", h.rotate_deg, 1e6)?,
+            translate: three("hair.translate", h.translate, 1e9)?,
+        })
+    }
+
     /// `hair.strands`: every coordinate finite, at most
     /// [`MAX_INLINE_POINTS`] points. Strands of one point or none are kept
     /// (they draw and shadow nothing).
@@ -699,6 +778,7 @@ impl Validator<'_> {
             ("hair.follow_radius", h.follow_radius.is_some()),
             ("hair.tip_spread", h.tip_spread.is_some()),
         ];
+        let place = self.placement(&h)?;
         let hair = match (&h.strands, &h.file) {
             (Some(strands), _) => {
                 self.refuse_set(&follow_keys, "does not apply to hair.strands")?;
@@ -706,7 +786,9 @@ impl Validator<'_> {
                     &[("hair.seed", h.seed.is_some())],
                     "does not apply to hair.strands",
                 )?;
-                HairSource::Inline(self.inline_strands(strands)?)
+                let mut hair = self.inline_strands(strands)?;
+                place.apply(&mut hair);
+                HairSource::Inline(hair)
             }
             (None, Some(file)) => {
                 let path = self.relative(file);
@@ -727,9 +809,21 @@ impl Validator<'_> {
                     tip_spread,
                     seed,
                 });
-                HairSource::File { path, follow }
+                HairSource::File {
+                    path,
+                    follow,
+                    place,
+                }
             }
             (None, None) => {
+                self.refuse_set(
+                    &[
+                        ("hair.scale", h.scale.is_some()),
+                        ("hair.rotate_deg", h.rotate_deg.is_some()),
+                        ("hair.translate", h.translate.is_some()),
+                    ],
+                    "places a groom from hair.file or hair.strands; a style grows on the head",
+                )?;
                 let name = h.style.as_deref().unwrap_or("smooth");
                 let style = Style::from_name(name).ok_or_else(|| {
                     self.invalid(
@@ -1112,10 +1206,58 @@ mod tests {
     }
 
     #[test]
+    fn a_groom_is_scaled_then_turned_about_x_y_z_then_moved() {
+        let points = |extra: &str| {
+            let text = format!("[hair]\nstrands = [[[0, 0, 1], [1, 0, 0], [0, 1, 0]]]\n{extra}");
+            match parse(&text).unwrap().hair {
+                HairSource::Inline(h) => h.points().to_vec(),
+                other => panic!("{other:?}"),
+            }
+        };
+        let near = |a: &[Vec3], b: &[[f32; 3]]| {
+            a.len() == b.len()
+                && a.iter()
+                    .zip(b)
+                    .all(|(p, q)| (*p - Vec3::from_array(*q)).length() < 1e-4)
+        };
+        assert!(near(
+            &points(""),
+            &[[0., 0., 1.], [1., 0., 0.], [0., 1., 0.]]
+        ));
+        // Millimetres with +z up: a tenth, stood up (+z to +y), raised.
+        let p = points("scale = 10\nrotate_deg = [-90, 0, 0]\ntranslate = [0, 1, 0]\n");
+        assert!(
+            near(&p, &[[0., 11., 0.], [10., 1., 0.], [0., 1., -10.]]),
+            "{p:?}"
+        );
+        // About x first, then y: +y goes to +z, then to +x.
+        let p = points("rotate_deg = [90, 90, 0]\n");
+        assert!(near(&p[2..], &[[1., 0., 0.]]), "{p:?}");
+        for (bad, field) in [
+            ("scale = 0", "hair.scale"),
+            ("scale = -2", "hair.scale"),
+            ("scale = nan", "hair.scale"),
+            ("rotate_deg = [0, inf, 0]", "hair.rotate_deg"),
+            ("translate = [1e30, 0, 0]", "hair.translate"),
+        ] {
+            let e = parse(&format!("[hair]\nfile = \"g.hair\"\n{bad}\n")).unwrap_err();
+            assert!(e.to_string().contains(field), "{bad}: {e}");
+        }
+        let e = parse("[hair]\nstyle = \"curly\"\nscale = 2\n").unwrap_err();
+        assert!(e.to_string().contains("hair.scale"), "{e}");
+        let s = parse("[hair]\nfile = \"g.data\"\nscale = 0.1\n").unwrap();
+        assert!(
+            matches!(s.hair, HairSource::File { place, .. } if place.scale == 0.1),
+            "{:?}",
+            s.hair
+        );
+    }
+
+    #[test]
     fn files_are_relative_to_the_scene_and_tfx_grows_followers() {
         let s = parse("[hair]\nfile = \"groom.tfx\"\n").unwrap();
         match s.hair {
-            HairSource::File { path, follow } => {
+            HairSource::File { path, follow, .. } => {
                 assert_eq!(path, Path::new("dir/groom.tfx"));
                 assert_eq!(follow.unwrap().followers, 15);
             }
@@ -1123,7 +1265,7 @@ mod tests {
         }
         let s = parse("[hair]\nfile = \"/abs/x.hair\"\n").unwrap();
         assert!(
-            matches!(s.hair, HairSource::File { ref path, follow: None } if path == Path::new("/abs/x.hair"))
+            matches!(s.hair, HairSource::File { ref path, follow: None, .. } if path == Path::new("/abs/x.hair"))
         );
     }
 

@@ -264,3 +264,58 @@ fn the_hairs_shadow_on_the_head_is_smooth_and_still_there() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn a_groom_in_millimetres_lying_on_its_side_is_placed_by_the_scene() {
+    let dir = std::env::temp_dir().join(format!("wisplight-place-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // USC-HairSalon layout: strand count, then per strand its point count
+    // and points. Hair 40 mm long along +x, 16 strands 2 mm apart in z.
+    let (mut mm, mut cm) = (Vec::new(), Vec::<Vec<[f32; 3]>>::new());
+    mm.extend(16i32.to_le_bytes());
+    for s in 0..16 {
+        mm.extend(5i32.to_le_bytes());
+        let mut strand = Vec::new();
+        for k in 0..5 {
+            let p = [10.0 * k as f32, 0.0, 2.0 * s as f32 - 15.0];
+            mm.extend(p.iter().flat_map(|v| v.to_le_bytes()));
+            // Placed by hand: a tenth, +x turned to -y (about z by -90
+            // degrees: (x, y, z) -> (y, -x, z)), raised 2 cm.
+            strand.push([p[1] / 10.0, -p[0] / 10.0 + 2.0, p[2] / 10.0]);
+        }
+        cm.push(strand);
+    }
+    std::fs::write(dir.join("side.data"), &mm).unwrap();
+    let placed = Scene::from_toml_str(
+        "[hair]\nfile = \"side.data\"\nscale = 0.1\nrotate_deg = [0, 0, -90]\ntranslate = [0, 2, 0]\n",
+        &dir.join("scene.toml"),
+    )
+    .unwrap();
+    let by_hand = Scene::from_toml_str(
+        &format!("[hair]\nstrands = {cm:?}\n"),
+        &dir.join("scene.toml"),
+    )
+    .unwrap();
+    let (a, b) = (
+        engine::build_hair(&placed).unwrap(),
+        engine::build_hair(&by_hand).unwrap(),
+    );
+    assert_eq!(a.point_count(), b.point_count());
+    let worst = a
+        .points()
+        .iter()
+        .zip(b.points())
+        .map(|(p, q)| p.distance(*q))
+        .fold(0.0f32, f32::max);
+    assert!(
+        worst < 1e-4,
+        "placed {worst} cm away from the hand-placed groom"
+    );
+    // Hanging down from y = 2 cm to -2 cm, 1.5 cm either side in z.
+    let bounds = a.bounds();
+    assert!(
+        (bounds.max.y - 2.0).abs() < 1e-4 && (bounds.min.y + 2.0).abs() < 1e-4,
+        "{bounds:?}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
