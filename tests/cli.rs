@@ -250,6 +250,18 @@ fn render_without_a_scene_writes_the_built_in_picture() {
     assert!(stderr(&o).contains("wrote "), "{}", stderr(&o));
     let o = wisplight(&["render", "-q", "-o", out.to_str().unwrap()]);
     assert!(o.status.success() && o.stderr.is_empty(), "{}", stderr(&o));
+    // -v says what the run renders: the groom, the map, the camera.
+    let o = wisplight(&["render", "-v", "-o", out.to_str().unwrap()]);
+    let e = stderr(&o);
+    assert!(o.status.success(), "{e}");
+    for said in [
+        "hair: bounds",
+        "strands=3350",
+        "map: 128^3 cells",
+        "camera: at",
+    ] {
+        assert!(e.contains(said), "-v does not say {said:?}: {e}");
+    }
 }
 
 #[test]

@@ -162,6 +162,9 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
             steps = stats.steps,
             "frame done"
         );
+        if all.is_empty() {
+            describe(&seq);
+        }
         all.push(stats);
         bar.inc(1);
     }
@@ -216,6 +219,59 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
         start.elapsed().as_secs_f64() * 1e3
     );
     Ok(())
+}
+
+/// With `-v`: what the run renders, once its first frame framed the
+/// camera and fitted the maps: the groom, each light's map, the camera.
+fn describe(seq: &Sequence) {
+    let hair = seq.hair();
+    let b = hair.bounds();
+    let size = b.size();
+    tracing::info!(
+        strands = hair.strand_count(),
+        points = hair.point_count(),
+        segments = hair.segment_count(),
+        "hair: bounds [{:.3}, {:.3}, {:.3}] .. [{:.3}, {:.3}, {:.3}], {:.3} x {:.3} x {:.3} scene units",
+        b.min.x,
+        b.min.y,
+        b.min.z,
+        b.max.x,
+        b.max.y,
+        b.max.z,
+        size.x,
+        size.y,
+        size.z
+    );
+    let shadows = seq.renderer().shadows();
+    for l in 0..shadows.light_count() {
+        if let Some(f) = shadows.frame(l) {
+            tracing::info!(
+                light = l,
+                "map: {n}^3 cells of {:.4} scene units ({:.3} a side), light along [{:.3}, {:.3}, {:.3}]",
+                f.ds,
+                f.ds * f.n_cells as f32,
+                f.axes[0].x,
+                f.axes[0].y,
+                f.axes[0].z,
+                n = f.n_cells
+            );
+        }
+    }
+    if let Some(c) = seq.renderer().camera() {
+        let (p, a) = (c.position, c.look_at());
+        tracing::info!(
+            "camera: at [{:.3}, {:.3}, {:.3}] looking at [{:.3}, {:.3}, {:.3}], {:.1} degrees vertical field of view, {}x{}",
+            p.x,
+            p.y,
+            p.z,
+            a.x,
+            a.y,
+            a.z,
+            c.fov_deg(),
+            c.width(),
+            c.height()
+        );
+    }
 }
 
 fn is_gif(p: &Path) -> bool {

@@ -211,6 +211,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
 
     // One process: the reference times and pictures.
     let mut seq = engine::Sequence::new(&scene).context("cannot set up the scene")?;
+    seq.expect_frames(total);
     let mut pictures = Vec::new();
     let mut times = Vec::new();
     for f in 0..total {

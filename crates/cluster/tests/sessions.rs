@@ -83,6 +83,8 @@ fn two_coordinators_on_the_same_workers_each_get_their_own_pictures() {
         .collect();
     let mut seq_a = on_workers(&a, &addrs);
     let mut seq_b = on_workers(&b, &addrs[1..]);
+    seq_a.expect_frames(4);
+    seq_b.expect_frames(4);
     // Frames interleaved, call after call on the shared workers.
     for f in 0..4 {
         assert!(seq_a.next_frame().unwrap().0 == &want_a[f], "A's frame {f}");
@@ -96,6 +98,7 @@ fn a_stray_hello_mid_render_changes_nothing() {
     let want = local_frames(&a, 4);
     let (addr, _stop) = common::start_worker_with(Listen::default());
     let mut seq = on_workers(&a, &[addr.to_string()]);
+    seq.expect_frames(want.len() as u64);
     let rt = tokio::runtime::Runtime::new().unwrap();
     for (f, w) in want.iter().enumerate() {
         if f == 1 {

@@ -108,6 +108,7 @@ fn workers_composite_among_themselves_over_tls_with_the_local_bytes() {
     let (traffic, timing) = (remote.traffic(), remote.timing());
     let mut seq = engine::Sequence::new(&scene).unwrap();
     seq.set_executor(Box::new(remote)).unwrap();
+    seq.expect_frames(want.len() as u64);
     for (i, w) in want.iter().enumerate() {
         assert!(seq.next_frame().unwrap().0 == w, "frame {i}");
     }
@@ -163,6 +164,7 @@ fn workers_that_cannot_call_each_other_leave_the_compositing_to_the_coordinator(
     let (traffic, timing) = (remote.traffic(), remote.timing());
     let mut seq = engine::Sequence::new(&scene).unwrap();
     seq.set_executor(Box::new(remote)).unwrap();
+    seq.expect_frames(want.len() as u64);
     for (i, w) in want.iter().enumerate() {
         assert!(seq.next_frame().unwrap().0 == w, "frame {i}");
     }

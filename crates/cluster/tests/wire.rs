@@ -436,6 +436,7 @@ fn another_shadow_method_draws_on_the_coordinator_with_the_same_bytes() {
     let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::Workers, 20)).unwrap();
     let mut seq = Sequence::new(&scene).unwrap();
     seq.set_executor(Box::new(remote)).unwrap();
+    seq.expect_frames(want.len() as u64);
     for (i, w) in want.iter().enumerate() {
         assert!(seq.next_frame().unwrap().0 == w, "frame {i}");
     }
@@ -451,6 +452,7 @@ fn rigid_hair_drawn_on_workers_is_the_local_animation() {
     let traffic = remote.traffic();
     let mut seq = Sequence::new(&scene).unwrap();
     seq.set_executor(Box::new(remote)).unwrap();
+    seq.expect_frames(want.len() as u64);
     for (i, w) in want.iter().enumerate() {
         assert!(seq.next_frame().unwrap().0 == w, "frame {i}");
     }
@@ -678,6 +680,7 @@ fn workers_silent_or_unreachable_at_startup_are_left_out_and_the_run_carries_on(
     assert!(t.elapsed() < Duration::from_secs(10), "{:?}", t.elapsed());
     let mut seq = Sequence::new(&scene).unwrap();
     seq.set_executor(Box::new(remote)).unwrap();
+    seq.expect_frames(want.len() as u64);
     for (i, w) in want.iter().enumerate() {
         assert!(seq.next_frame().unwrap().0 == w, "frame {i}");
     }

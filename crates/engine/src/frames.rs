@@ -334,7 +334,7 @@ impl Sequence {
         if self.draws_elsewhere() {
             if self.picture.as_ref().is_none_or(|p| p.0 != version) {
                 let bounds = self.report(&mut stats)?.bounds;
-                self.renderer.frame_on(bounds)?;
+                self.frame_camera(index, bounds)?;
                 let job = self.renderer.draw_job(version, fx.self_shadow)?;
                 let start = Instant::now();
                 let ex = self.executor.as_mut();
@@ -402,6 +402,7 @@ impl Sequence {
                 self.picture = Some((version, img));
             }
         } else {
+            self.frame_camera(index, self.anim.hair().bounds())?;
             let hair = self.anim.hair();
             if self.shaded_at != Some(version) {
                 let r = &mut self.renderer;
@@ -417,6 +418,30 @@ impl Sequence {
         self.next += 1;
         let (_, img) = self.picture.as_ref().expect("drawn above");
         Ok((img, stats))
+    }
+
+    /// Frames the camera, the first time, on hair with `bounds` at frame
+    /// `index` and the head, as the head's motion carries both through
+    /// the frames the caller said will follow ([`Self::expect_frames`]):
+    /// the whole animation stays in the picture, not only its first
+    /// frame (the swing of simulated hair beyond the head's motion aside).
+    fn frame_camera(&mut self, index: u64, bounds: strands::Bounds) -> Result<(), EngineError> {
+        if self.renderer.camera().is_some() {
+            return Ok(());
+        }
+        let frames = self.expected.unwrap_or(1).max(1);
+        // At most 512 samples of the motion, evenly over the later frames
+        // (the first is where the bounds are).
+        let samples = (frames - 1).min(512);
+        let dt = self.anim.frame_dt();
+        let from = self.anim.head_at(index as f32 * dt).inverse();
+        let moves: Vec<Affine3A> = (1..=samples)
+            .map(|k| {
+                let f = index + k * (frames - 1) / samples;
+                self.anim.head_at(f as f32 * dt) * from
+            })
+            .collect();
+        self.renderer.frame_on_motion(bounds, &moves)
     }
 
     /// Frame `index`'s stages before its drawing: the motion (simulated

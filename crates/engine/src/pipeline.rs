@@ -281,6 +281,11 @@ impl ShadowPipeline {
         m.transmittance(off_surface(f, p, n))
     }
 
+    /// The frame of light `l`'s last map (methods that keep one).
+    pub fn frame(&self, l: usize) -> Option<&shadow::LightFrame> {
+        self.lights.get(l).and_then(|x| x.method.frame())
+    }
+
     /// The lights, in scene order.
     pub fn lights(&self) -> impl Iterator<Item = &Light> {
         self.lights.iter().map(|l| &l.light)

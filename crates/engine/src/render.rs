@@ -97,6 +97,11 @@ impl Renderer {
         self.part.colors()
     }
 
+    /// The camera, once framed (on the first frame drawn).
+    pub fn camera(&self) -> Option<&Camera> {
+        self.view.as_ref().map(|v| &v.camera)
+    }
+
     pub fn shadows(&self) -> &ShadowPipeline {
         &self.shadows
     }
@@ -122,6 +127,42 @@ impl Renderer {
         Ok(())
     }
 
+    /// [`Self::frame_on`] hair with `bounds` (and the head) as each of
+    /// `moves` carries them (transforms from the frame drawn first; the
+    /// identity among them): the view holds all of them.
+    pub fn frame_on_motion(
+        &mut self,
+        bounds: Bounds,
+        moves: &[Affine3A],
+    ) -> Result<(), EngineError> {
+        if self.view.is_some() {
+            return Ok(());
+        }
+        let mut all = bounds;
+        if let Some(h) = self.shadows.head() {
+            all = all.union(h.bounds());
+        }
+        let mut moved = all;
+        if !all.is_empty() {
+            for m in moves {
+                let corners: Vec<Vec3> = (0..8)
+                    .map(|c| {
+                        let pick =
+                            |bit: usize, lo: f32, hi: f32| if c >> bit & 1 == 0 { lo } else { hi };
+                        m.transform_point3(Vec3::new(
+                            pick(0, all.min.x, all.max.x),
+                            pick(1, all.min.y, all.max.y),
+                            pick(2, all.min.z, all.max.z),
+                        ))
+                    })
+                    .collect();
+                moved = moved.union(Bounds::of(&corners));
+            }
+        }
+        self.view = Some(self.framing_of(bounds, moved)?);
+        Ok(())
+    }
+
     /// The fixed view, framed on `hair` the first time.
     fn view(&mut self, hair: &Hair) -> Result<View, EngineError> {
         self.frame_on(hair.bounds())?;
@@ -130,14 +171,21 @@ impl Renderer {
 
     /// The camera of the scene, framing hair with `hair_bounds` (and the
     /// head) where the scene leaves position or target open: from the front
-    /// (+z), slightly above, far enough that the whole hair fits the
+    /// (+z), slightly above (or from three quarters, see
+    /// [`view_direction`]), far enough that the whole hair fits the
     /// vertical field of view.
     fn framing(&self, hair_bounds: Bounds) -> Result<View, EngineError> {
-        let s = &self.scene;
         let mut b = hair_bounds;
         if let Some(h) = self.shadows.head() {
             b = b.union(h.bounds());
         }
+        self.framing_of(hair_bounds, b)
+    }
+
+    /// [`Self::framing`] of everything within `b` (the hair with
+    /// `hair_bounds`, the head, wherever they go).
+    fn framing_of(&self, hair_bounds: Bounds, b: Bounds) -> Result<View, EngineError> {
+        let s = &self.scene;
         let (center, size) = if b.is_empty() {
             (Vec3::ZERO, 1.0)
         } else {
@@ -146,15 +194,18 @@ impl Renderer {
         let look_at = s.camera.look_at.unwrap_or(center);
         let position = s.camera.position.unwrap_or_else(|| {
             let dist = 0.5 * size / (0.5 * s.camera.fov_deg.to_radians()).tan() + 0.5 * size;
-            look_at + Vec3::new(0.0, 0.15, 1.0).normalize() * dist
+            look_at + view_direction(hair_bounds) * dist
         });
-        let camera = Camera::new(
+        let mut camera = Camera::new(
             position,
             look_at,
             s.camera.fov_deg,
             s.render.width,
             s.render.height,
         )?;
+        if let Some(up) = s.camera.up {
+            camera = camera.with_up(up)?;
+        }
         let depth_ref = position.distance(s.camera.look_at.unwrap_or(hair_bounds.center()));
         Ok(View {
             camera,
@@ -387,6 +438,25 @@ impl Renderer {
         if canvas.is_some() {
             self.canvas = canvas;
         }
+    }
+}
+
+/// Where the default camera looks from, towards the hair: the front (+z),
+/// slightly above; but from three quarters (45 degrees to the right) when
+/// the hair is less than a third as wide (x) as it is deep (z), where a
+/// front view would see it edge-on (a mohawk).
+pub fn view_direction(hair: Bounds) -> Vec3 {
+    let size = hair.size();
+    let edge_on = !hair.is_empty() && size.x < size.z / 3.0;
+    if edge_on {
+        Vec3::new(
+            std::f32::consts::FRAC_1_SQRT_2,
+            0.15,
+            std::f32::consts::FRAC_1_SQRT_2,
+        )
+        .normalize()
+    } else {
+        Vec3::new(0.0, 0.15, 1.0).normalize()
     }
 }
 

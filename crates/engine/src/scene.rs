@@ -108,6 +108,7 @@ struct RawCamera {
     position: Option<[f32; 3]>,
     look_at: Option<[f32; 3]>,
     fov_deg: Option<f32>,
+    up: Option<[f32; 3]>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -312,6 +313,8 @@ pub struct CameraSettings {
     pub position: Option<Vec3>,
     pub look_at: Option<Vec3>,
     pub fov_deg: f32,
+    /// The picture's up direction (`camera.up`); +y when not given.
+    pub up: Option<Vec3>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -921,7 +924,15 @@ impl Validator<'_> {
             position: vec3("camera.position", c.position)?,
             look_at: vec3("camera.look_at", c.look_at)?,
             fov_deg,
+            up: vec3("camera.up", c.up)?,
         };
+        if camera.up.is_some_and(|u| u.length() < 1e-6) {
+            return Err(self.invalid(
+                "camera.up",
+                format!("{:?}", c.up.unwrap_or_default()),
+                "must not be zero",
+            ));
+        }
         if let (Some(p), Some(l)) = (camera.position, camera.look_at)
             && p.distance(l) < 1e-6
         {
@@ -1197,6 +1208,10 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("shadow.method = \"raytrace\""), "{e}");
+        let e = parse("[camera]\nup = [0, 0, 0]\n").unwrap_err().to_string();
+        assert!(e.contains("camera.up") && e.contains("zero"), "{e}");
+        let s = parse("[camera]\nup = [0, 0, 2]\n").unwrap();
+        assert_eq!(s.camera.up, Some(Vec3::new(0.0, 0.0, 2.0)));
         let e = parse("[hair]\nstyle = \"wavy\"\n").unwrap_err().to_string();
         assert!(e.contains("hair.style"), "{e}");
         let e = parse("[hair]\nstrands_per_wisp = -3\n")

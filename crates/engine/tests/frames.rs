@@ -271,3 +271,42 @@ fn self_collisions_thin_out_crowded_hair() {
     assert!(cb > 0.0, "the groom crowds somewhere");
     assert!(ca < 0.95 * cb, "with {ca}, without {cb}");
 }
+
+#[test]
+fn the_default_camera_keeps_the_whole_animation_in_the_picture() {
+    // A head that walks 40 units to the right and turns, framed by
+    // default: 31 frames at 30 fps (framed on the first frame alone, the
+    // hair leaves the picture half-way).
+    let s = Scene::from_toml_str(
+        "[hair]\nstrands_per_wisp = 4\n[render]\nwidth = 400\nheight = 225\n\
+         [animation]\nmotion = \"keyframes\"\nfps = 30\n\
+         [[animation.key]]\ntime = 0\ntranslate = [0, 0, 0]\n\
+         [[animation.key]]\ntime = 1\ntranslate = [40, 0, 0]\nrotate_deg = [0, 60, 0]\n",
+        Path::new("walk.toml"),
+    )
+    .unwrap();
+    let mut seq = Sequence::new(&s).unwrap();
+    seq.expect_frames(31);
+    let mut cut = Vec::new();
+    for f in 0..31 {
+        seq.next_frame().unwrap();
+        let cam = *seq.renderer().camera().unwrap();
+        let outside = seq
+            .hair()
+            .points()
+            .iter()
+            .filter(|&&p| {
+                cam.project(p).is_none_or(|q| {
+                    q.x < 0.0 || q.y < 0.0 || q.x > cam.width() as f32 || q.y > cam.height() as f32
+                })
+            })
+            .count();
+        if outside > 0 {
+            cut.push((f, outside));
+        }
+    }
+    assert!(
+        cut.is_empty(),
+        "frames with hair outside the picture (frame, points): {cut:?}"
+    );
+}

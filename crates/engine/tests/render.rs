@@ -319,3 +319,55 @@ fn a_groom_in_millimetres_lying_on_its_side_is_placed_by_the_scene() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn camera_up_rolls_the_picture_about_the_view() {
+    let square = |extra: &str| {
+        let text = format!(
+            "[hair]\nstrands_per_wisp = 4\n[render]\nwidth = 64\nheight = 64\n[shadow]\ncells = 64\n{extra}"
+        );
+        Scene::from_toml_str(&text, Path::new("square.toml")).unwrap()
+    };
+    let level = render(&square(""), true);
+    // +x up: what was to the right is now at the top.
+    let rolled = render(&square("[camera]\nup = [1, 0, 0]\n"), true);
+    let turned = image::imageops::rotate270(&level);
+    let wrong = image::imageops::rotate90(&level);
+    let (d, w) = (
+        mean_abs_diff(&rolled, &turned),
+        mean_abs_diff(&rolled, &wrong),
+    );
+    assert!(
+        d < 1.5 && w > 4.0 * d,
+        "rolled {d:.2} levels from the turned picture, {w:.2} from the other way"
+    );
+    // Along the view: refused, naming it.
+    let e = Renderer::new(&small_scene(
+        "[camera]\nposition = [0, 0, 90]\nlook_at = [0, 0, 0]\nup = [0, 0, 1]\n",
+    ))
+    .unwrap()
+    .render(&build_hair(&small_scene("")).unwrap(), true)
+    .unwrap_err();
+    assert!(e.to_string().contains("up"), "{e}");
+}
+
+#[test]
+fn the_default_view_turns_to_three_quarters_for_a_groom_seen_edge_on() {
+    use glam::Vec3;
+    use strands::Bounds;
+    let front = engine::render::view_direction(Bounds {
+        min: Vec3::new(-10.0, -20.0, -8.0),
+        max: Vec3::new(10.0, 12.0, 9.0),
+    });
+    assert!(front.x == 0.0 && front.z > 0.9, "{front}");
+    // A mohawk: 3 wide, 24 deep.
+    let mohawk = engine::render::view_direction(Bounds {
+        min: Vec3::new(-1.5, 0.0, -12.0),
+        max: Vec3::new(1.5, 10.0, 12.0),
+    });
+    assert!(
+        (mohawk.x - mohawk.z).abs() < 1e-6 && mohawk.x > 0.6,
+        "{mohawk}"
+    );
+    assert!((mohawk.length() - 1.0).abs() < 1e-6 && (front.length() - 1.0).abs() < 1e-6);
+}

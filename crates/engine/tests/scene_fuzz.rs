@@ -48,7 +48,7 @@ const TABLES: &[(&str, &[&str])] = &[
             "rays",
         ],
     ),
-    ("camera", &["position", "look_at", "fov_deg"]),
+    ("camera", &["position", "look_at", "fov_deg", "up"]),
     ("render", &["width", "height", "background", "hair_alpha"]),
     ("head", &["visible", "center", "radius", "color"]),
     ("shading", &["ambient", "diffuse", "specular", "shininess"]),

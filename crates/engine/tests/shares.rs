@@ -123,6 +123,7 @@ fn frames(scene: &Scene, split: Option<&[Range<usize>]>, n: usize) -> Vec<image:
         seq.set_executor(Box::new(Shares::new(scene, split)))
             .unwrap();
     }
+    seq.expect_frames(n as u64);
     (0..n)
         .map(|_| seq.next_frame().unwrap().0.clone())
         .collect()

@@ -21,6 +21,8 @@ pub struct Camera {
     /// What it was made from, to make it again elsewhere.
     look_at: Vec3,
     fov_deg: f32,
+    /// The up direction asked for ([`Self::with_up`]; +y by default).
+    up_hint: Vec3,
 }
 
 /// Points closer to the camera than this (scene units) are not drawn.
@@ -65,7 +67,34 @@ impl Camera {
             height,
             look_at,
             fov_deg,
+            up_hint: Vec3::Y,
         })
+    }
+
+    /// The same camera with `up` (any length) as the picture's up: the
+    /// view's up axis is the part of `up` square to the view direction.
+    /// Refuses an `up` that is not finite, is zero or lies along the view.
+    pub fn with_up(self, up: Vec3) -> Result<Camera, RasterError> {
+        let f = self.forward;
+        let u = up.normalize_or_zero();
+        if !u.is_finite() || u == Vec3::ZERO || f.cross(u).length() < 1e-4 {
+            return Err(RasterError::Camera(format!(
+                "up {up}: must be finite, not zero, and not along the view direction {f}"
+            )));
+        }
+        let right = f.cross(u).normalize();
+        Ok(Camera {
+            right,
+            up: right.cross(f),
+            up_hint: up,
+            ..self
+        })
+    }
+
+    /// The up direction the camera was made with (+y unless
+    /// [`Self::with_up`] said otherwise).
+    pub fn up_hint(&self) -> Vec3 {
+        self.up_hint
     }
 
     /// The point it looks at, as given to [`Self::new`].
@@ -144,6 +173,20 @@ mod tests {
 
     #[test]
     fn refuses_degenerate_cameras() {
+        // Up along +x: a point to +x of the target is above the centre,
+        // one to +y is to the left.
+        let c = Camera::new(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, 40.0, 100, 100)
+            .unwrap()
+            .with_up(Vec3::new(2.0, 0.0, 0.0))
+            .unwrap();
+        let above = c.project(Vec3::X).unwrap();
+        let left = c.project(Vec3::Y).unwrap();
+        assert!((above.x - 50.0).abs() < 1e-3 && above.y < 40.0, "{above}");
+        assert!(left.x < 40.0 && (left.y - 50.0).abs() < 1e-3, "{left}");
+        assert_eq!(c.up_hint(), Vec3::new(2.0, 0.0, 0.0));
+        for bad in [Vec3::ZERO, Vec3::Z, Vec3::NAN] {
+            assert!(c.with_up(bad).is_err(), "{bad}");
+        }
         assert!(Camera::new(Vec3::ZERO, Vec3::ZERO, 40.0, 10, 10).is_err());
         assert!(Camera::new(Vec3::ZERO, Vec3::X, 0.0, 10, 10).is_err());
         assert!(Camera::new(Vec3::ZERO, Vec3::X, f32::NAN, 10, 10).is_err());

@@ -164,6 +164,7 @@ pub fn job_to_pb(j: &DrawJob) -> pb::DrawJob {
             c.position.to_array().as_slice(),
             c.look_at().to_array().as_slice(),
             &[c.fov_deg()],
+            c.up_hint().to_array().as_slice(),
         ]
         .concat(),
         width: c.width(),
@@ -185,7 +186,7 @@ pub fn job_to_pb(j: &DrawJob) -> pb::DrawJob {
 /// A draw job as sent: a camera [`Camera::new`] takes (within the
 /// renderer's picture limits), finite settings, unit light directions.
 pub fn job_from_pb(j: &pb::DrawJob) -> Result<DrawJob, Malformed> {
-    let c = floats::<7>("draw camera", &j.camera)?;
+    let c = floats::<10>("draw camera", &j.camera)?;
     if u64::from(j.width) * u64::from(j.height) > raster::MAX_PIXELS
         || j.width == 0
         || j.height == 0
@@ -202,6 +203,12 @@ pub fn job_from_pb(j: &pb::DrawJob) -> Result<DrawJob, Malformed> {
         j.height,
     )
     .map_err(|e| bad(e.to_string()))?;
+    let up = Vec3::from_slice(&c[7..]);
+    let camera = if up == Vec3::Y {
+        camera
+    } else {
+        camera.with_up(up).map_err(|e| bad(e.to_string()))?
+    };
     let [ambient, diffuse, specular, shininess, sr, sg, sb] =
         floats::<7>("draw shading", &j.shading)?;
     let look = [j.fiber_width, j.hair_alpha, j.depth_ref];
@@ -909,6 +916,15 @@ mod tests {
             head: plan.head,
         };
         assert_eq!(job_from_pb(&job_to_pb(&job)).unwrap(), job);
+        // A camera with its own up comes back the same.
+        let tilted = DrawJob {
+            camera: camera.with_up(Vec3::new(0.3, 0.2, 1.0)).unwrap(),
+            ..job.clone()
+        };
+        assert_eq!(job_from_pb(&job_to_pb(&tilted)).unwrap(), tilted);
+        let mut bad = job_to_pb(&job);
+        bad.camera.truncate(7);
+        assert!(job_from_pb(&bad).is_err());
         let mut bad = job_to_pb(&job);
         bad.width = 100_000;
         assert!(job_from_pb(&bad).is_err());

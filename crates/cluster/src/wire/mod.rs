@@ -18,7 +18,7 @@ pub use draw::*;
 
 /// The protocol version this build speaks. A coordinator and a worker of
 /// different versions refuse each other.
-pub const PROTOCOL_VERSION: u32 = 8;
+pub const PROTOCOL_VERSION: u32 = 9;
 
 /// Points per Deposit chunk: 3 floats each, 1.5 MB.
 pub const POINTS_PER_CHUNK: usize = 128 * 1024;

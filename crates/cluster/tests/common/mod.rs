@@ -25,10 +25,12 @@ fps = 30
 settle = 0.1
 "#;
 
-/// `frames` pictures of `scene` in one process.
+/// `frames` pictures of `scene` in one process, as `render --frames` makes them.
 #[allow(dead_code)]
 pub fn local_frames(scene: &Scene, frames: usize) -> Vec<image::RgbImage> {
     let mut seq = Sequence::new(scene).unwrap();
+    // As `render --frames` does: the camera frames all of them.
+    seq.expect_frames(frames as u64);
     (0..frames)
         .map(|_| seq.next_frame().unwrap().0.clone())
         .collect()
