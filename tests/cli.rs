@@ -176,6 +176,41 @@ fn a_usc_hairsalon_groom_renders_and_a_cut_one_names_its_strand_and_byte() {
         covered * 50 > img.pixels().len(),
         "{covered} pixels of hair"
     );
+    // The same strands as a CT2Hair .bin (four more floats a vertex): the
+    // same picture.
+    let mut bin = (strands.len() as i32).to_le_bytes().to_vec();
+    for st in &strands {
+        bin.extend((st.len() as i32).to_le_bytes());
+        for p in st {
+            for v in p.iter().chain(&[0.5, 0.5, 0.5, 1.0]) {
+                bin.extend(v.to_le_bytes());
+            }
+        }
+    }
+    std::fs::write(dir.join("groom.bin"), &bin).unwrap();
+    let scene_bin = write(&dir, "bin.toml", "[hair]\nfile = \"groom.bin\"\n");
+    let out_bin = dir.join("bin.png");
+    let o = wisplight(&["render", &scene_bin, "-o", out_bin.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(std::fs::read(&out_bin).unwrap() == std::fs::read(&out).unwrap());
+    // And as an ASCII PLY with hairutil's per-strand segment counts.
+    let points: usize = strands.iter().map(Vec::len).sum();
+    let mut ply = format!(
+        "ply\nformat ascii 1.0\nelement vertex {points}\nproperty float x\nproperty float y\n\
+         property float z\nelement strand {}\nproperty ushort nsegs\nend_header\n",
+        strands.len()
+    );
+    for p in strands.iter().flatten() {
+        ply.push_str(&format!("{:?} {:?} {:?}\n", p[0], p[1], p[2]));
+    }
+    for st in &strands {
+        ply.push_str(&format!("{}\n", st.len() - 1));
+    }
+    std::fs::write(dir.join("groom.ply"), ply).unwrap();
+    let scene_ply = write(&dir, "ply.toml", "[hair]\nfile = \"groom.ply\"\n");
+    let o = wisplight(&["render", &scene_ply, "-o", out_bin.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(std::fs::read(&out_bin).unwrap() == std::fs::read(&out).unwrap());
     // Cut inside strand 150's vertices.
     let at = 4 + 150 * (4 + 12 * 12) + 4 + 20;
     std::fs::write(dir.join("cut.data"), &bytes[..at]).unwrap();

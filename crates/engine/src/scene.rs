@@ -2,7 +2,7 @@
 //!
 //! ```toml
 //! [hair]
-//! style = "smooth"          # or "curly"; or file = "groom.tfx" (.hair, .tfx or .data, relative to the scene);
+//! style = "smooth"          # or "curly"; or file = "groom.tfx" (.hair, .tfx, .data, .bin or .ply, relative to the scene);
 //!                           # or strands = [[[x, y, z], ...], ...] written out in the scene
 //! seed = 1                  # procedural styles
 //! strands_per_wisp = 25     # procedural styles: 134 wisps of this many drawn strands

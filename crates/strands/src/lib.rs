@@ -15,6 +15,7 @@ mod follow;
 mod hair;
 mod load;
 mod mesh;
+mod ply;
 mod rng;
 mod style;
 
@@ -22,11 +23,12 @@ pub use catmull_rom::{resample, resample_into};
 pub use follow::{FollowParams, grow_followers};
 pub use hair::{Bounds, Hair, HairError};
 pub use load::{
-    FormatError, LoadError, load, load_bytes, load_with, parse_hair_format, parse_tfx,
-    parse_usc_data,
+    FormatError, LoadError, load, load_bytes, load_with, parse_ct2hair_bin, parse_hair_format,
+    parse_tfx, parse_usc_data,
 };
 pub use mesh::{
     MAX_MESH_ELEMENTS, Mesh, MeshError, MeshLoadError, load_obj, load_obj_bytes, parse_obj,
 };
+pub use ply::parse_ply_strands;
 pub use rng::Rng;
 pub use style::{GUIDES_PER_WISP, Member, Style, StyleParams, WispModel};

@@ -22,7 +22,7 @@ pub enum LoadError {
     #[error("{}: {cause}", path.display())]
     Format { path: PathBuf, cause: FormatError },
     #[error(
-        "{}: unknown hair file type (expected .hair, .tfx or USC-HairSalon .data; convert PLY or Alembic curves to one of them, e.g. with hairutil)",
+        "{}: unknown hair file type (expected .hair, .tfx, USC-HairSalon .data, CT2Hair .bin or PLY strands; convert Alembic curves to one of them, e.g. with hairutil)",
         path.display()
     )]
     UnknownExtension { path: PathBuf },
@@ -115,6 +115,8 @@ pub enum FormatError {
         left: u64,
         strands: u64,
     },
+    #[error("PLY: {0}")]
+    Ply(String),
 }
 
 /// Loads `.hair`, `.tfx` or `.data` by extension.
@@ -157,6 +159,8 @@ fn parser(path: &Path) -> Result<Parser, LoadError> {
         Some("hair") => Ok(parse_hair_format),
         Some("tfx") => Ok(parse_tfx),
         Some("data") => Ok(parse_usc_data),
+        Some("bin") => Ok(parse_ct2hair_bin),
+        Some("ply") => Ok(crate::ply::parse_ply_strands),
         _ => Err(LoadError::UnknownExtension {
             path: path.to_owned(),
         }),
@@ -384,6 +388,22 @@ pub fn parse_tfx(b: &[u8]) -> Result<Hair, FormatError> {
 /// count is checked against the bytes left before anything is allocated
 /// for it, and bytes after the last strand are refused.
 pub fn parse_usc_data(b: &[u8]) -> Result<Hair, FormatError> {
+    parse_counted(b, 12)
+}
+
+/// Parses a CT2Hair `.bin` file (the strands CT2Hair reconstructs from CT
+/// scans; hairutil reads and writes them).
+///
+/// Little-endian, as `.data` but with seven f32 per vertex: x, y, z and
+/// four values wisplight does not use. The same checks as
+/// [`parse_usc_data`].
+pub fn parse_ct2hair_bin(b: &[u8]) -> Result<Hair, FormatError> {
+    parse_counted(b, 28)
+}
+
+/// An i32 strand count, then per strand an i32 vertex count and that many
+/// vertices of `stride` bytes, each starting with f32 x, y, z.
+fn parse_counted(b: &[u8], stride: u64) -> Result<Hair, FormatError> {
     let len = b.len() as u64;
     if b.len() < 4 {
         return Err(FormatError::TruncatedHeader {
@@ -411,7 +431,7 @@ pub fn parse_usc_data(b: &[u8]) -> Result<Hair, FormatError> {
         });
     }
     // No more points than the bytes can hold.
-    let mut hair = Hair::with_capacity(strands as usize, (have / 12) as usize);
+    let mut hair = Hair::with_capacity(strands as usize, (have / stride) as usize);
     let mut pts = Vec::new();
     let mut at = 4usize;
     for s in 0..strands {
@@ -425,7 +445,7 @@ pub fn parse_usc_data(b: &[u8]) -> Result<Hair, FormatError> {
             });
         }
         let n = count(at, "vertex")?;
-        let (need, have) = (n * 12, (b.len() - at - 4) as u64);
+        let (need, have) = (n * stride, (b.len() - at - 4) as u64);
         if need > have {
             return Err(FormatError::StrandTruncated {
                 strand: s,
@@ -437,7 +457,7 @@ pub fn parse_usc_data(b: &[u8]) -> Result<Hair, FormatError> {
         }
         at += 4;
         pts.clear();
-        pts.extend((0..n as usize).map(|v| vec3_at(b, at + 12 * v)));
+        pts.extend((0..n as usize).map(|v| vec3_at(b, at + stride as usize * v)));
         hair.push_strand(&pts)?;
         at += need as usize;
     }

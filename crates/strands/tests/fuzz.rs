@@ -5,7 +5,7 @@
 //! gets an error, not an allocation).
 
 use proptest::prelude::*;
-use strands::{parse_hair_format, parse_tfx, parse_usc_data};
+use strands::{parse_ct2hair_bin, parse_hair_format, parse_ply_strands, parse_tfx, parse_usc_data};
 
 /// A HAIR header (128 bytes): magic, counts, flags, defaults, then `body`.
 fn hair_header(
@@ -73,6 +73,63 @@ fn valid_usc(n: u32) -> Vec<u8> {
     b
 }
 
+/// `n` CT2Hair strands of 0 to 3 points, each point x, y, z and four more.
+fn valid_bin(n: u32) -> Vec<u8> {
+    let mut b = (n as i32).to_le_bytes().to_vec();
+    for k in 0..n {
+        b.extend_from_slice(&((k % 4) as i32).to_le_bytes());
+        for p in 0..k % 4 {
+            for c in [p as f32, k as f32, 0.5, 9.0, 9.0, 9.0, 9.0] {
+                b.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+    }
+    b
+}
+
+/// A PLY strand set of `n` strands of 0 to 3 points: ASCII with hairutil's
+/// per-strand segment counts, or binary with a strand index per vertex and
+/// an edge element of lists after the vertices.
+fn valid_ply(n: u32, binary: bool) -> Vec<u8> {
+    let strands: Vec<u32> = (0..n).map(|k| 1 + k % 3).collect();
+    let points: u32 = strands.iter().sum();
+    if !binary {
+        let mut t = format!(
+            "ply\nformat ascii 1.0\nelement vertex {points}\nproperty float x\nproperty float y\n\
+             property float z\nelement strand {n}\nproperty ushort nsegs\nend_header\n"
+        );
+        for (k, &c) in strands.iter().enumerate() {
+            for p in 0..c {
+                t.push_str(&format!("{p} {k} 0.5\n"));
+            }
+        }
+        for c in &strands {
+            t.push_str(&format!("{}\n", c - 1));
+        }
+        return t.into_bytes();
+    }
+    let mut b = format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex {points}\nproperty float x\n\
+         property float y\nproperty float z\nproperty int strand\nelement edge 2\n\
+         property list uchar int vertex_index\nend_header\n"
+    )
+    .into_bytes();
+    for (k, &c) in strands.iter().enumerate() {
+        for p in 0..c {
+            for v in [p as f32, k as f32, 0.5] {
+                b.extend_from_slice(&v.to_le_bytes());
+            }
+            b.extend_from_slice(&(k as i32).to_le_bytes());
+        }
+    }
+    for _ in 0..2 {
+        b.push(2);
+        b.extend_from_slice(&0i32.to_le_bytes());
+        b.extend_from_slice(&1i32.to_le_bytes());
+    }
+    b
+}
+
 /// A USC-HairSalon strand count, then `body`.
 fn usc_header(strands: i32, body: &[u8]) -> Vec<u8> {
     let mut b = strands.to_le_bytes().to_vec();
@@ -105,6 +162,16 @@ fn check(bytes: &[u8]) -> Result<(), TestCaseError> {
     if let Ok(h) = parse_usc_data(bytes) {
         // 4 bytes a strand, 12 a point, and the strand count.
         prop_assert_eq!(4 + 4 * h.strand_count() + 12 * h.point_count(), bytes.len());
+        prop_assert!(h.points().iter().all(|p| p.is_finite()));
+    }
+    if let Ok(h) = parse_ct2hair_bin(bytes) {
+        // 4 bytes a strand, 28 a point, and the strand count.
+        prop_assert_eq!(4 + 4 * h.strand_count() + 28 * h.point_count(), bytes.len());
+        prop_assert!(h.points().iter().all(|p| p.is_finite()));
+    }
+    if let Ok(h) = parse_ply_strands(bytes) {
+        // A point takes a byte at least.
+        prop_assert!(h.point_count() <= bytes.len());
         prop_assert!(h.points().iter().all(|p| p.is_finite()));
     }
     if let Ok(h) = parse_tfx(bytes) {
@@ -159,7 +226,7 @@ proptest! {
         cut in any::<prop::sample::Index>(),
         do_cut in any::<bool>(),
     ) {
-        for mut bytes in [valid_hair(n), valid_tfx(u32::from(n)), valid_usc(u32::from(n) * 3)] {
+        for mut bytes in [valid_hair(n), valid_tfx(u32::from(n)), valid_usc(u32::from(n) * 3), valid_bin(u32::from(n) * 3), valid_ply(u32::from(n), false), valid_ply(u32::from(n), true)] {
             for (at, v) in &flips {
                 let i = at.index(bytes.len());
                 bytes[i] = *v;
@@ -181,6 +248,17 @@ fn the_valid_files_of_the_fuzzer_load() {
     // Strands of 0, 1, 2, 3, 0, 1 points.
     let u = parse_usc_data(&valid_usc(6)).unwrap();
     assert_eq!((u.strand_count(), u.point_count()), (6, 7));
+    // The same strands from a CT2Hair file: its extra values are skipped.
+    let c = parse_ct2hair_bin(&valid_bin(6)).unwrap();
+    assert_eq!(c.points(), u.points());
+    assert_eq!(c.offsets(), u.offsets());
+    // A .data file read as .bin does not fit its counts.
+    assert!(parse_ct2hair_bin(&valid_usc(6)).is_err());
+    // Strands of 1, 2, 3, 1 points from both PLY layouts.
+    for binary in [false, true] {
+        let p = parse_ply_strands(&valid_ply(4, binary)).unwrap();
+        assert_eq!(p.offsets(), &[0, 1, 3, 6, 7], "binary {binary}");
+    }
 }
 
 #[test]
