@@ -1,7 +1,8 @@
 //! Hair geometry: strands as polylines, grouped into wisps.
 //!
 //! This crate owns the hair as data: loading it from files (Cem Yuksel's
-//! `.hair`, TressFX `.tfx`), growing it procedurally (the `smooth` and `curly`
+//! `.hair`, TressFX `.tfx`, USC-HairSalon `.data`, CT2Hair `.bin`, PLY
+//! strand sets), growing it procedurally (the `smooth` and `curly`
 //! styles of 134 wisps on a spherical head), growing follow strands around
 //! guide strands, and Catmull-Rom resampling of every strand into the points
 //! that are both filled into the density map and drawn. It also reads the

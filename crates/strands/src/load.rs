@@ -119,12 +119,12 @@ pub enum FormatError {
     Ply(String),
 }
 
-/// Loads `.hair`, `.tfx` or `.data` by extension.
+/// Loads `.hair`, `.tfx`, `.data`, `.bin` or `.ply` by extension.
 pub fn load(path: &Path) -> Result<Hair, LoadError> {
     load_with(path, |p| std::fs::read(p).map(std::borrow::Cow::Owned))
 }
 
-/// Loads `.hair`, `.tfx` or `.data` by extension, its bytes from `read` (called
+/// Loads `.hair`, `.tfx`, `.data`, `.bin` or `.ply` by extension, its bytes from `read` (called
 /// once the extension is known: an unknown one is refused first).
 pub fn load_with<'a>(
     path: &Path,
@@ -138,7 +138,7 @@ pub fn load_with<'a>(
     load_bytes(path, &bytes)
 }
 
-/// Parses the bytes of the file `path` (`.hair`, `.tfx` or `.data` by extension;
+/// Parses the bytes of the file `path` (`.hair`, `.tfx`, `.data`, `.bin` or `.ply` by extension;
 /// the path names the file in errors).
 pub fn load_bytes(path: &Path, bytes: &[u8]) -> Result<Hair, LoadError> {
     parser(path)?(bytes).map_err(|cause| LoadError::Format {
