@@ -1316,17 +1316,32 @@ impl Executor for RemoteExecutor {
         {
             self.lose_worker(e).map_err(engine_error)?;
         }
-        let addrs = |ex: &Self| {
-            ex.workers
-                .iter()
-                .map(|w| w.addr.clone())
-                .collect::<Vec<_>>()
-        };
-        let lights = self.swept.len();
         // Back to the frame drawn: its wisps' states, pose and maps; the
         // workers are assigned and pose it again.
-        let now = Drawn {
-            version: self.posed.unwrap_or_default(),
+        let now = self.snapshot(self.posed.unwrap_or_default());
+        let report = self.report.clone();
+        self.restore(then);
+        tracing::warn!(
+            frame_version = job.version,
+            "drawing the frame again, composited here"
+        );
+        let r = self.with_survivors(|ex| ex.draw_remote(job));
+        // On to the frames after, as they stood.
+        self.restore(now);
+        self.report = report;
+        r.map_err(engine_error)
+    }
+}
+
+impl RemoteExecutor {
+    fn addrs(&self) -> Vec<String> {
+        self.workers.iter().map(|w| w.addr.clone()).collect()
+    }
+
+    /// What drawing hair version `version` again takes, as things stand.
+    fn snapshot(&self, version: u64) -> Drawn {
+        Drawn {
+            version,
             states: self
                 .hair
                 .as_ref()
@@ -1335,37 +1350,27 @@ impl Executor for RemoteExecutor {
             pose: self.last_pose.clone(),
             swept: self.swept.clone(),
             reads: self.reads.clone(),
-            workers: addrs(self),
-        };
-        let report = self.report.clone();
-        let restore = |ex: &mut Self, to: Drawn| {
-            if let Some(h) = &mut ex.hair {
-                h.states = to.states;
-            }
-            ex.last_pose = to.pose;
-            ex.swept = to.swept;
-            ex.reads = if addrs(ex) == to.workers {
-                to.reads
-            } else {
-                vec![None; lights]
-            };
-            ex.shares = None;
-            ex.posed = None;
-        };
-        restore(self, then);
-        tracing::warn!(
-            frame_version = job.version,
-            "drawing the frame again, composited here"
-        );
-        let r = self.with_survivors(|ex| ex.draw_remote(job));
-        // On to the frames after, as they stood.
-        restore(self, now);
-        self.report = report;
-        r.map_err(engine_error)
+            workers: self.addrs(),
+        }
     }
-}
 
-impl RemoteExecutor {
+    /// Back to `to`: the workers are assigned its states and pose it again
+    /// before their next stage (reading every column when they changed).
+    fn restore(&mut self, to: Drawn) {
+        if let Some(h) = &mut self.hair {
+            h.states = to.states;
+        }
+        self.last_pose = to.pose;
+        self.swept = to.swept;
+        self.reads = if self.addrs() == to.workers {
+            to.reads
+        } else {
+            vec![None; self.swept.len()]
+        };
+        self.shares = None;
+        self.posed = None;
+    }
+
     /// A Draw, composited on the workers when they can (and, `ahead`, its
     /// picture left to finish while the next frame's stages run),
     /// otherwise here.
@@ -1375,18 +1380,7 @@ impl RemoteExecutor {
             match self.draw_composited(job, ahead) {
                 Ok(r) => {
                     if ahead {
-                        self.drawn = Some(Drawn {
-                            version: job.version,
-                            states: self
-                                .hair
-                                .as_ref()
-                                .map(|h| h.states.clone())
-                                .unwrap_or_default(),
-                            pose: self.last_pose.clone(),
-                            swept: self.swept.clone(),
-                            reads: self.reads.clone(),
-                            workers: self.workers.iter().map(|w| w.addr.clone()).collect(),
-                        });
+                        self.drawn = Some(self.snapshot(job.version));
                     }
                     return Ok(r);
                 }

@@ -94,15 +94,22 @@ fn a_coordinator_with_the_clusters_credentials_gets_the_local_bytes() {
     assert!(cluster::check_health(&addrs[0], Duration::from_secs(5), Some(&tls)).unwrap());
 }
 
-#[test]
-fn workers_composite_among_themselves_over_tls_with_the_local_bytes() {
+/// `frames` frames of the small dance drawn on `workers` workers serving
+/// with `worker` and a coordinator dialling with `coordinator`, each
+/// checked against one process: the bytes and times counted.
+fn drawn_over_tls(
+    worker: &Tls,
+    coordinator: &Tls,
+    workers: usize,
+    frames: usize,
+) -> (cluster::Traffic, cluster::Timing) {
     let scene =
         engine::Scene::from_toml_str(common::DANCE, std::path::Path::new("dance.toml")).unwrap();
-    let want = common::local_frames(&scene, 3);
-    let addrs: Vec<String> = (0..3)
-        .map(|_| start_worker(pki().worker()).to_string())
+    let want = common::local_frames(&scene, frames);
+    let addrs: Vec<String> = (0..workers)
+        .map(|_| start_worker(worker.clone()).to_string())
         .collect();
-    let mut o = options(Some(&pki().coordinator()), 20);
+    let mut o = options(Some(coordinator), 20);
     o.draw = cluster::DrawAt::Workers;
     let remote = RemoteExecutor::connect(&addrs, &scene, &o).unwrap();
     let (traffic, timing) = (remote.traffic(), remote.timing());
@@ -113,12 +120,18 @@ fn workers_composite_among_themselves_over_tls_with_the_local_bytes() {
         assert!(seq.next_frame().unwrap().0 == w, "frame {i}");
     }
     let t = *traffic.lock().unwrap();
+    (t, *timing.lock().unwrap())
+}
+
+#[test]
+fn workers_composite_among_themselves_over_tls_with_the_local_bytes() {
+    let (t, timing) = drawn_over_tls(&pki().worker(), &pki().coordinator(), 3, 3);
     assert!(
         t.stripes_between_workers > 0 && t.bands_received > 0,
         "{t:?}"
     );
     assert_eq!(t.layers_received, 0, "{t:?}");
-    assert_eq!(timing.lock().unwrap().composite_fallbacks, 0);
+    assert_eq!(timing.composite_fallbacks, 0);
 }
 
 /// Credentials whose workers may serve but not call (an older kind of
@@ -151,29 +164,13 @@ fn serve_only() -> (Tls, Tls) {
 
 #[test]
 fn workers_that_cannot_call_each_other_leave_the_compositing_to_the_coordinator() {
-    let scene =
-        engine::Scene::from_toml_str(common::DANCE, std::path::Path::new("dance.toml")).unwrap();
-    let want = common::local_frames(&scene, 4);
     let (worker, coordinator) = serve_only();
-    let addrs: Vec<String> = (0..2)
-        .map(|_| start_worker(worker.clone()).to_string())
-        .collect();
-    let mut o = options(Some(&coordinator), 20);
-    o.draw = cluster::DrawAt::Workers;
-    let remote = RemoteExecutor::connect(&addrs, &scene, &o).unwrap();
-    let (traffic, timing) = (remote.traffic(), remote.timing());
-    let mut seq = engine::Sequence::new(&scene).unwrap();
-    seq.set_executor(Box::new(remote)).unwrap();
-    seq.expect_frames(want.len() as u64);
-    for (i, w) in want.iter().enumerate() {
-        assert!(seq.next_frame().unwrap().0 == w, "frame {i}");
-    }
+    let (t, timing) = drawn_over_tls(&worker, &coordinator, 2, 4);
     // Two rounds fail (the workers refuse each other's certificate), then
     // the coordinator composites every frame; nobody is dropped.
-    let timing = *timing.lock().unwrap();
     assert_eq!(timing.composite_fallbacks, 2, "{timing:?}");
     assert_eq!(timing.workers_lost, 0, "{timing:?}");
-    assert!(traffic.lock().unwrap().layers_received > 0);
+    assert!(t.layers_received > 0);
 }
 
 #[test]

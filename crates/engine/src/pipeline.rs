@@ -74,13 +74,9 @@ pub fn drawn_segments(scene: &Scene) -> Result<u64, EngineError> {
     let sub = u64::from(scene.subdivide);
     let segs = match &scene.hair {
         HairSource::Style(p) => u64::from(p.wisps) * u64::from(p.strands_per_wisp) * 31 * sub,
-        HairSource::File {
-            path,
-            follow,
-            place,
-        } => {
-            let mut guides = load_groom(scene, path)?;
-            place.apply(&mut guides);
+        HairSource::File { path, follow, .. } => {
+            // Placing the groom changes no count.
+            let guides = load_groom(scene, path)?;
             let per = follow.as_ref().map_or(1, |f| u64::from(f.followers) + 1);
             guides.segment_count() as u64 * per * sub
         }
