@@ -5,10 +5,9 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use engine::{Renderer, Scene};
+use engine::{Scene, Sequence, Stage};
 use image::RgbImage;
 use shadow::{Beyond, MethodConfig, OpacityMode};
-use strands::Hair;
 
 use crate::plot;
 
@@ -119,7 +118,7 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
     );
     bar.set_message("reference");
     let reference = MethodConfig::with_defaults("reference", 128).expect("a known method");
-    let (ref_ms, ref_t, ref_img) = measure(&scene, reference, &hair, 1, false)?;
+    let (ref_ms, ref_t, ref_img) = measure(&scene, reference, 1, false)?;
     bar.inc(1);
     let bg = scene.render.background;
     let mut rows = vec![Row {
@@ -132,7 +131,7 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
     }];
     for c in configs {
         bar.set_message(format!("{} {}", c.name(), c.parameters()));
-        let (ms, t, img) = measure(&scene, c, &hair, a.runs as usize, true)?;
+        let (ms, t, img) = measure(&scene, c, a.runs as usize, true)?;
         let (mean_abs, rms, max) = errors(&t, &ref_t);
         rows.push(Row {
             config: c,
@@ -188,33 +187,39 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Renders `hair` with `config` `runs` times (after one untimed frame with
-/// `warmup`): the median time of the three shadow stages, the transmittance
-/// at every drawn point of every light, and the last picture.
+/// The scene's first frame with `config`, rendered `runs` times (after one
+/// untimed frame with `warmup`): the median time of the three shadow
+/// stages, the transmittance at every drawn point of every light, and the
+/// last picture.
 fn measure(
     scene: &Scene,
     config: MethodConfig,
-    hair: &Hair,
     runs: usize,
     warmup: bool,
 ) -> anyhow::Result<(f64, Vec<f32>, RgbImage)> {
     let mut s = scene.clone();
     s.shadow.method = config;
-    let mut r = Renderer::new(&s)?;
+    s.effects.self_shadow = true;
+    // The hair at rest, as the scene's groom or style makes it.
+    s.animation.motion = sim::Motion::Still;
+    let mut seq = Sequence::new(&s)?;
     let mut times = Vec::with_capacity(runs);
     let mut img = None;
     let warmup = usize::from(warmup);
     for i in 0..warmup + runs {
-        let (pic, t) = r
-            .render(hair, true)
+        let (pic, stats) = seq
+            .again()
             .with_context(|| format!("cannot render with {}", config.name()))?;
-        if i >= warmup {
-            times.push(t.density_ms + t.transmittance_ms + t.filter_ms);
+        if i + 1 == warmup + runs {
+            img = Some(pic.clone());
         }
-        img = Some(pic);
+        if i >= warmup {
+            let shadow = [Stage::Density, Stage::Transmittance, Stage::Filter];
+            times.push(shadow.iter().map(|&st| stats.stage(st).ms).sum());
+        }
     }
-    let t = r.transmittance().concat();
     let img = img.expect("at least one frame");
+    let t = seq.renderer().transmittance().concat();
     Ok((engine::pipeline::median(&mut times), t, img))
 }
 

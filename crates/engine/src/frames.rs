@@ -99,6 +99,9 @@ pub struct FrameStats {
     stages: [StageRecord; 9],
     /// Simulation steps taken (the first frame's include the settling).
     pub steps: u32,
+    /// Density samples the frame's shadow fill deposited, over all lights
+    /// (0 when the shadows were reused).
+    pub samples: u64,
 }
 
 impl FrameStats {
@@ -108,6 +111,7 @@ impl FrameStats {
             time_s,
             stages: [StageRecord::default(); 9],
             steps: 0,
+            samples: 0,
         }
     }
 
@@ -180,6 +184,8 @@ pub struct Sequence {
     next: u64,
     /// Frames the caller will still ask for, when it said.
     expected: Option<u64>,
+    /// The next frame is the last one again ([`Self::again`]): no motion.
+    repeat: bool,
     /// The next frame's stages before its drawing, when they ran ahead.
     ahead: Option<Result<FrameStats, EngineError>>,
     /// Threads of their own for compositing while the next frame's stages
@@ -258,6 +264,7 @@ impl Sequence {
             picture: None,
             next: 0,
             expected: None,
+            repeat: false,
             ahead: None,
             compositor: None,
         })
@@ -420,6 +427,32 @@ impl Sequence {
         Ok((img, stats))
     }
 
+    /// Renders the last frame again, every stage after its motion run anew
+    /// as though the hair had just moved: the shadows (density,
+    /// transmittance, filter), the shading and the drawing, each timed in
+    /// the frame's new [`FrameStats`]; the picture is the same bytes. What
+    /// a benchmark of those stages repeats (`bench shadow`, `bench
+    /// accuracy`). The first call renders frame 0; frames said to follow
+    /// ([`Self::expect_frames`]) are not counted down.
+    pub fn again(&mut self) -> Result<(&image::RgbImage, FrameStats), EngineError> {
+        if self.next > 0 {
+            if self.ahead.is_some() {
+                return Err(EngineError::Executor(
+                    "a frame cannot be rendered again once the next one's stages ran ahead".into(),
+                ));
+            }
+            self.next -= 1;
+            self.repeat = true;
+            self.shadow_at = None;
+            self.shaded_at = None;
+            self.picture = None;
+            if let Some(n) = &mut self.expected {
+                *n += 1;
+            }
+        }
+        self.next_frame()
+    }
+
     /// Frames the camera, the first time, on hair with `bounds` at frame
     /// `index` and the head, as the head's motion carries both through
     /// the frames the caller said will follow ([`Self::expect_frames`]):
@@ -456,7 +489,9 @@ impl Sequence {
 
         // Motion: simulated steps, or a rigid move of the head.
         let head = self.anim.head_at(t);
-        if self.anim.simulates() {
+        if std::mem::take(&mut self.repeat) {
+            // The frame rendered again: the hair stays where it is.
+        } else if self.anim.simulates() {
             let n = self.anim.substeps() as usize;
             let drawn = if fx.body_collision {
                 self.bodies(&head)
@@ -500,10 +535,12 @@ impl Sequence {
             };
             let (r, ex) = (&mut self.renderer, self.executor.as_mut());
             let extents = Some((anchor, &report.extents[..]));
-            stats.time(Stage::Density, || {
-                r.shadows_mut()
-                    .density_with(hair, Some(version), extents, ex)
-            })?;
+            stats.samples = stats
+                .time(Stage::Density, || {
+                    r.shadows_mut()
+                        .density_with(hair, Some(version), extents, ex)
+                })?
+                .samples;
             stats.time(Stage::Transmittance, || {
                 r.shadows_mut().transmittance_with(ex)
             })?;

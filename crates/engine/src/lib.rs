@@ -34,8 +34,8 @@ pub use exec::{
 pub use frames::{FrameStats, Sequence, Stage, StageRecord};
 pub use head::Head;
 pub use part::{HairPart, draw_head};
-pub use pipeline::{ShadowPipeline, StageTimes, build_hair, drawn_segments};
-pub use render::{Composite, FrameTimes, Renderer};
+pub use pipeline::{ShadowPipeline, build_hair, drawn_segments};
+pub use render::{Composite, Renderer};
 pub use scene::{
     Animation, BodySettings, Collision, Dynamics, Effects, HairSource, HeadMesh, HeadSettings,
     Placement, Scene, SceneError, SceneSource, ShadowSettings,

@@ -1,7 +1,5 @@
 //! Building a scene's hair and running the shadow stages for each light.
 
-use std::time::Instant;
-
 use glam::{Affine3A, Vec3};
 use shadow::{Extent, Fiber, FillStats, Light, Occluder, ShadowInput, ShadowMethod};
 use strands::{Hair, WispModel, grow_followers, resample};
@@ -303,59 +301,6 @@ impl ShadowPipeline {
 pub fn off_surface(f: &shadow::LightFrame, p: Vec3, n: Vec3) -> Vec3 {
     let n = n.normalize_or_zero();
     p + (n * HEAD_NORMAL_BIAS - f.axes[0] * HEAD_LIGHT_BIAS) * f.ds
-}
-
-/// Median milliseconds of each shadow stage over repeated runs.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct StageTimes {
-    pub density_ms: f64,
-    pub transmittance_ms: f64,
-    pub filter_ms: f64,
-    pub runs: usize,
-    /// Density samples deposited per run, over all lights.
-    pub samples: u64,
-}
-
-impl StageTimes {
-    pub fn total_ms(&self) -> f64 {
-        self.density_ms + self.transmittance_ms + self.filter_ms
-    }
-
-    /// Runs the three stages `runs` times on `hair`, filtering at every drawn
-    /// point, after `warmup` untimed runs; reports the median of each stage.
-    pub fn measure(
-        pipeline: &mut ShadowPipeline,
-        hair: &Hair,
-        warmup: usize,
-        runs: usize,
-        mut progress: impl FnMut(usize),
-    ) -> Result<StageTimes, EngineError> {
-        let mut out = vec![Vec::new(); pipeline.light_count()];
-        let mut times = [Vec::new(), Vec::new(), Vec::new()];
-        let mut samples = 0;
-        for r in 0..warmup + runs {
-            let t0 = Instant::now();
-            samples = pipeline.density(hair)?.samples;
-            let t1 = Instant::now();
-            pipeline.transmittance()?;
-            let t2 = Instant::now();
-            pipeline.filter(hair.points(), &mut out);
-            let t3 = Instant::now();
-            if r >= warmup {
-                for (v, d) in times.iter_mut().zip([t1 - t0, t2 - t1, t3 - t2]) {
-                    v.push(d.as_secs_f64() * 1e3);
-                }
-            }
-            progress(r + 1);
-        }
-        Ok(StageTimes {
-            density_ms: median(&mut times[0]),
-            transmittance_ms: median(&mut times[1]),
-            filter_ms: median(&mut times[2]),
-            runs,
-            samples,
-        })
-    }
 }
 
 /// The median of `v` (the mean of the middle two for even lengths).

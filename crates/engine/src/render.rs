@@ -2,8 +2,6 @@
 //! and the draw (head, then hair), or the compositing of hair drawn
 //! elsewhere over the head.
 
-use std::time::Instant;
-
 use glam::{Affine3A, Vec3};
 use raster::{Camera, Canvas, HairLayer};
 use strands::{Bounds, Hair};
@@ -12,22 +10,6 @@ use crate::part::{draw_head, head_lambert};
 use crate::{DrawJob, DrawReport, EngineError, HairPart, PendingPicture, Scene, ShadowPipeline};
 
 pub use crate::part::DEFAULT_HAIR_COLOR;
-
-/// Milliseconds of each stage of one frame; stages that did not run are 0.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct FrameTimes {
-    pub density_ms: f64,
-    pub transmittance_ms: f64,
-    pub filter_ms: f64,
-    pub shade_ms: f64,
-    pub draw_ms: f64,
-}
-
-impl FrameTimes {
-    pub fn total_ms(&self) -> f64 {
-        self.density_ms + self.transmittance_ms + self.filter_ms + self.shade_ms + self.draw_ms
-    }
-}
 
 /// Renders frames of one scene, keeping its buffers between frames.
 ///
@@ -55,10 +37,6 @@ struct View {
     camera: Camera,
     /// Distance that sets the depth weighting of hair fragments.
     depth_ref: f32,
-}
-
-fn ms(since: Instant) -> f64 {
-    since.elapsed().as_secs_f64() * 1e3
 }
 
 impl Renderer {
@@ -228,32 +206,17 @@ impl Renderer {
     }
 
     /// Renders `hair` with self-shadowing (`shadows`) or without (every
-    /// transmittance 1, no head shadow): all the stages, the picture and
-    /// their times.
-    pub fn render(
-        &mut self,
-        hair: &Hair,
-        shadows: bool,
-    ) -> Result<(image::RgbImage, FrameTimes), EngineError> {
-        let mut times = FrameTimes::default();
+    /// transmittance 1, no head shadow): all the stages of a still, untimed.
+    /// Frames that are timed, or skip what did not change, go through
+    /// [`crate::Sequence`].
+    pub fn render(&mut self, hair: &Hair, shadows: bool) -> Result<image::RgbImage, EngineError> {
         if shadows {
-            let t = Instant::now();
             self.shadows.density(hair)?;
-            times.density_ms = ms(t);
-            let t = Instant::now();
             self.shadows.transmittance()?;
-            times.transmittance_ms = ms(t);
-            let t = Instant::now();
             self.filter(hair);
-            times.filter_ms = ms(t);
         }
-        let t = Instant::now();
         self.shade(hair, shadows)?;
-        times.shade_ms = ms(t);
-        let t = Instant::now();
-        let img = self.draw(hair, shadows)?;
-        times.draw_ms = ms(t);
-        Ok((img, times))
+        self.draw(hair, shadows)
     }
 
     /// Unit directions towards each light.

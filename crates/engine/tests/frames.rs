@@ -310,3 +310,67 @@ fn the_default_camera_keeps_the_whole_animation_in_the_picture() {
         "frames with hair outside the picture (frame, points): {cut:?}"
     );
 }
+
+#[test]
+fn a_frame_rendered_again_runs_its_shadows_and_picture_anew_and_leaves_the_animation_alone() {
+    let s = scene("[animation]\nmotion = \"dance\"\n");
+    let (_, images, _) = run(&s, 3);
+    let mut seq = Sequence::new(&s).unwrap();
+    // The first call renders frame 0.
+    let (img, first) = seq.again().unwrap();
+    assert_eq!(first.index, 0);
+    assert!(*img == images[0]);
+    seq.next_frame().unwrap();
+    for _ in 0..2 {
+        let (img, st) = seq.again().unwrap();
+        assert_eq!(st.index, 1);
+        assert!(
+            *img == images[1],
+            "frame 1 rendered again is another picture"
+        );
+        for stage in [Stage::Simulate, Stage::SelfCollide, Stage::Pose] {
+            assert!(!st.stage(stage).ran, "{stage:?} ran again");
+        }
+        for stage in [
+            Stage::Density,
+            Stage::Transmittance,
+            Stage::Filter,
+            Stage::Shade,
+            Stage::Draw,
+        ] {
+            assert!(st.stage(stage).ran, "{stage:?} did not run again");
+        }
+        assert!(st.samples > 0, "the fill deposited nothing");
+    }
+    // The animation goes on as though nothing had been rendered again.
+    let (img, st) = seq.next_frame().unwrap();
+    assert_eq!(st.index, 2);
+    assert!(*img == images[2]);
+}
+
+#[test]
+fn a_still_frame_rendered_again_is_the_hair_at_rest() {
+    // What `bench shadow` and `bench accuracy` time: the same
+    // transmittance at every drawn point as the three stages run alone on
+    // the groom the scene builds.
+    let s = scene("[animation]\nmotion = \"still\"\n");
+    let hair = engine::build_hair(&s).unwrap();
+    let mut p = engine::ShadowPipeline::new(&s).unwrap();
+    let alone = p.run(&hair, hair.points()).unwrap();
+    let mut seq = Sequence::new(&s).unwrap();
+    seq.again().unwrap();
+    seq.again().unwrap();
+    assert!(seq.hair().points() == hair.points(), "not the hair at rest");
+    // The sequence fits its maps to the hair's extent measured from the
+    // head's anchor, the stages alone to the hair's points: maps placed
+    // apart by rounding, the same shadow.
+    let got = seq.renderer().transmittance();
+    assert_eq!(got.len(), alone.len());
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for (a, b) in got.iter().flatten().zip(alone.iter().flatten()) {
+        sum += f64::from((a - b).abs());
+        n += 1;
+    }
+    let mean = sum / n as f64;
+    assert!(mean < 1e-4, "mean |dT| {mean} from the stages alone");
+}

@@ -18,7 +18,6 @@ fn render(scene: &Scene, shadows: bool) -> image::RgbImage {
         .unwrap()
         .render(&hair, shadows)
         .unwrap()
-        .0
 }
 
 fn golden_dir() -> PathBuf {
@@ -183,7 +182,7 @@ fn a_head_mesh_of_the_sphere_draws_and_shadows_like_the_sphere() {
     let hair = build_hair(&sphere).unwrap();
     let frame = |s: &Scene| {
         let mut r = Renderer::new(s).unwrap();
-        let img = r.render(&hair, true).unwrap().0;
+        let img = r.render(&hair, true).unwrap();
         (img, r.transmittance()[0].clone())
     };
     let (img_s, t_s) = frame(&sphere);
