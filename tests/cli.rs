@@ -228,6 +228,105 @@ fn a_usc_hairsalon_groom_renders_and_a_cut_one_names_its_strand_and_byte() {
 }
 
 #[test]
+fn a_millimetre_groom_on_a_ply_head_alone_is_drawn_at_its_scale_and_the_same_as_on_its_obj() {
+    let dir = scratch("mm-head");
+    // A fringe in millimetres: 300 strands on a ring 105 mm round the
+    // project's head mesh (a sphere of radius 10 above its middle, placed
+    // 10 times larger), 240 mm long.
+    let strands: Vec<Vec<[f32; 3]>> = (0..300)
+        .map(|i| {
+            let a = i as f32 * std::f32::consts::TAU / 300.0;
+            (0..13)
+                .map(|k| [105.0 * a.cos(), 80.0 - 20.0 * k as f32, 105.0 * a.sin()])
+                .collect()
+        })
+        .collect();
+    std::fs::write(dir.join("groom.data"), usc_data(&strands)).unwrap();
+    let obj =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/head.obj")).unwrap();
+    std::fs::write(dir.join("head.obj"), &obj).unwrap();
+    // The same mesh as a binary PLY.
+    let v: Vec<[f32; 3]> = obj
+        .lines()
+        .filter_map(|l| l.strip_prefix("v "))
+        .map(|l| {
+            let c: Vec<f32> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
+            [c[0], c[1], c[2]]
+        })
+        .collect();
+    let f: Vec<Vec<u32>> = obj
+        .lines()
+        .filter_map(|l| l.strip_prefix("f "))
+        .map(|l| {
+            l.split_whitespace()
+                .map(|x| x.parse::<u32>().unwrap() - 1)
+                .collect()
+        })
+        .collect();
+    let mut ply = format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\n\
+         property float y\nproperty float z\nelement face {}\n\
+         property list uchar int vertex_indices\nend_header\n",
+        v.len(),
+        f.len()
+    )
+    .into_bytes();
+    v.iter().flatten().for_each(|c| ply.extend(c.to_le_bytes()));
+    for face in &f {
+        ply.push(face.len() as u8);
+        face.iter().for_each(|i| ply.extend(i.to_le_bytes()));
+    }
+    std::fs::write(dir.join("head.ply"), ply).unwrap();
+    let render = |mesh: &str| {
+        let scene = write(
+            &dir,
+            &format!("{mesh}.toml"),
+            &format!(
+                "[hair]\nfile = \"groom.data\"\n[head]\nmesh = \"{mesh}\"\nmesh_scale = 10\n\
+                 [render]\nwidth = 240\nheight = 180\n"
+            ),
+        );
+        let out = dir.join(format!("{mesh}.png"));
+        let o = wisplight(&["render", &scene, "-o", out.to_str().unwrap(), "-v"]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        (std::fs::read(out).unwrap(), stderr(&o))
+    };
+    let (from_obj, said) = render("head.obj");
+    let (from_ply, _) = render("head.ply");
+    assert!(from_obj == from_ply, "the PLY head drew another picture");
+    // A millimetre strand width (0.1 cm), and the collision sphere fitted to
+    // the mesh's crown: radius 10, times 10.
+    assert!(said.contains("fiber: width 1.0000 scene units"), "{said}");
+    let radius: f32 = said
+        .split("collision sphere at [0.000, 0.000, 0.000], radius ")
+        .nth(1)
+        .and_then(|r| r.split(',').next())
+        .and_then(|r| r.parse().ok())
+        .unwrap_or_else(|| panic!("no fitted sphere said: {said}"));
+    assert!((radius - 100.0).abs() < 1.0, "radius {radius}");
+    // Not a faint wireframe: the hair alone at its own width puts over twice
+    // the ink (summed difference from the background) of the same
+    // hair at the centimetre default's 0.1.
+    let ink = |fiber: &str| {
+        let scene = write(
+            &dir,
+            "alone.toml",
+            &format!("[hair]\nfile = \"groom.data\"\n{fiber}[render]\nwidth = 240\nheight = 180\n"),
+        );
+        let out = dir.join("alone.png");
+        let o = wisplight(&["render", &scene, "-o", out.to_str().unwrap()]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let img = image::open(&out).unwrap().to_rgb8();
+        let bg = *img.get_pixel(0, 0);
+        img.pixels()
+            .flat_map(|p| p.0.iter().zip(bg.0).map(|(&a, b)| u64::from(a.abs_diff(b))))
+            .sum::<u64>()
+    };
+    let (own, cm) = (ink(""), ink("[fiber]\nwidth = 0.1\n"));
+    assert!(own > 2 * cm, "ink {own} at the groom's width, {cm} at 0.1");
+}
+
+#[test]
 fn usage_errors_exit_with_2() {
     assert_eq!(wisplight(&["probe"]).status.code(), Some(2));
     assert_eq!(wisplight(&["frobnicate"]).status.code(), Some(2));

@@ -163,7 +163,7 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
             "frame done"
         );
         if all.is_empty() {
-            describe(&seq);
+            describe(&seq, &scene);
         }
         all.push(stats);
         bar.inc(1);
@@ -222,8 +222,9 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
 }
 
 /// With `-v`: what the run renders, once its first frame framed the
-/// camera and fitted the maps: the groom, each light's map, the camera.
-fn describe(seq: &Sequence) {
+/// camera and fitted the maps: the groom, the strand width, the head, each
+/// light's map, the camera.
+fn describe(seq: &Sequence, scene: &engine::Scene) {
     let hair = seq.hair();
     let b = hair.bounds();
     let size = b.size();
@@ -242,6 +243,23 @@ fn describe(seq: &Sequence) {
         size.y,
         size.z
     );
+    tracing::info!(
+        "fiber: width {:.4} scene units, opacity {:.2}",
+        scene.fiber.width(),
+        scene.fiber.opacity()
+    );
+    if let Some(h) = &scene.head {
+        let mesh = h.mesh.as_ref().map_or(String::new(), |m| {
+            format!(", drawn as {}", m.path.display())
+        });
+        tracing::info!(
+            "head: collision sphere at [{:.3}, {:.3}, {:.3}], radius {:.3}{mesh}",
+            h.center.x,
+            h.center.y,
+            h.center.z,
+            h.radius
+        );
+    }
     let shadows = seq.renderer().shadows();
     for l in 0..shadows.light_count() {
         if let Some(f) = shadows.frame(l) {

@@ -1,4 +1,5 @@
-//! The head as it stands in a frame: a sphere, or a mesh read from OBJ.
+//! The head as it stands in a frame: a sphere, or a mesh read from OBJ or
+//! PLY.
 
 use std::sync::Arc;
 
@@ -26,6 +27,7 @@ impl Head {
     pub fn load(settings: &HeadSettings, scene: &Scene) -> Result<Head, EngineError> {
         let rest = match &settings.mesh {
             Some(m) => {
+                strands::mesh_parser(&m.path)?;
                 let bytes =
                     scene
                         .data_file(&m.path)
@@ -33,7 +35,7 @@ impl Head {
                             path: m.path.clone(),
                             cause,
                         })?;
-                let mesh = strands::load_obj_bytes(&m.path, &bytes)?;
+                let mesh = strands::load_mesh_bytes(&m.path, &bytes)?;
                 let place = Affine3A::from_scale_rotation_translation(
                     Vec3::splat(m.scale),
                     glam::Quat::IDENTITY,

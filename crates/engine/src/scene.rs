@@ -8,14 +8,15 @@
 //! strands_per_wisp = 25     # procedural styles: 134 wisps of this many drawn strands
 //! subdivide = 2             # Catmull-Rom pieces per input segment
 //! followers = 15            # files: follow strands grown per file strand (default 15 for .tfx, 0 for .hair)
-//! follow_radius = 0.4       # files: root disc radius of follow strands, scene units
+//! follow_radius = 0.4       # files: root disc radius of follow strands, scene units (x the groom's unit)
 //! tip_spread = 1.5          # files: follow offset at the tip / at the root
 //! scale = 1.0               # files and strands: p' = translate + R_z R_y R_x (scale p)
 //! rotate_deg = [0, 0, 0]    # files and strands: degrees about x, then y, then z
 //! translate = [0, 0, 0]     # files and strands: scene units
 //!
 //! [fiber]
-//! width = 0.1               # effective width w of one drawn strand, scene units
+//! width = 0.1               # effective width w of one drawn strand, scene units; for a groom
+//!                           # from a file, x its unit: 10 for one 100 to 1000 across (mm), 0.01 (m) ...
 //! opacity = 0.5             # alpha in [0, 1]
 //!
 //! [light]                   # or several [[light]] tables
@@ -26,7 +27,8 @@
 //! cells = 128               # map cells a side, 1..=512
 //! filter = true             # trilinear filtering of transmittance
 //!
-//! [head]                    # visible, center, radius, color; mesh = "head.obj", mesh_scale, mesh_offset
+//! [head]                    # visible, center, radius, color; mesh = "head.obj" or .ply, mesh_scale, mesh_offset
+//!                           # (a mesh alone: center and radius fitted to its crown)
 //! [effects]                 # dynamics, self_collision, body_collision, self_shadow, specular, head_shadow
 //! [animation]               # motion = "still" | "dance" | "keyframes" ([[animation.key]]), fps = 30
 //! [dynamics]                # time_step, gravity, damping, stiffness, iterations, settle
@@ -387,6 +389,7 @@ pub struct Scene {
 /// Defaults, documented in the module comment and README.
 pub const DEFAULT_LIGHT_DIRECTION: [f32; 3] = [0.9, -0.35, -0.25];
 pub const DEFAULT_FIBER_WIDTH: f32 = 0.1;
+pub const DEFAULT_FOLLOW_RADIUS: f32 = 0.4;
 pub const DEFAULT_FIBER_OPACITY: f32 = 0.5;
 pub const DEFAULT_CELLS: u32 = 128;
 pub const DEFAULT_SUBDIVIDE: u32 = 2;
@@ -435,6 +438,17 @@ impl Scene {
 
     /// Parses scene text; `path` names it in errors and anchors relative paths.
     pub fn from_toml_str(text: &str, path: &Path) -> Result<Scene, SceneError> {
+        Scene::parse(text, path, BTreeMap::new())
+    }
+
+    /// [`Self::from_toml_str`] with the data files already read (what a
+    /// head mesh given alone is fitted from; the others' are read from
+    /// disk).
+    fn parse(
+        text: &str,
+        path: &Path,
+        files: BTreeMap<PathBuf, Arc<[u8]>>,
+    ) -> Result<Scene, SceneError> {
         if text.len() > MAX_SCENE_BYTES {
             return Err(SceneError::Parse {
                 path: path.to_owned(),
@@ -445,11 +459,15 @@ impl Scene {
             path: path.to_owned(),
             message: one_line(&e.to_string()),
         })?;
-        let mut scene = Validator { path }.scene(raw)?;
+        let mut scene = Validator {
+            path,
+            files: &files,
+        }
+        .scene(raw)?;
         scene.source = SceneSource {
             text: text.into(),
             path: path.to_owned(),
-            files: BTreeMap::new(),
+            files,
         };
         Ok(scene)
     }
@@ -496,9 +514,7 @@ impl Scene {
 
     /// The scene `source` describes, with its data files as read there.
     pub fn from_source(source: &SceneSource) -> Result<Scene, SceneError> {
-        let mut scene = Scene::from_toml_str(&source.text, &source.path)?;
-        scene.source.files = source.files.clone();
-        Ok(scene)
+        Scene::parse(&source.text, &source.path, source.files.clone())
     }
 }
 
@@ -524,9 +540,65 @@ fn one_line(message: &str) -> String {
 
 struct Validator<'a> {
     path: &'a Path,
+    /// Data files already read, by the path the scene names them by.
+    files: &'a BTreeMap<PathBuf, Arc<[u8]>>,
 }
 
 impl Validator<'_> {
+    /// The length unit the groom at `path`, placed by `place`, appears to
+    /// be measured in, relative to the centimetres the length defaults
+    /// (fiber width, follow radius) assume: with `L` the largest side of
+    /// its bounds,
+    ///
+    /// ```text
+    /// unit = 10^floor(log10(L / 10))
+    /// ```
+    ///
+    /// 1 for a groom 10 to 100 units across (centimetres: a head is about
+    /// 16 to 20 across, long hair under 100), 10 for 100 to 1000
+    /// (millimetres), 0.01 for 0.1 to 1 (metres); at most 10^4 either way,
+    /// 1 for an empty groom. Reads the groom (from the scene's files when
+    /// held there).
+    fn groom_unit(&self, path: &Path, place: &Placement) -> Result<f32, SceneError> {
+        let fail = |reason: String| self.invalid("hair.file", path.display(), reason);
+        let hair = match self.files.get(path) {
+            Some(b) => strands::load_bytes(path, b),
+            None => strands::load(path),
+        }
+        .map_err(|e| fail(e.to_string()))?;
+        let b = hair.bounds();
+        if b.is_empty() {
+            return Ok(1.0);
+        }
+        let side = (b.size() * place.scale).max_element();
+        if side.is_nan() || side <= 0.0 {
+            return Ok(1.0);
+        }
+        let e = (side / 10.0).log10().floor().clamp(-4.0, 4.0);
+        Ok(10f32.powf(e))
+    }
+
+    /// The collision sphere of a head mesh given without one: fitted to
+    /// its crown ([`strands::Mesh::crown_sphere`]), as the mesh is placed.
+    fn fitted_sphere(&self, m: &HeadMesh) -> Result<(Vec3, f32), SceneError> {
+        let fail = |reason: String| self.invalid("head.mesh", m.path.display(), reason);
+        let parse = strands::mesh_parser(&m.path).map_err(|e| fail(e.to_string()))?;
+        let bytes = match self.files.get(&m.path) {
+            Some(b) => std::borrow::Cow::Borrowed(&b[..]),
+            None => std::borrow::Cow::Owned(
+                std::fs::read(&m.path).map_err(|e| fail(format!("cannot read it: {e}")))?,
+            ),
+        };
+        let mesh = parse(&bytes).map_err(|e| fail(e.to_string()))?;
+        let (c, r) = mesh.crown_sphere().ok_or_else(|| {
+            fail(
+                "a single point: no collision sphere fits it (give head.center and head.radius)"
+                    .into(),
+            )
+        })?;
+        Ok((m.offset + m.scale * c, m.scale * r))
+    }
+
     fn invalid(
         &self,
         field: &'static str,
@@ -782,6 +854,10 @@ impl Validator<'_> {
             ("hair.tip_spread", h.tip_spread.is_some()),
         ];
         let place = self.placement(&h)?;
+        // Length defaults in centimetres that follow a groom file's unit
+        // (set once the rest is valid): the fiber width, the follow radius.
+        let mut scale_width = false;
+        let mut scale_follow = false;
         let hair = match (&h.strands, &h.file) {
             (Some(strands), _) => {
                 self.refuse_set(&follow_keys, "does not apply to hair.strands")?;
@@ -804,7 +880,10 @@ impl Validator<'_> {
                     if tfx { DEFAULT_TFX_FOLLOWERS } else { 0 },
                     0..=1000,
                 )?;
-                let radius = self.positive("hair.follow_radius", h.follow_radius, 0.4)?;
+                scale_width = raw.fiber.width.is_none();
+                scale_follow = followers > 0 && h.follow_radius.is_none();
+                let radius =
+                    self.positive("hair.follow_radius", h.follow_radius, DEFAULT_FOLLOW_RADIUS)?;
                 let tip_spread = self.positive("hair.tip_spread", h.tip_spread, 1.5)?;
                 let follow = (followers > 0).then_some(FollowParams {
                     followers,
@@ -982,20 +1061,9 @@ impl Validator<'_> {
         let visible = hd.visible.unwrap_or(
             style_head.is_some() || hd.center.is_some() || hd.radius.is_some() || hd.mesh.is_some(),
         );
+        let mut fit_head = false;
         let head = if visible {
-            let center = vec3("head.center", hd.center)?.or(style_head.map(|h| h.0));
-            let radius = hd.radius.or(style_head.map(|h| h.1));
-            let (Some(center), Some(radius)) = (center, radius) else {
-                return Err(self.invalid(
-                    "head",
-                    "(incomplete)",
-                    "a head for hair from a file needs head.center and head.radius",
-                ));
-            };
-            if !(radius.is_finite() && radius > 0.0) {
-                return Err(self.invalid("head.radius", radius, "must be a finite number > 0"));
-            }
-            let mesh = match hd.mesh {
+            let mesh = match &hd.mesh {
                 Some(file) => {
                     let scale = hd.mesh_scale.unwrap_or(1.0);
                     if !(scale.is_finite() && scale > 0.0) {
@@ -1006,7 +1074,7 @@ impl Validator<'_> {
                         ));
                     }
                     Some(HeadMesh {
-                        path: self.relative(&file),
+                        path: self.relative(file),
                         scale,
                         offset: vec3("head.mesh_offset", hd.mesh_offset)?.unwrap_or(Vec3::ZERO),
                     })
@@ -1022,6 +1090,28 @@ impl Validator<'_> {
                     None
                 }
             };
+            let center = vec3("head.center", hd.center)?.or(style_head.map(|h| h.0));
+            let radius = hd.radius.or(style_head.map(|h| h.1));
+            let (center, radius) = match (center, radius, &mesh) {
+                (Some(c), Some(r), _) => (c, r),
+                // A head mesh alone: the collision sphere fitted to it
+                // once the rest is valid.
+                (None, None, Some(_)) => {
+                    fit_head = true;
+                    (Vec3::ZERO, 1.0)
+                }
+                _ => {
+                    return Err(self.invalid(
+                        "head",
+                        "(incomplete)",
+                        "a head for hair from a file needs head.center and head.radius, or \
+                         head.mesh alone",
+                    ));
+                }
+            };
+            if !(radius.is_finite() && radius > 0.0) {
+                return Err(self.invalid("head.radius", radius, "must be a finite number > 0"));
+            }
             Some(HeadSettings {
                 center,
                 radius,
@@ -1045,7 +1135,7 @@ impl Validator<'_> {
         let animation = self.animation(raw.animation)?;
         let dynamics = self.dynamics(raw.dynamics)?;
         self.steps_in_bounds(&animation, &dynamics)?;
-        Ok(Scene {
+        let mut scene = Scene {
             source: SceneSource::default(),
             hair,
             subdivide,
@@ -1061,7 +1151,35 @@ impl Validator<'_> {
             dynamics,
             collision: self.collision(raw.collision)?,
             bodies: self.bodies(raw.body)?,
-        })
+        };
+        // What needs the data files read, now that the text is valid.
+        if let HairSource::File {
+            path,
+            follow,
+            place,
+        } = &mut scene.hair
+            && (scale_width || scale_follow)
+        {
+            let unit = self.groom_unit(path, place)?;
+            if scale_follow && let Some(f) = follow {
+                f.radius = DEFAULT_FOLLOW_RADIUS * unit;
+            }
+            if scale_width {
+                scene.fiber = Fiber::new(DEFAULT_FIBER_WIDTH * unit, scene.fiber.opacity())
+                    .map_err(|_| {
+                        self.invalid(
+                            "fiber.width",
+                            DEFAULT_FIBER_WIDTH * unit,
+                            "must be a finite number > 0",
+                        )
+                    })?;
+            }
+        }
+        if let Some(h) = scene.head.as_mut().filter(|_| fit_head) {
+            let m = h.mesh.as_ref().expect("fitted heads have a mesh");
+            (h.center, h.radius) = self.fitted_sphere(m)?;
+        }
+        Ok(scene)
     }
 }
 
@@ -1260,7 +1378,7 @@ mod tests {
         }
         let e = parse("[hair]\nstyle = \"curly\"\nscale = 2\n").unwrap_err();
         assert!(e.to_string().contains("hair.scale"), "{e}");
-        let s = parse("[hair]\nfile = \"g.data\"\nscale = 0.1\n").unwrap();
+        let s = parse("[hair]\nfile = \"g.data\"\nscale = 0.1\n[fiber]\nwidth = 0.1\n").unwrap();
         assert!(
             matches!(s.hair, HairSource::File { place, .. } if place.scale == 0.1),
             "{:?}",
@@ -1270,7 +1388,9 @@ mod tests {
 
     #[test]
     fn files_are_relative_to_the_scene_and_tfx_grows_followers() {
-        let s = parse("[hair]\nfile = \"groom.tfx\"\n").unwrap();
+        // Widths given: the groom is not read here.
+        let s = parse("[hair]\nfile = \"groom.tfx\"\nfollow_radius = 0.4\n[fiber]\nwidth = 0.1\n")
+            .unwrap();
         match s.hair {
             HairSource::File { path, follow, .. } => {
                 assert_eq!(path, Path::new("dir/groom.tfx"));
@@ -1278,10 +1398,89 @@ mod tests {
             }
             other => panic!("{other:?}"),
         }
-        let s = parse("[hair]\nfile = \"/abs/x.hair\"\n").unwrap();
+        let s = parse("[hair]\nfile = \"/abs/x.hair\"\n[fiber]\nwidth = 0.1\n").unwrap();
         assert!(
             matches!(s.hair, HairSource::File { ref path, follow: None, .. } if path == Path::new("/abs/x.hair"))
         );
+    }
+
+    #[test]
+    fn length_defaults_follow_the_groom_unit_and_a_mesh_alone_fits_the_head() {
+        let dir = std::env::temp_dir().join(format!("wisplight-unit-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // USC-HairSalon .data: one strand `len` long down from y = 0.
+        let groom = |name: &str, len: f32| {
+            let mut b = 1i32.to_le_bytes().to_vec();
+            b.extend(2i32.to_le_bytes());
+            for v in [0.0f32, 0.0, 0.0, 0.0, -len, 0.0] {
+                b.extend(v.to_le_bytes());
+            }
+            std::fs::write(dir.join(name), b).unwrap();
+        };
+        let scene = |text: &str| Scene::from_toml_str(text, &dir.join("s.toml"));
+        // 25 cm, 250 mm, 0.25 m: the same hair, the same look.
+        for (name, len, unit) in [
+            ("cm.data", 25.0, 1.0),
+            ("mm.data", 250.0, 10.0),
+            ("m.data", 0.25, 0.01),
+        ] {
+            groom(name, len);
+            let s = scene(&format!("[hair]\nfile = \"{name}\"\nfollowers = 4\n")).unwrap();
+            let close = |a: f32, b: f32| (a - b).abs() <= 1e-6 * b;
+            assert!(
+                close(s.fiber.width(), 0.1 * unit),
+                "{name}: width {}",
+                s.fiber.width()
+            );
+            match s.hair {
+                HairSource::File {
+                    follow: Some(f), ..
+                } => assert!(close(f.radius, 0.4 * unit), "{name}: {}", f.radius),
+                other => panic!("{other:?}"),
+            }
+            // Given, a width stays; scaled, the groom's unit follows.
+            let s = scene(&format!(
+                "[hair]\nfile = \"{name}\"\n[fiber]\nwidth = 0.3\n"
+            ))
+            .unwrap();
+            assert_eq!(s.fiber.width(), 0.3);
+            let s = scene(&format!(
+                "[hair]\nfile = \"{name}\"\nscale = {}\n",
+                1.0 / unit
+            ))
+            .unwrap();
+            assert!(
+                close(s.fiber.width(), 0.1),
+                "{name} scaled: width {}",
+                s.fiber.width()
+            );
+        }
+        // A groom that does not load is named with hair.file.
+        let e = scene("[hair]\nfile = \"nowhere.data\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("hair.file") && e.contains("nowhere.data"), "{e}");
+        // A head mesh alone: the sphere fitted to its crown, as placed.
+        let obj = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/head.obj");
+        std::fs::copy(obj, dir.join("head.obj")).unwrap();
+        let s = scene("[hair]\nfile = \"cm.data\"\n[head]\nmesh = \"head.obj\"\nmesh_scale = 2\nmesh_offset = [0, 30, 0]\n").unwrap();
+        let h = s.head.unwrap();
+        assert!(
+            h.center.distance(Vec3::new(0.0, 30.0, 0.0)) < 0.5,
+            "{}",
+            h.center
+        );
+        assert!((h.radius - 20.0).abs() < 0.5, "{}", h.radius);
+        // Half a head given is still refused.
+        let e = scene("[hair]\nfile = \"cm.data\"\n[head]\nmesh = \"head.obj\"\nradius = 3\n")
+            .unwrap_err();
+        assert!(e.to_string().contains("head.center"), "{e}");
+        let e = scene("[hair]\nfile = \"cm.data\"\n[head]\nmesh = \"gone.ply\"\n").unwrap_err();
+        assert!(
+            e.to_string().contains("head.mesh") && e.to_string().contains("gone.ply"),
+            "{e}"
+        );
+        std::fs::remove_dir_all(&dir).ok();
     }
 
     #[test]

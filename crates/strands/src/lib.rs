@@ -28,8 +28,9 @@ pub use load::{
     parse_tfx, parse_usc_data,
 };
 pub use mesh::{
-    MAX_MESH_ELEMENTS, Mesh, MeshError, MeshLoadError, load_obj, load_obj_bytes, parse_obj,
+    MAX_MESH_ELEMENTS, Mesh, MeshError, MeshLoadError, load_mesh, load_mesh_bytes, load_obj,
+    load_obj_bytes, mesh_parser, parse_obj,
 };
-pub use ply::parse_ply_strands;
+pub use ply::{parse_ply_mesh, parse_ply_strands};
 pub use rng::Rng;
 pub use style::{GUIDES_PER_WISP, Member, Style, StyleParams, WispModel};

@@ -26,6 +26,14 @@ pub enum LoadError {
         path.display()
     )]
     UnknownExtension { path: PathBuf },
+    /// Alembic archives are not read: the Rust readers of Ogawa archives
+    /// (ogawa-rs 0.4) are unfinished and trust the sizes a file claims.
+    #[error(
+        "{}: Alembic archives are not read; convert the curves to PLY strands first, e.g. `hairutil convert -i {} -o ply` (github.com/kenshi84/hairutil), and name the .ply",
+        path.display(),
+        path.display()
+    )]
+    Alembic { path: PathBuf },
 }
 
 /// A file's first bytes as text, escaped where not printable ASCII.
@@ -161,6 +169,9 @@ fn parser(path: &Path) -> Result<Parser, LoadError> {
         Some("data") => Ok(parse_usc_data),
         Some("bin") => Ok(parse_ct2hair_bin),
         Some("ply") => Ok(crate::ply::parse_ply_strands),
+        Some("abc") => Err(LoadError::Alembic {
+            path: path.to_owned(),
+        }),
         _ => Err(LoadError::UnknownExtension {
             path: path.to_owned(),
         }),
@@ -719,6 +730,14 @@ mod tests {
     fn unknown_extension_and_missing_file_name_the_path() {
         let e = load(Path::new("groom.obj")).unwrap_err();
         assert!(e.to_string().contains("groom.obj"), "{e}");
+        // An Alembic archive is refused before it is read, with a way out.
+        let e = load(Path::new("/nonexistent/groom.abc")).unwrap_err();
+        assert!(
+            matches!(e, LoadError::Alembic { .. })
+                && e.to_string()
+                    .contains("hairutil convert -i /nonexistent/groom.abc -o ply"),
+            "{e}"
+        );
         let e = load(Path::new("/nonexistent/x.hair")).unwrap_err();
         assert!(
             e.to_string().starts_with("cannot read /nonexistent/x.hair"),

@@ -1,4 +1,5 @@
-//! Triangle meshes for heads and bodies, and a Wavefront OBJ reader.
+//! Triangle meshes for heads and bodies, and readers of Wavefront OBJ and
+//! (in `ply.rs`) PLY.
 
 use std::path::{Path, PathBuf};
 
@@ -37,6 +38,8 @@ pub enum MeshError {
     TooLarge { what: &'static str },
     #[error("line {line}: {detail}")]
     Obj { line: usize, detail: String },
+    #[error("PLY: {0}")]
+    Ply(String),
 }
 
 /// Why an OBJ file cannot be loaded.
@@ -49,6 +52,8 @@ pub enum MeshLoadError {
     },
     #[error("{}: {cause}", path.display())]
     Format { path: PathBuf, cause: MeshError },
+    #[error("{}: unknown mesh file type (expected .obj or .ply)", path.display())]
+    UnknownExtension { path: PathBuf },
 }
 
 impl Mesh {
@@ -107,6 +112,64 @@ impl Mesh {
         Bounds::of(&self.positions)
     }
 
+    /// A sphere for hair to collide with, fitted to the crown of a head
+    /// mesh whose up is +y: its centre and radius.
+    ///
+    /// Kasa's algebraic least-squares fit, `|p|^2 = 2 c . p + k` over the
+    /// chosen vertices `p`, linear in the centre `c` and `k`, with
+    /// `r^2 = k + |c|^2`: first through the vertices in the top
+    /// [`CROWN_SHARE`] of the mesh's height, then twice through those above
+    /// the last fit's centre (the cranium's upper half, whatever hangs
+    /// below: a jaw, a neck, shoulders). The radius is then the median
+    /// distance of those vertices from the centre. A crown too flat or too
+    /// sparse to fit falls back to the bounds' centre and half their
+    /// smallest side (their largest, for a flat mesh); `None` for a mesh
+    /// of one point.
+    pub fn crown_sphere(&self) -> Option<(Vec3, f32)> {
+        let b = self.bounds();
+        let size = b.size();
+        let smallest = [size.x, size.y, size.z]
+            .into_iter()
+            .filter(|&v| v > 0.0)
+            .reduce(f32::min)?;
+        let fallback = Some((b.center(), 0.5 * smallest));
+        let top = b.max.y;
+        let mut pick: Vec<Vec3> = self
+            .positions
+            .iter()
+            .copied()
+            .filter(|p| p.y >= top - CROWN_SHARE * b.size().y)
+            .collect();
+        let mut fit = None;
+        for _ in 0..3 {
+            let Some((c, _)) = sphere_fit(&pick) else {
+                break;
+            };
+            fit = Some(c);
+            let upper: Vec<Vec3> = self
+                .positions
+                .iter()
+                .copied()
+                .filter(|p| p.y >= c.y)
+                .collect();
+            if upper.len() < 10 {
+                break;
+            }
+            pick = upper;
+        }
+        let Some(c) = fit else {
+            return fallback;
+        };
+        let mut d: Vec<f32> = pick.iter().map(|p| p.distance(c)).collect();
+        d.sort_by(f32::total_cmp);
+        let r = d[d.len() / 2];
+        if c.is_finite() && r.is_finite() && r > 0.0 {
+            Some((c, r))
+        } else {
+            fallback
+        }
+    }
+
     /// The mesh moved by `m`, a rigid motion with uniform scale (normals
     /// are turned by `m` and renormalized, which is exact for such maps).
     pub fn transformed(&self, m: Affine3A) -> Mesh {
@@ -124,6 +187,52 @@ impl Mesh {
             triangles: self.triangles.clone(),
         }
     }
+}
+
+/// The share of a head mesh's height, from the top, that the first fit of
+/// [`Mesh::crown_sphere`] goes through.
+pub const CROWN_SHARE: f32 = 0.15;
+
+/// Kasa's least-squares sphere through `points` (see
+/// [`Mesh::crown_sphere`]): centre and radius, or `None` for fewer than 10
+/// points or points too close to a plane to place a centre.
+fn sphere_fit(points: &[Vec3]) -> Option<(Vec3, f32)> {
+    if points.len() < 10 {
+        return None;
+    }
+    // About the mean, in f64: the normal equations of rows
+    // [2x 2y 2z 1] x = |p|^2.
+    let n = points.len() as f64;
+    let mean = points.iter().map(|p| p.as_dvec3()).sum::<glam::DVec3>() / n;
+    let mut ata = glam::DMat4::ZERO;
+    let mut atb = glam::DVec4::ZERO;
+    let mut scale = 0.0f64;
+    for p in points {
+        let q = p.as_dvec3() - mean;
+        scale = scale.max(q.length());
+        let row = glam::DVec4::new(2.0 * q.x, 2.0 * q.y, 2.0 * q.z, 1.0);
+        let rhs = q.length_squared();
+        for i in 0..4 {
+            *ata.col_mut(i) += row * row[i];
+        }
+        atb += row * rhs;
+    }
+    if scale <= 0.0 {
+        return None;
+    }
+    // Conditioned on the points' spread: a flat cap gives a singular
+    // system (relative determinant ~0).
+    let det = ata.determinant() / (n.powi(4) * scale.powi(6));
+    if det.is_nan() || det.abs() <= 1e-9 {
+        return None;
+    }
+    let x = ata.inverse() * atb;
+    let c = x.truncate();
+    let r2 = x.w + c.length_squared();
+    if r2.is_nan() || r2 <= 0.0 {
+        return None;
+    }
+    Some(((c + mean).as_vec3(), r2.sqrt() as f32))
 }
 
 /// Area-weighted vertex normals: the sum of the (unnormalized) cross
@@ -160,6 +269,42 @@ fn vertex_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
             }
         })
         .collect()
+}
+
+/// Reads a mesh from Wavefront OBJ or PLY, by the file's extension.
+pub fn load_mesh(path: &Path) -> Result<Mesh, MeshLoadError> {
+    mesh_parser(path)?;
+    let bytes = std::fs::read(path).map_err(|cause| MeshLoadError::Io {
+        path: path.to_owned(),
+        cause,
+    })?;
+    load_mesh_bytes(path, &bytes)
+}
+
+/// Parses the bytes of the mesh file `path` (`.obj` or `.ply` by
+/// extension; the path names the file in errors).
+pub fn load_mesh_bytes(path: &Path, bytes: &[u8]) -> Result<Mesh, MeshLoadError> {
+    mesh_parser(path)?(bytes).map_err(|cause| MeshLoadError::Format {
+        path: path.to_owned(),
+        cause,
+    })
+}
+
+type MeshParser = fn(&[u8]) -> Result<Mesh, MeshError>;
+
+/// The mesh parser for `path`'s extension.
+pub fn mesh_parser(path: &Path) -> Result<MeshParser, MeshLoadError> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("obj") => Ok(parse_obj),
+        Some("ply") => Ok(crate::ply::parse_ply_mesh),
+        _ => Err(MeshLoadError::UnknownExtension {
+            path: path.to_owned(),
+        }),
+    }
 }
 
 /// Reads a Wavefront OBJ file: `v x y z` vertices and `f` faces (indices

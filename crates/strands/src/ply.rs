@@ -13,7 +13,7 @@
 
 use glam::Vec3;
 
-use crate::{FormatError, Hair};
+use crate::{FormatError, Hair, MAX_MESH_ELEMENTS, Mesh, MeshError};
 
 /// The most header bytes read before `end_header` must have come.
 const MAX_HEADER_BYTES: usize = 1 << 20;
@@ -261,68 +261,151 @@ impl Reader<'_> {
     }
 }
 
-/// Parses a PLY strand set (see the module docs).
-pub fn parse_ply_strands(b: &[u8]) -> Result<Hair, FormatError> {
+/// The name of a property.
+fn name_of(p: &Property) -> &str {
+    match p {
+        Property::Scalar(_, n) | Property::List(_, _, n) => n,
+    }
+}
+
+/// Reads element `e`'s items, calling `item(index, values, list)` for
+/// each with every scalar property's value (a list's slot holds its
+/// length) and the items of the list property at `list_at`, when given.
+/// The item count is checked against the bytes left before any is read,
+/// and each list's length before its items.
+fn read_items(
+    r: &mut Reader,
+    e: &Element,
+    list_at: Option<usize>,
+    mut item: impl FnMut(u64, &[f64], &[f64]) -> Result<(), FormatError>,
+) -> Result<(), FormatError> {
+    // Every item takes a byte at least (binary: its fixed part).
+    let fixed: u64 = e
+        .props
+        .iter()
+        .map(|p| match p {
+            Property::Scalar(t, _) => t.size() as u64,
+            Property::List(c, _, _) => c.size() as u64,
+        })
+        .sum::<u64>()
+        .max(1);
+    let per_item = if r.encoding == Encoding::Ascii {
+        e.props.len().max(1) as u64
+    } else {
+        fixed
+    };
+    if e.count.saturating_mul(per_item) > r.left() {
+        return Err(bad(format!(
+            "element {} claims {} items, needing {} bytes at least, but {} remain",
+            e.name,
+            e.count,
+            e.count.saturating_mul(per_item),
+            r.left()
+        )));
+    }
+    let mut vals = vec![0.0f64; e.props.len()];
+    let mut list = Vec::new();
+    for i in 0..e.count {
+        for (k, p) in e.props.iter().enumerate() {
+            let what = || format!("{} {i}, property {}", e.name, name_of(p));
+            match p {
+                Property::Scalar(t, _) => vals[k] = r.value(*t, &what)?,
+                Property::List(c, t, _) => {
+                    let len = r.value(*c, &what)?;
+                    if !(0.0..=r.left() as f64).contains(&len) {
+                        return Err(bad(format!("{}: a list of {len} items", what())));
+                    }
+                    vals[k] = len;
+                    let keep = list_at == Some(k);
+                    if keep {
+                        list.clear();
+                    }
+                    for _ in 0..len as u64 {
+                        let v = r.value(*t, &what)?;
+                        if keep {
+                            list.push(v);
+                        }
+                    }
+                }
+            }
+        }
+        item(i, &vals, &list)?;
+    }
+    Ok(())
+}
+
+/// The header read and a reader at the data after it.
+fn open(b: &[u8]) -> Result<(Vec<Element>, Reader<'_>), FormatError> {
     let (encoding, elements, body) = header(b)?;
     let lines_in_header = b[..body].iter().filter(|&&c| c == b'\n').count() as u64;
-    let mut r = Reader {
+    let r = Reader {
         b,
         at: body,
         encoding,
         line: lines_in_header + 1,
     };
+    Ok((elements, r))
+}
+
+/// Binary data must end with the last element.
+fn check_end(r: &Reader) -> Result<(), FormatError> {
+    if r.encoding != Encoding::Ascii && r.at != r.b.len() {
+        return Err(bad(format!(
+            "byte {}: {} bytes left over after the last element",
+            r.at,
+            r.b.len() - r.at
+        )));
+    }
+    Ok(())
+}
+
+/// The index of the scalar property named `want`.
+fn scalar_at(e: &Element, want: impl Fn(&str) -> bool) -> Option<usize> {
+    e.props
+        .iter()
+        .position(|p| matches!(p, Property::Scalar(_, n) if want(n)))
+}
+
+/// The `x`, `y`, `z` properties of a vertex element.
+fn xyz_of(e: &Element) -> Result<[usize; 3], FormatError> {
+    match (
+        scalar_at(e, |n| n == "x"),
+        scalar_at(e, |n| n == "y"),
+        scalar_at(e, |n| n == "z"),
+    ) {
+        (Some(x), Some(y), Some(z)) => Ok([x, y, z]),
+        _ => Err(bad("the vertex element has no x, y and z")),
+    }
+}
+
+fn point(vals: &[f64], [x, y, z]: [usize; 3]) -> Vec3 {
+    Vec3::new(vals[x] as f32, vals[y] as f32, vals[z] as f32)
+}
+
+/// Parses a PLY strand set (see the module docs).
+pub fn parse_ply_strands(b: &[u8]) -> Result<Hair, FormatError> {
+    let (elements, mut r) = open(b)?;
     let mut points: Option<Vec<Vec3>> = None;
     let mut index: Option<Vec<f64>> = None;
     let mut counts: Option<Vec<u64>> = None;
     for e in &elements {
-        // Every item takes a byte at least (binary: its fixed part).
-        let fixed: u64 = e
-            .props
-            .iter()
-            .map(|p| match p {
-                Property::Scalar(t, _) => t.size() as u64,
-                Property::List(c, _, _) => c.size() as u64,
-            })
-            .sum::<u64>()
-            .max(1);
-        let per_item = if encoding == Encoding::Ascii {
-            e.props.len().max(1) as u64
-        } else {
-            fixed
-        };
-        if e.count.saturating_mul(per_item) > r.left() {
-            return Err(bad(format!(
-                "element {} claims {} items, needing {} bytes at least, but {} remain",
-                e.name,
-                e.count,
-                e.count.saturating_mul(per_item),
-                r.left()
-            )));
+        let n = e.count.min(r.left()) as usize;
+        if e.name == "vertex" {
+            let xyz = xyz_of(e)?;
+            let strand_at = scalar_at(e, is_strand_index);
+            let mut pts = Vec::with_capacity(n);
+            let mut idx = Vec::with_capacity(if strand_at.is_some() { n } else { 0 });
+            read_items(&mut r, e, None, |_, vals, _| {
+                pts.push(point(vals, xyz));
+                if let Some(s) = strand_at {
+                    idx.push(vals[s]);
+                }
+                Ok(())
+            })?;
+            points = Some(pts);
+            index = strand_at.map(|_| idx);
+            continue;
         }
-        let name = |p: &Property| match p {
-            Property::Scalar(_, n) | Property::List(_, _, n) => n.clone(),
-        };
-        let find = |want: &str| {
-            e.props
-                .iter()
-                .position(|p| matches!(p, Property::Scalar(_, n) if n == want))
-        };
-        let is_vertex = e.name == "vertex";
-        let xyz = if is_vertex {
-            match (find("x"), find("y"), find("z")) {
-                (Some(x), Some(y), Some(z)) => Some([x, y, z]),
-                _ => return Err(bad("the vertex element has no x, y and z")),
-            }
-        } else {
-            None
-        };
-        let strand_at = is_vertex
-            .then(|| {
-                e.props
-                    .iter()
-                    .position(|p| matches!(p, Property::Scalar(_, n) if is_strand_index(n)))
-            })
-            .flatten();
         let count_at = (e.name == "strand")
             .then(|| {
                 e.props.iter().enumerate().find_map(|(i, p)| match p {
@@ -331,56 +414,22 @@ pub fn parse_ply_strands(b: &[u8]) -> Result<Hair, FormatError> {
                 })
             })
             .flatten();
-        let n = e.count as usize;
-        let mut pts = xyz.map(|_| Vec::with_capacity(n));
-        let mut idx = strand_at.map(|_| Vec::with_capacity(n));
-        let mut cnt = count_at.map(|_| Vec::with_capacity(n));
-        let mut vals = vec![0.0f64; e.props.len()];
-        for item in 0..e.count {
-            for (k, p) in e.props.iter().enumerate() {
-                let what = || format!("{} {item}, property {}", e.name, name(p));
-                match p {
-                    Property::Scalar(t, _) => vals[k] = r.value(*t, &what)?,
-                    Property::List(c, t, _) => {
-                        let len = r.value(*c, &what)?;
-                        if !(0.0..=r.left() as f64).contains(&len) {
-                            return Err(bad(format!("{}: a list of {len} items", what())));
-                        }
-                        for _ in 0..len as u64 {
-                            r.value(*t, &what)?;
-                        }
-                    }
-                }
-            }
-            if let (Some(pts), Some([x, y, z])) = (&mut pts, xyz) {
-                pts.push(Vec3::new(vals[x] as f32, vals[y] as f32, vals[z] as f32));
-            }
-            if let (Some(idx), Some(s)) = (&mut idx, strand_at) {
-                idx.push(vals[s]);
-            }
-            if let (Some(cnt), Some((c, extra))) = (&mut cnt, count_at) {
+        let mut cnt = Vec::with_capacity(if count_at.is_some() { n } else { 0 });
+        read_items(&mut r, e, None, |item, vals, _| {
+            if let Some((c, extra)) = count_at {
                 let v = vals[c];
                 if !(v >= 0.0 && v.fract() == 0.0) {
                     return Err(bad(format!("strand {item}: a vertex count of {v}")));
                 }
                 cnt.push(v as u64 + extra);
             }
-        }
-        if is_vertex {
-            points = pts;
-            index = idx;
-        }
-        if cnt.is_some() {
-            counts = cnt;
+            Ok(())
+        })?;
+        if count_at.is_some() {
+            counts = Some(cnt);
         }
     }
-    if encoding != Encoding::Ascii && r.at != b.len() {
-        return Err(bad(format!(
-            "byte {}: {} bytes left over after the last element",
-            r.at,
-            b.len() - r.at
-        )));
-    }
+    check_end(&r)?;
     let points = points.ok_or_else(|| bad("no vertex element"))?;
     let mut hair = Hair::with_capacity(0, points.len());
     match (counts, index) {
@@ -416,6 +465,93 @@ pub fn parse_ply_strands(b: &[u8]) -> Result<Hair, FormatError> {
         }
     }
     Ok(hair)
+}
+
+/// Parses a PLY triangle mesh (a head): a `vertex` element with `x`, `y`,
+/// `z` and a `face` element with a `vertex_indices` (or `vertex_index`)
+/// list, ASCII or binary; polygons are split into fans, other elements and
+/// properties are read past.
+pub fn parse_ply_mesh(b: &[u8]) -> Result<Mesh, MeshError> {
+    let ply = |e: FormatError| match e {
+        FormatError::Ply(m) => MeshError::Ply(m),
+        other => MeshError::Ply(other.to_string()),
+    };
+    let (elements, mut r) = open(b).map_err(ply)?;
+    let mut positions: Option<Vec<Vec3>> = None;
+    let mut triangles: Option<Vec<[u32; 3]>> = None;
+    for e in &elements {
+        let n = e.count.min(r.left()) as usize;
+        if e.name == "vertex" {
+            let xyz = xyz_of(e).map_err(ply)?;
+            if n > MAX_MESH_ELEMENTS {
+                return Err(MeshError::TooLarge { what: "vertices" });
+            }
+            let mut pts = Vec::with_capacity(n);
+            read_items(&mut r, e, None, |_, vals, _| {
+                pts.push(point(vals, xyz));
+                Ok(())
+            })
+            .map_err(ply)?;
+            positions = Some(pts);
+            continue;
+        }
+        let list_at = (e.name == "face")
+            .then(|| {
+                e.props.iter().position(|p| {
+                    matches!(p, Property::List(_, _, n) if n == "vertex_indices" || n == "vertex_index")
+                })
+            })
+            .flatten();
+        if e.name == "face" && list_at.is_none() {
+            return Err(MeshError::Ply(
+                "the face element has no vertex_indices list".into(),
+            ));
+        }
+        let mut tris = Vec::with_capacity(n.min(MAX_MESH_ELEMENTS));
+        let mut too_many = false;
+        read_items(&mut r, e, list_at, |face, _, list| {
+            if list_at.is_none() {
+                return Ok(());
+            }
+            if list.len() < 3 {
+                return Err(bad(format!(
+                    "face {face} has {} corners, fewer than 3",
+                    list.len()
+                )));
+            }
+            let corner = |v: f64| {
+                if v >= 0.0 && v.fract() == 0.0 && v <= f64::from(u32::MAX) {
+                    Ok(v as u32)
+                } else {
+                    Err(bad(format!("face {face}: vertex index {v}")))
+                }
+            };
+            // A fan around the first corner.
+            let first = corner(list[0])?;
+            for w in list[1..].windows(2) {
+                if tris.len() >= MAX_MESH_ELEMENTS {
+                    too_many = true;
+                    return Err(bad("too many triangles"));
+                }
+                tris.push([first, corner(w[0])?, corner(w[1])?]);
+            }
+            Ok(())
+        })
+        .map_err(|e| {
+            if too_many {
+                MeshError::TooLarge { what: "triangles" }
+            } else {
+                ply(e)
+            }
+        })?;
+        if list_at.is_some() {
+            triangles = Some(tris);
+        }
+    }
+    check_end(&r).map_err(ply)?;
+    let positions = positions.ok_or_else(|| MeshError::Ply("no vertex element".into()))?;
+    let triangles = triangles.ok_or_else(|| MeshError::Ply("no face element".into()))?;
+    Mesh::new(positions, triangles)
 }
 
 #[cfg(test)]
@@ -501,5 +637,52 @@ mod tests {
         let mut long = binary(true);
         long.push(0);
         assert!(err(&long).contains("left over"));
+    }
+
+    /// A unit square of two quads' worth: four corners, one quad face and
+    /// one triangle face, with an extra element and property between.
+    const SQUARE: &str = "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\n\
+        property float y\nproperty float z\nproperty float nx\nelement face 2\n\
+        property uchar flags\nproperty list uchar int vertex_indices\nend_header\n\
+        0 0 0 1\n1 0 0 1\n1 1 0 1\n0 1 0 1\n2 2 0 1\n7 4 0 1 2 3\n0 3 1 4 2\n";
+
+    #[test]
+    fn a_ply_mesh_is_the_same_mesh_as_its_obj() {
+        let m = parse_ply_mesh(SQUARE.as_bytes()).unwrap();
+        let obj =
+            crate::parse_obj(b"v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 2 0\nf 1 2 3 4\nf 2 5 3\n")
+                .unwrap();
+        assert_eq!(m, obj);
+        assert_eq!(m.triangles(), &[[0, 1, 2], [0, 2, 3], [1, 4, 2]]);
+        // The same in binary, big-endian, with short indices.
+        let mut b = b"ply\nformat binary_big_endian 1.0\nelement vertex 5\nproperty float x\n\
+            property float y\nproperty float z\nelement face 2\n\
+            property list uchar ushort vertex_index\nend_header\n"
+            .to_vec();
+        for p in m.positions() {
+            for v in p.to_array() {
+                b.extend(v.to_be_bytes());
+            }
+        }
+        for face in [&[0u16, 1, 2, 3][..], &[1, 4, 2]] {
+            b.push(face.len() as u8);
+            for i in face {
+                b.extend(i.to_be_bytes());
+            }
+        }
+        assert_eq!(parse_ply_mesh(&b).unwrap(), obj);
+    }
+
+    #[test]
+    fn broken_meshes_name_what_is_wrong() {
+        let err = |t: &str| parse_ply_mesh(t.as_bytes()).unwrap_err().to_string();
+        assert!(err(&SQUARE.replace("1 2 3\n", "1 2 9\n")).contains("vertex 9"));
+        assert!(err(&SQUARE.replace("0 3 1 4 2", "0 2 1 4")).contains("fewer than 3"));
+        assert!(err(&SQUARE.replace("0 3 1 4 2", "0 3 1 -4 2")).contains("index -4"));
+        assert!(err(&SQUARE.replace("vertex_indices", "corners")).contains("no vertex_indices"));
+        assert!(err(&SQUARE.replace("face 2", "face 2000000000")).contains("claims"));
+        let no_faces = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n\
+            property float y\nproperty float z\nend_header\n0 0 0\n";
+        assert!(err(no_faces).contains("no face element"));
     }
 }

@@ -5,7 +5,10 @@
 //! gets an error, not an allocation).
 
 use proptest::prelude::*;
-use strands::{parse_ct2hair_bin, parse_hair_format, parse_ply_strands, parse_tfx, parse_usc_data};
+use strands::{
+    parse_ct2hair_bin, parse_hair_format, parse_ply_mesh, parse_ply_strands, parse_tfx,
+    parse_usc_data,
+};
 
 /// A HAIR header (128 bytes): magic, counts, flags, defaults, then `body`.
 fn hair_header(
@@ -130,6 +133,41 @@ fn valid_ply(n: u32, binary: bool) -> Vec<u8> {
     b
 }
 
+/// A PLY mesh of a strip of `n` quads (2n + 2 vertices), ASCII or
+/// little-endian binary, with a normal per vertex read past.
+fn valid_ply_mesh(n: u32, binary: bool) -> Vec<u8> {
+    let verts = 2 * n + 2;
+    let format = if binary {
+        "binary_little_endian"
+    } else {
+        "ascii"
+    };
+    let mut b = format!(
+        "ply\nformat {format} 1.0\nelement vertex {verts}\nproperty float x\nproperty float y\n\
+         property float z\nproperty float nz\nelement face {n}\n\
+         property list uchar uint vertex_indices\nend_header\n"
+    )
+    .into_bytes();
+    for v in 0..verts {
+        let p = [(v / 2) as f32, (v % 2) as f32, 0.0, 1.0];
+        if binary {
+            p.iter().for_each(|c| b.extend_from_slice(&c.to_le_bytes()));
+        } else {
+            b.extend(format!("{} {} {} {}\n", p[0], p[1], p[2], p[3]).bytes());
+        }
+    }
+    for q in 0..n {
+        let f = [2 * q, 2 * q + 2, 2 * q + 3, 2 * q + 1];
+        if binary {
+            b.push(4);
+            f.iter().for_each(|i| b.extend_from_slice(&i.to_le_bytes()));
+        } else {
+            b.extend(format!("4 {} {} {} {}\n", f[0], f[1], f[2], f[3]).bytes());
+        }
+    }
+    b
+}
+
 /// A USC-HairSalon strand count, then `body`.
 fn usc_header(strands: i32, body: &[u8]) -> Vec<u8> {
     let mut b = strands.to_le_bytes().to_vec();
@@ -173,6 +211,14 @@ fn check(bytes: &[u8]) -> Result<(), TestCaseError> {
         // A point takes a byte at least.
         prop_assert!(h.point_count() <= bytes.len());
         prop_assert!(h.points().iter().all(|p| p.is_finite()));
+    }
+    if let Ok(m) = parse_ply_mesh(bytes) {
+        // A vertex takes a byte at least, a triangle a face's index.
+        prop_assert!(m.positions().len() <= bytes.len());
+        prop_assert!(m.triangles().len() <= bytes.len());
+        prop_assert!(m.positions().iter().all(|p| p.is_finite()));
+        let n = m.positions().len() as u32;
+        prop_assert!(m.triangles().iter().flatten().all(|&i| i < n));
     }
     if let Ok(h) = parse_tfx(bytes) {
         prop_assert!(h.point_count() * 16 <= bytes.len());
@@ -226,7 +272,7 @@ proptest! {
         cut in any::<prop::sample::Index>(),
         do_cut in any::<bool>(),
     ) {
-        for mut bytes in [valid_hair(n), valid_tfx(u32::from(n)), valid_usc(u32::from(n) * 3), valid_bin(u32::from(n) * 3), valid_ply(u32::from(n), false), valid_ply(u32::from(n), true)] {
+        for mut bytes in [valid_hair(n), valid_tfx(u32::from(n)), valid_usc(u32::from(n) * 3), valid_bin(u32::from(n) * 3), valid_ply(u32::from(n), false), valid_ply(u32::from(n), true), valid_ply_mesh(u32::from(n), false), valid_ply_mesh(u32::from(n), true)] {
             for (at, v) in &flips {
                 let i = at.index(bytes.len());
                 bytes[i] = *v;
@@ -258,6 +304,9 @@ fn the_valid_files_of_the_fuzzer_load() {
     for binary in [false, true] {
         let p = parse_ply_strands(&valid_ply(4, binary)).unwrap();
         assert_eq!(p.offsets(), &[0, 1, 3, 6, 7], "binary {binary}");
+        // Three quads, six triangles.
+        let m = parse_ply_mesh(&valid_ply_mesh(3, binary)).unwrap();
+        assert_eq!((m.positions().len(), m.triangles().len()), (8, 6));
     }
 }
 
