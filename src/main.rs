@@ -15,11 +15,6 @@ use clap::{Parser, Subcommand};
 #[derive(Debug, Parser)]
 #[command(name = "wisplight", version, about, propagate_version = true)]
 struct Cli {
-    /// Worker threads for the parallel stages (default: one per core).
-    /// Results are the same bytes for any count.
-    #[arg(long, global = true, value_name = "N",
-          value_parser = clap::value_parser!(u16).range(1..=1024))]
-    threads: Option<u16>,
     /// More log detail on stderr (-v info, -vv debug).
     #[arg(short, long, global = true, action = clap::ArgAction::Count)]
     verbose: u8,
@@ -115,7 +110,15 @@ fn main() -> ExitCode {
     if matches!(cli.command, Command::Render(_) | Command::Coordinator(_)) {
         exit_cleanly_on_signals();
     }
-    let result = init_threads(cli.threads).and_then(|()| match cli.command {
+    let threads = match &cli.command {
+        Command::Render(a) => a.threads.threads,
+        Command::Probe(a) => a.threads.threads,
+        Command::Worker(a) => a.threads.threads,
+        Command::Coordinator(a) => a.threads(),
+        Command::Bench(b) => b.threads(),
+        Command::Health(_) | Command::Certs(_) => None,
+    };
+    let result = init_threads(threads).and_then(|()| match cli.command {
         Command::Render(args) => cmd::render::run(args),
         Command::Probe(args) => cmd::probe::run(args),
         Command::Worker(args) => cmd::cluster::worker(args),

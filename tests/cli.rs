@@ -820,6 +820,12 @@ fn every_bad_input_gets_one_line_naming_it_and_the_right_exit_status() {
             2,
             vec!["--threads", "0"],
         ),
+        // Options only where they mean something.
+        (
+            vec!["certs".into(), d("pki"), "--threads".into(), "2".into()],
+            2,
+            vec!["--threads"],
+        ),
         (
             vec!["render".into(), "--frames".into(), "0".into()],
             2,

@@ -32,6 +32,8 @@ pub struct AccuracyArgs {
     #[arg(long, value_delimiter = ',', value_name = "NAME,...",
           value_parser = clap::builder::PossibleValuesParser::new(MethodConfig::NAMES))]
     methods: Vec<String>,
+    #[command(flatten)]
+    pub threads: super::Threads,
 }
 
 /// The settings swept for each method, coarse to fine.

@@ -35,6 +35,8 @@ pub struct FrameArgs {
     /// Also print the result as one JSON object on the last stdout line.
     #[arg(long)]
     json: bool,
+    #[command(flatten)]
+    pub threads: super::Threads,
 }
 
 #[derive(Debug, clap::Args)]
@@ -52,6 +54,20 @@ pub struct ShadowArgs {
     /// Also print the result as one JSON object on the last stdout line.
     #[arg(long)]
     json: bool,
+    #[command(flatten)]
+    pub threads: super::Threads,
+}
+
+impl Bench {
+    /// The `--threads` the benchmark was given.
+    pub fn threads(&self) -> Option<u16> {
+        match self {
+            Bench::Shadow(a) => a.threads.threads,
+            Bench::Frame(a) => a.threads.threads,
+            Bench::Accuracy(a) => a.threads.threads,
+            Bench::Scaling(a) => a.threads.threads,
+        }
+    }
 }
 
 pub fn run(b: Bench) -> anyhow::Result<()> {

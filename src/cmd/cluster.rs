@@ -42,6 +42,8 @@ pub struct WorkerArgs {
     #[arg(long, value_name = "MIB",
           value_parser = clap::value_parser!(u64).range(16..=1 << 30))]
     max_session_memory_mib: Option<u64>,
+    #[command(flatten)]
+    pub threads: super::Threads,
 }
 
 /// Mutual TLS (all three files, or none: plain gRPC, for loopback and
@@ -138,6 +140,13 @@ impl From<Draw> for cluster::DrawAt {
             Draw::Workers => cluster::DrawAt::Workers,
             Draw::Coordinator => cluster::DrawAt::Coordinator,
         }
+    }
+}
+
+impl CoordinatorArgs {
+    /// The `--threads` of the run (those of the render it makes).
+    pub fn threads(&self) -> Option<u16> {
+        self.render.threads.threads
     }
 }
 

@@ -14,6 +14,16 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use anyhow::Context;
 use engine::Scene;
 
+/// `--threads`, on the commands that run parallel stages.
+#[derive(Debug, Clone, Copy, Default, clap::Args)]
+pub struct Threads {
+    /// Worker threads for the parallel stages (default: one per core).
+    /// Results are the same bytes for any count.
+    #[arg(long, value_name = "N",
+          value_parser = clap::value_parser!(u16).range(1..=1024))]
+    pub threads: Option<u16>,
+}
+
 static QUIET: AtomicBool = AtomicBool::new(false);
 
 /// `-q`: only errors on stderr, the summary lines of a run too.

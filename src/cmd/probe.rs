@@ -15,6 +15,8 @@ pub struct Args {
     points: PathBuf,
     #[command(flatten)]
     method: super::MethodArg,
+    #[command(flatten)]
+    pub threads: super::Threads,
 }
 
 /// Prints `x,y,z,transmittance` (one column per light when there are

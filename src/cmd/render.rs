@@ -32,6 +32,8 @@ pub struct Args {
     no_shadow: bool,
     #[command(flatten)]
     method: super::MethodArg,
+    #[command(flatten)]
+    pub threads: super::Threads,
 }
 
 /// Where the frames go.

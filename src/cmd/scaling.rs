@@ -54,6 +54,8 @@ pub struct ScalingArgs {
     #[arg(long, value_name = "MBIT",
           value_parser = clap::value_parser!(u32).range(1..=400_000))]
     link_mbit: Option<u32>,
+    #[command(flatten)]
+    pub threads: super::Threads,
 }
 
 /// A worker process on a free localhost port.
