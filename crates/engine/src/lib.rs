@@ -37,8 +37,8 @@ pub use part::{HairPart, draw_head};
 pub use pipeline::{ShadowPipeline, build_hair, drawn_segments};
 pub use render::{Composite, Renderer};
 pub use scene::{
-    Animation, BodySettings, Collision, Dynamics, Effects, HairSource, HeadMesh, HeadSettings,
-    Placement, Scene, SceneError, SceneSource, ShadowSettings,
+    Animation, BodySettings, CameraView, Collision, Dynamics, Effects, HairSource, HeadMesh,
+    HeadSettings, Placement, Scene, SceneError, SceneSource, ShadowSettings,
 };
 pub use share::{BandPlan, BandWork, DrawTimes, Share};
 

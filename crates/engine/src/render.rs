@@ -172,7 +172,7 @@ impl Renderer {
         let look_at = s.camera.look_at.unwrap_or(center);
         let position = s.camera.position.unwrap_or_else(|| {
             let dist = 0.5 * size / (0.5 * s.camera.fov_deg.to_radians()).tan() + 0.5 * size;
-            look_at + view_direction(hair_bounds) * dist
+            look_at + view_direction(hair_bounds, s.camera.view) * dist
         });
         let mut camera = Camera::new(
             position,
@@ -404,23 +404,25 @@ impl Renderer {
     }
 }
 
-/// Where the default camera looks from, towards the hair: the front (+z),
-/// slightly above; but from three quarters (45 degrees to the right) when
-/// the hair is less than a third as wide (x) as it is deep (z), where a
-/// front view would see it edge-on (a mohawk).
-pub fn view_direction(hair: Bounds) -> Vec3 {
+/// Where the default camera looks from, towards the hair, slightly above:
+/// as `view` says; for [`CameraView::Auto`] the front (+z), but three
+/// quarters (45 degrees to the right) when the hair is less than a third
+/// as wide (x) as it is deep (z), where a front view would see it edge-on
+/// (a mohawk).
+pub fn view_direction(hair: Bounds, view: crate::CameraView) -> Vec3 {
+    use crate::CameraView as V;
     let size = hair.size();
     let edge_on = !hair.is_empty() && size.x < size.z / 3.0;
-    if edge_on {
-        Vec3::new(
-            std::f32::consts::FRAC_1_SQRT_2,
-            0.15,
-            std::f32::consts::FRAC_1_SQRT_2,
-        )
-        .normalize()
-    } else {
-        Vec3::new(0.0, 0.15, 1.0).normalize()
-    }
+    let h = std::f32::consts::FRAC_1_SQRT_2;
+    let (x, z) = match view {
+        V::Auto if edge_on => (h, h),
+        V::Auto | V::Front => (0.0, 1.0),
+        V::ThreeQuarterLeft => (-h, h),
+        V::ThreeQuarterRight => (h, h),
+        V::Left => (-1.0, 0.0),
+        V::Right => (1.0, 0.0),
+    };
+    Vec3::new(x, 0.15, z).normalize()
 }
 
 /// A frame's head and the partial pictures of its hair, not yet

@@ -27,6 +27,9 @@
 //! cells = 128               # map cells a side, 1..=512
 //! filter = true             # trilinear filtering of transmittance
 //!
+//! [camera]                  # view = "auto" (front; three quarters for hair seen edge-on), "front",
+//!                           # "three-quarter-left", "three-quarter-right", "left", "right";
+//!                           # or position, look_at; fov_deg = 30, up
 //! [head]                    # visible, center, radius, color; mesh = "head.obj" or .ply, mesh_scale, mesh_offset
 //!                           # (a mesh alone: center and radius fitted to its crown)
 //! [effects]                 # dynamics, self_collision, body_collision, self_shadow, specular, head_shadow
@@ -107,6 +110,7 @@ struct RawScene {
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawCamera {
+    view: Option<String>,
     position: Option<[f32; 3]>,
     look_at: Option<[f32; 3]>,
     fov_deg: Option<f32>,
@@ -312,11 +316,55 @@ impl ShadowSettings {
 /// Where the camera is; `None` fields are framed around the hair.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CameraSettings {
+    /// Where the default camera looks from (`camera.view`), when no
+    /// position is given.
+    pub view: CameraView,
     pub position: Option<Vec3>,
     pub look_at: Option<Vec3>,
     pub fov_deg: f32,
     /// The picture's up direction (`camera.up`); +y when not given.
     pub up: Option<Vec3>,
+}
+
+/// Where the default camera looks from, towards the hair, slightly above.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum CameraView {
+    /// The front (+z), or three quarters for hair seen edge-on from there
+    /// (see [`crate::render::view_direction`]).
+    #[default]
+    Auto,
+    Front,
+    /// 45 degrees to the left of the front (-x, +z).
+    ThreeQuarterLeft,
+    /// 45 degrees to the right of the front (+x, +z).
+    ThreeQuarterRight,
+    /// The left side (-x).
+    Left,
+    /// The right side (+x).
+    Right,
+}
+
+impl CameraView {
+    pub const NAMES: [&str; 6] = [
+        "auto",
+        "front",
+        "three-quarter-left",
+        "three-quarter-right",
+        "left",
+        "right",
+    ];
+
+    pub fn from_name(name: &str) -> Option<CameraView> {
+        Some(match name {
+            "auto" => CameraView::Auto,
+            "front" => CameraView::Front,
+            "three-quarter-left" => CameraView::ThreeQuarterLeft,
+            "three-quarter-right" => CameraView::ThreeQuarterRight,
+            "left" => CameraView::Left,
+            "right" => CameraView::Right,
+            _ => return None,
+        })
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -999,7 +1047,25 @@ impl Validator<'_> {
         if !(fov_deg > 0.1 && fov_deg < 179.0) {
             return Err(self.invalid("camera.fov_deg", fov_deg, "must be in (0.1, 179) degrees"));
         }
+        let view = match c.view.as_deref() {
+            None => CameraView::Auto,
+            Some(v) => CameraView::from_name(v).ok_or_else(|| {
+                self.invalid(
+                    "camera.view",
+                    format!("{v:?}"),
+                    format!("expected one of {}", CameraView::NAMES.join(", ")),
+                )
+            })?,
+        };
+        if view != CameraView::Auto && c.position.is_some() {
+            return Err(self.invalid(
+                "camera.view",
+                format!("{:?}", c.view.as_deref().unwrap_or_default()),
+                "says where a camera without camera.position looks from; give one of them",
+            ));
+        }
         let camera = CameraSettings {
+            view,
             position: vec3("camera.position", c.position)?,
             look_at: vec3("camera.look_at", c.look_at)?,
             fov_deg,
@@ -1481,6 +1547,20 @@ mod tests {
             "{e}"
         );
         std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn a_camera_view_is_named_and_needs_no_position() {
+        let s = parse("[camera]\nview = \"three-quarter-right\"\n").unwrap();
+        assert_eq!(s.camera.view, CameraView::ThreeQuarterRight);
+        assert_eq!(parse("").unwrap().camera.view, CameraView::Auto);
+        let e = parse("[camera]\nview = \"top\"\n").unwrap_err().to_string();
+        assert!(
+            e.contains("camera.view = \"top\"") && e.contains("three-quarter-left"),
+            "{e}"
+        );
+        let e = parse("[camera]\nview = \"left\"\nposition = [0, 0, 50]\n").unwrap_err();
+        assert!(e.to_string().contains("camera.position"), "{e}");
     }
 
     #[test]
