@@ -18,7 +18,7 @@ def head(theta, phi):
         z *= 1.0 + 0.05 * y
     # A nose: a bump on the face below the middle.
     d2 = (phi - math.pi / 2) ** 2 * 6 + (theta - 1.85) ** 2 * 10
-    bump = 0.9 * math.exp(-d2 * 8)
+    bump = 0.3 * math.exp(-d2 * 8)
     return (r * x, r * y, r * z + r * bump)
 
 

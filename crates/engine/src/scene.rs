@@ -6,6 +6,7 @@
 //!                           # or strands = [[[x, y, z], ...], ...] written out in the scene
 //! seed = 1                  # procedural styles
 //! strands_per_wisp = 25     # procedural styles: 134 wisps of this many drawn strands
+//! parting = false           # procedural styles: a middle parting, front hair swept off the face, a fringe
 //! subdivide = 2             # Catmull-Rom pieces per input segment
 //! followers = 15            # files: follow strands grown per file strand (default 15 for .tfx, 0 for .hair)
 //! follow_radius = 0.4       # files: root disc radius of follow strands, scene units (x the groom's unit)
@@ -162,6 +163,7 @@ struct RawHair {
     strands: Option<Vec<Vec<[f32; 3]>>>,
     seed: Option<u64>,
     strands_per_wisp: Option<i64>,
+    parting: Option<bool>,
     subdivide: Option<i64>,
     followers: Option<i64>,
     follow_radius: Option<f32>,
@@ -449,14 +451,25 @@ pub const DEFAULT_BACKGROUND: [f32; 3] = [0.02, 0.025, 0.035];
 pub const DEFAULT_HAIR_ALPHA: f32 = 0.85;
 pub const DEFAULT_HEAD_COLOR: [f32; 3] = [0.55, 0.38, 0.3];
 
-/// The built-in scene: the defaults of every key, with the head dancing.
-pub const BUILT_IN_SCENE: &str = "[animation]\nmotion = \"dance\"\n";
+/// The built-in scene: the smooth style with a middle parting and a fringe
+/// on a head with a face ([`BUILT_IN_HEAD`]), dancing, seen from three
+/// quarters on the lit side; every other key at its default.
+pub const BUILT_IN_SCENE: &str = "[hair]\nstyle = \"smooth\"\nparting = true\n\n\
+[head]\nmesh = \"head.obj\"\n\n\
+[animation]\nmotion = \"dance\"\n\n\
+[camera]\nview = \"three-quarter-left\"\n";
+
+/// The built-in scene's head mesh, `head.obj` in it: `scenes/head.obj`,
+/// made by `scenes/make_head.py` (the styles' sphere of radius 10 above the
+/// middle, a jaw, a nose and a neck below).
+pub const BUILT_IN_HEAD: &[u8] = include_bytes!("../../../scenes/head.obj");
 
 impl Default for Scene {
-    /// The built-in scene: the smooth style under the default light, the
-    /// head dancing.
+    /// The built-in scene ([`BUILT_IN_SCENE`]), its head mesh held in its
+    /// files: nothing to read from disk.
     fn default() -> Scene {
-        Scene::from_toml_str(BUILT_IN_SCENE, Path::new("<built-in>"))
+        let files = BTreeMap::from([(PathBuf::from("head.obj"), Arc::from(BUILT_IN_HEAD))]);
+        Scene::parse(BUILT_IN_SCENE, Path::new("<built-in>"), files)
             .expect("the built-in scene is valid")
     }
 }
@@ -971,15 +984,18 @@ impl Validator<'_> {
                     p.strands_per_wisp,
                     1..=2000,
                 )?;
+                p.parting = h.parting.unwrap_or(false);
                 HairSource::Style(p)
             }
         };
-        if !matches!(hair, HairSource::Style(_)) && h.strands_per_wisp.is_some() {
-            return Err(self.invalid(
-                "hair.strands_per_wisp",
-                h.strands_per_wisp.unwrap_or_default(),
+        if !matches!(hair, HairSource::Style(_)) {
+            self.refuse_set(
+                &[
+                    ("hair.strands_per_wisp", h.strands_per_wisp.is_some()),
+                    ("hair.parting", h.parting.is_some()),
+                ],
                 "applies to hair.style only",
-            ));
+            )?;
         }
 
         let width = raw.fiber.width.unwrap_or(DEFAULT_FIBER_WIDTH);

@@ -374,3 +374,84 @@ fn a_still_frame_rendered_again_is_the_hair_at_rest() {
     let mean = sum / n as f64;
     assert!(mean < 1e-4, "mean |dT| {mean} from the stages alone");
 }
+
+#[test]
+fn the_built_in_scene_shows_a_face_under_a_fringe_and_hides_the_scalp() {
+    // The first frame with the hair drawn, and with the hair invisible
+    // (only the head): where hair covers the head they differ.
+    let mut s = Scene::default();
+    s.render.width = 320;
+    s.render.height = 180;
+    let mut bare = s.clone();
+    bare.render.hair_alpha = 0.0;
+    let first = |s: &Scene| {
+        let mut seq = Sequence::new(s).unwrap();
+        let img = seq.next_frame().unwrap().0.clone();
+        let camera = *seq.renderer().camera().unwrap();
+        (img, camera, seq.animator().head_at(0.0))
+    };
+    let (hair, camera, head) = first(&s);
+    let (head_only, ..) = first(&bare);
+    // Mean difference (levels) over the 5x5 pixels around where the
+    // head's surface point `p` (at rest) is seen.
+    let cover = |p: Vec3| {
+        let q = camera.project(head.transform_point3(p)).unwrap();
+        let (x0, y0) = (q.x as i64, q.y as i64);
+        let mut sum = 0u64;
+        for y in y0 - 2..=y0 + 2 {
+            for x in x0 - 2..=x0 + 2 {
+                let (a, b) = (
+                    hair.get_pixel(x as u32, y as u32),
+                    head_only.get_pixel(x as u32, y as u32),
+                );
+                sum +=
+                    a.0.iter()
+                        .zip(b.0)
+                        .map(|(&u, v)| u64::from(u.abs_diff(v)))
+                        .sum::<u64>();
+            }
+        }
+        sum as f64 / 75.0
+    };
+    // On the head mesh (scenes/make_head.py): above the middle the sphere
+    // of radius 10; below, y stretched by 1.3 and x narrowed by 12 % a unit.
+    let on_head = |d: Vec3| {
+        let d = d.normalize();
+        if d.y >= 0.0 {
+            10.0 * d
+        } else {
+            10.0 * Vec3::new(
+                d.x * (1.0 + 0.12 * d.y * 1.3),
+                1.3 * d.y,
+                d.z * (1.0 + 0.05 * d.y * 1.3),
+            )
+        }
+    };
+    // The scalp on either side of the parting, behind the ear and under
+    // the fringe: covered (a see-through scalp differs by a few levels).
+    for d in [
+        Vec3::new(-0.5, 0.7, 0.45),
+        Vec3::new(-0.7, 0.6, 0.1),
+        Vec3::new(-0.75, 0.3, -0.4),
+        Vec3::new(-0.15, 0.55, 0.8),
+    ] {
+        let c = cover(on_head(d));
+        assert!(
+            c > 40.0,
+            "the scalp at {d} shows through: {c:.1} levels of hair"
+        );
+    }
+    // The face below the fringe: left visible, and the head is there.
+    let bg = raster::to_srgb8(s.render.background);
+    for d in [Vec3::new(-0.3, -0.25, 0.92), Vec3::new(-0.1, -0.45, 0.88)] {
+        let p = on_head(d);
+        let c = cover(p);
+        assert!(c < 8.0, "hair over the face at {d}: {c:.1} levels");
+        let q = camera.project(head.transform_point3(p)).unwrap();
+        assert_ne!(
+            head_only.get_pixel(q.x as u32, q.y as u32).0,
+            bg,
+            "no head at {d}"
+        );
+    }
+}

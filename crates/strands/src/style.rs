@@ -52,6 +52,10 @@ pub struct StyleParams {
     /// Head sphere centre and radius, in scene units (centimetres by convention).
     pub head_center: Vec3,
     pub head_radius: f32,
+    /// A middle parting: hair rooted in front of the crown sweeps to its
+    /// side and back, off the face, and hair over the forehead is cut to
+    /// a fringe above the eyes.
+    pub parting: bool,
 }
 
 impl StyleParams {
@@ -63,6 +67,7 @@ impl StyleParams {
             strands_per_wisp: 25,
             head_center: Vec3::ZERO,
             head_radius: 10.0,
+            parting: false,
         }
     }
 }
@@ -188,14 +193,18 @@ impl WispModel {
                     Style::Curly => rng.range(18.0, 24.0),
                 },
                 bend: rng.range(0.22, 0.34),
-                clearance: rng.range(0.15, 1.4),
+                clearance: if p.parting {
+                    rng.range(0.1, 0.7)
+                } else {
+                    rng.range(0.15, 1.4)
+                },
                 curl_phase: rng.range(0.0, std::f32::consts::TAU),
             };
             let (t1, t2) = n.any_orthonormal_pair();
             let spin = rng.range(0.0, std::f32::consts::TAU);
             for g in 0..GUIDES_PER_WISP {
                 let a = spin + std::f32::consts::TAU * g as f32 / GUIDES_PER_WISP as f32;
-                let r = 1.1 * p.head_radius / 10.0;
+                let r = if p.parting { PARTED_WISP_RADIUS } else { 1.1 } * p.head_radius / 10.0;
                 let dir = (*n * p.head_radius + r * (a.cos() * t1 + a.sin() * t2)).normalize();
                 let jitter = GuideJitter {
                     length: rng.range(-0.6, 0.6),
@@ -229,6 +238,11 @@ impl WispModel {
 fn member_point(m: &Member, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
     m.weights[0] * a + m.weights[1] * b + m.weights[2] * c
 }
+
+/// The radius, in centimetres on a head of radius 10, of the circle the
+/// guides of a parted style's wisps start on: wide enough that
+/// neighbouring wisps overlap and the scalp is covered.
+const PARTED_WISP_RADIUS: f32 = 1.7;
 
 struct WispShape {
     length: f32,
@@ -273,8 +287,27 @@ fn grow_guide(p: &StyleParams, w: &WispShape, j: &GuideJitter, n: Vec3, segs: us
     let c = p.head_center;
     let scale = p.head_radius / 10.0;
     let outward = Vec3::new(n.x, 0.0, n.z).normalize_or(Vec3::NEG_Z);
-    let target = (0.35 * outward + Vec3::NEG_Y + 0.25 * Vec3::NEG_Z).normalize();
-    let h = (w.length + j.length) * scale / segs as f32;
+    let falling = 0.35 * outward + Vec3::NEG_Y + 0.25 * Vec3::NEG_Z;
+    let (target, start, length) = if p.parting {
+        // Rooted in front of the crown: swept to its side of the parting
+        // (x = 0) and back, off the face.
+        let front = n.z.max(0.0).powi(2);
+        let side = if n.x < 0.0 { Vec3::NEG_X } else { Vec3::X };
+        let target = (falling + front * (0.9 * side + 0.3 * Vec3::NEG_Z)).normalize();
+        // Out of the scalp at a low angle, along it towards where it
+        // falls: the hair lies on the head and covers it.
+        let along = (target - n * n.dot(target)).normalize_or(Vec3::NEG_Y);
+        // Over the forehead: a fringe ending above the eyes (0.15 R above
+        // the centre), whatever the style's length.
+        let fringe = ((n.z - 0.2) / 0.3).clamp(0.0, 1.0);
+        let to_brow = (17.0 * (n.y - 0.15)).max(2.5);
+        let full = w.length + j.length;
+        let length = full + fringe * (to_brow.min(full) - full);
+        (target, (0.45 * n + along).normalize(), length)
+    } else {
+        (falling.normalize(), n, w.length + j.length)
+    };
+    let h = length * scale / segs as f32;
     let bend = w.bend + j.bend;
     let keep_out = |q: Vec3| {
         let r = q - c;
@@ -287,7 +320,7 @@ fn grow_guide(p: &StyleParams, w: &WispShape, j: &GuideJitter, n: Vec3, segs: us
     };
     let mut pts = Vec::with_capacity(segs + 1);
     let mut q = c + n * p.head_radius;
-    let mut d = n;
+    let mut d = start;
     pts.push(q);
     for _ in 0..segs {
         d = d.lerp(target, bend).normalize();
