@@ -9,8 +9,8 @@ use engine::{FrameStats, Sequence};
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Scene file (TOML); the built-in scene (the smooth style on a dancing
-    /// head) when omitted.
+    /// Scene file (TOML); the built-in scene (the smooth style, parted, on a
+    /// dancing head with a face, seen from three quarters) when omitted.
     scene: Option<PathBuf>,
     /// Output: a PNG (default `wisplight.png`); for several frames a
     /// pattern with `%d` or `%04d` for the frame number (default

@@ -14,8 +14,8 @@ use super::nodes::{Nodes, Request};
 
 #[derive(Debug, clap::Args)]
 pub struct ScalingArgs {
-    /// Scene file (TOML); the built-in scene (the smooth style on a dancing
-    /// head) when omitted.
+    /// Scene file (TOML); the built-in scene (the smooth style, parted, on a
+    /// dancing head with a face, seen from three quarters) when omitted.
     scene: Option<PathBuf>,
     /// Worker counts to measure, comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "1,2,3", value_name = "N,N,...",
