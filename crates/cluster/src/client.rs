@@ -39,6 +39,10 @@ pub struct Traffic {
     /// the finished bands received.
     pub stripes_between_workers: u64,
     pub bands_received: u64,
+    /// Summing and sweeping on the workers: the density they sent each
+    /// other's columns, and the swept columns they sent each other.
+    pub density_between_workers: u64,
+    pub swept_between_workers: u64,
 }
 
 impl Traffic {
@@ -55,6 +59,8 @@ impl Traffic {
             + self.layers_received
             + self.stripes_between_workers
             + self.bands_received
+            + self.density_between_workers
+            + self.swept_between_workers
     }
 
     /// The bytes counted since `earlier`.
@@ -72,6 +78,8 @@ impl Traffic {
             layers_received: self.layers_received - earlier.layers_received,
             stripes_between_workers: self.stripes_between_workers - earlier.stripes_between_workers,
             bands_received: self.bands_received - earlier.bands_received,
+            density_between_workers: self.density_between_workers - earlier.density_between_workers,
+            swept_between_workers: self.swept_between_workers - earlier.swept_between_workers,
         }
     }
 
@@ -79,7 +87,7 @@ impl Traffic {
     pub fn summary(&self) -> String {
         let mb = |b: u64| b as f64 / 1e6;
         format!(
-            "{:.3} MB (wisps: assign {:.3}, steps {:.3}, states in {:.3}; strands out {:.3}; density in {:.3}, out {:.3}; slabs in {:.3}; pose {:.3}; draw out {:.3}, pictures in {:.3}; stripes between workers {:.3}, bands in {:.3})",
+            "{:.3} MB (wisps: assign {:.3}, steps {:.3}, states in {:.3}; strands out {:.3}; density in {:.3}, out {:.3}, between workers {:.3}; slabs in {:.3}, swept between workers {:.3}; pose {:.3}; draw out {:.3}, pictures in {:.3}; stripes between workers {:.3}, bands in {:.3})",
             mb(self.total()),
             mb(self.assign_sent),
             mb(self.step_sent),
@@ -87,7 +95,9 @@ impl Traffic {
             mb(self.strands_sent),
             mb(self.density_received),
             mb(self.density_sent),
+            mb(self.density_between_workers),
             mb(self.slabs_received),
+            mb(self.swept_between_workers),
             mb(self.pose),
             mb(self.draw_sent),
             mb(self.layers_received),
@@ -123,6 +133,9 @@ pub struct Timing {
     /// Draw rounds whose compositing on the workers failed and was done
     /// on the coordinator instead.
     pub composite_fallbacks: u32,
+    /// Deposit rounds whose summing and sweeping on the workers failed and
+    /// were done through the coordinator instead.
+    pub exchange_fallbacks: u32,
     /// Workers lost and their work handed to the survivors.
     pub workers_lost: u32,
 }
@@ -303,6 +316,51 @@ where
             out.push(t.await.map_err(|e| ClusterError::Setup(e.to_string()))??);
         }
         Ok(out)
+    })
+}
+
+/// [`fan_out`], every call's result in worker order: the calls that
+/// fail do not stop the others.
+pub(crate) fn fan_out_all<R, T, F, Fut>(
+    rt: &tokio::runtime::Runtime,
+    requests: Vec<(Remote, R)>,
+    stage: &'static str,
+    deadline: Duration,
+    call: F,
+) -> Vec<Result<T, ClusterError>>
+where
+    R: Send + 'static,
+    T: Send + 'static,
+    F: Fn(Remote, R) -> Fut,
+    Fut: std::future::Future<Output = Result<T, ClusterError>> + Send + 'static,
+{
+    rt.block_on(async {
+        let tasks: Vec<_> = requests
+            .into_iter()
+            .map(|(w, r)| {
+                let addr = w.addr.clone();
+                let fut = call(w, r);
+                tokio::spawn(async move {
+                    match tokio::time::timeout(deadline, fut).await {
+                        Ok(r) => r,
+                        Err(_) => Err(ClusterError::Deadline {
+                            addr,
+                            stage,
+                            secs: deadline.as_secs_f64(),
+                        }),
+                    }
+                })
+            })
+            .collect();
+        let mut out = Vec::with_capacity(tasks.len());
+        for t in tasks {
+            out.push(
+                t.await
+                    .map_err(|e| ClusterError::Setup(e.to_string()))
+                    .and_then(|r| r),
+            );
+        }
+        out
     })
 }
 

@@ -58,6 +58,8 @@ pub enum ClusterError {
     Malformed { addr: String, msg: String },
     #[error("compositing on the workers failed: {0}")]
     Composite(String),
+    #[error("summing and sweeping on the workers failed: {0}")]
+    Exchange(String),
 }
 
 impl ClusterError {

@@ -29,7 +29,7 @@ use shadow::{ColumnSlab, DensityMap, Fiber, FillStats, LightFrame, Transmittance
 use sim::WispState;
 use strands::Hair;
 
-use crate::client::{Remote, call_error, collect, fan_out, hello, malformed};
+use crate::client::{Remote, call_error, collect, fan_out, fan_out_all, hello, malformed};
 use crate::{ClusterError, Timing, Tls, Traffic, pb, wire};
 
 /// Rows of each band the workers composite (whole canvas bands): bands
@@ -117,8 +117,24 @@ pub struct RemoteExecutor {
     /// or more drawing): on until they fail to twice with none lost.
     composite: bool,
     composite_failures: u32,
+    /// Whether the workers sum and sweep each light's map among
+    /// themselves (two or more drawing): on until they fail to twice with
+    /// none lost.
+    exchange: bool,
+    exchange_failures: u32,
+    /// Per light, the hair version whose map the live workers last summed
+    /// and swept among themselves (each holding every column for its Draw).
+    exchanged: Vec<Option<u64>>,
+    /// Per light, the hair version whose map's transmittance came from the
+    /// workers' own sweep (the frame's shadow map, not another map filled
+    /// on the workers such as a separate self-collision map).
+    swept_on_workers: Vec<Option<u64>>,
+    /// Per light, each column's weight in the last map (its occupied
+    /// cells), for cutting the next map's columns among the workers.
+    column_weights: Vec<Option<Vec<u32>>>,
     /// Whether the head is shadowed by the hair (the workers resolving
-    /// bands shade it: they get every swept column).
+    /// bands shade it: they get every swept column); also whether the
+    /// head is in the maps, as an occluder.
     head_shadow: bool,
     /// The name expected in workers' certificates, for their calls to
     /// each other.
@@ -131,7 +147,44 @@ pub struct RemoteExecutor {
 }
 
 /// A light's last sweep: its frame and slabs.
-type Swept = Arc<(LightFrame, Vec<ColumnSlab>)>;
+type Swept = Arc<SweptMap>;
+
+/// A light's last sweep: its frame and slabs, or (when the workers summed
+/// and swept it among themselves) the summed map, swept here only if a
+/// frame must be drawn from it through the coordinator.
+#[derive(Debug)]
+struct SweptMap {
+    frame: LightFrame,
+    slabs: std::sync::OnceLock<Vec<ColumnSlab>>,
+    map: Option<DensityMap>,
+}
+
+impl SweptMap {
+    fn of_slabs(frame: LightFrame, slabs: Vec<ColumnSlab>) -> SweptMap {
+        SweptMap {
+            frame,
+            slabs: std::sync::OnceLock::from(slabs),
+            map: None,
+        }
+    }
+
+    fn of_map(map: DensityMap) -> SweptMap {
+        SweptMap {
+            frame: *map.frame(),
+            slabs: std::sync::OnceLock::new(),
+            map: Some(map),
+        }
+    }
+
+    /// The frame and its slabs (of every column).
+    fn get(&self) -> (&LightFrame, &[ColumnSlab]) {
+        let slabs = self.slabs.get_or_init(|| {
+            let map = self.map.as_ref().expect("a sweep has its slabs or its map");
+            vec![shadow::sweep(map, 0..self.frame.columns() as u32)]
+        });
+        (&self.frame, slabs)
+    }
+}
 
 /// What drawing a frame again takes, kept while its picture is finished
 /// on the workers and the next frame's stages run.
@@ -234,6 +287,11 @@ impl RemoteExecutor {
             swept: vec![None; scene.lights.len()],
             composite: true,
             composite_failures: 0,
+            exchange: true,
+            exchange_failures: 0,
+            exchanged: vec![None; scene.lights.len()],
+            swept_on_workers: vec![None; scene.lights.len()],
+            column_weights: vec![None; scene.lights.len()],
             head_shadow: scene.head.is_some() && scene.effects.head_shadow,
             tls_domain: options
                 .tls
@@ -299,6 +357,8 @@ impl RemoteExecutor {
         self.shares = None;
         self.posed = None;
         self.reads.iter_mut().for_each(|r| *r = None);
+        self.exchanged.iter_mut().for_each(|x| *x = None);
+        self.swept_on_workers.iter_mut().for_each(|x| *x = None);
         self.clock(|t| t.workers_lost += 1);
         tracing::warn!(
             error = %e,
@@ -619,6 +679,200 @@ impl RemoteExecutor {
             .collect()
     }
 
+    /// One Deposit round in which the workers sum and sweep light
+    /// `light`'s map among themselves (see [`wire::ColumnPlan`]): `map`
+    /// gets the sum of every worker's columns, each as its owner summed
+    /// it. Any failure of the round is the round's ([`ClusterError::Exchange`]),
+    /// but for a worker that failed its own call, which is named.
+    fn fill_exchanged(
+        &mut self,
+        light: usize,
+        map: &mut DensityMap,
+        version: u64,
+    ) -> Result<FillStats, ClusterError> {
+        let frame = *map.frame();
+        let n = self.workers.len();
+        let columns = frame.columns();
+        let weights = self
+            .column_weights
+            .get(light)
+            .and_then(|w| w.as_ref())
+            .filter(|w| w.len() == columns);
+        let cuts = wire::ColumnPlan::cuts(columns, n, |c| weights.map_or(1, |w| u64::from(w[c])));
+        let head = if self.head_shadow {
+            match &self.last_pose {
+                Some(p) if p.version == version => Some(p.head),
+                _ => {
+                    return Err(ClusterError::Exchange(format!(
+                        "the head's pose for hair version {version} is not known here"
+                    )));
+                }
+            }
+        } else {
+            None
+        };
+        self.calls += 1;
+        let round = self.calls;
+        let peers: Vec<(String, String)> = self
+            .workers
+            .iter()
+            .map(|w| (w.addr.clone(), w.session.clone()))
+            .collect();
+        let mut requests = Vec::with_capacity(n);
+        let mut sent = 0u64;
+        for (i, w) in self.workers.iter().enumerate() {
+            let plan = wire::ColumnPlan {
+                round,
+                cuts: cuts.clone(),
+                own: i,
+                peers: peers.clone(),
+                wait: self.deadline / 2,
+                tls_domain: self.tls_domain.clone(),
+                head,
+            };
+            let c = pb::DepositChunk {
+                frame_id: version,
+                light: light as u32,
+                map: Some(wire::frame_to_pb(&frame)),
+                posed: true,
+                version,
+                filter: self.filter,
+                columns: Some(plan.to_pb()),
+                ..Default::default()
+            };
+            sent += c.encoded_len() as u64;
+            requests.push((w.clone(), (c, plan.range(i))));
+        }
+        let t = Instant::now();
+        let replies = fan_out_all(
+            &self.rt,
+            requests,
+            "deposit",
+            self.deadline,
+            move |mut w, (chunk, range)| async move {
+                // A worker that gave up for another's sake names no
+                // worker to drop: the one at fault fails on its own.
+                let failed = |e: tonic::Status| match e.code() {
+                    tonic::Code::Aborted => {
+                        ClusterError::Exchange(format!("worker {}: {}", w.addr, e.message()))
+                    }
+                    _ => call_error(&w.addr, "deposit", e),
+                };
+                let mut s = w
+                    .client
+                    .deposit(tokio_stream::iter([chunk]))
+                    .await
+                    .map_err(failed)?
+                    .into_inner();
+                let mut got = Gathered::default();
+                let mut between = (0u64, 0u64);
+                while let Some(c) = s.message().await.map_err(failed)? {
+                    let d = wire::decode_columns(&frame, &c).map_err(|e| malformed(&w.addr, e))?;
+                    if !d.within(range.clone()) {
+                        return Err(malformed(
+                            &w.addr,
+                            format!("summed columns past its own, {range:?}"),
+                        ));
+                    }
+                    got.columns.push(d);
+                    got.bytes += c.encoded_len() as u64;
+                    got.samples += c.samples;
+                    got.out_of_map += c.out_of_map;
+                    between.0 += c.exchanged_density;
+                    between.1 += c.exchanged_swept;
+                }
+                Ok((got, between))
+            },
+        );
+        // A worker at fault is named before a round given up for its sake.
+        let mut gathered = Vec::with_capacity(n);
+        let mut first_error: Option<ClusterError> = None;
+        for r in replies {
+            match r {
+                Ok(g) => gathered.push(g),
+                Err(e) => {
+                    if first_error
+                        .as_ref()
+                        .is_none_or(|f| f.worker().is_none() && e.worker().is_some())
+                    {
+                        first_error = Some(e);
+                    }
+                }
+            }
+        }
+        if let Some(e) = first_error {
+            return Err(e);
+        }
+        let mut stats = FillStats::default();
+        let (mut received, mut density_between, mut swept_between) = (0u64, 0u64, 0u64);
+        for (got, between) in &gathered {
+            received += got.bytes;
+            stats.samples += got.samples;
+            stats.out_of_map += got.out_of_map;
+            density_between += between.0;
+            swept_between += between.1;
+            for d in &got.columns {
+                wire::add_columns(map, d);
+            }
+        }
+        // The next map's columns are cut by this one's.
+        if let Some(w) = self.column_weights.get_mut(light) {
+            *w = Some(
+                (0..columns)
+                    .map(|c| {
+                        let m = map.meta(c);
+                        if m.is_empty() {
+                            1
+                        } else {
+                            u32::from(m.hi - m.lo) + 2
+                        }
+                    })
+                    .collect(),
+            );
+        }
+        if let Some(x) = self.exchanged.get_mut(light) {
+            *x = Some(version);
+        }
+        if let Some(r) = self.reads.get_mut(light) {
+            *r = None;
+        }
+        tracing::debug!(
+            frame_id = version,
+            light,
+            "density summed and swept on the workers"
+        );
+        self.count(|t| {
+            t.strands_sent += sent;
+            t.density_received += received;
+            t.density_between_workers += density_between;
+            t.swept_between_workers += swept_between;
+        });
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        self.clock(|x| x.fill_ms += ms);
+        Ok(stats)
+    }
+
+    /// The transmittance of a map the workers summed and swept among
+    /// themselves, swept again here: for the head drawn here and for a
+    /// frame drawn again after a failure (its slab is kept).
+    fn sweep_here(
+        &mut self,
+        light: usize,
+        map: &DensityMap,
+    ) -> Result<Transmittance, ClusterError> {
+        let t = Instant::now();
+        let trans = Transmittance::compute(map);
+        if let Some(s) = self.swept.get_mut(light) {
+            *s = Some(Arc::new(SweptMap::of_map(map.clone())));
+        }
+        if let Some(x) = self.swept_on_workers.get_mut(light) {
+            *x = self.exchanged.get(light).copied().flatten();
+        }
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        self.clock(|x| x.sweep_ms += ms);
+        Ok(trans)
+    }
+
     fn fill_remote(
         &mut self,
         light: usize,
@@ -779,7 +1033,7 @@ impl RemoteExecutor {
         if self.draw == DrawAt::Workers
             && let Some(s) = self.swept.get_mut(light)
         {
-            *s = Some(Arc::new((frame, slabs)));
+            *s = Some(Arc::new(SweptMap::of_slabs(frame, slabs)));
         }
         let ms = t.elapsed().as_secs_f64() * 1e3;
         self.count(|x| {
@@ -809,9 +1063,12 @@ impl RemoteExecutor {
             let mut chunks = vec![first.clone()];
             if job.shadows {
                 for (l, swept) in self.swept.iter().enumerate() {
-                    let (frame, slabs) = &**swept.as_ref().ok_or_else(|| {
-                        ClusterError::Setup(format!("light {l} was not swept before drawing"))
-                    })?;
+                    let (frame, slabs) = swept
+                        .as_ref()
+                        .ok_or_else(|| {
+                            ClusterError::Setup(format!("light {l} was not swept before drawing"))
+                        })?
+                        .get();
                     // The columns this worker reads; all of them after a loss.
                     let keep = self.reads[l].as_ref().and_then(|r| r.get(i));
                     chunks.extend(wire::draw_columns(
@@ -906,14 +1163,26 @@ impl RemoteExecutor {
             .iter()
             .map(|w| (w.addr.clone(), w.session.clone()))
             .collect();
+        // The workers hold every column when they swept them together.
+        let exchanged = job.shadows
+            && self.posed == Some(job.version)
+            && self
+                .swept_on_workers
+                .iter()
+                .all(|x| *x == Some(job.version));
+        // The workers' columns go with this Draw.
+        self.swept_on_workers.iter_mut().for_each(|x| *x = None);
         // Band owners shade the head under the hair's shadow: every column.
         let all_columns = job.shadows && self.head_shadow;
         let mut shared = Vec::new();
         let columns = |ex: &Self, i: usize, out: &mut Vec<pb::DrawChunk>| {
             for (l, swept) in ex.swept.iter().enumerate() {
-                let (frame, slabs) = &**swept.as_ref().ok_or_else(|| {
-                    ClusterError::Setup(format!("light {l} was not swept before drawing"))
-                })?;
+                let (frame, slabs) = swept
+                    .as_ref()
+                    .ok_or_else(|| {
+                        ClusterError::Setup(format!("light {l} was not swept before drawing"))
+                    })?
+                    .get();
                 let keep = if all_columns {
                     None
                 } else {
@@ -928,9 +1197,11 @@ impl RemoteExecutor {
             }
             Ok::<_, ClusterError>(())
         };
-        if job.shadows && all_columns {
+        if job.shadows && all_columns && !exchanged {
             columns(self, 0, &mut shared)?;
         }
+        let mut pb_job = wire::job_to_pb(job);
+        pb_job.exchanged = exchanged;
         let mut requests = Vec::with_capacity(n);
         let mut sent = 0u64;
         for (i, w) in self.workers.iter().enumerate() {
@@ -943,11 +1214,11 @@ impl RemoteExecutor {
             };
             let rows = bands.plan.rows_of(i);
             let mut chunks = vec![pb::DrawChunk {
-                job: Some(wire::job_to_pb(job)),
+                job: Some(pb_job.clone()),
                 bands: Some(bands.to_pb()),
                 ..Default::default()
             }];
-            if job.shadows {
+            if job.shadows && !exchanged {
                 if all_columns {
                     chunks.extend(shared.iter().cloned());
                 } else {
@@ -1262,6 +1533,45 @@ impl Executor for RemoteExecutor {
         _fiber: &Fiber,
         version: Option<u64>,
     ) -> Result<FillStats, EngineError> {
+        for x in [&mut self.exchanged, &mut self.swept_on_workers] {
+            if let Some(x) = x.get_mut(light) {
+                *x = None;
+            }
+        }
+        if self.draw == DrawAt::Workers && self.exchange && version.is_some() {
+            let before = self.workers.len();
+            // A worker lost in the round is dropped, and the survivors
+            // try again.
+            let r = self.with_survivors(|ex| {
+                ex.ensure_posed()?;
+                if ex.workers.len() >= 2 && ex.posed == version {
+                    ex.fill_exchanged(light, map, version.unwrap_or_default())
+                        .map(Some)
+                } else {
+                    Ok(None)
+                }
+            });
+            match r {
+                Ok(Some(stats)) => return Ok(stats),
+                Ok(None) => {}
+                Err(e) if e.worker().is_none() => {
+                    // This frame is summed and swept through the
+                    // coordinator instead.
+                    tracing::warn!(error = %e, "summing and sweeping on the workers failed; this frame's map goes through the coordinator");
+                    self.clock(|t| t.exchange_fallbacks += 1);
+                    if self.workers.len() == before {
+                        self.exchange_failures += 1;
+                        if self.exchange_failures >= 2 {
+                            self.exchange = false;
+                            tracing::warn!(
+                                "the workers failed twice to sum and sweep together with none of them lost (can they reach each other at the addresses the coordinator dials? with TLS, do their certificates allow client use?); the coordinator sums and hands out the columns from now on"
+                            );
+                        }
+                    }
+                }
+                Err(e) => return Err(engine_error(e)),
+            }
+        }
         // After a loss the survivors pose the lost worker's share again
         // (drawing on the workers), or are sent strands (drawing here).
         self.with_survivors(|ex| ex.fill_remote(light, map, hair, version))
@@ -1269,6 +1579,9 @@ impl Executor for RemoteExecutor {
     }
 
     fn sweep(&mut self, light: usize, map: &DensityMap) -> Result<Transmittance, EngineError> {
+        if self.posed.is_some() && self.exchanged.get(light).copied().flatten() == self.posed {
+            return self.sweep_here(light, map).map_err(engine_error);
+        }
         self.with_survivors(|ex| ex.sweep_remote(light, map))
             .map_err(engine_error)
     }
@@ -1362,6 +1675,8 @@ impl RemoteExecutor {
         }
         self.last_pose = to.pose;
         self.swept = to.swept;
+        self.exchanged.iter_mut().for_each(|x| *x = None);
+        self.swept_on_workers.iter_mut().for_each(|x| *x = None);
         self.reads = if self.addrs() == to.workers {
             to.reads
         } else {

@@ -251,7 +251,12 @@ struct Session {
     /// The session's own memory budget.
     memory: Memory,
     /// Other workers' stripes of this worker's band, by Draw round.
-    inbox: Arc<Inbox>,
+    inbox: Arc<Inbox<raster::HairLayer>>,
+    /// Other workers' columns, by Deposit round (twice the round for
+    /// density, and one more for swept columns).
+    exchange: Arc<Inbox<Exchanged>>,
+    /// What the last Deposit rounds with a column plan swept.
+    swept: Arc<SweptStore>,
 }
 
 /// The most stripes a session's inbox holds at once (each a whole
@@ -261,70 +266,77 @@ const INBOX_LAYERS: usize = 64;
 /// Bytes a received stripe pixel costs: its index and its sums.
 const STRIPE_PIXEL_BYTES: u64 = 4 + std::mem::size_of::<raster::Sums>() as u64;
 
-/// The stripes other workers sent of this worker's band (Composite calls),
-/// until its Draw of that round gathers them.
-#[derive(Debug, Default)]
-struct Inbox {
-    state: Mutex<InboxState>,
+/// What other workers sent this worker for one of its rounds (their
+/// stripes of its band, Composite calls; their columns, Exchange calls),
+/// until the call of that round gathers them.
+#[derive(Debug)]
+struct Inbox<T> {
+    state: Mutex<InboxState<T>>,
     ready: std::sync::Condvar,
 }
 
-#[derive(Debug, Default)]
-struct InboxState {
-    /// The latest Draw round begun: stripes of earlier rounds are dropped.
-    round: u64,
-    /// Per delivered call: its round, its sender, its stripes and
-    /// their memory.
-    layers: Vec<(u64, u32, raster::HairLayer, Grant)>,
+impl<T> Default for Inbox<T> {
+    fn default() -> Inbox<T> {
+        Inbox {
+            state: Mutex::new(InboxState {
+                round: 0,
+                items: Vec::new(),
+            }),
+            ready: std::sync::Condvar::new(),
+        }
+    }
 }
 
-impl Inbox {
-    /// A Draw of `round` begins: earlier rounds' stripes go.
+#[derive(Debug)]
+struct InboxState<T> {
+    /// The latest round begun: items of earlier rounds are dropped.
+    round: u64,
+    /// Per delivered call: its round, its sender, what it carried and
+    /// that memory.
+    items: Vec<(u64, u32, T, Grant)>,
+}
+
+impl<T> Inbox<T> {
+    /// A round begins: earlier rounds' items go.
     fn begin(&self, round: u64) {
         if let Ok(mut st) = self.state.lock() {
             st.round = st.round.max(round);
             let r = st.round;
-            st.layers.retain(|l| l.0 >= r);
+            st.items.retain(|l| l.0 >= r);
         }
     }
 
-    /// Keeps a sender's stripes of `round` (stale ones are dropped).
-    fn deliver(
-        &self,
-        round: u64,
-        from: u32,
-        layer: raster::HairLayer,
-        grant: Grant,
-    ) -> Result<(), Status> {
+    /// Keeps a sender's item of `round` (stale ones are dropped).
+    fn deliver(&self, round: u64, from: u32, item: T, grant: Grant) -> Result<(), Status> {
         let mut st = self.state.lock().map_err(poisoned)?;
         if round < st.round {
             return Ok(());
         }
-        if st.layers.iter().any(|l| l.0 == round && l.1 == from) {
+        if st.items.iter().any(|l| l.0 == round && l.1 == from) {
             return Err(Status::invalid_argument(format!(
-                "the stripes of worker {from} of round {round} come twice"
+                "worker {from}'s call of round {round} comes twice"
             )));
         }
-        if st.layers.len() >= INBOX_LAYERS {
+        if st.items.len() >= INBOX_LAYERS {
             return Err(Status::resource_exhausted(format!(
-                "{INBOX_LAYERS} Composite calls' stripes already wait here"
+                "{INBOX_LAYERS} calls of other workers already wait here"
             )));
         }
-        st.layers.push((round, from, layer, grant));
+        st.items.push((round, from, item, grant));
         self.ready.notify_all();
         Ok(())
     }
 
-    /// The stripes of `round` from every worker in `from`, once all came;
-    /// an error naming the workers missing after `wait`, or as soon as
-    /// `go()` says stop.
+    /// The items of `round` from every worker in `from`, in that order,
+    /// with their memory, once all came; an error naming the workers
+    /// missing after `wait`, or as soon as `go()` says stop.
     fn gather(
         &self,
         round: u64,
         from: &[u32],
         wait: Duration,
         go: impl Fn() -> Result<(), String>,
-    ) -> Result<Vec<raster::HairLayer>, engine::EngineError> {
+    ) -> Result<Vec<(T, Grant)>, engine::EngineError> {
         let fail = |m: String| engine::EngineError::Executor(m);
         let until = Instant::now() + wait;
         let mut st = self
@@ -332,17 +344,18 @@ impl Inbox {
             .lock()
             .map_err(|_| fail("worker state poisoned".into()))?;
         loop {
-            let have = |b: &u32| st.layers.iter().any(|l| l.0 == round && l.1 == *b);
+            let have = |b: &u32| st.items.iter().any(|l| l.0 == round && l.1 == *b);
             let missing: Vec<u32> = from.iter().copied().filter(|b| !have(b)).collect();
             if missing.is_empty() {
                 let mut out = Vec::with_capacity(from.len());
                 for b in from {
                     let i = st
-                        .layers
+                        .items
                         .iter()
                         .position(|l| l.0 == round && l.1 == *b)
                         .expect("found above");
-                    out.push(st.layers.swap_remove(i).2);
+                    let (_, _, item, grant) = st.items.swap_remove(i);
+                    out.push((item, grant));
                 }
                 return Ok(out);
             }
@@ -350,7 +363,7 @@ impl Inbox {
             let now = Instant::now();
             if now >= until {
                 return Err(fail(format!(
-                    "no stripes from workers {missing:?} of the round within {} ms",
+                    "nothing from workers {missing:?} of the round within {} ms",
                     wait.as_millis()
                 )));
             }
@@ -362,6 +375,26 @@ impl Inbox {
                 .0;
         }
     }
+}
+
+/// What another worker sent in an Exchange call: its density of this
+/// worker's columns, or its own swept columns.
+#[derive(Debug)]
+enum Exchanged {
+    Density(LightFrame, Vec<pb::ColumnChunk>),
+    Swept(Vec<pb::DrawChunk>),
+}
+
+/// The transmittance a session's workers swept among themselves for one
+/// hair version, light by light, until its Draw takes it (with its memory).
+#[derive(Debug, Default)]
+struct SweptHere {
+    version: u64,
+    maps: Vec<Option<(shadow::Transmittance, Grant)>>,
+    /// Per light, whether its round is still gathering.
+    pending: Vec<bool>,
+    /// The first round of the version that failed.
+    failed: Option<String>,
 }
 
 /// A share of a scene's hair and the scene it came from (a new Assign of
@@ -636,6 +669,8 @@ impl Worker for WorkerService {
                             "--max-session-memory-mib",
                         ),
                         inbox: Arc::default(),
+                        exchange: Arc::default(),
+                        swept: Arc::default(),
                     }),
                 );
                 tracing::info!(session = %&id[..8], sessions = sessions.len(), "session opened");
@@ -694,7 +729,93 @@ impl Worker for WorkerService {
             let budget = (memory.map(&frame).await?, received);
             // The deposit stops between runs of strands once the call is gone.
             let (_stop_on_drop, go) = stop_switch();
-            let chunks = if first.posed {
+            let plan = first
+                .columns
+                .as_ref()
+                .map(|p| wire::ColumnPlan::from_pb(p, frame.columns()))
+                .transpose()
+                .map_err(invalid)?;
+            let chunks = if let Some(plan) = plan {
+                if !first.posed || hair.strand_count() > 0 {
+                    return Err(Status::invalid_argument(
+                        "a Deposit with a column plan is of posed strands, and carries none",
+                    ));
+                }
+                if light as usize >= wire::MAX_LIGHTS {
+                    return Err(Status::invalid_argument(format!(
+                        "light {light} (at most {} lights)",
+                        wire::MAX_LIGHTS
+                    )));
+                }
+                let (version, light) = (first.version, light as usize);
+                let round = ExchangeRound {
+                    version,
+                    frame,
+                    sends: self.exchange_calls(&session, &plan)?,
+                    plan,
+                };
+                let (inbox, store, memory) = (
+                    session.exchange.clone(),
+                    session.swept.clone(),
+                    memory.clone(),
+                );
+                store.begin(version, light);
+                // The summed columns go back as soon as they are, while the
+                // swept columns are gathered for the Draw.
+                let (tx, mut rx) = tokio::sync::mpsc::channel(STRIPES_IN_FLIGHT);
+                let held = session.held.clone();
+                tokio::task::spawn_blocking(move || {
+                    let go = || !tx.is_closed();
+                    let summed = (|| {
+                        let mut slot = held.lock().map_err(poisoned)?;
+                        let h = slot.as_mut().ok_or_else(|| {
+                            Status::failed_precondition(
+                                "no share of the hair here: call Assign first",
+                            )
+                        })?;
+                        round.sum(&mut h.share, &maps, &fiber, &inbox, go)
+                    })();
+                    drop(budget);
+                    match summed {
+                        Err(s) => {
+                            store.end(version, light, Err(s.message().to_string()));
+                            let _ = tx.blocking_send(Err(s));
+                        }
+                        Ok((mut reply, rest)) => {
+                            if let Some(c) = reply.first_mut() {
+                                c.frame_id = frame_id;
+                                c.light = light as u32;
+                            }
+                            for c in reply {
+                                if tx.blocking_send(Ok(c)).is_err() {
+                                    store.end(
+                                        version,
+                                        light,
+                                        Err("the coordinator left the Deposit".into()),
+                                    );
+                                    return;
+                                }
+                            }
+                            drop(tx);
+                            store.end(version, light, rest.finish(&inbox, &memory));
+                        }
+                    }
+                });
+                // A refusal before any column is the call's own status.
+                let first = match rx.recv().await {
+                    Some(Ok(c)) => c,
+                    Some(Err(s)) => return Err(s),
+                    None => {
+                        return Err(Status::internal("the Deposit's task ended without a reply"));
+                    }
+                };
+                let rest = tokio_stream::wrappers::ReceiverStream::new(rx);
+                let stream: Chunks<pb::ColumnChunk> = Box::pin(tokio_stream::StreamExt::chain(
+                    tokio_stream::once(Ok::<_, Status>(first)),
+                    rest,
+                ));
+                return Ok(Response::new(stream));
+            } else if first.posed {
                 if hair.strand_count() > 0 {
                     return Err(Status::invalid_argument(
                         "a posed Deposit carries no strands",
@@ -955,6 +1076,7 @@ impl Worker for WorkerService {
             let job = first.job.as_ref().ok_or_else(|| {
                 Status::invalid_argument("a Draw call's first chunk carries the job")
             })?;
+            let exchanged = job.exchanged;
             let job = wire::job_from_pb(job).map_err(invalid)?;
             let bands = first
                 .bands
@@ -972,6 +1094,11 @@ impl Worker for WorkerService {
                 memory.take(&mut received, bytes, "the Draw's swept columns")?;
                 reader.add(c).map_err(invalid)
             };
+            if exchanged && (first.map.is_some() || !first.column_steps.is_empty()) {
+                return Err(Status::invalid_argument(
+                    "a Draw with the exchanged columns carries none",
+                ));
+            }
             if first.map.is_some() || !first.column_steps.is_empty() {
                 add(&first)?;
             }
@@ -979,9 +1106,26 @@ impl Worker for WorkerService {
                 if c.job.is_some() {
                     return Err(Status::invalid_argument("a Draw call carries one job"));
                 }
+                if exchanged {
+                    return Err(Status::invalid_argument(
+                        "a Draw with the exchanged columns carries none",
+                    ));
+                }
                 add(&c)?;
             }
-            let maps = reader.finish().map_err(invalid)?;
+            // The columns swept here, or those the call brought.
+            let (maps, kept) = if exchanged && job.shadows {
+                let (store, version, lights) =
+                    (session.swept.clone(), job.version, job.to_lights.len());
+                let wait = bands.as_ref().map_or(Duration::from_secs(30), |b| b.wait);
+                tokio::task::spawn_blocking(move || store.take(version, lights, wait))
+                    .await
+                    .map_err(|e| Status::internal(format!("worker task failed: {e}")))?
+                    .map_err(Status::aborted)?
+            } else {
+                (reader.finish().map_err(invalid)?, Vec::new())
+            };
+            let received = (received, kept);
             if let Some(bands) = bands {
                 let stream = self.draw_band(&session, job, maps, received, bands)?;
                 return Ok(Response::new(stream));
@@ -1073,6 +1217,74 @@ impl Worker for WorkerService {
         };
         logged(peer, "Composite", served.await)
     }
+
+    async fn exchange(
+        &self,
+        req: Request<Streaming<pb::ExchangeChunk>>,
+    ) -> Result<Response<pb::ExchangeReply>, Status> {
+        let peer = req.remote_addr();
+        let served = async move {
+            let session = self.session(req.metadata())?;
+            let memory = self.budget(&session);
+            let mut stream = req.into_inner();
+            let first = first_message(&mut stream, "Exchange").await?;
+            let (round, from, swept) = (first.round, first.from, first.swept);
+            if from as usize >= wire::MAX_WORKERS || round >= u64::MAX / 2 {
+                return Err(Status::invalid_argument(format!(
+                    "columns from worker {from} of round {round} (at most {} workers)",
+                    wire::MAX_WORKERS
+                )));
+            }
+            let frame = if swept {
+                None
+            } else {
+                Some(wire::frame_from_pb(first.map.as_ref()).map_err(invalid)?)
+            };
+            let mut grant = Grant::default();
+            let (mut density, mut columns) = (Vec::new(), Vec::new());
+            let mut add = |c: pb::ExchangeChunk| -> Result<(), Status> {
+                match (swept, c.density, c.columns) {
+                    (false, Some(d), None) => {
+                        // The cells unpacked, and the chunk as it came.
+                        let cells: u64 =
+                            d.lo.iter()
+                                .zip(&d.hi)
+                                .map(|(&lo, &hi)| u64::from(hi.saturating_sub(lo)) + 1)
+                                .sum();
+                        let bytes = cells * 4 + d.encoded_len() as u64;
+                        memory.take(&mut grant, bytes, "an Exchange call's density")?;
+                        density.push(d);
+                    }
+                    (true, None, Some(col)) => {
+                        let bytes =
+                            wire::ColumnsReader::bytes_to_add(&col) + col.encoded_len() as u64;
+                        memory.take(&mut grant, bytes, "an Exchange call's swept columns")?;
+                        columns.push(col);
+                    }
+                    (_, None, None) => {}
+                    _ => {
+                        return Err(Status::invalid_argument(
+                            "an Exchange chunk carries what its call does not (density in a call of swept columns, or the reverse, or both)",
+                        ));
+                    }
+                }
+                Ok(())
+            };
+            add(first)?;
+            while let Some(c) = stream.message().await? {
+                add(c)?;
+            }
+            let item = match frame {
+                Some(f) => Exchanged::Density(f, density),
+                None => Exchanged::Swept(columns),
+            };
+            session
+                .exchange
+                .deliver(2 * round + u64::from(swept), from, item, grant)?;
+            Ok(Response::new(pb::ExchangeReply {}))
+        };
+        logged(peer, "Exchange", served.await)
+    }
 }
 
 impl WorkerService {
@@ -1086,7 +1298,7 @@ impl WorkerService {
         session: &Session,
         job: engine::DrawJob,
         maps: Vec<shadow::Transmittance>,
-        received: Grant,
+        received: (Grant, Vec<Grant>),
         bands: wire::Bands,
     ) -> Result<Chunks<pb::LayerChunk>, Status> {
         let n = bands.plan.workers;
@@ -1180,7 +1392,8 @@ impl WorkerService {
                 });
                 let wait_ms = t.elapsed().as_secs_f64() * 1e3;
                 let gathered = match gathered {
-                    Ok(g) => g,
+                    // Their memory goes as it did: the resolve copies them.
+                    Ok(g) => g.into_iter().map(|(layer, _)| layer).collect(),
                     Err(e) => {
                         canvas = Some(work.into_canvas());
                         return Err(Status::aborted(e.to_string()));
@@ -1223,6 +1436,387 @@ impl WorkerService {
         // The band's rows (or the refusal, as the stream's status) come
         // once it is resolved.
         Ok(Box::pin(tokio_stream::wrappers::ReceiverStream::new(rx)))
+    }
+}
+
+/// The calls carrying this worker's columns to each other worker of a
+/// column plan: per worker (none for this one), a sender of the density
+/// call and one of the swept columns' call; and the first failure of any.
+struct ExchangeSends {
+    density: Vec<Option<tokio::sync::mpsc::Sender<pb::ExchangeChunk>>>,
+    swept: Vec<Option<tokio::sync::mpsc::Sender<pb::ExchangeChunk>>>,
+    failed: Arc<Mutex<Option<String>>>,
+}
+
+impl WorkerService {
+    /// Opens the Exchange calls of a Deposit round with column plan
+    /// `plan`: two to each other worker, fed as the round goes.
+    fn exchange_calls(
+        &self,
+        session: &Session,
+        plan: &wire::ColumnPlan,
+    ) -> Result<ExchangeSends, Status> {
+        let n = plan.workers();
+        // Earlier rounds' columns go, but for those of the rounds just
+        // before (another light's, whose swept columns may still be
+        // gathered).
+        session
+            .exchange
+            .begin((2 * plan.round).saturating_sub(4 * wire::MAX_LIGHTS as u64));
+        let failed: Arc<Mutex<Option<String>>> = Arc::default();
+        let mut sends = ExchangeSends {
+            density: vec![None; n],
+            swept: vec![None; n],
+            failed: failed.clone(),
+        };
+        for b in (0..n).filter(|&b| b != plan.own) {
+            let (addr, sid) = &plan.peers[b];
+            let client = self.peer(addr, sid, plan.tls_domain.as_deref(), plan.wait)?;
+            for swept in [false, true] {
+                let (tx, rx) = tokio::sync::mpsc::channel(STRIPES_IN_FLIGHT);
+                let (failed, addr, mut client) = (failed.clone(), addr.clone(), client.clone());
+                tokio::spawn(async move {
+                    let stream = tokio_stream::wrappers::ReceiverStream::new(rx);
+                    if let Err(s) = client.exchange(stream).await
+                        && let Ok(mut f) = failed.lock()
+                    {
+                        f.get_or_insert(format!(
+                            "worker {b} ({addr}) did not take this worker's columns: {:?}: {}",
+                            s.code(),
+                            s.message()
+                        ));
+                    }
+                });
+                if swept {
+                    sends.swept[b] = Some(tx);
+                } else {
+                    sends.density[b] = Some(tx);
+                }
+            }
+        }
+        Ok(sends)
+    }
+}
+
+/// One worker's part of a Deposit round with a column plan (see
+/// [`wire::ColumnPlan`]).
+struct ExchangeRound {
+    version: u64,
+    frame: LightFrame,
+    plan: wire::ColumnPlan,
+    sends: ExchangeSends,
+}
+
+/// What is left of a round once the worker's columns are summed and
+/// swept: the all-gather of the swept columns.
+struct SweptRound {
+    round: ExchangeRound,
+    own: Vec<pb::DrawChunk>,
+}
+
+impl ExchangeRound {
+    /// Deposits the share's strands, sends each other worker its columns,
+    /// sums the others' density of this worker's columns, adds the head
+    /// and sweeps them. The reply: the summed density of this worker's
+    /// columns, the last chunk with the fill's counts and the bytes this
+    /// worker sends the others; and the rest of the round.
+    fn sum(
+        mut self,
+        share: &mut Share,
+        maps: &Mutex<Vec<DensityMap>>,
+        fiber: &Fiber,
+        inbox: &Inbox<Exchanged>,
+        go: impl Fn() -> bool + Clone,
+    ) -> Result<(Vec<pb::ColumnChunk>, SweptRound), Status> {
+        let (frame, plan) = (self.frame, &self.plan);
+        let (n, own) = (plan.workers(), plan.own);
+        let others: Vec<u32> = (0..n as u32).filter(|&b| b != own as u32).collect();
+        let mine = plan.range(own);
+        let failed = self.sends.failed.clone();
+        let go_on = || {
+            if !go() {
+                return Err("the coordinator left the Deposit".to_string());
+            }
+            failed
+                .lock()
+                .ok()
+                .and_then(|f| f.clone())
+                .map_or(Ok(()), Err)
+        };
+        let mut map = WorkerService::map_in(maps, frame);
+        let stats = share
+            .deposit_while(self.version, &mut map, fiber, go.clone())
+            .map_err(refused)?
+            .ok_or_else(|| cancelled("Deposit"))?;
+        // Reduce-scatter: each other worker's columns to it.
+        let mut density_sent = 0u64;
+        for b in 0..n {
+            let Some(to) = self.sends.density[b].take() else {
+                continue;
+            };
+            for (i, c) in wire::column_chunks(&map, plan.range(b))
+                .into_iter()
+                .enumerate()
+            {
+                density_sent += self.sends.send(
+                    &to,
+                    pb::ExchangeChunk {
+                        round: plan.round,
+                        from: own as u32,
+                        map: (i == 0).then(|| wire::frame_to_pb(&frame)),
+                        density: Some(c),
+                        ..Default::default()
+                    },
+                )?;
+            }
+        }
+        let got = inbox
+            .gather(2 * plan.round, &others, plan.wait, go_on)
+            .map_err(|e| Status::aborted(e.to_string()))?;
+        for (b, (item, _)) in others.iter().zip(got) {
+            let Exchanged::Density(f, chunks) = item else {
+                return Err(Status::aborted(format!(
+                    "worker {b} sent swept columns for density"
+                )));
+            };
+            if f != frame {
+                return Err(Status::aborted(format!(
+                    "worker {b}'s density is of another map"
+                )));
+            }
+            for c in &chunks {
+                let d = wire::decode_columns(&frame, c)
+                    .map_err(|e| Status::aborted(format!("worker {b}'s density: {e}")))?;
+                if !d.within(mine.clone()) {
+                    return Err(Status::aborted(format!(
+                        "worker {b}'s density reaches past this worker's columns {mine:?}"
+                    )));
+                }
+                wire::add_columns(&mut map, &d);
+            }
+        }
+        let mut reply = wire::column_chunks(&map, mine.clone());
+        // The head, then the sweep of this worker's columns.
+        if let Some(h) = plan.head {
+            share.deposit_head(&mut map, h);
+        }
+        let slab = shadow::sweep_while(&map, mine.start as u32..mine.end as u32, go);
+        WorkerService::give_back(maps, map);
+        let slab = slab.ok_or_else(|| cancelled("Deposit"))?;
+        let own_swept = wire::swept_chunks(&frame, &slab);
+        // Each other worker gets them all, each in a chunk of its own.
+        let swept_sent = (n as u64 - 1)
+            * own_swept
+                .iter()
+                .map(|c| {
+                    pb::ExchangeChunk {
+                        round: plan.round,
+                        from: own as u32,
+                        swept: true,
+                        columns: Some(c.clone()),
+                        ..Default::default()
+                    }
+                    .encoded_len() as u64
+                })
+                .sum::<u64>();
+        if let Some(c) = reply.last_mut() {
+            c.samples = stats.samples;
+            c.out_of_map = stats.out_of_map;
+            c.exchanged_density = density_sent;
+            c.exchanged_swept = swept_sent;
+        }
+        Ok((
+            reply,
+            SweptRound {
+                round: self,
+                own: own_swept,
+            },
+        ))
+    }
+}
+
+impl ExchangeSends {
+    /// Sends `c` on `to`: its bytes, or the round's failure.
+    fn send(
+        &self,
+        to: &tokio::sync::mpsc::Sender<pb::ExchangeChunk>,
+        c: pb::ExchangeChunk,
+    ) -> Result<u64, Status> {
+        let bytes = c.encoded_len() as u64;
+        to.blocking_send(c).map_err(|_| {
+            Status::aborted(
+                self.failed
+                    .lock()
+                    .ok()
+                    .and_then(|f| f.clone())
+                    .unwrap_or_else(|| "a call to another worker ended".to_string()),
+            )
+        })?;
+        Ok(bytes)
+    }
+}
+
+impl SweptRound {
+    /// Sends this worker's swept columns to every other worker, gathers
+    /// theirs, and assembles the light's transmittance, in the budget.
+    fn finish(
+        self,
+        inbox: &Inbox<Exchanged>,
+        memory: &Budget,
+    ) -> Result<(shadow::Transmittance, Grant), String> {
+        let SweptRound { mut round, own } = self;
+        let plan = &round.plan;
+        let n = plan.workers();
+        let others: Vec<u32> = (0..n as u32).filter(|&b| b != plan.own as u32).collect();
+        for b in 0..n {
+            let Some(to) = round.sends.swept[b].take() else {
+                continue;
+            };
+            for c in &own {
+                round
+                    .sends
+                    .send(
+                        &to,
+                        pb::ExchangeChunk {
+                            round: plan.round,
+                            from: plan.own as u32,
+                            swept: true,
+                            columns: Some(c.clone()),
+                            ..Default::default()
+                        },
+                    )
+                    .map_err(|s| s.message().to_string())?;
+            }
+        }
+        let failed = round.sends.failed.clone();
+        let go_on = || {
+            failed
+                .lock()
+                .ok()
+                .and_then(|f| f.clone())
+                .map_or(Ok(()), Err)
+        };
+        let got = inbox
+            .gather(2 * plan.round + 1, &others, plan.wait, go_on)
+            .map_err(|e| e.to_string())?;
+        let mut owners: Vec<Vec<pb::DrawChunk>> = vec![Vec::new(); n];
+        owners[plan.own] = own;
+        let mut grants = Vec::with_capacity(n);
+        for (&b, (item, grant)) in others.iter().zip(got) {
+            let Exchanged::Swept(chunks) = item else {
+                return Err(format!("worker {b} sent density for swept columns"));
+            };
+            owners[b as usize] = chunks;
+            grants.push(grant);
+        }
+        let trans = wire::assemble_swept(round.frame, plan, &owners)
+            .map_err(|e| format!("the swept columns: {e}"))?;
+        drop(owners);
+        drop(grants);
+        // Kept until the Draw, in the budget.
+        let mut kept = Grant::default();
+        memory
+            .take(
+                &mut kept,
+                trans.bytes() as u64,
+                "the swept columns kept for the Draw",
+            )
+            .map_err(|s| s.message().to_string())?;
+        Ok((trans, kept))
+    }
+}
+
+/// The transmittance each Deposit round with a column plan leaves for the
+/// Draw of its hair version, light by light, as the rounds finish.
+#[derive(Debug, Default)]
+struct SweptStore {
+    state: Mutex<SweptHere>,
+    ready: std::sync::Condvar,
+}
+
+impl SweptStore {
+    /// A round of hair `version`, light `light`, begins.
+    fn begin(&self, version: u64, light: usize) {
+        if let Ok(mut st) = self.state.lock() {
+            if st.version != version {
+                *st = SweptHere {
+                    version,
+                    ..Default::default()
+                };
+            }
+            if st.maps.len() <= light {
+                st.maps.resize_with(light + 1, || None);
+                st.pending.resize(light + 1, false);
+            }
+            st.maps[light] = None;
+            st.pending[light] = true;
+        }
+    }
+
+    /// The round of `version`, `light` ended with `result`.
+    fn end(
+        &self,
+        version: u64,
+        light: usize,
+        result: Result<(shadow::Transmittance, Grant), String>,
+    ) {
+        if let Ok(mut st) = self.state.lock()
+            && st.version == version
+            && light < st.maps.len()
+        {
+            st.pending[light] = false;
+            match result {
+                Ok(m) => st.maps[light] = Some(m),
+                Err(e) => {
+                    tracing::warn!(version, light, error = %e, "the swept columns were not gathered");
+                    st.failed.get_or_insert(e);
+                }
+            }
+            self.ready.notify_all();
+        }
+    }
+
+    /// Every light's transmittance of hair `version`, `lights` of them,
+    /// once the rounds gathered them (waiting at most `wait`), and their
+    /// memory; why not otherwise.
+    #[allow(clippy::type_complexity)]
+    fn take(
+        &self,
+        version: u64,
+        lights: usize,
+        wait: Duration,
+    ) -> Result<(Vec<shadow::Transmittance>, Vec<Grant>), String> {
+        let until = Instant::now() + wait;
+        let mut st = self.state.lock().map_err(|_| "worker state poisoned")?;
+        loop {
+            if st.version != version || st.maps.len() != lights {
+                return Err(format!(
+                    "no columns of all {lights} lights summed here for hair version {version}"
+                ));
+            }
+            if let Some(e) = &st.failed {
+                return Err(e.clone());
+            }
+            if st.maps.iter().all(Option::is_some) {
+                st.pending.clear();
+                return Ok(st.maps.drain(..).map(|m| m.expect("checked")).unzip());
+            }
+            if !st.pending.iter().any(|&p| p) {
+                return Err("a light's columns were not summed here".into());
+            }
+            let now = Instant::now();
+            if now >= until {
+                return Err(format!(
+                    "the other workers' swept columns did not come within {} ms",
+                    wait.as_millis()
+                ));
+            }
+            st = self
+                .ready
+                .wait_timeout(st, (until - now).min(Duration::from_millis(50)))
+                .map_err(|_| "worker state poisoned")?
+                .0;
+        }
     }
 }
 

@@ -107,6 +107,9 @@ fn check_all(bytes: &[u8]) {
             }
         }
     }
+    if let Ok(m) = pb::DepositChunk::decode(bytes) {
+        check_column_plan(&m);
+    }
     if let Ok(m) = pb::DrawChunk::decode(bytes)
         && let Some(b) = &m.bands
         && let Ok(bands) = wire::Bands::from_pb(b, 720)
@@ -119,6 +122,40 @@ fn check_all(bytes: &[u8]) {
                 .iter()
                 .all(|r| r.end <= 720)
         );
+    }
+}
+
+/// A column plan that is accepted cuts the map whole, in ranges that
+/// never fall, and every worker's swept columns that are accepted lie in
+/// its range.
+fn check_column_plan(m: &pb::DepositChunk) {
+    let f = frame();
+    let Some(p) = &m.columns else { return };
+    let Ok(plan) = wire::ColumnPlan::from_pb(p, f.columns()) else {
+        return;
+    };
+    assert!(plan.own < plan.workers() && plan.workers() <= wire::MAX_WORKERS);
+    let ranges: Vec<_> = (0..plan.workers()).map(|i| plan.range(i)).collect();
+    assert_eq!(ranges.first().map(|r| r.start), Some(0));
+    assert_eq!(ranges.last().map(|r| r.end), Some(f.columns()));
+    assert!(ranges.windows(2).all(|w| w[0].end == w[1].start));
+    // Every worker's columns swept from a full map, each in its range.
+    let map = occupied_map(&f);
+    let owners: Vec<Vec<pb::DrawChunk>> = ranges
+        .iter()
+        .map(|r| wire::swept_chunks(&f, &shadow::sweep(&map, r.start as u32..r.end as u32)))
+        .collect();
+    let t = wire::assemble_swept(f, &plan, &owners).unwrap();
+    assert_eq!(t.frame(), &f);
+    // The first worker's columns given as the last's are refused, unless
+    // both hold the same columns (or none).
+    if plan.workers() > 1 && ranges[0] != ranges[plan.workers() - 1] {
+        let mut swapped = owners.clone();
+        swapped.swap(0, plan.workers() - 1);
+        let occupied = |r: &std::ops::Range<usize>| r.clone().any(|c| !map.meta(c).is_empty());
+        if occupied(&ranges[0]) || occupied(&ranges[plan.workers() - 1]) {
+            assert!(wire::assemble_swept(f, &plan, &swapped).is_err());
+        }
     }
 }
 
@@ -198,7 +235,22 @@ proptest! {
             tls_domain: None,
         };
         let banded = pb::DrawChunk { bands: Some(plan.to_pb()), ..Default::default() };
+        let column_plan = wire::ColumnPlan {
+            round: 4,
+            cuts: wire::ColumnPlan::cuts(f.columns(), 3, |c| c as u64 % 5),
+            own: 2,
+            peers: vec![
+                ("10.0.0.1:1".into(), "ab".into()),
+                ("10.0.0.2:1".into(), "cd".into()),
+                ("10.0.0.3:1".into(), "ef".into()),
+            ],
+            wait: std::time::Duration::from_secs(1),
+            tls_domain: None,
+            head: Some(glam::Affine3A::from_translation(Vec3::X)),
+        };
+        let planned = pb::DepositChunk { columns: Some(column_plan.to_pb()), ..deposit.clone() };
         let messages = [
+            planned.encode_to_vec(),
             band.encode_to_vec(),
             banded.encode_to_vec(),
             deposit.encode_to_vec(),

@@ -64,6 +64,12 @@ fn hello(fiber_width: f32) -> pb::HelloRequest {
     }
 }
 
+/// A small map frame.
+fn frame() -> shadow::LightFrame {
+    let light = shadow::Light::directional(glam::Vec3::new(0.3, -0.9, 0.1)).unwrap();
+    shadow::LightFrame::centered(&light, glam::Vec3::ZERO, 8.0, 16).unwrap()
+}
+
 async fn client(addr: SocketAddr) -> WorkerClient<tonic::transport::Channel> {
     WorkerClient::connect(format!("http://{addr}"))
         .await
@@ -184,6 +190,43 @@ fn calls_naming_no_open_session_are_refused_and_change_nothing() {
         // The same worker's stripes of the same round again: refused.
         let e = named(&id).composite(stripes(8, 8)).await.unwrap_err();
         assert_eq!(e.code(), tonic::Code::InvalidArgument);
+        assert!(e.message().contains("twice"), "{}", e.message());
+        // Another worker's columns: refused without the session, from an
+        // absurd worker, or carrying what the call does not; taken once
+        // when well formed.
+        let columns = |from: u32, swept: bool, density: bool| {
+            tokio_stream::iter(vec![pb::ExchangeChunk {
+                round: 3,
+                from,
+                swept,
+                map: (!swept).then(|| wire::frame_to_pb(&frame())),
+                density: density.then(pb::ColumnChunk::default),
+                ..Default::default()
+            }])
+        };
+        let e = client(addr)
+            .await
+            .exchange(columns(1, false, true))
+            .await
+            .unwrap_err();
+        assert_eq!(e.code(), tonic::Code::FailedPrecondition);
+        let e = named(&id)
+            .exchange(columns(100_000, false, true))
+            .await
+            .unwrap_err();
+        assert_eq!(e.code(), tonic::Code::InvalidArgument);
+        assert!(e.message().contains("worker 100000"), "{}", e.message());
+        let e = named(&id)
+            .exchange(columns(1, true, true))
+            .await
+            .unwrap_err();
+        assert_eq!(e.code(), tonic::Code::InvalidArgument);
+        assert!(e.message().contains("does not"), "{}", e.message());
+        named(&id).exchange(columns(1, false, true)).await.unwrap();
+        let e = named(&id)
+            .exchange(columns(1, false, true))
+            .await
+            .unwrap_err();
         assert!(e.message().contains("twice"), "{}", e.message());
         // Ended: refused from then on, the End itself too.
         named(&id).end(pb::EndRequest {}).await.unwrap();

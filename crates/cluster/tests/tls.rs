@@ -132,6 +132,12 @@ fn workers_composite_among_themselves_over_tls_with_the_local_bytes() {
     );
     assert_eq!(t.layers_received, 0, "{t:?}");
     assert_eq!(timing.composite_fallbacks, 0);
+    // The maps are summed and swept among them over TLS too.
+    assert!(
+        t.density_between_workers > 0 && t.slabs_received == 0,
+        "{t:?}"
+    );
+    assert_eq!(timing.exchange_fallbacks, 0);
 }
 
 /// Credentials whose workers may serve but not call (an older kind of
@@ -167,10 +173,14 @@ fn workers_that_cannot_call_each_other_leave_the_compositing_to_the_coordinator(
     let (worker, coordinator) = serve_only();
     let (t, timing) = drawn_over_tls(&worker, &coordinator, 2, 4);
     // Two rounds fail (the workers refuse each other's certificate), then
-    // the coordinator composites every frame; nobody is dropped.
+    // the coordinator composites every frame; nobody is dropped. So with
+    // summing and sweeping the maps: two Deposit rounds fail, then the
+    // coordinator sums the densities and hands out the columns.
     assert_eq!(timing.composite_fallbacks, 2, "{timing:?}");
+    assert_eq!(timing.exchange_fallbacks, 2, "{timing:?}");
     assert_eq!(timing.workers_lost, 0, "{timing:?}");
     assert!(t.layers_received > 0);
+    assert!(t.density_sent > 0 && t.slabs_received > 0, "{t:?}");
 }
 
 #[test]

@@ -83,6 +83,100 @@ fn three_workers_give_the_local_map_and_transmittance_bit_for_bit() {
 }
 
 #[test]
+fn columns_summed_and_swept_by_their_owners_give_the_local_transmittance_bit_for_bit() {
+    // Three workers' partial maps, as each deposits its third of the
+    // strands; each owner sums the others' density of its columns over
+    // the wire format, adds the head, sweeps, and every worker assembles
+    // all owners' swept columns.
+    let hair = hair();
+    let fiber = Fiber::new(0.1, 0.5).unwrap();
+    let light = Light::directional(Vec3::new(0.9, -0.35, -0.25)).unwrap();
+    let frame = LightFrame::fit(&light, hair.points(), 64).unwrap();
+    let head = shadow::Occluder::sphere(Vec3::new(0.0, 3.0, 0.0), 4.0);
+    let n = hair.strand_count();
+    let thirds = [0..n / 3, n / 3..2 * n / 3, 2 * n / 3..n];
+    let partial: Vec<DensityMap> = thirds
+        .iter()
+        .map(|r| {
+            let mut m = DensityMap::new(frame);
+            m.deposit(&hair, r.clone(), &fiber);
+            m
+        })
+        .collect();
+    let mut whole = DensityMap::new(frame);
+    whole.deposit(&hair, 0..n, &fiber);
+    assert!(
+        whole.deposit_body(&head, shadow::OPAQUE_DEPTH) > 100,
+        "the head is in the map"
+    );
+    let want = shadow::Transmittance::compute(&whole);
+    // Uneven cuts, one of them empty.
+    let cuts = vec![0, 700, 700, frame.columns() as u32];
+    let peers: Vec<(String, String)> = (0..3)
+        .map(|i| (format!("w{i}:1"), format!("s{i}")))
+        .collect();
+    let plan = |own| wire::ColumnPlan {
+        round: 1,
+        cuts: cuts.clone(),
+        own,
+        peers: peers.clone(),
+        wait: Duration::from_secs(1),
+        tls_domain: None,
+        head: None,
+    };
+    let owners: Vec<Vec<pb::DrawChunk>> = (0..3)
+        .map(|own| {
+            let p = plan(own);
+            let mine = p.range(own);
+            let mut m = partial[own].clone();
+            for (b, other) in partial.iter().enumerate() {
+                if b != own {
+                    for c in wire::column_chunks(other, mine.clone()) {
+                        let d = wire::decode_columns(&frame, &c).unwrap();
+                        assert!(d.within(mine.clone()));
+                        wire::add_columns(&mut m, &d);
+                    }
+                }
+            }
+            m.deposit_body(&head, shadow::OPAQUE_DEPTH);
+            let slab = shadow::sweep(&m, mine.start as u32..mine.end as u32);
+            wire::swept_chunks(&frame, &slab)
+        })
+        .collect();
+    let got = wire::assemble_swept(frame, &plan(0), &owners).unwrap();
+    let mut checked = 0;
+    for p in hair.points().iter().step_by(7) {
+        for filter in [false, true] {
+            assert_eq!(
+                want.optical_depth(*p, filter).to_bits(),
+                got.optical_depth(*p, filter).to_bits(),
+                "{p} filtered {filter}"
+            );
+            checked += 1;
+        }
+    }
+    assert!(checked > 100);
+    // An owner's columns handed in as another's are refused.
+    let mut swapped = owners.clone();
+    swapped.swap(0, 2);
+    assert!(wire::assemble_swept(frame, &plan(0), &swapped).is_err());
+    // A plan that does not cut the map whole is refused.
+    let mut bad = plan(0).to_pb();
+    bad.cuts[3] -= 1;
+    let e = wire::ColumnPlan::from_pb(&bad, frame.columns()).unwrap_err();
+    assert!(e.to_string().contains("cuts"), "{e}");
+    bad.cuts = vec![0, 900, 800, frame.columns() as u32];
+    assert!(wire::ColumnPlan::from_pb(&bad, frame.columns()).is_err());
+    let mut bad = plan(0).to_pb();
+    bad.own = 3;
+    assert!(wire::ColumnPlan::from_pb(&bad, frame.columns()).is_err());
+    assert_eq!(
+        wire::ColumnPlan::from_pb(&plan(1).to_pb(), frame.columns()).unwrap(),
+        plan(1)
+    );
+}
+
+#[test]
 fn a_worker_refuses_another_protocol_version_and_calls_before_hello() {
     let addr = start_worker();
     let rt = tokio::runtime::Runtime::new().unwrap();
@@ -408,10 +502,11 @@ fn three_workers_give_the_local_animation_byte_for_byte_drawing_anywhere() {
         let t = traffic.lock().unwrap().since(&first);
         // Later frames: the wisps are stepped on the workers, and the
         // density filled from the strands they posed: the Deposit requests
-        // carry a map frame (about 70 bytes), no strand (a strand is 200+
-        // bytes).
+        // carry a map frame (about 70 bytes) and, drawing on the workers,
+        // the column plan (addresses, sessions, the head: about 300), no
+        // strand (a strand is 200+ bytes).
         assert!(t.step_sent > 0 && t.wisps_received > 0, "{t:?}");
-        assert!(t.strands_sent <= 3 * 3 * 100, "{t:?}");
+        assert!(t.strands_sent <= 3 * 3 * 400, "{t:?}");
         assert_eq!(t.assign_sent, 0, "assigned once: {t:?}");
         // Drawing on the workers, they composite among themselves: their
         // stripes go to each other and finished bands come back, no
@@ -420,7 +515,23 @@ fn three_workers_give_the_local_animation_byte_for_byte_drawing_anywhere() {
         assert_eq!(t.layers_received, 0, "{t:?}");
         assert_eq!(t.stripes_between_workers > 0, on_workers, "{t:?}");
         assert_eq!(t.bands_received > 0, on_workers, "{t:?}");
-        assert_eq!(timing.lock().unwrap().composite_fallbacks, 0);
+        // They sum and sweep the maps among themselves too: their density
+        // and swept columns go to each other, and the coordinator sends
+        // no column, receives no slab.
+        assert_eq!(t.density_between_workers > 0, on_workers, "{t:?}");
+        assert_eq!(t.swept_between_workers > 0, on_workers, "{t:?}");
+        assert_eq!(
+            t.density_sent == 0 && t.slabs_received == 0,
+            on_workers,
+            "{t:?}"
+        );
+        assert!(
+            t.draw_sent < 3 * 3 * 1000 || !on_workers,
+            "no columns drawn with: {t:?}"
+        );
+        let timing = timing.lock().unwrap();
+        assert_eq!(timing.composite_fallbacks, 0);
+        assert_eq!(timing.exchange_fallbacks, 0);
     }
 }
 
@@ -457,7 +568,10 @@ fn rigid_hair_drawn_on_workers_is_the_local_animation() {
         assert!(seq.next_frame().unwrap().0 == w, "frame {i}");
     }
     let t = *traffic.lock().unwrap();
-    assert!(t.pose > 0 && t.strands_sent < 1000, "posed there: {t:?}");
+    // Three Deposits to each of two workers, of a frame and a column plan
+    // (about 240 bytes each), no strand.
+    assert!(t.pose > 0 && t.strands_sent < 6 * 400, "posed there: {t:?}");
+    assert!(t.density_between_workers > 0, "summed there: {t:?}");
 }
 
 #[test]

@@ -297,6 +297,20 @@ impl Share {
         Ok(map.deposit_while(hair, 0..hair.strand_count(), fiber, go))
     }
 
+    /// Adds the head, under the head motion's transform `pose`, to `map`
+    /// as an opaque occluder, as the frame's shadow stages add it to theirs
+    /// (see [`shadow::DensityMapMethod::build_with`]): for a share that
+    /// sweeps columns of a map summed where it is. False when the scene
+    /// has no head.
+    pub fn deposit_head(&mut self, map: &mut DensityMap, pose: glam::Affine3A) -> bool {
+        let Some(head) = &mut self.head else {
+            return false;
+        };
+        head.set_pose(pose);
+        map.deposit_body(&head.occluder(), shadow::OPAQUE_DEPTH);
+        true
+    }
+
     /// The columns of a map in `frame` that filtering the share's strands
     /// posed as hair `version` reads (see [`shadow::columns_read`]).
     pub fn columns_read(

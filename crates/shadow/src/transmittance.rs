@@ -361,6 +361,11 @@ fn col_table(n: usize, spans: &[Span]) -> Vec<Col> {
 }
 
 impl Transmittance {
+    /// Bytes its columns and depths hold (for a memory budget).
+    pub fn bytes(&self) -> usize {
+        self.cols.len() * std::mem::size_of::<Col>() + self.depth.len() * 4
+    }
+
     /// Sweeps every column of `density`, in parallel, straight into the
     /// result: the same values as [`sweep`] over any split, [`Self::assemble`]d,
     /// without the copies and checks that slabs from elsewhere need.

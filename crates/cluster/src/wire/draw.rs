@@ -34,7 +34,7 @@ fn floats<const N: usize>(what: &str, f: &[f32]) -> Result<[f32; N], Malformed> 
     Ok(a)
 }
 
-fn one_affine(what: &str, f: &[f32]) -> Result<Affine3A, Malformed> {
+pub(crate) fn one_affine(what: &str, f: &[f32]) -> Result<Affine3A, Malformed> {
     let a = affines_from_floats(f)?;
     match a.as_slice() {
         [one] => Ok(*one),
@@ -180,6 +180,7 @@ pub fn job_to_pb(j: &DrawJob) -> pb::DrawJob {
         shadows: j.shadows,
         filter: j.filter,
         head: j.head.to_cols_array().to_vec(),
+        exchanged: false,
     }
 }
 
@@ -403,6 +404,15 @@ impl ColumnsReader {
     }
 
     pub fn add(&mut self, c: &pb::DrawChunk) -> Result<(), Malformed> {
+        self.add_within(c, 0..usize::MAX)
+    }
+
+    /// [`add`](Self::add), refusing a column outside `allowed`.
+    pub fn add_within(
+        &mut self,
+        c: &pb::DrawChunk,
+        allowed: std::ops::Range<usize>,
+    ) -> Result<(), Malformed> {
         let l = c.light as usize;
         if l >= self.lights.len() {
             return Err(bad(format!(
@@ -445,6 +455,7 @@ impl ColumnsReader {
             };
             let (lo, hi) = (c.lo[i] as usize, c.hi[i] as usize);
             if col >= (n * n) as u64
+                || !allowed.contains(&(col as usize))
                 || self.next.is_some_and(|p| col <= u64::from(p))
                 || lo > hi
                 || hi >= n

@@ -14,11 +14,13 @@ use strands::Hair;
 use crate::pb;
 
 mod draw;
+mod exchange;
 pub use draw::*;
+pub use exchange::*;
 
 /// The protocol version this build speaks. A coordinator and a worker of
 /// different versions refuse each other.
-pub const PROTOCOL_VERSION: u32 = 9;
+pub const PROTOCOL_VERSION: u32 = 10;
 
 /// Points per Deposit chunk: 3 floats each, 1.5 MB.
 pub const POINTS_PER_CHUNK: usize = 128 * 1024;
@@ -226,6 +228,13 @@ pub struct Columns {
     columns: Vec<u32>,
     metas: Vec<ColumnMeta>,
     cells: Vec<u32>,
+}
+
+impl Columns {
+    /// Whether every column lies in `range`.
+    pub fn within(&self, range: Range<usize>) -> bool {
+        self.columns.iter().all(|&c| range.contains(&(c as usize)))
+    }
 }
 
 /// Adds the columns of one chunk to `map`, after decoding and checking
