@@ -373,7 +373,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
         ));
     }
     eprintln!(
-        "bench scaling: medians per frame; step = wall time of the wisps' Step (or Pose) calls / the slowest worker's own compute; fill = Deposit calls and summing the densities; sweep = Sweep calls and assembling the slabs; draw = Draw calls, with the compositing (on the workers, or decoding partial pictures here) / the slowest worker's filter, shade and rasterization; wait/comp = compositing on the workers: the slowest worker's wait for the others' stripes of its band / its resolving of the band; coord = the rest of the frame on the coordinator (the self-collision field, and with one worker the head and compositing, or with the coordinator drawing: posing, filtering, shading and drawing every strand); MB = bytes on the wire per frame; same = pictures identical to one process"
+        "bench scaling: medians per frame; step = wall time of the wisps' Step (or Pose) calls / the slowest worker's own compute; fill = Deposit calls (with two workers or more drawing: the workers summing each other's columns) and merging the sums; sweep = Sweep calls and assembling the slabs (with two workers or more drawing: the coordinator's own sweep of its copy, the workers' swept columns being gathered among them); draw = Draw calls, with the compositing (on the workers, or decoding partial pictures here) / the slowest worker's filter, shade and rasterization; wait/comp = compositing on the workers: the slowest worker's wait for the others' stripes of its band / its resolving of the band; coord = the rest of the frame on the coordinator (the self-collision field, and with one worker the head and compositing, or with the coordinator drawing: posing, filtering, shading and drawing every strand); MB = bytes on the wire per frame; same = pictures identical to one process"
     );
     for r in rows.iter().skip(1) {
         eprintln!(
@@ -462,6 +462,8 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
                     "layers_received": r.wire.layers_received,
                     "stripes_between_workers": r.wire.stripes_between_workers,
                     "bands_received": r.wire.bands_received,
+                    "density_between_workers": r.wire.density_between_workers,
+                    "swept_between_workers": r.wire.swept_between_workers,
                 },
                 "identical": r.identical,
             })).collect::<Vec<_>>(),
