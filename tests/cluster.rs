@@ -367,9 +367,14 @@ fn bench_scaling_reports_every_configuration_and_writes_its_plot() {
                 &["density_sent", "slabs_received", "layers_received"],
             )
         };
-        for k in ["step_sent", "wisps_received", "density_received", "draw_sent"]
-            .iter()
-            .chain(drawn)
+        for k in [
+            "step_sent",
+            "wisps_received",
+            "density_received",
+            "draw_sent",
+        ]
+        .iter()
+        .chain(drawn)
         {
             assert!(part(k) > 0, "{k} in {w}");
         }
