@@ -609,6 +609,17 @@ impl WorkerService {
     }
 }
 
+/// Runs `f` on one of the thread pool's threads, so that the parallel
+/// stages inside it run there, not each handed from this thread to the
+/// pool and back (with one thread a worker otherwise spends about a
+/// tenth of its time switching between the two). `f` must not wait on
+/// anything the pool would have to do.
+fn on_pool<T: Send>(f: impl FnOnce() -> T + Send) -> T {
+    let mut out = None;
+    rayon::scope(|_| out = Some(f()));
+    out.expect("the scope ran its closure")
+}
+
 /// Runs `f` on the held share off the async threads.
 async fn with_share<T: Send + 'static>(
     held: &Arc<Mutex<Option<Held>>>,
@@ -620,7 +631,7 @@ async fn with_share<T: Send + 'static>(
         let h = slot.as_mut().ok_or_else(|| {
             Status::failed_precondition("no share of the hair here: call Assign first")
         })?;
-        f(&mut h.share)
+        on_pool(|| f(&mut h.share))
     })
     .await
     .map_err(|e| Status::internal(format!("worker task failed: {e}")))?
@@ -1357,9 +1368,8 @@ impl WorkerService {
                     let background = raster::to_srgb8(h.share.background());
                     let mut encoders: Vec<wire::StripeEncoder> =
                         (0..n).map(|_| wire::StripeEncoder::new()).collect();
-                    let work = h
-                        .share
-                        .draw_band(&job, &maps, &bands.plan, |b, stripe| {
+                    let work = on_pool(|| {
+                        h.share.draw_band(&job, &maps, &bands.plan, |b, stripe| {
                             let to = senders[b].as_ref().expect("a call for each other worker");
                             for c in encoders[b].chunks(&stripe) {
                                 stripes_sent += c.encoded_len() as u64;
@@ -1373,7 +1383,8 @@ impl WorkerService {
                             }
                             Ok(())
                         })
-                        .map_err(|e| Status::aborted(e.to_string()))?;
+                    })
+                    .map_err(|e| Status::aborted(e.to_string()))?;
                     (work, background)
                 };
                 // The calls' streams end: the others can finish.
@@ -1399,7 +1410,7 @@ impl WorkerService {
                         return Err(Status::aborted(e.to_string()));
                     }
                 };
-                let (bands_drawn, mut times, done) = work.resolve(gathered);
+                let (bands_drawn, mut times, done) = on_pool(|| work.resolve(gathered));
                 canvas = Some(done);
                 times.wait_ms = wait_ms;
                 let mut chunks = Vec::new();
@@ -1526,7 +1537,7 @@ impl ExchangeRound {
         maps: &Mutex<Vec<DensityMap>>,
         fiber: &Fiber,
         inbox: &Inbox<Exchanged>,
-        go: impl Fn() -> bool + Clone,
+        go: impl Fn() -> bool + Clone + Send + Sync,
     ) -> Result<(Vec<pb::ColumnChunk>, SweptRound), Status> {
         let (frame, plan) = (self.frame, &self.plan);
         let (n, own) = (plan.workers(), plan.own);
@@ -1544,8 +1555,7 @@ impl ExchangeRound {
                 .map_or(Ok(()), Err)
         };
         let mut map = WorkerService::map_in(maps, frame);
-        let stats = share
-            .deposit_while(self.version, &mut map, fiber, go.clone())
+        let stats = on_pool(|| share.deposit_while(self.version, &mut map, fiber, go.clone()))
             .map_err(refused)?
             .ok_or_else(|| cancelled("Deposit"))?;
         // Reduce-scatter: each other worker's columns to it.
@@ -1600,7 +1610,7 @@ impl ExchangeRound {
         if let Some(h) = plan.head {
             share.deposit_head(&mut map, h);
         }
-        let slab = shadow::sweep_while(&map, mine.start as u32..mine.end as u32, go);
+        let slab = on_pool(|| shadow::sweep_while(&map, mine.start as u32..mine.end as u32, go));
         WorkerService::give_back(maps, map);
         let slab = slab.ok_or_else(|| cancelled("Deposit"))?;
         let own_swept = wire::swept_chunks(&frame, &slab);
