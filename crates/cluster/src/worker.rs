@@ -1410,7 +1410,7 @@ impl WorkerService {
                         return Err(Status::aborted(e.to_string()));
                     }
                 };
-                let (bands_drawn, mut times, done) = on_pool(|| work.resolve(gathered));
+                let (bands_drawn, mut times, done) = work.resolve(gathered);
                 canvas = Some(done);
                 times.wait_ms = wait_ms;
                 let mut chunks = Vec::new();
