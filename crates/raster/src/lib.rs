@@ -11,12 +11,14 @@
 
 mod camera;
 mod canvas;
+mod fiber;
 mod gif;
 mod png;
 mod shade;
 
 pub use camera::Camera;
 pub use canvas::{Canvas, HairLayer, HairLook, MAX_PIXELS, Sphere, Sums, to_srgb8};
+pub use fiber::{Chiang, FarField, FiberOptics, P_MAX, sigma_a_from_color, sigma_a_from_melanin};
 pub use gif::GifWriter;
 pub use png::{
     AtomicFile, encode_png, remove_temporaries, write_atomic, write_bytes_atomic, write_png_atomic,
