@@ -1076,3 +1076,23 @@ fn a_picture_given_up_after_the_next_frames_stages_is_drawn_again_with_the_same_
     let t = *timing.lock().unwrap();
     assert_eq!((t.workers_lost, t.composite_fallbacks), (0, 0), "{t:?}");
 }
+
+#[test]
+fn a_physically_based_fiber_draws_the_same_bytes_on_workers() {
+    // The fiber's settings travel with the draw job (protocol 11).
+    let text =
+        format!("{DANCE}\n[shading]\nmodel = \"marschner\"\neumelanin = 0.6\nbeta_n = 0.4\n");
+    let scene = Scene::from_toml_str(&text, std::path::Path::new("fiber.toml")).unwrap();
+    let want = local_frames(&scene, 2);
+    let addrs: Vec<String> = (0..2).map(|_| start_worker().to_string()).collect();
+    let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::Workers, 20)).unwrap();
+    let mut seq = Sequence::new(&scene).unwrap();
+    seq.set_executor(Box::new(remote)).unwrap();
+    seq.expect_frames(want.len() as u64);
+    for (i, w) in want.iter().enumerate() {
+        assert!(seq.next_frame().unwrap().0 == w, "frame {i}");
+    }
+    // And it differs from Kajiya-Kay's.
+    let kk = Scene::from_toml_str(DANCE, std::path::Path::new("kk.toml")).unwrap();
+    assert!(local_frames(&kk, 1)[0] != want[0]);
+}

@@ -2,8 +2,12 @@
 //! rasterization of some drawn hair: all of it in one process, or a
 //! cluster worker's share. The same code either way, so the same bytes.
 
+use std::sync::Arc;
+
 use glam::Vec3;
-use raster::{Camera, Canvas, HairLook, Shading, Sphere, kajiya_kay};
+use raster::{
+    Camera, Canvas, FiberOptics, FiberTable, HairLook, Shading, ShadingModel, Sphere, kajiya_kay,
+};
 use rayon::prelude::*;
 use strands::Hair;
 
@@ -19,7 +23,14 @@ pub struct HairPart {
     trans: Vec<Vec<f32>>,
     /// The shaded linear colour of each vertex.
     colors: Vec<Vec3>,
+    /// The fiber tables made so far, by the optics they tabulate (one per
+    /// strand colour when the absorption follows the colour).
+    tables: Vec<(FiberOptics, Arc<FiberTable>)>,
 }
+
+/// The most fiber tables kept: a groom of more distinct strand colours
+/// than this has them rounded to fewer (see [`HairPart::shade`]).
+const MAX_TABLES: usize = 64;
 
 impl HairPart {
     /// Transmittance of each light at each vertex of the last
@@ -48,11 +59,12 @@ impl HairPart {
         }
     }
 
-    /// Kajiya-Kay shading at every vertex of `hair` with its strand's
-    /// colour, seen from `eye`, lit from `to_lights` (unit directions
-    /// towards each light) through the transmittance of the last
-    /// [`Self::filter`] (`shadows`) or by full light. Only the first light
-    /// adds the ambient term.
+    /// Shading at every vertex of `hair` with its strand's colour, seen
+    /// from `eye`, lit from `to_lights` (unit directions towards each
+    /// light) through the transmittance of the last [`Self::filter`]
+    /// (`shadows`) or by full light: Kajiya-Kay, or a physically based
+    /// fiber (its [`FiberTable`]), as `shading.model` says. The ambient
+    /// term is added once.
     pub fn shade(
         &mut self,
         hair: &Hair,
@@ -69,6 +81,14 @@ impl HairPart {
                 "filter runs before shading with shadows"
             );
         }
+        let fiber = match shading.model {
+            ShadingModel::Marschner {
+                optics,
+                from_color,
+                irradiance,
+            } => Some((self.fiber_tables(hair, &optics, from_color), irradiance)),
+            ShadingModel::KajiyaKay => None,
+        };
         self.colors.resize(points.len(), Vec3::ZERO);
         let offsets = hair.offsets();
         let strand_colors = hair.colors();
@@ -80,6 +100,57 @@ impl HairPart {
             let (a, b) = rest.split_at_mut((w[1] - w[0]) as usize);
             chunks.push(a);
             rest = b;
+        }
+        if let Some(((tables, of_strand), irradiance)) = fiber {
+            let ambient = shading.ambient;
+            let ambient_color = match shading.model {
+                ShadingModel::Marschner {
+                    optics,
+                    from_color: false,
+                    ..
+                } => Some(raster::color_from_sigma_a(optics.sigma_a, optics.beta_n)),
+                _ => None,
+            };
+            chunks
+                .into_par_iter()
+                .enumerate()
+                .with_min_len(64)
+                .for_each(|(si, out)| {
+                    let base = offsets[si] as usize;
+                    let pts = &points[base..base + out.len()];
+                    // The ambient term in the colour the fiber absorbs to.
+                    let color = match (&ambient_color, strand_colors) {
+                        (Some(c), _) => *c,
+                        (None, Some(c)) => c[si],
+                        (None, None) => DEFAULT_HAIR_COLOR,
+                    };
+                    let table = &tables[of_strand[si] as usize];
+                    for (v, o) in out.iter_mut().enumerate() {
+                        let (a, b) = (pts[v.saturating_sub(1)], pts[(v + 1).min(pts.len() - 1)]);
+                        let t = (b - a).normalize_or(Vec3::Y);
+                        let to_eye = (eye - pts[v]).normalize_or(Vec3::Z);
+                        let uo = t.dot(to_eye).clamp(-1.0, 1.0);
+                        let mut c = ambient * color;
+                        for (l, &to_light) in to_lights.iter().enumerate() {
+                            let tr = if shadows { trans[l][base + v] } else { 1.0 };
+                            let ui = t.dot(to_light).clamp(-1.0, 1.0);
+                            // cos phi between the light's and the eye's
+                            // directions across the fiber, from unit vectors:
+                            // (l.e - sin_i sin_o) / (cos_i cos_o); 1 when
+                            // either runs along the fiber.
+                            let d = ((1.0 - ui * ui) * (1.0 - uo * uo)).sqrt();
+                            let cos_phi = if d > 1e-6 {
+                                (to_light.dot(to_eye) - ui * uo) / d
+                            } else {
+                                1.0
+                            };
+                            c += tr * irradiance * table.radiance(ui, uo, cos_phi);
+                        }
+                        debug_assert!(c.is_finite());
+                        *o = c;
+                    }
+                });
+            return;
         }
         let rest_lights = Shading {
             ambient: 0.0,
@@ -107,6 +178,61 @@ impl HairPart {
                     *o = c;
                 }
             });
+    }
+
+    /// The fiber tables for shading `hair` with `optics` (its absorption
+    /// following each strand's colour, `from_color`, rounded to steps of
+    /// 1/32 so that a groom's colours make few tables), made now where not
+    /// kept, and each strand's table. The same tables whichever strands a
+    /// part holds: a strand's table depends on its colour alone.
+    fn fiber_tables(
+        &mut self,
+        hair: &Hair,
+        optics: &FiberOptics,
+        from_color: bool,
+    ) -> (Vec<Arc<FiberTable>>, Vec<u32>) {
+        let optics_of = |c: Vec3| {
+            if from_color {
+                let q = (c * 32.0).round() / 32.0;
+                FiberOptics {
+                    sigma_a: raster::sigma_a_from_color(q, optics.beta_n),
+                    ..*optics
+                }
+            } else {
+                *optics
+            }
+        };
+        let colors = hair.colors();
+        let strand_optics: Vec<FiberOptics> = (0..hair.strand_count())
+            .map(|s| optics_of(colors.map_or(DEFAULT_HAIR_COLOR, |c| c[s])))
+            .collect();
+        let mut used: Vec<FiberOptics> = Vec::new();
+        let mut of_strand = Vec::with_capacity(strand_optics.len());
+        for o in &strand_optics {
+            let i = match used.iter().position(|u| u == o) {
+                Some(i) => i,
+                None => {
+                    used.push(*o);
+                    used.len() - 1
+                }
+            };
+            of_strand.push(i as u32);
+        }
+        let tables = used
+            .iter()
+            .map(|o| match self.tables.iter().find(|(k, _)| k == o) {
+                Some((_, t)) => t.clone(),
+                None => {
+                    let t = Arc::new(FiberTable::new(o));
+                    if self.tables.len() >= MAX_TABLES {
+                        self.tables.remove(0);
+                    }
+                    self.tables.push((*o, t.clone()));
+                    t
+                }
+            })
+            .collect();
+        (tables, of_strand)
     }
 
     /// Bins `hair` for drawing on `canvas` with the colours of the last

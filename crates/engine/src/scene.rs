@@ -146,6 +146,15 @@ struct RawShading {
     diffuse: Option<f32>,
     specular: Option<f32>,
     shininess: Option<f32>,
+    model: Option<String>,
+    eumelanin: Option<f32>,
+    pheomelanin: Option<f32>,
+    sigma_a: Option<[f32; 3]>,
+    eta: Option<f32>,
+    beta_m: Option<f32>,
+    beta_n: Option<f32>,
+    alpha_deg: Option<f32>,
+    irradiance: Option<f32>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -835,6 +844,107 @@ impl Validator<'_> {
         }
     }
 
+    /// `[shading] model` and the fiber's settings: Kajiya-Kay (the
+    /// default), or `"marschner"`, a physically based fiber whose
+    /// absorption comes from `sigma_a`, from melanin concentrations, or
+    /// (neither given) from each strand's colour.
+    fn shading_model(&self, sh: &RawShading) -> Result<raster::ShadingModel, SceneError> {
+        let fiber_keys = [
+            ("shading.eumelanin", sh.eumelanin.is_some()),
+            ("shading.pheomelanin", sh.pheomelanin.is_some()),
+            ("shading.sigma_a", sh.sigma_a.is_some()),
+            ("shading.eta", sh.eta.is_some()),
+            ("shading.beta_m", sh.beta_m.is_some()),
+            ("shading.beta_n", sh.beta_n.is_some()),
+            ("shading.alpha_deg", sh.alpha_deg.is_some()),
+            ("shading.irradiance", sh.irradiance.is_some()),
+        ];
+        match sh.model.as_deref().unwrap_or("kajiya-kay") {
+            "kajiya-kay" => {
+                self.refuse_set(&fiber_keys, "is a setting of model = \"marschner\"")?;
+                Ok(raster::ShadingModel::KajiyaKay)
+            }
+            "marschner" => {
+                let d = raster::FiberOptics::default();
+                let in_range = |field: &'static str,
+                                v: Option<f32>,
+                                default: f32,
+                                lo: f32,
+                                hi: f32,
+                                open_lo: bool| {
+                    let v = v.unwrap_or(default);
+                    let ok = v.is_finite() && v <= hi && if open_lo { v > lo } else { v >= lo };
+                    if ok {
+                        Ok(v)
+                    } else {
+                        let bracket = if open_lo { "(" } else { "[" };
+                        Err(self.invalid(
+                            field,
+                            v,
+                            format!("must be a number in {bracket}{lo}, {hi}]"),
+                        ))
+                    }
+                };
+                let beta_n = in_range("shading.beta_n", sh.beta_n, d.beta_n, 0.0, 1.0, true)?;
+                let melanin = sh.eumelanin.is_some() || sh.pheomelanin.is_some();
+                if melanin && sh.sigma_a.is_some() {
+                    return Err(self.invalid(
+                        "shading.sigma_a",
+                        "(set)",
+                        "give sigma_a or melanin concentrations (eumelanin, pheomelanin), not both",
+                    ));
+                }
+                let sigma_a = match sh.sigma_a {
+                    Some(s) if s.iter().all(|x| x.is_finite() && (0.0..=100.0).contains(x)) => {
+                        Vec3::from_array(s)
+                    }
+                    Some(s) => {
+                        return Err(self.invalid(
+                            "shading.sigma_a",
+                            format!("{s:?}"),
+                            "each component must be in [0, 100] (per unit of the fiber's diameter)",
+                        ));
+                    }
+                    None => raster::sigma_a_from_melanin(
+                        in_range("shading.eumelanin", sh.eumelanin, 0.0, 0.0, 50.0, false)?,
+                        in_range("shading.pheomelanin", sh.pheomelanin, 0.0, 0.0, 50.0, false)?,
+                    ),
+                };
+                let optics = raster::FiberOptics {
+                    eta: in_range("shading.eta", sh.eta, d.eta, 1.0, 3.0, true)?,
+                    sigma_a,
+                    beta_m: in_range("shading.beta_m", sh.beta_m, d.beta_m, 0.0, 1.0, true)?,
+                    beta_n,
+                    alpha_deg: in_range(
+                        "shading.alpha_deg",
+                        sh.alpha_deg,
+                        d.alpha_deg,
+                        -20.0,
+                        20.0,
+                        false,
+                    )?,
+                };
+                Ok(raster::ShadingModel::Marschner {
+                    optics,
+                    from_color: !melanin && sh.sigma_a.is_none(),
+                    irradiance: in_range(
+                        "shading.irradiance",
+                        sh.irradiance,
+                        5.0,
+                        0.0,
+                        1000.0,
+                        false,
+                    )?,
+                })
+            }
+            other => Err(self.invalid(
+                "shading.model",
+                other,
+                "must be \"kajiya-kay\" or \"marschner\"",
+            )),
+        }
+    }
+
     /// An error for the first of `fields` that the scene set, saying `why`.
     fn refuse_set(&self, fields: &[(&'static str, bool)], why: &str) -> Result<(), SceneError> {
         match fields.iter().find(|(_, set)| *set) {
@@ -1212,6 +1322,7 @@ impl Validator<'_> {
             specular: self.positive("shading.specular", sh.specular, d.specular)?,
             shininess: self.positive("shading.shininess", sh.shininess, d.shininess)?,
             specular_color: d.specular_color,
+            model: self.shading_model(&sh)?,
         };
         let from_file = !matches!(hair, HairSource::Style(_));
         let animation = self.animation(raw.animation)?;
@@ -1287,6 +1398,66 @@ mod tests {
 
     fn parse(text: &str) -> Result<Scene, SceneError> {
         Scene::from_toml_str(text, Path::new("dir/scene.toml"))
+    }
+
+    #[test]
+    fn the_shading_model_and_its_fiber_settings_are_read_and_checked() {
+        use raster::ShadingModel;
+        // Kajiya-Kay by default.
+        assert_eq!(parse("").unwrap().shading.model, ShadingModel::KajiyaKay);
+        // A fiber from melanin, with pbrt's defaults for the rest.
+        let s = parse("[shading]\nmodel = \"marschner\"\neumelanin = 1.3\n").unwrap();
+        let ShadingModel::Marschner {
+            optics,
+            from_color,
+            irradiance,
+        } = s.shading.model
+        else {
+            panic!("{:?}", s.shading.model)
+        };
+        assert!(!from_color && irradiance == 5.0);
+        assert_eq!(optics.sigma_a, raster::sigma_a_from_melanin(1.3, 0.0));
+        assert_eq!(
+            (optics.eta, optics.beta_m, optics.alpha_deg),
+            (1.55, 0.3, 2.0)
+        );
+        // Neither sigma_a nor melanin: each strand's colour sets it.
+        let s = parse("[shading]\nmodel = \"marschner\"\nbeta_n = 0.5\n").unwrap();
+        assert!(matches!(
+            s.shading.model,
+            ShadingModel::Marschner { from_color: true, optics, .. } if optics.beta_n == 0.5
+        ));
+        // Refused, naming the field.
+        for (text, field, why) in [
+            ("model = \"phong\"", "shading.model", "kajiya-kay"),
+            ("eumelanin = 1", "shading.eumelanin", "marschner"),
+            (
+                "model = \"marschner\"\nbeta_m = 0",
+                "shading.beta_m",
+                "(0, 1]",
+            ),
+            ("model = \"marschner\"\neta = 0.9", "shading.eta", "(1, 3]"),
+            (
+                "model = \"marschner\"\nsigma_a = [0, -1, 0]",
+                "shading.sigma_a",
+                "[0, 100]",
+            ),
+            (
+                "model = \"marschner\"\nsigma_a = [1, 1, 1]\neumelanin = 1",
+                "shading.sigma_a",
+                "not both",
+            ),
+            (
+                "model = \"marschner\"\nirradiance = nan",
+                "shading.irradiance",
+                "[0, 1000]",
+            ),
+        ] {
+            let e = parse(&format!("[shading]\n{text}\n"))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(field) && e.contains(why), "{text}: {e}");
+        }
     }
 
     #[test]

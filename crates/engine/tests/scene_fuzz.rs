@@ -51,7 +51,24 @@ const TABLES: &[(&str, &[&str])] = &[
     ("camera", &["position", "look_at", "fov_deg", "up"]),
     ("render", &["width", "height", "background", "hair_alpha"]),
     ("head", &["visible", "center", "radius", "color"]),
-    ("shading", &["ambient", "diffuse", "specular", "shininess"]),
+    (
+        "shading",
+        &[
+            "ambient",
+            "diffuse",
+            "specular",
+            "shininess",
+            "model",
+            "eumelanin",
+            "pheomelanin",
+            "sigma_a",
+            "eta",
+            "beta_m",
+            "beta_n",
+            "alpha_deg",
+            "irradiance",
+        ],
+    ),
     (
         "effects",
         &[
@@ -112,6 +129,7 @@ fn value() -> impl Strategy<Value = String> {
         1 => Just("\"density-map\"".to_string()),
         1 => Just("\"deep-opacity-map\"".to_string()),
         1 => Just("\"dance\"".to_string()),
+        1 => Just("\"marschner\"".to_string()),
         1 => Just("\"keyframes\"".to_string()),
         1 => Just("\"no-such-file.hair\"".to_string()),
         1 => "[a-z%]{0,6}".prop_map(|s| format!("{s:?}")),
@@ -195,6 +213,14 @@ ambient = 0.1
 diffuse = 0.7
 specular = 0.3
 shininess = 40
+model = "marschner"
+eumelanin = 1.3
+pheomelanin = 0.2
+eta = 1.55
+beta_m = 0.3
+beta_n = 0.3
+alpha_deg = 2
+irradiance = 5
 [effects]
 dynamics = true
 self_collision = true
@@ -247,6 +273,13 @@ fn check(text: &str) -> Result<(), TestCaseError> {
             );
             prop_assert!(s.animation.fps.is_finite() && s.animation.fps > 0.0);
             prop_assert!(s.dynamics.params.dt.is_finite() && s.dynamics.params.dt > 0.0);
+            if let raster::ShadingModel::Marschner {
+                optics, irradiance, ..
+            } = s.shading.model
+            {
+                prop_assert!(optics.is_valid(), "{:?}", optics);
+                prop_assert!(irradiance.is_finite() && irradiance >= 0.0);
+            }
             if let Some(h) = s.head {
                 prop_assert!(h.center.is_finite() && h.radius.is_finite() && h.radius > 0.0);
             }

@@ -18,12 +18,15 @@ mod shade;
 
 pub use camera::Camera;
 pub use canvas::{Canvas, HairLayer, HairLook, MAX_PIXELS, Sphere, Sums, to_srgb8};
-pub use fiber::{Chiang, FarField, FiberOptics, P_MAX, sigma_a_from_color, sigma_a_from_melanin};
+pub use fiber::{
+    Chiang, FarField, FiberOptics, FiberTable, P_MAX, color_from_sigma_a, sigma_a_from_color,
+    sigma_a_from_melanin,
+};
 pub use gif::GifWriter;
 pub use png::{
     AtomicFile, encode_png, remove_temporaries, write_atomic, write_bytes_atomic, write_png_atomic,
 };
-pub use shade::{Shading, kajiya_kay};
+pub use shade::{Shading, ShadingModel, kajiya_kay};
 
 /// The largest image side, in pixels.
 pub const fn canvas_max_side() -> u32 {

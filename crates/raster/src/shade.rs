@@ -1,7 +1,30 @@
-//! Kajiya-Kay hair shading, as in the paper:
-//! `Phi = Phi_ambient + T (Phi_diffuse + Phi_specular)`.
+//! Hair shading: Kajiya-Kay, as in the paper,
+//! `Phi = Phi_ambient + T (Phi_diffuse + Phi_specular)`, or a physically
+//! based fiber (Chiang et al. 2016, see [`crate::FiberOptics`]),
+//! `Phi = k_a color + T E f(w_o, w_i) |cos theta_i|`.
 
 use glam::Vec3;
+
+use crate::FiberOptics;
+
+/// How strands are shaded.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum ShadingModel {
+    /// Kajiya and Kay (1989), the paper's choice, with the weights of
+    /// [`Shading`].
+    #[default]
+    KajiyaKay,
+    /// Chiang et al.'s fiber (2016), averaged across its width, lit by
+    /// each light with irradiance `irradiance`; the ambient term stays
+    /// `k_a color`. With `from_color`, each strand's `sigma_a` follows
+    /// its colour ([`crate::sigma_a_from_color`]) and `optics.sigma_a` is
+    /// unused.
+    Marschner {
+        optics: FiberOptics,
+        from_color: bool,
+        irradiance: f32,
+    },
+}
 
 /// Shading weights. Setting `specular` to 0 turns the highlight off.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -16,6 +39,9 @@ pub struct Shading {
     pub shininess: f32,
     /// Colour of the highlight (the light's colour: white by default).
     pub specular_color: Vec3,
+    /// The model the weights above are for (the ambient weight serves
+    /// both).
+    pub model: ShadingModel,
 }
 
 impl Default for Shading {
@@ -26,6 +52,7 @@ impl Default for Shading {
             specular: 0.3,
             shininess: 40.0,
             specular_color: Vec3::ONE,
+            model: ShadingModel::KajiyaKay,
         }
     }
 }

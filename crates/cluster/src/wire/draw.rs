@@ -6,7 +6,7 @@
 use engine::{DrawJob, PosePlan, PoseReport};
 use glam::{Affine3A, Vec3};
 use prost::encoding::{decode_varint, encode_varint};
-use raster::{Camera, HairLayer, HairLook, Shading, Sums};
+use raster::{Camera, HairLayer, HairLook, Shading, ShadingModel, Sums};
 use shadow::{ColumnSlab, Extent, Light, LightFrame, MAX_CELLS, Span};
 use strands::Bounds;
 
@@ -181,6 +181,69 @@ pub fn job_to_pb(j: &DrawJob) -> pb::DrawJob {
         filter: j.filter,
         head: j.head.to_cols_array().to_vec(),
         exchanged: false,
+        shading_model: match j.shading.model {
+            ShadingModel::KajiyaKay => 0,
+            ShadingModel::Marschner { .. } => 1,
+        },
+        fiber: match j.shading.model {
+            ShadingModel::KajiyaKay => Vec::new(),
+            ShadingModel::Marschner {
+                optics: o,
+                from_color,
+                irradiance,
+            } => vec![
+                o.eta,
+                o.sigma_a.x,
+                o.sigma_a.y,
+                o.sigma_a.z,
+                o.beta_m,
+                o.beta_n,
+                o.alpha_deg,
+                irradiance,
+                if from_color { 1.0 } else { 0.0 },
+            ],
+        },
+    }
+}
+
+/// The shading model of a draw job as sent: Kajiya-Kay with no fiber
+/// values, or a fiber whose settings are in range.
+fn model_from_pb(j: &pb::DrawJob) -> Result<ShadingModel, Malformed> {
+    match j.shading_model {
+        0 if j.fiber.is_empty() => Ok(ShadingModel::KajiyaKay),
+        1 => {
+            let [
+                eta,
+                r,
+                g,
+                b,
+                beta_m,
+                beta_n,
+                alpha_deg,
+                irradiance,
+                from_color,
+            ] = floats::<9>("draw fiber", &j.fiber)?;
+            let optics = raster::FiberOptics {
+                eta,
+                sigma_a: Vec3::new(r, g, b),
+                beta_m,
+                beta_n,
+                alpha_deg,
+            };
+            // (floats::<9> refused any value that is not finite.)
+            if !optics.is_valid() || irradiance < 0.0 || !(from_color == 0.0 || from_color == 1.0) {
+                return Err(bad(format!("draw fiber {:?} out of range", j.fiber)));
+            }
+            Ok(ShadingModel::Marschner {
+                optics,
+                from_color: from_color == 1.0,
+                irradiance,
+            })
+        }
+        m => Err(bad(format!(
+            "shading model {m} with {} fiber values",
+            j.fiber.len()
+        ))),
     }
 }
 
@@ -240,6 +303,7 @@ pub fn job_from_pb(j: &pb::DrawJob) -> Result<DrawJob, Malformed> {
             specular,
             shininess,
             specular_color: Vec3::new(sr, sg, sb),
+            model: model_from_pb(j)?,
         },
         to_lights,
         shadows: j.shadows,
