@@ -122,6 +122,10 @@ pub struct RemoteExecutor {
     /// none lost.
     exchange: bool,
     exchange_failures: u32,
+    /// Whether the maps filled are swept for the frame's shadows (the
+    /// density-map method, self-shadowing on); otherwise a fill is the
+    /// self-collisions' alone, and the workers need not sweep it.
+    sweeps_follow: bool,
     /// Per light, the hair version whose map the live workers last summed
     /// and swept among themselves (each holding every column for its Draw).
     exchanged: Vec<Option<u64>>,
@@ -289,6 +293,8 @@ impl RemoteExecutor {
             composite_failures: 0,
             exchange: true,
             exchange_failures: 0,
+            sweeps_follow: scene.effects.self_shadow
+                && matches!(scene.shadow.method, shadow::MethodConfig::DensityMap { .. }),
             exchanged: vec![None; scene.lights.len()],
             swept_on_workers: vec![None; scene.lights.len()],
             column_weights: vec![None; scene.lights.len()],
@@ -1538,7 +1544,8 @@ impl Executor for RemoteExecutor {
                 *x = None;
             }
         }
-        if self.draw == DrawAt::Workers && self.exchange && version.is_some() {
+        if self.draw == DrawAt::Workers && self.exchange && self.sweeps_follow && version.is_some()
+        {
             let before = self.workers.len();
             // A worker lost in the round is dropped, and the survivors
             // try again.
