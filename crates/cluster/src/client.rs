@@ -277,9 +277,48 @@ pub(crate) fn root_cause(e: &dyn std::error::Error) -> String {
     last
 }
 
+/// Starts `call` on every worker at once, each bounded by `deadline`.
+fn spawn_calls<R, T, F, Fut>(
+    requests: Vec<(Remote, R)>,
+    stage: &'static str,
+    deadline: Duration,
+    call: F,
+) -> Vec<tokio::task::JoinHandle<Result<T, ClusterError>>>
+where
+    R: Send + 'static,
+    T: Send + 'static,
+    F: Fn(Remote, R) -> Fut,
+    Fut: std::future::Future<Output = Result<T, ClusterError>> + Send + 'static,
+{
+    requests
+        .into_iter()
+        .map(|(w, r)| {
+            let addr = w.addr.clone();
+            let fut = call(w, r);
+            tokio::spawn(async move {
+                match tokio::time::timeout(deadline, fut).await {
+                    Ok(r) => r,
+                    Err(_) => Err(ClusterError::Deadline {
+                        addr,
+                        stage,
+                        secs: deadline.as_secs_f64(),
+                    }),
+                }
+            })
+        })
+        .collect()
+}
+
+fn joined<T>(
+    r: Result<Result<T, ClusterError>, tokio::task::JoinError>,
+) -> Result<T, ClusterError> {
+    r.map_err(|e| ClusterError::Setup(e.to_string()))
+        .and_then(|r| r)
+}
+
 /// Runs `call` on every worker at once, each bounded by `deadline`, and
 /// returns the results in worker order: the first error, if any, names
-/// its worker.
+/// its worker (without waiting for the calls after it).
 pub(crate) fn fan_out<R, T, F, Fut>(
     rt: &tokio::runtime::Runtime,
     requests: Vec<(Remote, R)>,
@@ -294,26 +333,10 @@ where
     Fut: std::future::Future<Output = Result<T, ClusterError>> + Send + 'static,
 {
     rt.block_on(async {
-        let tasks: Vec<_> = requests
-            .into_iter()
-            .map(|(w, r)| {
-                let addr = w.addr.clone();
-                let fut = call(w, r);
-                tokio::spawn(async move {
-                    match tokio::time::timeout(deadline, fut).await {
-                        Ok(r) => r,
-                        Err(_) => Err(ClusterError::Deadline {
-                            addr,
-                            stage,
-                            secs: deadline.as_secs_f64(),
-                        }),
-                    }
-                })
-            })
-            .collect();
+        let tasks = spawn_calls(requests, stage, deadline, call);
         let mut out = Vec::with_capacity(tasks.len());
         for t in tasks {
-            out.push(t.await.map_err(|e| ClusterError::Setup(e.to_string()))??);
+            out.push(joined(t.await)?);
         }
         Ok(out)
     })
@@ -335,30 +358,10 @@ where
     Fut: std::future::Future<Output = Result<T, ClusterError>> + Send + 'static,
 {
     rt.block_on(async {
-        let tasks: Vec<_> = requests
-            .into_iter()
-            .map(|(w, r)| {
-                let addr = w.addr.clone();
-                let fut = call(w, r);
-                tokio::spawn(async move {
-                    match tokio::time::timeout(deadline, fut).await {
-                        Ok(r) => r,
-                        Err(_) => Err(ClusterError::Deadline {
-                            addr,
-                            stage,
-                            secs: deadline.as_secs_f64(),
-                        }),
-                    }
-                })
-            })
-            .collect();
+        let tasks = spawn_calls(requests, stage, deadline, call);
         let mut out = Vec::with_capacity(tasks.len());
         for t in tasks {
-            out.push(
-                t.await
-                    .map_err(|e| ClusterError::Setup(e.to_string()))
-                    .and_then(|r| r),
-            );
+            out.push(joined(t.await));
         }
         out
     })

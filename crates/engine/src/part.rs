@@ -101,60 +101,19 @@ impl HairPart {
             chunks.push(a);
             rest = b;
         }
-        if let Some(((tables, of_strand), irradiance)) = fiber {
-            let ambient = shading.ambient;
-            let ambient_color = match shading.model {
-                ShadingModel::Marschner {
-                    optics,
-                    from_color: false,
-                    ..
-                } => Some(raster::color_from_sigma_a(optics.sigma_a, optics.beta_n)),
-                _ => None,
-            };
-            chunks
-                .into_par_iter()
-                .enumerate()
-                .with_min_len(64)
-                .for_each(|(si, out)| {
-                    let base = offsets[si] as usize;
-                    let pts = &points[base..base + out.len()];
-                    // The ambient term in the colour the fiber absorbs to.
-                    let color = match (&ambient_color, strand_colors) {
-                        (Some(c), _) => *c,
-                        (None, Some(c)) => c[si],
-                        (None, None) => DEFAULT_HAIR_COLOR,
-                    };
-                    let table = &tables[of_strand[si] as usize];
-                    for (v, o) in out.iter_mut().enumerate() {
-                        let (a, b) = (pts[v.saturating_sub(1)], pts[(v + 1).min(pts.len() - 1)]);
-                        let t = (b - a).normalize_or(Vec3::Y);
-                        let to_eye = (eye - pts[v]).normalize_or(Vec3::Z);
-                        let uo = t.dot(to_eye).clamp(-1.0, 1.0);
-                        let mut c = ambient * color;
-                        for (l, &to_light) in to_lights.iter().enumerate() {
-                            let tr = if shadows { trans[l][base + v] } else { 1.0 };
-                            let ui = t.dot(to_light).clamp(-1.0, 1.0);
-                            // cos phi between the light's and the eye's
-                            // directions across the fiber, from unit vectors:
-                            // (l.e - sin_i sin_o) / (cos_i cos_o); 1 when
-                            // either runs along the fiber.
-                            let d = ((1.0 - ui * ui) * (1.0 - uo * uo)).sqrt();
-                            let cos_phi = if d > 1e-6 {
-                                (to_light.dot(to_eye) - ui * uo) / d
-                            } else {
-                                1.0
-                            };
-                            c += tr * irradiance * table.radiance(ui, uo, cos_phi);
-                        }
-                        debug_assert!(c.is_finite());
-                        *o = c;
-                    }
-                });
-            return;
-        }
         let rest_lights = Shading {
             ambient: 0.0,
             ..*shading
+        };
+        // A fiber's ambient term is in the colour its absorption gives
+        // (a strand's own when that sets the absorption).
+        let fiber_color = match shading.model {
+            ShadingModel::Marschner {
+                optics,
+                from_color: false,
+                ..
+            } => Some(raster::color_from_sigma_a(optics.sigma_a, optics.beta_n)),
+            _ => None,
         };
         chunks
             .into_par_iter()
@@ -163,19 +122,47 @@ impl HairPart {
             .for_each(|(si, out)| {
                 let base = offsets[si] as usize;
                 let pts = &points[base..base + out.len()];
-                let color = strand_colors.map_or(DEFAULT_HAIR_COLOR, |c| c[si]);
+                let strand_color = strand_colors.map_or(DEFAULT_HAIR_COLOR, |c| c[si]);
+                let table = fiber
+                    .as_ref()
+                    .map(|((tables, of_strand), e)| (&tables[of_strand[si] as usize], *e));
+                let color = fiber_color.unwrap_or(strand_color);
                 for (v, o) in out.iter_mut().enumerate() {
                     // Tangent by central differences (one-sided at the ends).
                     let (a, b) = (pts[v.saturating_sub(1)], pts[(v + 1).min(pts.len() - 1)]);
                     let tangent = (b - a).normalize_or(Vec3::Y);
                     let to_eye = (eye - pts[v]).normalize_or(Vec3::Z);
-                    let mut c = Vec3::ZERO;
-                    for (l, &to_light) in to_lights.iter().enumerate() {
-                        let tr = if shadows { trans[l][base + v] } else { 1.0 };
-                        let sh = if l == 0 { shading } else { &rest_lights };
-                        c += kajiya_kay(sh, color, tangent, to_light, to_eye, tr);
-                    }
-                    *o = c;
+                    let tr = |l: usize| if shadows { trans[l][base + v] } else { 1.0 };
+                    *o = match table {
+                        None => to_lights
+                            .iter()
+                            .enumerate()
+                            .map(|(l, &to_light)| {
+                                let sh = if l == 0 { shading } else { &rest_lights };
+                                kajiya_kay(sh, color, tangent, to_light, to_eye, tr(l))
+                            })
+                            .fold(Vec3::ZERO, |c, x| c + x),
+                        Some((table, irradiance)) => {
+                            let uo = tangent.dot(to_eye).clamp(-1.0, 1.0);
+                            let mut c = shading.ambient * color;
+                            for (l, &to_light) in to_lights.iter().enumerate() {
+                                let ui = tangent.dot(to_light).clamp(-1.0, 1.0);
+                                // cos phi between the light's and the eye's
+                                // directions across the fiber, from unit
+                                // vectors: (l.e - sin_i sin_o) / (cos_i
+                                // cos_o); 1 when either runs along it.
+                                let d = ((1.0 - ui * ui) * (1.0 - uo * uo)).sqrt();
+                                let cos_phi = if d > 1e-6 {
+                                    (to_light.dot(to_eye) - ui * uo) / d
+                                } else {
+                                    1.0
+                                };
+                                c += tr(l) * irradiance * table.radiance(ui, uo, cos_phi);
+                            }
+                            debug_assert!(c.is_finite());
+                            c
+                        }
+                    };
                 }
             });
     }
