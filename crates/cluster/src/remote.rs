@@ -859,8 +859,9 @@ impl RemoteExecutor {
     }
 
     /// The transmittance of a map the workers summed and swept among
-    /// themselves, swept again here: for the head drawn here and for a
-    /// frame drawn again after a failure (its slab is kept).
+    /// themselves, swept again here: for the head drawn here; the map is
+    /// kept, to sweep into slabs if a frame must be drawn again after a
+    /// failure.
     fn sweep_here(
         &mut self,
         light: usize,

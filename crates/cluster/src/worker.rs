@@ -1522,7 +1522,8 @@ struct ExchangeRound {
 /// swept: the all-gather of the swept columns.
 struct SweptRound {
     round: ExchangeRound,
-    own: Vec<pb::DrawChunk>,
+    /// This worker's swept columns, as the Exchange chunks that carry them.
+    own: Vec<pb::ExchangeChunk>,
 }
 
 impl ExchangeRound {
@@ -1613,21 +1614,21 @@ impl ExchangeRound {
         let slab = on_pool(|| shadow::sweep_while(&map, mine.start as u32..mine.end as u32, go));
         WorkerService::give_back(maps, map);
         let slab = slab.ok_or_else(|| cancelled("Deposit"))?;
-        let own_swept = wire::swept_chunks(&frame, &slab);
-        // Each other worker gets them all, each in a chunk of its own.
+        let own_swept: Vec<pb::ExchangeChunk> = wire::swept_chunks(&frame, &slab)
+            .into_iter()
+            .map(|c| pb::ExchangeChunk {
+                round: plan.round,
+                from: own as u32,
+                swept: true,
+                columns: Some(c),
+                ..Default::default()
+            })
+            .collect();
+        // Each other worker gets them all.
         let swept_sent = (n as u64 - 1)
             * own_swept
                 .iter()
-                .map(|c| {
-                    pb::ExchangeChunk {
-                        round: plan.round,
-                        from: own as u32,
-                        swept: true,
-                        columns: Some(c.clone()),
-                        ..Default::default()
-                    }
-                    .encoded_len() as u64
-                })
+                .map(|c| c.encoded_len() as u64)
                 .sum::<u64>();
         if let Some(c) = reply.last_mut() {
             c.samples = stats.samples;
@@ -1685,16 +1686,7 @@ impl SweptRound {
             for c in &own {
                 round
                     .sends
-                    .send(
-                        &to,
-                        pb::ExchangeChunk {
-                            round: plan.round,
-                            from: plan.own as u32,
-                            swept: true,
-                            columns: Some(c.clone()),
-                            ..Default::default()
-                        },
-                    )
+                    .send(&to, c.clone())
                     .map_err(|s| s.message().to_string())?;
             }
         }
@@ -1710,7 +1702,7 @@ impl SweptRound {
             .gather(2 * plan.round + 1, &others, plan.wait, go_on)
             .map_err(|e| e.to_string())?;
         let mut owners: Vec<Vec<pb::DrawChunk>> = vec![Vec::new(); n];
-        owners[plan.own] = own;
+        owners[plan.own] = own.into_iter().filter_map(|c| c.columns).collect();
         let mut grants = Vec::with_capacity(n);
         for (&b, (item, grant)) in others.iter().zip(got) {
             let Exchanged::Swept(chunks) = item else {

@@ -178,33 +178,44 @@ impl HairPart {
         optics: &FiberOptics,
         from_color: bool,
     ) -> (Vec<Arc<FiberTable>>, Vec<u32>) {
-        let optics_of = |c: Vec3| {
+        // Each strand's key: its colour rounded (all alike when the colour
+        // does not set the absorption); the optics only per distinct key.
+        let colors = hair.colors();
+        let key = |s: usize| {
             if from_color {
-                let q = (c * 32.0).round() / 32.0;
-                FiberOptics {
-                    sigma_a: raster::sigma_a_from_color(q, optics.beta_n),
-                    ..*optics
-                }
+                let c = colors.map_or(DEFAULT_HAIR_COLOR, |c| c[s]);
+                ((c * 32.0).round() / 32.0).to_array().map(f32::to_bits)
             } else {
-                *optics
+                [0; 3]
             }
         };
-        let colors = hair.colors();
-        let strand_optics: Vec<FiberOptics> = (0..hair.strand_count())
-            .map(|s| optics_of(colors.map_or(DEFAULT_HAIR_COLOR, |c| c[s])))
+        let mut keys: Vec<[u32; 3]> = Vec::new();
+        let of_strand: Vec<u32> = (0..hair.strand_count())
+            .map(|s| {
+                let k = key(s);
+                let i = keys.iter().position(|u| *u == k).unwrap_or_else(|| {
+                    keys.push(k);
+                    keys.len() - 1
+                });
+                i as u32
+            })
             .collect();
-        let mut used: Vec<FiberOptics> = Vec::new();
-        let mut of_strand = Vec::with_capacity(strand_optics.len());
-        for o in &strand_optics {
-            let i = match used.iter().position(|u| u == o) {
-                Some(i) => i,
-                None => {
-                    used.push(*o);
-                    used.len() - 1
+        let used: Vec<FiberOptics> = keys
+            .iter()
+            .map(|k| {
+                if from_color {
+                    FiberOptics {
+                        sigma_a: raster::sigma_a_from_color(
+                            Vec3::from_array(k.map(f32::from_bits)),
+                            optics.beta_n,
+                        ),
+                        ..*optics
+                    }
+                } else {
+                    *optics
                 }
-            };
-            of_strand.push(i as u32);
-        }
+            })
+            .collect();
         let tables = used
             .iter()
             .map(|o| match self.tables.iter().find(|(k, _)| k == o) {
