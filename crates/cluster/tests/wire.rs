@@ -1079,20 +1079,31 @@ fn a_picture_given_up_after_the_next_frames_stages_is_drawn_again_with_the_same_
 
 #[test]
 fn a_physically_based_fiber_draws_the_same_bytes_on_workers() {
-    // The fiber's settings travel with the draw job (protocol 11).
-    let text =
-        format!("{DANCE}\n[shading]\nmodel = \"marschner\"\neumelanin = 0.6\nbeta_n = 0.4\n");
-    let scene = Scene::from_toml_str(&text, std::path::Path::new("fiber.toml")).unwrap();
-    let want = local_frames(&scene, 2);
+    // The fiber's settings travel with the draw job (protocol 12), with
+    // multiple scattering and without.
     let addrs: Vec<String> = (0..2).map(|_| start_worker().to_string()).collect();
-    let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::Workers, 20)).unwrap();
-    let mut seq = Sequence::new(&scene).unwrap();
-    seq.set_executor(Box::new(remote)).unwrap();
-    seq.expect_frames(want.len() as u64);
-    for (i, w) in want.iter().enumerate() {
-        assert!(seq.next_frame().unwrap().0 == w, "frame {i}");
+    let fiber =
+        format!("{DANCE}\n[shading]\nmodel = \"marschner\"\neumelanin = 0.6\nbeta_n = 0.4\n");
+    let mut firsts = Vec::new();
+    for text in [
+        fiber.clone(),
+        format!("{fiber}[effects]\nmultiple_scattering = true\n"),
+    ] {
+        let scene = Scene::from_toml_str(&text, std::path::Path::new("fiber.toml")).unwrap();
+        let want = local_frames(&scene, 2);
+        let remote =
+            RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::Workers, 20)).unwrap();
+        let mut seq = Sequence::new(&scene).unwrap();
+        seq.set_executor(Box::new(remote)).unwrap();
+        seq.expect_frames(want.len() as u64);
+        for (i, w) in want.iter().enumerate() {
+            assert!(seq.next_frame().unwrap().0 == w, "{text}: frame {i}");
+        }
+        firsts.push(want[0].clone());
     }
-    // And it differs from Kajiya-Kay's.
+    // Multiple scattering changes the picture; the fiber differs from
+    // Kajiya-Kay's.
+    assert!(firsts[0] != firsts[1]);
     let kk = Scene::from_toml_str(DANCE, std::path::Path::new("kk.toml")).unwrap();
-    assert!(local_frames(&kk, 1)[0] != want[0]);
+    assert!(local_frames(&kk, 1)[0] != firsts[0]);
 }

@@ -6,7 +6,8 @@ use std::sync::Arc;
 
 use glam::Vec3;
 use raster::{
-    Camera, Canvas, FiberOptics, FiberTable, HairLook, Shading, ShadingModel, Sphere, kajiya_kay,
+    Camera, Canvas, DualTable, FiberOptics, FiberTable, HairLook, Shading, ShadingModel, Sphere,
+    kajiya_kay,
 };
 use rayon::prelude::*;
 use strands::Hair;
@@ -25,7 +26,15 @@ pub struct HairPart {
     colors: Vec<Vec3>,
     /// The fiber tables made so far, by the optics they tabulate (one per
     /// strand colour when the absorption follows the colour).
-    tables: Vec<(FiberOptics, Arc<FiberTable>)>,
+    tables: Vec<(FiberOptics, Tables)>,
+}
+
+/// What shading with one fiber needs: its single scattering, and its
+/// dual scattering once multiple scattering is asked for.
+#[derive(Debug, Clone)]
+struct Tables {
+    single: Arc<FiberTable>,
+    dual: Option<Arc<DualTable>>,
 }
 
 /// The most fiber tables kept: a groom of more distinct strand colours
@@ -86,7 +95,15 @@ impl HairPart {
                 optics,
                 from_color,
                 irradiance,
-            } => Some((self.fiber_tables(hair, &optics, from_color), irradiance)),
+                multiple,
+            } => {
+                // Only with the shadow stages' transmittance to scatter.
+                let multiple = multiple && shadows;
+                Some((
+                    self.fiber_tables(hair, &optics, from_color, multiple),
+                    irradiance,
+                ))
+            }
             ShadingModel::KajiyaKay => None,
         };
         self.colors.resize(points.len(), Vec3::ZERO);
@@ -142,7 +159,7 @@ impl HairPart {
                                 kajiya_kay(sh, color, tangent, to_light, to_eye, tr(l))
                             })
                             .fold(Vec3::ZERO, |c, x| c + x),
-                        Some((table, irradiance)) => {
+                        Some((tables, irradiance)) => {
                             let uo = tangent.dot(to_eye).clamp(-1.0, 1.0);
                             let mut c = shading.ambient * color;
                             for (l, &to_light) in to_lights.iter().enumerate() {
@@ -157,7 +174,14 @@ impl HairPart {
                                 } else {
                                     1.0
                                 };
-                                c += tr(l) * irradiance * table.radiance(ui, uo, cos_phi);
+                                let single = tables.single.radiance(ui, uo, cos_phi);
+                                match &tables.dual {
+                                    Some(dual) => {
+                                        let r = dual.radiance(single, tr(l), ui, uo, cos_phi);
+                                        c += irradiance * r;
+                                    }
+                                    None => c += tr(l) * irradiance * single,
+                                }
                             }
                             debug_assert!(c.is_finite());
                             c
@@ -170,14 +194,16 @@ impl HairPart {
     /// The fiber tables for shading `hair` with `optics` (its absorption
     /// following each strand's colour, `from_color`, rounded to steps of
     /// 1/32 so that a groom's colours make few tables), made now where not
-    /// kept, and each strand's table. The same tables whichever strands a
-    /// part holds: a strand's table depends on its colour alone.
+    /// kept, and each strand's table; with the dual-scattering tables if
+    /// `dual`. The same tables whichever strands a part holds: a strand's
+    /// table depends on its colour alone.
     fn fiber_tables(
         &mut self,
         hair: &Hair,
         optics: &FiberOptics,
         from_color: bool,
-    ) -> (Vec<Arc<FiberTable>>, Vec<u32>) {
+        dual: bool,
+    ) -> (Vec<Tables>, Vec<u32>) {
         // Each strand's key: its colour rounded (all alike when the colour
         // does not set the absorption); the optics only per distinct key.
         let colors = hair.colors();
@@ -218,16 +244,23 @@ impl HairPart {
             .collect();
         let tables = used
             .iter()
-            .map(|o| match self.tables.iter().find(|(k, _)| k == o) {
-                Some((_, t)) => t.clone(),
-                None => {
-                    let t = Arc::new(FiberTable::new(o));
-                    if self.tables.len() >= MAX_TABLES {
-                        self.tables.remove(0);
+            .map(|o| {
+                let at = match self.tables.iter().position(|(k, _)| k == o) {
+                    Some(at) => at,
+                    None => {
+                        if self.tables.len() >= MAX_TABLES {
+                            self.tables.remove(0);
+                        }
+                        let single = Arc::new(FiberTable::new(o));
+                        self.tables.push((*o, Tables { single, dual: None }));
+                        self.tables.len() - 1
                     }
-                    self.tables.push((*o, t.clone()));
-                    t
+                };
+                let t = &mut self.tables[at].1;
+                if dual && t.dual.is_none() {
+                    t.dual = Some(Arc::new(DualTable::new(o)));
                 }
+                t.clone()
             })
             .collect();
         (tables, of_strand)
@@ -307,5 +340,46 @@ pub fn draw_head(
             },
             shade,
         ),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn multiple_scattering_runs_only_when_asked_for_and_with_the_shadow() {
+        let mut hair = Hair::new();
+        hair.push_strand(&[Vec3::ZERO, Vec3::Y, Vec3::new(0.0, 2.0, 0.3)])
+            .unwrap();
+        let shading = |multiple| Shading {
+            model: ShadingModel::Marschner {
+                optics: FiberOptics::default(),
+                from_color: false,
+                irradiance: 5.0,
+                multiple,
+            },
+            ..Shading::default()
+        };
+        let (eye, lights) = (
+            Vec3::new(0.0, 1.0, 10.0),
+            [Vec3::new(1.0, 0.2, 0.1).normalize()],
+        );
+        let shaded = |multiple, shadows| {
+            let mut part = HairPart::default();
+            part.filter(&hair, 1, |_, _, t| t.fill(0.2));
+            part.shade(&hair, eye, &shading(multiple), &lights, shadows);
+            let duals = part.tables.iter().filter(|(_, t)| t.dual.is_some()).count();
+            (part.colors().to_vec(), duals)
+        };
+        let (single, none) = shaded(false, true);
+        assert_eq!(none, 0, "no dual-scattering table without the effect");
+        let (multiple, one) = shaded(true, true);
+        assert_eq!(one, 1);
+        assert!(multiple.iter().zip(&single).all(|(m, s)| m.cmpge(*s).all()) && multiple != single);
+        // Without the shadow stages there is nothing to scatter.
+        let (unshadowed, none) = shaded(true, false);
+        assert_eq!(none, 0);
+        assert_eq!(unshadowed, shaded(false, false).0);
     }
 }

@@ -3,7 +3,7 @@
 //! elsewhere over the head.
 
 use glam::{Affine3A, Vec3};
-use raster::{Camera, Canvas, HairLayer};
+use raster::{Camera, Canvas, HairLayer, ShadingModel};
 use strands::{Bounds, Hair};
 
 use crate::part::{draw_head, head_lambert};
@@ -46,6 +46,10 @@ impl Renderer {
         let mut scene = scene.clone();
         if !scene.effects.specular {
             scene.shading.specular = 0.0;
+        }
+        // Multiple scattering rides on the shadow stages' transmittance.
+        if let ShadingModel::Marschner { multiple, .. } = &mut scene.shading.model {
+            *multiple = scene.effects.multiple_scattering && scene.effects.self_shadow;
         }
         Ok(Renderer {
             shadows,

@@ -926,6 +926,7 @@ impl Validator<'_> {
                 };
                 Ok(raster::ShadingModel::Marschner {
                     optics,
+                    multiple: false,
                     from_color: !melanin && sh.sigma_a.is_none(),
                     irradiance: in_range(
                         "shading.irradiance",
@@ -1345,6 +1346,18 @@ impl Validator<'_> {
             collision: self.collision(raw.collision)?,
             bodies: self.bodies(raw.body)?,
         };
+        if scene.effects.multiple_scattering {
+            let why = if !matches!(scene.shading.model, raster::ShadingModel::Marschner { .. }) {
+                Some("needs shading.model = \"marschner\" (Kajiya-Kay has no fiber to scatter)")
+            } else if !scene.effects.self_shadow {
+                Some("needs effects.self_shadow: it scatters the light the shadow takes")
+            } else {
+                None
+            };
+            if let Some(why) = why {
+                return Err(self.invalid("effects.multiple_scattering", true, why));
+            }
+        }
         // What needs the data files read, now that the text is valid.
         if let HairSource::File {
             path,
@@ -1411,6 +1424,7 @@ mod tests {
             optics,
             from_color,
             irradiance,
+            ..
         } = s.shading.model
         else {
             panic!("{:?}", s.shading.model)
@@ -1457,6 +1471,30 @@ mod tests {
                 .unwrap_err()
                 .to_string();
             assert!(e.contains(field) && e.contains(why), "{text}: {e}");
+        }
+    }
+
+    #[test]
+    fn multiple_scattering_needs_the_fiber_model_and_the_shadow() {
+        let on = "[effects]\nmultiple_scattering = true\n";
+        let s = parse(&format!("{on}[shading]\nmodel = \"marschner\"\n")).unwrap();
+        assert!(s.effects.multiple_scattering);
+        assert!(
+            !parse("").unwrap().effects.multiple_scattering,
+            "off by default"
+        );
+        for (text, why) in [
+            ("", "marschner"),
+            (
+                "self_shadow = false\n[shading]\nmodel = \"marschner\"\n",
+                "self_shadow",
+            ),
+        ] {
+            let e = parse(&format!("{on}{text}")).unwrap_err().to_string();
+            assert!(
+                e.contains("effects.multiple_scattering") && e.contains(why),
+                "{text}: {e}"
+            );
         }
     }
 

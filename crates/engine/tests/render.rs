@@ -424,3 +424,32 @@ fn a_physically_based_fiber_lets_light_through_as_its_absorption_says() {
     let kk = lit("[shading]\nambient = 0\n");
     assert!(mean_abs_diff(&kk, &light) > 2.0);
 }
+
+#[test]
+fn multiple_scattering_gives_self_shadowed_blond_hair_back_its_light() {
+    // Lit from the side through the whole head of hair, with its shadow:
+    // single scattering alone leaves light hair dark wherever other hair
+    // is in front; the light the fibers scatter on brightens blond hair
+    // much more than dark brown, whose fibers absorb what passes through.
+    let shot = |eumelanin: f32, multiple: bool| {
+        let text = format!(
+            "[hair]\nstrands_per_wisp = 4\n[render]\nwidth = 96\nheight = 64\nbackground = [0, 0, 0]\n\
+             [[light]]\ndirection = [-1, -0.3, -0.2]\n[head]\nvisible = false\n\
+             [shading]\nmodel = \"marschner\"\neumelanin = {eumelanin}\nambient = 0\n\
+             [effects]\nmultiple_scattering = {multiple}\n"
+        );
+        let s = Scene::from_toml_str(&text, Path::new("side.toml")).unwrap();
+        let m = hair_mean(&render(&s, true), [0, 0, 0]);
+        m.iter().sum::<f64>()
+    };
+    let gain = |eumelanin: f32| shot(eumelanin, true) / shot(eumelanin, false);
+    let (blond, brown) = (gain(0.3), gain(1.3));
+    assert!(
+        blond > 1.25,
+        "blond: {blond}x brighter with multiple scattering"
+    );
+    assert!(
+        brown >= 1.0 && brown - 1.0 < 0.5 * (blond - 1.0),
+        "brown {brown}x, blond {blond}x"
+    );
+}

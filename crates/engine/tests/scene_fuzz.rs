@@ -78,6 +78,7 @@ const TABLES: &[(&str, &[&str])] = &[
             "self_shadow",
             "specular",
             "head_shadow",
+            "multiple_scattering",
         ],
     ),
     ("animation", &["motion", "amplitude", "fps"]),
@@ -228,6 +229,7 @@ body_collision = true
 self_shadow = true
 specular = true
 head_shadow = true
+multiple_scattering = true
 [animation]
 motion = "dance"
 amplitude = 1.0

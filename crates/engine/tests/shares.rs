@@ -141,6 +141,7 @@ fn a_dancing_simulated_groom_drawn_in_shares_is_the_same_bytes() {
         "[[light]]\ndirection = [0.9, -0.35, -0.25]\n[[light]]\ndirection = [-0.3, -1, 0.2]\n",
         "[shading]\nmodel = \"marschner\"\n",
         "[shading]\nmodel = \"marschner\"\neumelanin = 0.4\n[[light]]\ndirection = [0.9, -0.35, -0.25]\n[[light]]\ndirection = [-0.3, -1, 0.2]\n",
+        "[shading]\nmodel = \"marschner\"\neumelanin = 0.3\n[effects]\nmultiple_scattering = true\n",
     ] {
         let s = scene(&format!(
             "[hair]\nstrands_per_wisp = 3\n[render]\nwidth = 120\nheight = 80\n[shadow]\ncells = 48\n\

@@ -187,22 +187,7 @@ impl Chiang {
         let sin_theta_i = wi.x.clamp(-1.0, 1.0);
         let cos_theta_i = safe_sqrt(1.0 - sin_theta_i * sin_theta_i);
         let phi_i = wi.z.atan2(wi.y);
-        // The refracted ray's theta_t and gamma_t (Bravais' modified index
-        // eta' for the projection across the fiber).
-        let sin_theta_t = sin_theta_o / self.eta;
-        let cos_theta_t = safe_sqrt(1.0 - sin_theta_t * sin_theta_t);
-        let etap = (self.eta * self.eta - sin_theta_o * sin_theta_o).sqrt() / cos_theta_o.max(1e-6);
-        let sin_gamma_t = self.h / etap;
-        let cos_gamma_t = safe_sqrt(1.0 - sin_gamma_t * sin_gamma_t);
-        let gamma_t = safe_asin(sin_gamma_t);
-        // One pass through the interior: T = exp(-sigma_a 2 cos gamma_t / cos theta_t).
-        let path = 2.0 * cos_gamma_t / cos_theta_t.max(1e-6);
-        let t = Vec3::new(
-            (-self.sigma_a.x * path).exp(),
-            (-self.sigma_a.y * path).exp(),
-            (-self.sigma_a.z * path).exp(),
-        );
-        let ap = attenuation(cos_theta_o, self.eta, self.h, t);
+        let (ap, gamma_t) = self.paths(sin_theta_o, cos_theta_o);
         let phi = phi_i - phi_o;
         let inv_cos_i = if cos_theta_i > 0.0 {
             1.0 / cos_theta_i
@@ -248,6 +233,47 @@ impl Chiang {
     pub fn f(&self, wo: Vec3, wi: Vec3) -> Vec3 {
         self.lobes(wo, wi).iter().copied().sum()
     }
+
+    /// `A_p(theta_o, h) N_p(phi, h)` of each lobe at `sin theta_o` and
+    /// azimuth `phi = phi_i - phi_o`: the lobes without their longitudinal
+    /// part (the last, all longer paths, spread evenly, `A_p / 2 pi`).
+    pub fn azimuthal(&self, sin_theta_o: f32, phi: f32) -> [Vec3; P_MAX + 1] {
+        let sin_theta_o = sin_theta_o.clamp(-1.0, 1.0);
+        let cos_theta_o = safe_sqrt(1.0 - sin_theta_o * sin_theta_o);
+        let (ap, gamma_t) = self.paths(sin_theta_o, cos_theta_o);
+        let mut out = [Vec3::ZERO; P_MAX + 1];
+        for (p, o) in out.iter_mut().enumerate().take(P_MAX) {
+            *o = ap[p] * azimuthal(phi, p, self.s, self.gamma_o, gamma_t);
+        }
+        out[P_MAX] = ap[P_MAX] / (2.0 * PI);
+        out
+    }
+
+    /// `A_p` of every lobe for light leaving at `theta_o`, and the
+    /// refracted ray's `gamma_t`.
+    fn paths(&self, sin_theta_o: f32, cos_theta_o: f32) -> ([Vec3; P_MAX + 1], f32) {
+        // The refracted ray's theta_t and gamma_t (Bravais' modified index
+        // eta' for the projection across the fiber).
+        let sin_theta_t = sin_theta_o / self.eta;
+        let cos_theta_t = safe_sqrt(1.0 - sin_theta_t * sin_theta_t);
+        let etap = (self.eta * self.eta - sin_theta_o * sin_theta_o).sqrt() / cos_theta_o.max(1e-6);
+        let sin_gamma_t = self.h / etap;
+        let cos_gamma_t = safe_sqrt(1.0 - sin_gamma_t * sin_gamma_t);
+        let gamma_t = safe_asin(sin_gamma_t);
+        // One pass through the interior: T = exp(-sigma_a 2 cos gamma_t / cos theta_t).
+        let path = 2.0 * cos_gamma_t / cos_theta_t.max(1e-6);
+        let t = Vec3::new(
+            (-self.sigma_a.x * path).exp(),
+            (-self.sigma_a.y * path).exp(),
+            (-self.sigma_a.z * path).exp(),
+        );
+        (attenuation(cos_theta_o, self.eta, self.h, t), gamma_t)
+    }
+
+    /// The variance `v_p` of each lobe's longitudinal part.
+    pub fn variances(&self) -> [f32; P_MAX + 1] {
+        self.v
+    }
 }
 
 /// The model averaged over the offset `h` across the fiber, `1/2 int f dh`
@@ -281,6 +307,17 @@ impl FarField {
 
     pub fn f(&self, wo: Vec3, wi: Vec3) -> Vec3 {
         self.lobes(wo, wi).iter().copied().sum()
+    }
+
+    /// [`Chiang::azimuthal`] averaged across the fiber.
+    pub fn azimuthal(&self, sin_theta_o: f32, phi: f32) -> [Vec3; P_MAX + 1] {
+        let mut out = [Vec3::ZERO; P_MAX + 1];
+        for (c, w) in &self.at {
+            for (o, l) in out.iter_mut().zip(c.azimuthal(sin_theta_o, phi)) {
+                *o += *w * l;
+            }
+        }
+        out
     }
 }
 
@@ -419,8 +456,11 @@ fn gauss_legendre(n: usize) -> Vec<(f32, f32)> {
     out
 }
 
+mod dual;
 #[cfg(test)]
 mod tests;
+
+pub use dual::{DENSITY_BACK, DENSITY_FORWARD, DualTable, MAX_DEPTH, optical_depth};
 
 /// [`FarField`] tabulated for shading many vertices: the radiance a fiber
 /// sends towards `w_o` per unit irradiance from `w_i`,

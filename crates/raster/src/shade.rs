@@ -1,7 +1,9 @@
 //! Hair shading: Kajiya-Kay, as in the paper,
 //! `Phi = Phi_ambient + T (Phi_diffuse + Phi_specular)`, or a physically
 //! based fiber (Chiang et al. 2016, see [`crate::FiberOptics`]),
-//! `Phi = k_a color + T E f(w_o, w_i) |cos theta_i|`.
+//! `Phi = k_a color + T E f(w_o, w_i) |cos theta_i|`, with light
+//! scattered between fibers as well if asked (dual scattering, see
+//! [`crate::DualTable`]).
 
 use glam::Vec3;
 
@@ -23,6 +25,10 @@ pub enum ShadingModel {
         optics: FiberOptics,
         from_color: bool,
         irradiance: f32,
+        /// Light scattered between fibers too (dual scattering from the
+        /// transmittance, see [`crate::DualTable`]); else single
+        /// scattering only.
+        multiple: bool,
     },
 }
 

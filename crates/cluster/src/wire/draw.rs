@@ -191,27 +191,40 @@ pub fn job_to_pb(j: &DrawJob) -> pb::DrawJob {
                 optics: o,
                 from_color,
                 irradiance,
-            } => vec![
-                o.eta,
-                o.sigma_a.x,
-                o.sigma_a.y,
-                o.sigma_a.z,
-                o.beta_m,
-                o.beta_n,
-                o.alpha_deg,
-                irradiance,
-                if from_color { 1.0 } else { 0.0 },
-            ],
+                multiple,
+            } => {
+                let mut v = vec![
+                    o.eta,
+                    o.sigma_a.x,
+                    o.sigma_a.y,
+                    o.sigma_a.z,
+                    o.beta_m,
+                    o.beta_n,
+                    o.alpha_deg,
+                    irradiance,
+                    if from_color { 1.0 } else { 0.0 },
+                ];
+                if multiple {
+                    v.push(1.0);
+                }
+                v
+            }
         },
     }
 }
 
 /// The shading model of a draw job as sent: Kajiya-Kay with no fiber
-/// values, or a fiber whose settings are in range.
+/// values, or a fiber whose settings are in range (nine values, and a
+/// tenth, 1, with multiple scattering).
 fn model_from_pb(j: &pb::DrawJob) -> Result<ShadingModel, Malformed> {
     match j.shading_model {
         0 if j.fiber.is_empty() => Ok(ShadingModel::KajiyaKay),
-        1 => {
+        1 if matches!(j.fiber.len(), 9 | 10) => {
+            let multiple = match j.fiber.get(9) {
+                Some(1.0) => true,
+                Some(_) => return Err(bad(format!("draw fiber {:?} out of range", j.fiber))),
+                None => false,
+            };
             let [
                 eta,
                 r,
@@ -222,7 +235,7 @@ fn model_from_pb(j: &pb::DrawJob) -> Result<ShadingModel, Malformed> {
                 alpha_deg,
                 irradiance,
                 from_color,
-            ] = floats::<9>("draw fiber", &j.fiber)?;
+            ] = floats::<9>("draw fiber", &j.fiber[..9])?;
             let optics = raster::FiberOptics {
                 eta,
                 sigma_a: Vec3::new(r, g, b),
@@ -238,6 +251,7 @@ fn model_from_pb(j: &pb::DrawJob) -> Result<ShadingModel, Malformed> {
                 optics,
                 from_color: from_color == 1.0,
                 irradiance,
+                multiple,
             })
         }
         m => Err(bad(format!(
@@ -1006,6 +1020,39 @@ mod tests {
         let mut bad = job_to_pb(&job);
         bad.to_lights = vec![0.0, 2.0, 0.0];
         assert!(job_from_pb(&bad).is_err());
+        // The fiber, with multiple scattering and without.
+        for multiple in [false, true] {
+            let fiber = DrawJob {
+                shading: Shading {
+                    model: ShadingModel::Marschner {
+                        optics: raster::FiberOptics::default(),
+                        from_color: false,
+                        irradiance: 5.0,
+                        multiple,
+                    },
+                    ..Shading::default()
+                },
+                ..job.clone()
+            };
+            let sent = job_to_pb(&fiber);
+            assert_eq!(sent.fiber.len(), 9 + usize::from(multiple));
+            assert_eq!(job_from_pb(&sent).unwrap(), fiber);
+        }
+        let mut sent = job_to_pb(&job);
+        sent.shading_model = 1;
+        for fiber in [vec![1.55; 8], vec![1.55; 11]] {
+            sent.fiber = fiber;
+            assert!(job_from_pb(&sent).is_err());
+        }
+        let mut fiber = vec![1.55, 0.5, 0.5, 0.5, 0.3, 0.3, 2.0, 5.0, 0.0];
+        sent.fiber = fiber.clone();
+        assert!(job_from_pb(&sent).is_ok());
+        for tenth in [0.0, 2.0, f32::NAN] {
+            fiber.truncate(9);
+            fiber.push(tenth);
+            sent.fiber = fiber.clone();
+            assert!(job_from_pb(&sent).is_err(), "{tenth}");
+        }
     }
 
     #[test]

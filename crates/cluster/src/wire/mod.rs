@@ -20,7 +20,7 @@ pub use exchange::*;
 
 /// The protocol version this build speaks. A coordinator and a worker of
 /// different versions refuse each other.
-pub const PROTOCOL_VERSION: u32 = 11;
+pub const PROTOCOL_VERSION: u32 = 12;
 
 /// Points per Deposit chunk: 3 floats each, 1.5 MB.
 pub const POINTS_PER_CHUNK: usize = 128 * 1024;

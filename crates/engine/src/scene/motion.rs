@@ -16,6 +16,7 @@ pub(super) struct RawEffects {
     self_shadow: Option<bool>,
     specular: Option<bool>,
     head_shadow: Option<bool>,
+    multiple_scattering: Option<bool>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -82,6 +83,10 @@ pub struct Effects {
     /// The head casts shadow on the hair and receives the hair's (with
     /// self-shadowing).
     pub head_shadow: bool,
+    /// Light scattered between fibers (dual scattering from the
+    /// self-shadowing's transmittance; with the fiber shading model and
+    /// self-shadowing).
+    pub multiple_scattering: bool,
 }
 
 /// How the scene moves in time.
@@ -167,6 +172,7 @@ impl Validator<'_> {
             self_shadow: e.self_shadow.unwrap_or(true),
             specular: e.specular.unwrap_or(true),
             head_shadow: e.head_shadow.unwrap_or(true),
+            multiple_scattering: e.multiple_scattering.unwrap_or(false),
         })
     }
 

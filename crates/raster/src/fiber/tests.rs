@@ -188,3 +188,232 @@ fn bessel_quadrature_and_absorption_helpers_match_known_values() {
     assert!(!optics(0.0, 0.3, 2.0, Vec3::ONE).is_valid());
     assert!(!optics(0.3, 0.3, 2.0, Vec3::new(-1.0, 0.0, 0.0)).is_valid());
 }
+
+// Dual scattering (dual.rs).
+
+fn blond() -> FiberOptics {
+    optics(0.3, 0.3, 2.0, sigma_a_from_melanin(0.3, 0.0))
+}
+
+fn brown() -> FiberOptics {
+    optics(0.3, 0.3, 2.0, sigma_a_from_melanin(1.3, 0.0))
+}
+
+/// `int g(w_o) cos theta_o dw_o` over the half of azimuths around the
+/// fiber towards the light at `phi_i = 0` (`back`) or away from it.
+fn over_half(back: bool, g: impl Fn(Vec3) -> Vec3) -> Vec3 {
+    over_sphere(96, 384, |w| {
+        if (w.y > 0.0) == back {
+            g(w)
+        } else {
+            Vec3::ZERO
+        }
+    })
+}
+
+#[test]
+fn dual_scattering_a_fiber_that_absorbs_nothing_sends_all_light_forward_or_back() {
+    // Rough fibers' wide lobes send more towards grazing directions.
+    for (beta, least) in [(0.2, 0.95), (0.3, 0.95), (0.7, 0.85)] {
+        let t = DualTable::new(&optics(beta, beta, 2.0, Vec3::ZERO));
+        for k in 0..=18 {
+            let ui = -0.9 + 0.1 * k as f32;
+            let (f, b) = t.attenuations(ui);
+            // All of it, but for the few percent the longitudinal lobes
+            // send towards grazing directions (as single scattering does).
+            let sum = f + b;
+            assert!(
+                sum.max_element() <= 1.0 && sum.min_element() > least,
+                "beta {beta} sin theta_i {ui}: a_f {f} + a_b {b}"
+            );
+            // Most of the light goes on through the fiber (TT).
+            assert!(f.x > 0.5 && b.x > 0.04, "{f} {b}");
+        }
+    }
+}
+
+#[test]
+fn dual_scattering_attenuations_are_the_fiber_integrated_over_each_half() {
+    // The table takes each lobe's energy on the specular cone; the model
+    // integrated over every outgoing direction of each half must agree,
+    // the same energy as single scattering carries: int f cos_o dw_o.
+    for o in [blond(), brown()] {
+        let table = DualTable::new(&o);
+        let far = FarField::new(&o, 16);
+        for ui in [0.0f32, 0.3, -0.5] {
+            let wi = dir(ui, 0.0);
+            let (a_f, a_b) = table.attenuations(ui);
+            let f = over_half(false, |wo| far.f(wo, wi));
+            let b = over_half(true, |wo| far.f(wo, wi));
+            for (got, want, what) in [(a_f, f, "forward"), (a_b, b, "back")] {
+                // Within 3 % of all the light the fiber scatters.
+                let err = (got - want).abs().max_element();
+                assert!(
+                    err < 0.03 * (a_f + a_b).max_element(),
+                    "{o:?} sin theta_i {ui} {what}: table {got}, integral {want}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn dual_scattering_light_hair_scatters_far_more_between_fibers_than_dark() {
+    let (light, dark) = (DualTable::new(&blond()), DualTable::new(&brown()));
+    let (lf, lb) = light.attenuations(0.2);
+    let (df, db) = dark.attenuations(0.2);
+    assert!(
+        lf.cmpgt(df).all() && lb.cmpgt(db).all(),
+        "{lf} {df} {lb} {db}"
+    );
+    let (la, ..) = light.back_scattering(0.2);
+    let (da, ..) = dark.back_scattering(0.2);
+    // A_b holds a_f^2: paths through neighbours and back.
+    assert!(la.y > 5.0 * da.y, "A_b blond {la} brown {da}");
+    // Eumelanin keeps red: the back-scattered light is reddish.
+    assert!(la.x > la.y && la.y > la.z, "{la}");
+}
+
+#[test]
+fn dual_scattering_back_lobe_carries_a_b_in_the_units_of_single_scattering() {
+    // Per unit of the light a fiber receives (cos theta_i), the
+    // back-scattering lobe sends out A_b, as the fiber table sends out
+    // a_f + a_b: both the radiance per unit irradiance.
+    let o = blond();
+    let (dual, single) = (DualTable::new(&o), FiberTable::new(&o));
+    for ui in [0.0f32, 0.4] {
+        let ci = safe_sqrt(1.0 - ui * ui);
+        let cos_phi = |wo: Vec3| {
+            let d = safe_sqrt(1.0 - wo.x * wo.x);
+            if d > 0.0 { wo.y / d } else { 1.0 }
+        };
+        let total = over_sphere(96, 384, |wo| single.radiance(ui, wo.x, cos_phi(wo))) / ci;
+        let (f, b) = dual.attenuations(ui);
+        assert!(
+            ((total - (f + b)) / (f + b)).abs().max_element() < 0.03,
+            "sin theta_i {ui}: the table sends {total}, a_f + a_b = {}",
+            f + b
+        );
+        let (a_back, ..) = dual.back_scattering(ui);
+        // A_b, less what its wide lobe sends towards grazing directions.
+        for spread in [0.0, 0.5] {
+            let sent = over_sphere(96, 384, |wo| dual.back_lobe(ui, wo.x, spread)) / ci;
+            let share = sent / a_back;
+            assert!(
+                share.max_element() <= 1.0 && share.min_element() > 0.75,
+                "sin theta_i {ui} spread {spread}: the lobe sends {sent}, A_b = {a_back}"
+            );
+        }
+    }
+}
+
+#[test]
+fn dual_scattering_spreads_each_lobe_over_the_half_circle_keeping_its_energy() {
+    let o = blond();
+    let (dual, far) = (DualTable::new(&o), FarField::new(&o, 16));
+    let n = 720;
+    for uo in [0.0f32, 0.5] {
+        let (mut spread, mut sharp) = ([Vec3::ZERO; P_MAX + 1], [Vec3::ZERO; P_MAX + 1]);
+        let (mut peak_spread, mut peak_sharp) = (0.0f32, 0.0f32);
+        for k in 0..n {
+            let phi = -PI + (k as f32 + 0.5) * 2.0 * PI / n as f32;
+            let g = dual.azimuthal_spread(uo, phi.cos());
+            let s = far.azimuthal(uo, phi);
+            for p in 0..=P_MAX {
+                spread[p] += g[p] * (2.0 * PI / n as f32);
+                sharp[p] += s[p] * (2.0 * PI / n as f32);
+            }
+            peak_spread = peak_spread.max(g[1].y);
+            peak_sharp = peak_sharp.max(s[1].y);
+        }
+        for p in 0..=P_MAX {
+            assert!(
+                (spread[p] - sharp[p]).abs().max_element() < 0.01 * sharp[p].max_element() + 1e-4,
+                "lobe {p} at sin theta_o {uo}: spread {} against {}",
+                spread[p],
+                sharp[p]
+            );
+        }
+        // TT, a narrow forward lobe, is flattened over the half circle.
+        assert!(peak_spread < 0.6 * peak_sharp, "{peak_spread} {peak_sharp}");
+    }
+}
+
+#[test]
+fn dual_scattering_forward_transmittance_averages_a_f_over_the_fibers_met() {
+    // A ray meets a Poisson number K of fibers, of mean tau = -ln T; a_f
+    // of the light goes on at each. E[a_f^K] summed term by term.
+    let d = DualTable::new(&blond());
+    for ui in [0.0f32, 0.6] {
+        let (a_f, _) = d.attenuations(ui);
+        for tau in [0.0f32, 0.3, 2.0, 9.0] {
+            let t = (-tau).exp();
+            let mut want = Vec3::ZERO;
+            let mut pk = (-f64::from(tau)).exp();
+            for k in 0..200 {
+                if k > 0 {
+                    pk *= f64::from(tau) / f64::from(k);
+                }
+                let ak = Vec3::new(a_f.x.powi(k), a_f.y.powi(k), a_f.z.powi(k));
+                want += ak * pk as f32;
+            }
+            let got = d.forward_transmittance(t, ui);
+            assert!(
+                (got - want).abs().max_element() < 1e-4,
+                "tau {tau}: {got} {want}"
+            );
+            // Never less than the direct light.
+            assert!(got.cmpge(Vec3::splat(t * 0.9999)).all(), "{got} {t}");
+        }
+    }
+    assert_eq!(optical_depth(1.0), 0.0);
+    assert_eq!(optical_depth(0.0), MAX_DEPTH);
+    assert_eq!(optical_depth(f32::NAN), 0.0);
+}
+
+#[test]
+fn dual_scattering_adds_nothing_forward_in_full_light_and_brightens_blond_in_shadow() {
+    let (light, dark) = (blond(), brown());
+    let tables = |o: &FiberOptics| (DualTable::new(o), FiberTable::new(o));
+    let (ld, ls) = tables(&light);
+    let (dd, ds) = tables(&dark);
+    let (ui, uo, cos_phi) = (0.1, -0.2, 0.3);
+    // In full light (T = 1, nothing in front) only the local back
+    // scattering adds to single scattering.
+    let s = ls.radiance(ui, uo, cos_phi);
+    let full = ld.radiance(s, 1.0, ui, uo, cos_phi);
+    let want = s + DENSITY_BACK * ld.back_lobe(ui, uo, 0.0);
+    assert!((full - want).abs().max_element() < 1e-6, "{full} {want}");
+    // Five fibers deep on average, blond hair gets back much of the light
+    // the shadow took; dark hair little.
+    let t = (-5.0f32).exp();
+    let gain = |d: &DualTable, st: &FiberTable| {
+        let s = st.radiance(ui, uo, cos_phi);
+        d.radiance(s, t, ui, uo, cos_phi).element_sum() / (t * s).element_sum()
+    };
+    let (g_light, g_dark) = (gain(&ld, &ls), gain(&dd, &ds));
+    assert!(
+        g_light > 3.0,
+        "blond in shadow: {g_light}x single scattering"
+    );
+    assert!(g_dark < 0.5 * g_light, "brown {g_dark}x, blond {g_light}x");
+}
+
+#[test]
+fn dual_scattering_stays_finite_and_non_negative_in_hard_cases() {
+    let d = DualTable::new(&blond());
+    let us = [-1.0f32, -0.999, -0.3, 0.0, 0.7, 1.0];
+    for &ui in &us {
+        for &uo in &us {
+            for cos_phi in [-1.0f32, 0.0, 1.0] {
+                for t in [0.0f32, 1e-30, 0.5, 1.0, f32::NAN, 2.0] {
+                    let l = d.radiance(Vec3::splat(0.1), t, ui, uo, cos_phi);
+                    assert!(
+                        l.is_finite() && l.min_element() >= 0.0,
+                        "{ui} {uo} {cos_phi} {t}: {l}"
+                    );
+                }
+            }
+        }
+    }
+}
