@@ -7,6 +7,7 @@
 //! seed = 1                  # procedural styles
 //! strands_per_wisp = 25     # procedural styles: 134 wisps of this many drawn strands
 //! parting = false           # procedural styles: a middle parting, front hair swept off the face, a fringe
+//! color = [0.16, 0.075, 0.03] # procedural styles: linear RGB, each strand within 20 % (default dark brown; curly auburn)
 //! subdivide = 2             # Catmull-Rom pieces per input segment
 //! followers = 15            # files: follow strands grown per file strand (default 15 for .tfx, 0 for .hair)
 //! follow_radius = 0.4       # files: root disc radius of follow strands, scene units (x the groom's unit)
@@ -33,7 +34,8 @@
 //!                           # or position, look_at; fov_deg = 30, up
 //! [head]                    # visible, center, radius, color; mesh = "head.obj" or .ply, mesh_scale, mesh_offset
 //!                           # (a mesh alone: center and radius fitted to its crown)
-//! [effects]                 # dynamics, self_collision, body_collision, self_shadow, specular, head_shadow
+//! [effects]                 # dynamics, self_collision, body_collision, self_shadow, specular, head_shadow,
+//!                           # multiple_scattering (off; with model = "marschner" and self_shadow)
 //! [animation]               # motion = "still" | "dance" | "keyframes" ([[animation.key]]), fps = 30
 //! [dynamics]                # time_step, gravity, damping, stiffness, iterations, settle
 //! [collision]               # density, repulsion, max_acceleration (self-collisions)
@@ -173,6 +175,7 @@ struct RawHair {
     seed: Option<u64>,
     strands_per_wisp: Option<i64>,
     parting: Option<bool>,
+    color: Option<[f32; 3]>,
     subdivide: Option<i64>,
     followers: Option<i64>,
     follow_radius: Option<f32>,
@@ -1096,6 +1099,9 @@ impl Validator<'_> {
                     1..=2000,
                 )?;
                 p.parting = h.parting.unwrap_or(false);
+                if h.color.is_some() {
+                    p.color = Some(self.color("hair.color", h.color, [0.0; 3])?);
+                }
                 HairSource::Style(p)
             }
         };
@@ -1104,6 +1110,7 @@ impl Validator<'_> {
                 &[
                     ("hair.strands_per_wisp", h.strands_per_wisp.is_some()),
                     ("hair.parting", h.parting.is_some()),
+                    ("hair.color", h.color.is_some()),
                 ],
                 "applies to hair.style only",
             )?;
@@ -1471,6 +1478,37 @@ mod tests {
                 .unwrap_err()
                 .to_string();
             assert!(e.contains(field) && e.contains(why), "{text}: {e}");
+        }
+    }
+
+    #[test]
+    fn a_style_takes_the_hair_colour_it_is_given() {
+        let c = Vec3::new(0.6, 0.45, 0.25);
+        let s = parse("[hair]\nstrands_per_wisp = 2\ncolor = [0.6, 0.45, 0.25]\n").unwrap();
+        let hair = crate::build_hair(&s).unwrap();
+        let colors = hair.colors().unwrap();
+        assert_eq!(colors.len(), hair.strand_count());
+        for k in colors {
+            let r = *k / c;
+            assert!(r.min_element() >= 0.8 && r.max_element() <= 1.2, "{k}");
+            assert!(
+                (r.x - r.y).abs() < 1e-5 && (r.y - r.z).abs() < 1e-5,
+                "{k}: one hue"
+            );
+        }
+        // Brown by default.
+        let d = crate::build_hair(&parse("[hair]\nstrands_per_wisp = 2\n").unwrap()).unwrap();
+        assert!(d.colors().unwrap().iter().all(|k| k.x < 0.25));
+        for (text, why) in [
+            ("color = [0.5, 2, 0.5]", "[0, 1]"),
+            ("color = [0.5, nan, 0.5]", "[0, 1]"),
+            (
+                "strands = [[[0, 0, 0], [0, -1, 0]]]\ncolor = [0.5, 0.5, 0.5]",
+                "hair.style only",
+            ),
+        ] {
+            let e = parse(&format!("[hair]\n{text}\n")).unwrap_err().to_string();
+            assert!(e.contains("hair.color") && e.contains(why), "{text}: {e}");
         }
     }
 

@@ -18,6 +18,8 @@ const TABLES: &[(&str, &[&str])] = &[
             "strands",
             "seed",
             "strands_per_wisp",
+            "parting",
+            "color",
             "subdivide",
             "followers",
             "follow_radius",
@@ -182,6 +184,7 @@ const FULL: &str = r#"[hair]
 style = "curly"
 seed = 3
 strands_per_wisp = 4
+color = [0.6, 0.45, 0.25]
 subdivide = 2
 [fiber]
 width = 0.1

@@ -56,6 +56,9 @@ pub struct StyleParams {
     /// side and back, off the face, and hair over the forehead is cut to
     /// a fringe above the eyes.
     pub parting: bool,
+    /// The hair's linear RGB colour (each strand within 20 % of it); the
+    /// style's own (dark brown, auburn for curls) when `None`.
+    pub color: Option<Vec3>,
 }
 
 impl StyleParams {
@@ -68,6 +71,7 @@ impl StyleParams {
             head_center: Vec3::ZERO,
             head_radius: 10.0,
             parting: false,
+            color: None,
         }
     }
 }
@@ -180,10 +184,10 @@ impl WispModel {
         );
         let mut members = Vec::with_capacity(roots.len() * p.strands_per_wisp as usize);
         let mut colors = Vec::with_capacity(members.capacity());
-        let base_color = match p.style {
+        let base_color = p.color.unwrap_or(match p.style {
             Style::Smooth => Vec3::new(0.16, 0.075, 0.03),
             Style::Curly => Vec3::new(0.42, 0.10, 0.035),
-        };
+        });
         for (w, &at) in order.iter().enumerate() {
             let n = &roots[at];
             let mut rng = Rng::fork(p.seed, at as u64);

@@ -67,7 +67,7 @@
 
 use std::f32::consts::PI;
 
-use glam::{Vec3, Vec3A};
+use glam::{Vec3, Vec3A, Vec4};
 
 use super::{FarField, FiberOptics, P_MAX, gauss_legendre, longitudinal, safe_sqrt};
 
@@ -86,6 +86,17 @@ const DUAL_THETA: usize = 33;
 /// Nodes along `sin theta_o` and `cos phi` of `N_p^G`.
 const NG_THETA: usize = 17;
 const NG_PHI: usize = 17;
+/// Nodes along `sin theta_i` and `sin theta_o` of the widened
+/// longitudinal lobes, and along the optical depth (evenly in
+/// `sqrt(tau)` up to [`SPREAD_DEPTH`]): 25 x 25 x 12 nodes of 32 bytes,
+/// 240 kB, small enough to share a core's cache with the fiber table.
+const SPREAD_THETA: usize = 25;
+const SPREAD_DEPTH_NODES: usize = 12;
+/// The deepest optical depth whose spread is tabulated: past it, the
+/// forward-scattered light of the lightest hair (`a_f` < 0.8) is below
+/// `exp(-0.2 * 32)`, a six-hundredth of the light, and its lobes are
+/// taken as wide as there.
+const SPREAD_DEPTH: f32 = 32.0;
 
 /// The averages at one `theta_i`.
 #[derive(Debug, Clone, Copy, Default)]
@@ -112,6 +123,24 @@ pub struct DualTable {
     /// `theta_i + theta_o = s_p`) and variance `v_p`.
     shift: [f32; P_MAX + 1],
     var: [f32; P_MAX + 1],
+    /// The longitudinal lobes widened by the spread at each depth:
+    /// `[(i * SPREAD_THETA + o) * SPREAD_DEPTH_NODES + d]`.
+    spread: Vec<Spread>,
+}
+
+/// The longitudinal lobes at one node: each single-scattering lobe's
+/// `M_p` widened by `sigma_f^2`, and the back-scattering lobe's `M`
+/// widened (`back.x`) and not (`back.y`).
+#[derive(Debug, Clone, Copy, Default)]
+struct Spread {
+    lobes: Vec4,
+    back: Vec4,
+}
+
+/// The optical depth at spread node `d`.
+fn depth_node(d: usize) -> f32 {
+    let s = d as f32 / (SPREAD_DEPTH_NODES - 1) as f32;
+    SPREAD_DEPTH * s * s
 }
 
 /// The optical depth `tau = -ln T` in front of a point of transmittance
@@ -213,7 +242,65 @@ impl DualTable {
                 sum
             })
             .collect();
-        DualTable { at, ng, shift, var }
+        let mut table = DualTable {
+            at,
+            ng,
+            shift,
+            var,
+            spread: Vec::new(),
+        };
+        table.spread = (0..SPREAD_THETA * SPREAD_THETA * SPREAD_DEPTH_NODES)
+            .into_par_iter()
+            .map(|c| {
+                let d = c % SPREAD_DEPTH_NODES;
+                let o = (c / SPREAD_DEPTH_NODES) % SPREAD_THETA;
+                let i = c / (SPREAD_DEPTH_NODES * SPREAD_THETA);
+                table.spread_at(node(i, SPREAD_THETA), node(o, SPREAD_THETA), depth_node(d))
+            })
+            .collect();
+        table
+    }
+
+    /// The lobes of [`Spread`] at `sin theta_i = ui`, `sin theta_o = uo`
+    /// and optical depth `tau`, evaluated.
+    fn spread_at(&self, ui: f32, uo: f32, tau: f32) -> Spread {
+        let a = self.averages(ui);
+        let spread = tau * a.beta_f2;
+        let m = |p: usize| lobe(ui, uo, self.shift[p], self.var[p] + spread);
+        Spread {
+            lobes: Vec4::new(m(0), m(1), m(2), m(3)),
+            back: Vec4::new(
+                lobe(ui, uo, a.delta_b, a.sigma_b2 + spread),
+                lobe(ui, uo, a.delta_b, a.sigma_b2),
+                0.0,
+                0.0,
+            ),
+        }
+    }
+
+    /// [`Spread`] interpolated (trilinear weights).
+    #[inline]
+    fn spread(&self, ui: f32, uo: f32, tau: f32) -> Spread {
+        let (i, ti) = cell(ui, SPREAD_THETA);
+        let (o, to) = cell(uo, SPREAD_THETA);
+        // Evenly in sqrt(tau), as the nodes are.
+        let top = (SPREAD_DEPTH_NODES - 1) as f32;
+        let f = ((tau / SPREAD_DEPTH).clamp(0.0, 1.0).sqrt() * top).min(top - 1e-3);
+        let (d, td) = (f as usize, f - f.floor());
+        let at = |i: usize, o: usize| {
+            let k = (i * SPREAD_THETA + o) * SPREAD_DEPTH_NODES + d;
+            let (a, b) = (&self.spread[k], &self.spread[k + 1]);
+            (
+                a.lobes + (b.lobes - a.lobes) * td,
+                a.back + (b.back - a.back) * td,
+            )
+        };
+        let mix =
+            |(a, b): (Vec4, Vec4), (c, d): (Vec4, Vec4), t: f32| (a + (c - a) * t, b + (d - b) * t);
+        let near = mix(at(i, o), at(i, o + 1), to);
+        let far = mix(at(i + 1, o), at(i + 1, o + 1), to);
+        let (lobes, back) = mix(near, far, ti);
+        Spread { lobes, back }
     }
 
     fn averages(&self, ui: f32) -> Averages {
@@ -279,6 +366,41 @@ impl DualTable {
     /// ([`super::FiberTable::radiance`]), `ui`, `uo` and `cos_phi` the
     /// directions as for it.
     pub fn radiance(&self, single: Vec3, t: f32, ui: f32, uo: f32, cos_phi: f32) -> Vec3 {
+        let a = self.averages(ui);
+        let a_back = Vec3::from(a.a_back) * (DENSITY_BACK / (2.0 * PI));
+        let t = if t.is_finite() {
+            t.clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
+        let tau = optical_depth(t);
+        let m = self.spread(ui, uo, tau);
+        let mut l = t * (single + a_back * m.back.y);
+        if tau > 0.0 {
+            let t_f = Vec3::from((a.rest_f * -tau).exp());
+            let forward = (t_f - Vec3::splat(t)).max(Vec3::ZERO);
+            if forward.max_element() > 0.0 {
+                let ng = self.azimuthal_spread(uo, cos_phi);
+                let single_g =
+                    ng[0] * m.lobes.x + ng[1] * m.lobes.y + ng[2] * m.lobes.z + ng[3] * m.lobes.w;
+                l += DENSITY_FORWARD * forward * (single_g + a_back * m.back.x);
+            }
+        }
+        debug_assert!(l.is_finite(), "{l}");
+        l
+    }
+
+    /// [`Self::radiance`] with every lobe evaluated rather than looked up
+    /// (what the table is tested against).
+    #[cfg(test)]
+    pub(super) fn radiance_exact(
+        &self,
+        single: Vec3,
+        t: f32,
+        ui: f32,
+        uo: f32,
+        cos_phi: f32,
+    ) -> Vec3 {
         let a = self.averages(ui);
         let a_back = Vec3::from(a.a_back);
         let back = |spread: f32| a_back * lobe(ui, uo, a.delta_b, a.sigma_b2 + spread) / (2.0 * PI);
