@@ -248,9 +248,19 @@ impl DensityMap {
     /// crosses a slab boundary is walked by both slabs, which costs less
     /// than writing and reading back every deposit.
     pub fn deposit(&mut self, hair: &Hair, strands: Range<usize>, fiber: &Fiber) -> FillStats {
-        // Fixed-point optical depth per cell of piece length across the light.
-        let k_q =
-            (f64::from(fiber.cross_section()) / f64::from(self.frame.ds) / DEPTH_QUANTUM) as f32;
+        // Fixed-point optical depth per cell of piece length across the
+        // light (for a fan, per unit of `across / x`, see `Spread`).
+        let width = match &self.frame.fan {
+            None => self.frame.ds,
+            Some(f) => f.du,
+        };
+        let k_q = (f64::from(fiber.cross_section()) / f64::from(width) / DEPTH_QUANTUM) as f32;
+        let spread = self.frame.fan.map(|f| Spread {
+            frame: self.frame,
+            start: f.start,
+            du: f.du,
+            ds: self.frame.ds,
+        });
         if k_q == 0.0 || strands.is_empty() {
             return FillStats::default();
         }
@@ -347,7 +357,7 @@ impl DensityMap {
                 let (vis_lo, vis_hi) = rows.visits();
                 for (s, &(lo, hi)) in z_range.iter().enumerate() {
                     if !(hi < vis_lo || lo >= vis_hi) {
-                        stats = stats + strand_pieces(&mut rows, &pts[local(s)], k_q);
+                        stats = stats + strand_pieces(&mut rows, &pts[local(s)], k_q, spread);
                     }
                 }
                 stats
@@ -651,15 +661,62 @@ impl Rows<'_> {
     }
 }
 
+/// A fan's cells in the deposit (see [`crate::Fan`]): a piece spanning
+/// `(dj, dk)` cells across the rays at tangent-plane coordinates `(u, v)`
+/// and depth `x` crosses the rays of its column over the length
+///
+/// ```text
+/// |piece x e| = x du sqrt(Q / q),   Q = q (dj^2 + dk^2) - (u dj + v dk)^2,   q = 1 + u^2 + v^2
+/// ```
+///
+/// (`e` the unit ray; the piece's extent along the ray does not count),
+/// and the column's cross-section normal to the rays there is
+/// `x^2 du^2 / sqrt(q)` (the cell's area `x^2 du^2` in the plane of depth
+/// `x`, which the rays cross at `cos = 1 / sqrt(q)`), so that the optical
+/// depth the piece adds to each ray of the column is
+///
+/// ```text
+/// tau = alpha w |piece x e| sqrt(q) / (x^2 du^2) = alpha w sqrt(Q) / (x du)
+/// ```
+///
+/// which for parallel rays (`u = v = 0`, `x du = ds`) is the cubic map's
+/// `alpha w sqrt(dj^2 + dk^2) / ds`.
+///
+/// A straight fiber is not straight in map coordinates (depth and
+/// tangent-plane coordinates vary projectively along it), so its pieces
+/// are cut evenly in the world and each mapped on its own.
+#[derive(Debug, Clone, Copy)]
+struct Spread {
+    frame: LightFrame,
+    start: Vec3,
+    du: f32,
+    ds: f32,
+}
+
+impl Spread {
+    /// `tau / (alpha w / du)` of a piece at `mid` spanning `step` (cells).
+    #[inline]
+    fn weight(&self, mid: Vec3, step: Vec3) -> f32 {
+        let x = self.start.x + mid.x * self.ds;
+        let u = self.start.y + mid.y * self.du;
+        let v = self.start.z + mid.z * self.du;
+        let q = 1.0 + u * u + v * v;
+        let cross = u * step.y + v * step.z;
+        let across = (q * (step.y * step.y + step.z * step.z) - cross * cross).max(0.0);
+        across.sqrt() / x.max(1e-30)
+    }
+}
+
 /// Cuts one strand (points in map coordinates) into pieces no longer than
-/// a cell, deposits those that reach `rows` and counts those it owns.
+/// a cell, deposits those that reach `rows` and counts those it owns. For
+/// a fan each piece's weight is its own ([`Spread`]).
 ///
 /// A segment well inside the map (both ends within a cell of it) walks its
 /// pieces in fixed point, with integer cells and weights; one reaching
 /// further out walks them in floating point, where a far coordinate cannot
 /// overflow an integer.
 #[inline]
-fn strand_pieces(rows: &mut Rows, pts: &[Vec3], k_q: f32) -> FillStats {
+fn strand_pieces(rows: &mut Rows, pts: &[Vec3], k_q: f32, spread: Option<Spread>) -> FillStats {
     let mut stats = FillStats::default();
     let n = rows.n as f32;
     let max_pieces = (4 * rows.n) as f32;
@@ -677,10 +734,50 @@ fn strand_pieces(rows: &mut Rows, pts: &[Vec3], k_q: f32) -> FillStats {
         let inv_m = 1.0 / m as f32;
         // Quanta of one piece; below half a quantum it rounds to nothing.
         let q = (k_q * across * inv_m).min(u32::MAX as f32);
-        if q < 0.5 {
+        if q < 0.5 && spread.is_none() {
             continue;
         }
         let step = d * inv_m;
+        if let Some(f) = spread {
+            // Pieces cut evenly in the world, each mapped on its own; none
+            // of a segment reaching behind the source.
+            if a == crate::frame::BEHIND || b == crate::frame::BEHIND {
+                stats.out_of_map += u64::from(m) * u64::from(rows.owns(a.z.floor() as i32));
+                continue;
+            }
+            let (aw, bw) = (f.frame.to_world(a), f.frame.to_world(b));
+            let dw = (bw - aw) * inv_m;
+            let mut p0 = a;
+            for k in 0..m {
+                let p1 = if k + 1 == m {
+                    b
+                } else {
+                    f.frame.to_cells(aw + (k + 1) as f32 * dw)
+                };
+                let (mid, step) = (f.frame.to_cells(aw + (k as f32 + 0.5) * dw), p1 - p0);
+                p0 = p1;
+                let own = rows.owns(mid.z.floor() as i32);
+                if !(mid.cmpge(Vec3::ZERO).all() && mid.cmplt(Vec3::splat(n)).all()) {
+                    stats.out_of_map += u64::from(own);
+                    continue;
+                }
+                let q = (k_q * f.weight(mid, step)).min(u32::MAX as f32);
+                let front = mid.x - 0.5 * step.x.abs();
+                let (fy, fz) = (mid.y - 0.5, mid.z - 0.5);
+                let (j0, k0) = ((fy + 1.0) as i32 - 1, (fz + 1.0) as i32 - 1);
+                let (ty, tz) = (fy - j0 as f32, fz - k0 as f32);
+                let (sy, sz) = (1.0 - ty, 1.0 - tz);
+                let qs = [
+                    (q * sy * sz + 0.5) as u32,
+                    (q * ty * sz + 0.5) as u32,
+                    (q * sy * tz + 0.5) as u32,
+                    (q * ty * tz + 0.5) as u32,
+                ];
+                rows.splat(j0, k0, mid.x as u32, qs, front);
+                stats.samples += u64::from(own);
+            }
+            continue;
+        }
         if near(a) && near(b) {
             let fx = |v: Vec3| (v * (1 << FX) as f32).as_ivec3();
             let s = fx(step);

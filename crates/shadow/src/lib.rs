@@ -26,7 +26,7 @@ mod transmittance;
 
 pub use density::{ColumnMeta, DEPOSIT_RUN_WORK, DEPTH_QUANTUM, DensityMap, FillStats, MAX_CELLS};
 pub use fiber::Fiber;
-pub use frame::{Extent, Light, LightFrame};
+pub use frame::{Extent, Fan, Light, LightFrame, MAX_FAN_TAN};
 pub use method::{
     Beyond, DensityMapMethod, MethodConfig, OPAQUE_DEPTH, OpacityMode, ShadowInput, ShadowMethod,
 };
@@ -45,6 +45,17 @@ pub enum ShadowError {
     FiberOpacity(f32),
     #[error("light direction {0} is zero or not finite")]
     LightDirection(glam::Vec3),
+    #[error("light {what} = {value}: {why}")]
+    LightSetting {
+        what: &'static str,
+        value: String,
+        why: &'static str,
+    },
+    #[error(
+        "the light at {position} is inside the hair or too close to it: all of it must lie \
+         within {max_deg} degrees of the direction from the light to the hair, in front of the light"
+    )]
+    LightInside { position: glam::Vec3, max_deg: f32 },
     #[error("map of {0} cells a side is outside 1..={MAX_CELLS}")]
     Cells(u32),
     #[error("map size {0} is not a finite number > 0")]

@@ -57,6 +57,27 @@ impl Occluder {
     pub fn entries(&self, frame: &LightFrame) -> Vec<(u32, f32)> {
         let n = frame.n_cells as usize;
         match self {
+            Occluder::Sphere { center, radius } if frame.fan.is_some() => {
+                // Each column's centre ray from the source against the
+                // sphere: |s + t e - c|^2 = r^2, the nearer root.
+                let s = frame.fan.map_or(Vec3::ZERO, |f| f.source);
+                let mut out = Vec::new();
+                for k in 0..n {
+                    for j in 0..n {
+                        let through =
+                            frame.to_world(Vec3::new(0.0, j as f32 + 0.5, k as f32 + 0.5));
+                        let e = (through - s).normalize();
+                        let m = s - *center;
+                        let b = m.dot(e);
+                        let h2 = b * b - (m.length_squared() - radius * radius);
+                        if h2 >= 0.0 {
+                            let t = -b - h2.sqrt();
+                            out.push(((k * n + j) as u32, frame.to_cells(s + t.max(0.0) * e).x));
+                        }
+                    }
+                }
+                out
+            }
             Occluder::Sphere { center, radius } => {
                 let c = frame.to_cells(*center);
                 let r = radius / frame.ds;

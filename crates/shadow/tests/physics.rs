@@ -279,3 +279,90 @@ fn results_are_the_same_bytes_on_any_number_of_threads() {
         );
     }
 }
+
+/// Transmittance of a point light at `source` over a grid of points at
+/// depth `x` below the slab's top face `y = h`, away from the sides: the
+/// map's mean, and the mean of each ray's exact Beer-Lambert attenuation
+/// `exp(-n w alpha sin(theta) L)`, `L` the ray's length in the slab and
+/// `theta` its angle to the fibers (along `dir`).
+fn point_lit_means(
+    t: &Transmittance,
+    source: Vec3,
+    kappa_per_sin: f32,
+    dir: Vec3,
+    h: f32,
+    x: f32,
+    inner: f32,
+) -> (f32, f32) {
+    let m = 24;
+    let (mut got, mut want) = (0.0, 0.0);
+    for a in 0..m {
+        for b in 0..m {
+            let px = -inner + 2.0 * inner * (a as f32 + 0.5) / m as f32;
+            let pz = -inner + 2.0 * inner * (b as f32 + 0.5) / m as f32;
+            let p = Vec3::new(px, h - x, pz);
+            let e = (p - source).normalize();
+            let length = x / e.y.abs();
+            let sin = e.cross(dir.normalize()).length();
+            got += t.transmittance(p, true);
+            want += (-kappa_per_sin * sin * length).exp();
+        }
+    }
+    let k = (m * m) as f32;
+    (got / k, want / k)
+}
+
+#[test]
+fn a_point_light_close_to_a_slab_follows_beer_lambert_along_every_ray() {
+    let fiber = Fiber::new(0.0004, 0.5).unwrap();
+    let (s, h, n) = (0.6, 1.0, 10_000.0);
+    // Half the slab's thickness above its top face: rays cross it at up
+    // to 40 degrees from the axis.
+    let source = Vec3::new(0.0, h + 0.5, 0.0);
+    let light = Light::point(source, 1.0).unwrap();
+    let kappa_per_sin = n * fiber.width() * fiber.opacity();
+    // Fibers across the axis, slanted, and pointing at the light (along
+    // y: a directional light along -y would see no fiber at all).
+    for dir in [Vec3::X, Vec3::new(1.0, -1.0, 0.3), Vec3::Y] {
+        let hair = fiber_slab(dir, n, s, h, 7);
+        let t = shadow_of(&hair, &light, &fiber, 128);
+        for x in [0.1f32, 0.25, 0.5, 0.75, 0.9] {
+            let (got, want) = point_lit_means(&t, source, kappa_per_sin, dir, h, x, 0.35);
+            assert!(
+                (got - want).abs() < 0.02,
+                "fibers along {dir}, depth {x}: T = {got}, Beer-Lambert {want}"
+            );
+            if dir == Vec3::Y && x >= 0.5 {
+                assert!(
+                    want < 0.9,
+                    "off the axis, rays cross upright fibers: {want}"
+                );
+            }
+        }
+        // Between the light and the hair the light is whole.
+        for p in [Vec3::new(0.0, h + 0.01, 0.0), Vec3::new(0.2, h + 0.3, -0.1)] {
+            assert_eq!(t.transmittance(p, true), 1.0, "{p}");
+            assert_eq!(t.transmittance(p, false), 1.0, "{p}");
+        }
+    }
+}
+
+#[test]
+fn a_point_light_far_away_casts_the_directional_shadow() {
+    let fiber = Fiber::new(0.0004, 0.5).unwrap();
+    let hair = fiber_slab(Vec3::new(1.0, -0.4, 0.3), 8000.0, 0.6, 1.0, 11);
+    let far = Light::point(Vec3::new(0.0, 1e4, 0.0), 1e8).unwrap();
+    let sun = Light::directional(Vec3::NEG_Y).unwrap();
+    let (a, b) = (
+        shadow_of(&hair, &far, &fiber, 128),
+        shadow_of(&hair, &sun, &fiber, 128),
+    );
+    for x in [0.1f32, 0.5, 0.9] {
+        let got = mean_t_at_depth(&a, 1.0, x, 0.4, Quat::IDENTITY);
+        let want = mean_t_at_depth(&b, 1.0, x, 0.4, Quat::IDENTITY);
+        assert!(
+            (got - want).abs() < 0.01,
+            "depth {x}: point {got}, directional {want}"
+        );
+    }
+}
