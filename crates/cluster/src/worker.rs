@@ -1096,7 +1096,7 @@ impl Worker for WorkerService {
                 .transpose()
                 .map_err(invalid)?;
             let mut reader =
-                wire::ColumnsReader::new(if job.shadows { job.to_lights.len() } else { 0 });
+                wire::ColumnsReader::new(if job.shadows { job.lights.len() } else { 0 });
             // The swept columns' memory, held until the picture is drawn.
             let mut received = Grant::default();
             let memory = self.budget(&session);
@@ -1127,7 +1127,7 @@ impl Worker for WorkerService {
             // The columns swept here, or those the call brought.
             let (maps, kept) = if exchanged && job.shadows {
                 let (store, version, lights) =
-                    (session.swept.clone(), job.version, job.to_lights.len());
+                    (session.swept.clone(), job.version, job.lights.len());
                 let wait = bands.as_ref().map_or(Duration::from_secs(30), |b| b.wait);
                 tokio::task::spawn_blocking(move || store.take(version, lights, wait))
                     .await

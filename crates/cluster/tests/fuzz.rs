@@ -81,7 +81,7 @@ fn check_all(bytes: &[u8]) {
         if let Some(j) = &m.job
             && let Ok(job) = wire::job_from_pb(j)
         {
-            assert!(job.camera.width() >= 1 && job.to_lights.len() <= wire::MAX_LIGHTS);
+            assert!(job.camera.width() >= 1 && job.lights.len() <= wire::MAX_LIGHTS);
         }
         let mut reader = wire::ColumnsReader::new(1);
         if reader.add(&m).is_ok()

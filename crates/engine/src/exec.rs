@@ -100,8 +100,9 @@ pub struct DrawJob {
     pub look: HairLook,
     /// Kajiya-Kay settings (the highlight off when the effect is).
     pub shading: Shading,
-    /// The unit direction towards each light.
-    pub to_lights: Vec<Vec3>,
+    /// The lights, in order (each vertex is lit from its own direction
+    /// with the light's falloff there).
+    pub lights: Vec<shadow::Light>,
     /// Whether the lights' transmittance is looked up at every vertex;
     /// otherwise it is 1.
     pub shadows: bool,

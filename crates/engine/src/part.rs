@@ -10,6 +10,7 @@ use raster::{
     kajiya_kay,
 };
 use rayon::prelude::*;
+use shadow::Light;
 use strands::Hair;
 
 use crate::Head;
@@ -69,23 +70,24 @@ impl HairPart {
     }
 
     /// Shading at every vertex of `hair` with its strand's colour, seen
-    /// from `eye`, lit from `to_lights` (unit directions towards each
-    /// light) through the transmittance of the last [`Self::filter`]
-    /// (`shadows`) or by full light: Kajiya-Kay, or a physically based
-    /// fiber (its [`FiberTable`]), as `shading.model` says. The ambient
-    /// term is added once.
+    /// from `eye`, lit by `lights` (each from its direction at the vertex,
+    /// scaled by its falloff there, [`Light::falloff`]) through the
+    /// transmittance of the last [`Self::filter`] (`shadows`) or by full
+    /// light: Kajiya-Kay, or a physically based fiber (its
+    /// [`FiberTable`]), as `shading.model` says. The ambient term is added
+    /// once.
     pub fn shade(
         &mut self,
         hair: &Hair,
         eye: Vec3,
         shading: &Shading,
-        to_lights: &[Vec3],
+        lights: &[Light],
         shadows: bool,
     ) {
         let points = hair.points();
         if shadows {
             assert!(
-                self.trans.len() == to_lights.len()
+                self.trans.len() == lights.len()
                     && self.trans.iter().all(|t| t.len() == points.len()),
                 "filter runs before shading with shadows"
             );
@@ -149,20 +151,26 @@ impl HairPart {
                     let (a, b) = (pts[v.saturating_sub(1)], pts[(v + 1).min(pts.len() - 1)]);
                     let tangent = (b - a).normalize_or(Vec3::Y);
                     let to_eye = (eye - pts[v]).normalize_or(Vec3::Z);
+                    let p = pts[v];
+                    // Each light's direction towards it and its falloff
+                    // (1 for a directional light: the same bits).
+                    let at = |l: &Light| (-l.direction_at(p), l.falloff(p));
                     let tr = |l: usize| if shadows { trans[l][base + v] } else { 1.0 };
                     *o = match table {
-                        None => to_lights
+                        None => lights
                             .iter()
                             .enumerate()
-                            .map(|(l, &to_light)| {
+                            .map(|(l, light)| {
                                 let sh = if l == 0 { shading } else { &rest_lights };
-                                kajiya_kay(sh, color, tangent, to_light, to_eye, tr(l))
+                                let (to_light, scale) = at(light);
+                                kajiya_kay(sh, color, tangent, to_light, to_eye, tr(l) * scale)
                             })
                             .fold(Vec3::ZERO, |c, x| c + x),
                         Some((tables, irradiance)) => {
                             let uo = tangent.dot(to_eye).clamp(-1.0, 1.0);
                             let mut c = shading.ambient * color;
-                            for (l, &to_light) in to_lights.iter().enumerate() {
+                            for (l, light) in lights.iter().enumerate() {
+                                let (to_light, scale) = at(light);
                                 let ui = tangent.dot(to_light).clamp(-1.0, 1.0);
                                 // cos phi between the light's and the eye's
                                 // directions across the fiber, from unit
@@ -178,9 +186,9 @@ impl HairPart {
                                 match &tables.dual {
                                     Some(dual) => {
                                         let r = dual.radiance(single, tr(l), ui, uo, cos_phi);
-                                        c += irradiance * r;
+                                        c += irradiance * scale * r;
                                     }
-                                    None => c += tr(l) * irradiance * single,
+                                    None => c += tr(l) * scale * irradiance * single,
                                 }
                             }
                             debug_assert!(c.is_finite());
@@ -293,29 +301,32 @@ impl HairPart {
     }
 }
 
-/// The head's colour at a surface point of unit normal `n`: Lambert under
-/// the hair's shadow,
+/// The head's colour at a surface point `p` of unit normal `n`: Lambert
+/// under the hair's shadow,
 ///
 /// ```text
-/// Phi = k_a C + sum_l T_l (1 - k_a) C max(n . L_l, 0)
+/// Phi = k_a C + sum_l E_l T_l (1 - k_a) C max(n . L_l, 0)
 /// ```
 ///
 /// with `C` the head's linear colour, `k_a` the ambient share, `L_l` the
-/// unit direction towards light `l` (`to_lights`) and `T_l` its
+/// unit direction towards light `l` at `p`, `E_l` its falloff there
+/// ([`Light::falloff`], 1 for a directional light) and `T_l` its
 /// transmittance there, `trans(l)` (asked only where the light reaches
 /// the surface).
 pub fn head_lambert(
     color: Vec3,
     ambient: f32,
-    to_lights: &[Vec3],
+    lights: &[Light],
+    p: Vec3,
     n: Vec3,
     trans: impl Fn(usize) -> f32,
 ) -> Vec3 {
     let mut c = ambient * color;
-    for (l, &to_light) in to_lights.iter().enumerate() {
-        let lambert = n.dot(to_light).max(0.0);
-        if lambert > 0.0 {
-            c += trans(l) * lambert * (1.0 - ambient) * color;
+    for (l, light) in lights.iter().enumerate() {
+        let lambert = n.dot(-light.direction_at(p)).max(0.0);
+        let scale = light.falloff(p);
+        if lambert > 0.0 && scale > 0.0 {
+            c += trans(l) * scale * lambert * (1.0 - ambient) * color;
         }
     }
     c
@@ -361,10 +372,8 @@ mod tests {
             },
             ..Shading::default()
         };
-        let (eye, lights) = (
-            Vec3::new(0.0, 1.0, 10.0),
-            [Vec3::new(1.0, 0.2, 0.1).normalize()],
-        );
+        let eye = Vec3::new(0.0, 1.0, 10.0);
+        let lights = [Light::directional(-Vec3::new(1.0, 0.2, 0.1)).unwrap()];
         let shaded = |multiple, shadows| {
             let mut part = HairPart::default();
             part.filter(&hair, 1, |_, _, t| t.fill(0.2));

@@ -300,7 +300,15 @@ impl ShadowPipeline {
 /// [`ShadowPipeline::transmittance_off_surface`].
 pub fn off_surface(f: &shadow::LightFrame, p: Vec3, n: Vec3) -> Vec3 {
     let n = n.normalize_or_zero();
-    p + (n * HEAD_NORMAL_BIAS - f.axes[0] * HEAD_LIGHT_BIAS) * f.ds
+    match &f.fan {
+        None => p + (n * HEAD_NORMAL_BIAS - f.axes[0] * HEAD_LIGHT_BIAS) * f.ds,
+        Some(fan) => {
+            // Along the ray through p, by the cell's size there.
+            let ray = (p - fan.source).normalize_or(f.axes[0]);
+            let width = f.cell_width(f.to_cells(p).x).max(f.ds);
+            p + (n * HEAD_NORMAL_BIAS - ray * HEAD_LIGHT_BIAS) * width
+        }
+    }
 }
 
 /// The median of `v` (the mean of the middle two for even lengths).

@@ -223,9 +223,9 @@ impl Renderer {
         self.draw(hair, shadows)
     }
 
-    /// Unit directions towards each light.
-    fn to_lights(&self) -> Vec<Vec3> {
-        self.shadows.lights().map(|l| -l.direction()).collect()
+    /// The lights, in order.
+    fn lights(&self) -> Vec<shadow::Light> {
+        self.shadows.lights().copied().collect()
     }
 
     /// Kajiya-Kay shading at every drawn vertex with the strand's colour,
@@ -233,9 +233,9 @@ impl Renderer {
     /// by full light.
     pub fn shade(&mut self, hair: &Hair, shadows: bool) -> Result<(), EngineError> {
         let eye = self.view(hair)?.camera.position;
-        let to_lights = self.to_lights();
+        let lights = self.lights();
         self.part
-            .shade(hair, eye, &self.scene.shading, &to_lights, shadows);
+            .shade(hair, eye, &self.scene.shading, &lights, shadows);
         Ok(())
     }
 
@@ -251,7 +251,7 @@ impl Renderer {
             camera: view.camera,
             look: self.look(&view),
             shading: s.shading,
-            to_lights: self.to_lights(),
+            lights: self.lights(),
             shadows,
             filter: s.shadow.method.filter(),
             head: self.shadows.head_pose(),
@@ -272,7 +272,7 @@ impl Renderer {
         let view = self
             .view
             .ok_or_else(|| EngineError::Executor("the camera is framed before drawing".into()))?;
-        let to_lights = self.to_lights();
+        let lights = self.lights();
         let s = &self.scene;
         if self.canvas.is_none() {
             self.canvas = Some(Canvas::new(s.render.width, s.render.height)?);
@@ -285,7 +285,7 @@ impl Renderer {
             let ambient = s.shading.ambient;
             let color = head.settings().color;
             let shade = |p: Vec3, n: Vec3| {
-                head_lambert(color, ambient, &to_lights, n, |l| {
+                head_lambert(color, ambient, &lights, p, n, |l| {
                     // Off the surface: past the head's own deposit.
                     if head_shadow {
                         pipeline.transmittance_off_surface(l, p, n)

@@ -195,7 +195,11 @@ struct RawFiber {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawLight {
-    direction: [f32; 3],
+    direction: Option<[f32; 3]>,
+    position: Option<[f32; 3]>,
+    cone_deg: Option<f32>,
+    falloff_deg: Option<f32>,
+    intensity: Option<f32>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -450,6 +454,9 @@ pub struct Scene {
 
 /// Defaults, documented in the module comment and README.
 pub const DEFAULT_LIGHT_DIRECTION: [f32; 3] = [0.9, -0.35, -0.25];
+/// A spot light's cone and soft edge, degrees.
+pub const DEFAULT_CONE_DEG: f32 = 30.0;
+pub const DEFAULT_FALLOFF_DEG: f32 = 5.0;
 pub const DEFAULT_FIBER_WIDTH: f32 = 0.1;
 pub const DEFAULT_FOLLOW_RADIUS: f32 = 0.4;
 pub const DEFAULT_FIBER_OPACITY: f32 = 0.5;
@@ -829,6 +836,89 @@ impl Validator<'_> {
         }
     }
 
+    /// One `[[light]]`: directional (`direction`), point (`position`) or
+    /// spot (`position`, `direction`, `cone_deg`, `falloff_deg`); a light
+    /// with a source has an `intensity` (default: irradiance 1 at
+    /// `head_center`, `intensity = r^2`).
+    fn light(&self, l: &RawLight, head_center: Vec3) -> Result<Light, SceneError> {
+        let finite = |field: &'static str, v: [f32; 3]| {
+            if v.iter().all(|x| x.is_finite()) {
+                Ok(Vec3::from_array(v))
+            } else {
+                Err(self.invalid(field, format!("{v:?}"), "must be finite"))
+            }
+        };
+        let Some(position) = l.position else {
+            for (field, set) in [
+                ("light.cone_deg", l.cone_deg.is_some()),
+                ("light.falloff_deg", l.falloff_deg.is_some()),
+                ("light.intensity", l.intensity.is_some()),
+            ] {
+                if set {
+                    return Err(self.invalid(
+                        field,
+                        "(set)",
+                        "applies to point and spot lights (with light.position)",
+                    ));
+                }
+            }
+            let d = l.direction.ok_or_else(|| {
+                self.invalid(
+                    "light",
+                    "(no direction or position)",
+                    "give direction (a directional light) or position (a point or spot light)",
+                )
+            })?;
+            return Light::directional(Vec3::from_array(d)).map_err(|_| {
+                self.invalid(
+                    "light.direction",
+                    format!("{d:?}"),
+                    "must be finite and not zero",
+                )
+            });
+        };
+        let position = finite("light.position", position)?;
+        let intensity = match l.intensity {
+            Some(i) if !(i.is_finite() && i > 0.0 && i <= 1e12) => {
+                return Err(self.invalid("light.intensity", i, "must be in (0, 1e12]"));
+            }
+            Some(i) => i,
+            None => (head_center - position).length_squared().max(1e-6),
+        };
+        let Some(direction) = l.direction else {
+            for (field, set) in [
+                ("light.cone_deg", l.cone_deg.is_some()),
+                ("light.falloff_deg", l.falloff_deg.is_some()),
+            ] {
+                if set {
+                    return Err(self.invalid(
+                        field,
+                        "(set)",
+                        "applies to spot lights (a position and a direction)",
+                    ));
+                }
+            }
+            return Light::point(position, intensity)
+                .map_err(|e| self.invalid("light.position", format!("{position}"), e.to_string()));
+        };
+        let direction = finite("light.direction", direction)?;
+        let cone = l.cone_deg.unwrap_or(DEFAULT_CONE_DEG);
+        if !(cone > 0.0 && cone < 90.0) {
+            return Err(self.invalid("light.cone_deg", cone, "must be in (0, 90) degrees"));
+        }
+        let falloff = l.falloff_deg.unwrap_or(DEFAULT_FALLOFF_DEG.min(cone));
+        if !(falloff >= 0.0 && falloff <= cone) {
+            return Err(self.invalid("light.falloff_deg", falloff, "must be in [0, cone_deg]"));
+        }
+        Light::spot(position, direction, cone, falloff, intensity).map_err(|_| {
+            self.invalid(
+                "light.direction",
+                format!("{direction}"),
+                "must be finite and not zero",
+            )
+        })
+    }
+
     fn color(
         &self,
         field: &'static str,
@@ -1127,7 +1217,11 @@ impl Validator<'_> {
 
         let raw_lights = match raw.light {
             None => vec![RawLight {
-                direction: DEFAULT_LIGHT_DIRECTION,
+                direction: Some(DEFAULT_LIGHT_DIRECTION),
+                position: None,
+                cone_deg: None,
+                falloff_deg: None,
+                intensity: None,
             }],
             Some(OneOrMany::One(l)) => vec![l],
             Some(OneOrMany::Many(ls)) => ls,
@@ -1142,17 +1236,10 @@ impl Validator<'_> {
                 format!("at most {MAX_LIGHTS} lights"),
             ));
         }
+        let head_center = Vec3::from_array(raw.head.center.unwrap_or([0.0; 3]));
         let lights = raw_lights
             .iter()
-            .map(|l| {
-                Light::directional(Vec3::from_array(l.direction)).map_err(|_| {
-                    self.invalid(
-                        "light.direction",
-                        format!("{:?}", l.direction),
-                        "must be finite and not zero",
-                    )
-                })
-            })
+            .map(|l| self.light(l, head_center))
             .collect::<Result<Vec<_>, _>>()?;
 
         let shadow = self.shadow(raw.shadow)?;

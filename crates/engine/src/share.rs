@@ -451,11 +451,11 @@ impl Share {
             }
         };
         if job.shadows {
-            if maps.len() != job.to_lights.len() {
+            if maps.len() != job.lights.len() {
                 return Err(EngineError::Executor(format!(
                     "{} maps for {} lights",
                     maps.len(),
-                    job.to_lights.len()
+                    job.lights.len()
                 )));
             }
             let t = Instant::now();
@@ -469,7 +469,7 @@ impl Share {
             hair,
             job.camera.position,
             &job.shading,
-            &job.to_lights,
+            &job.lights,
             job.shadows,
         );
         times.shade_ms = ms(t);
@@ -498,7 +498,7 @@ impl Share {
                 if !mine {
                     return Vec3::ZERO;
                 }
-                head_lambert(color, ambient, &job.to_lights, n, |l| {
+                head_lambert(color, ambient, &job.lights, p, n, |l| {
                     if head_shadow {
                         let m = &maps[l];
                         m.transmittance(off_surface(m.frame(), p, n), job.filter)

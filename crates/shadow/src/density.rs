@@ -873,6 +873,49 @@ pub(crate) fn for_each_segment(
     }
 }
 
+/// Walks a strand's pieces in a fan's map (see [`Spread`]): `f(mid,
+/// step, weight)` for each, `mid` and `step` in cells, `weight` its
+/// optical depth per `alpha w / du`; pieces cut evenly in the world, as
+/// many a segment as cells it spans (at most `4 n`). Segments reaching
+/// behind the source are skipped, and `behind` counts their pieces.
+pub(crate) fn for_each_fan_piece(
+    frame: &LightFrame,
+    pts: &[Vec3],
+    mut f: impl FnMut(Vec3, Vec3, f32),
+    mut behind: impl FnMut(u32),
+) {
+    let Some(fan) = frame.fan else {
+        return;
+    };
+    let spread = Spread {
+        frame: *frame,
+        start: fan.start,
+        du: fan.du,
+        ds: frame.ds,
+    };
+    let max_pieces = (4 * frame.n_cells) as f32;
+    for w in pts.windows(2) {
+        let (a, b) = (frame.to_cells(w[0]), frame.to_cells(w[1]));
+        let m = piece_count(b - a, max_pieces);
+        if a == crate::frame::BEHIND || b == crate::frame::BEHIND {
+            behind(m);
+            continue;
+        }
+        let dw = (w[1] - w[0]) / m as f32;
+        let mut p0 = a;
+        for k in 0..m {
+            let p1 = if k + 1 == m {
+                b
+            } else {
+                frame.to_cells(w[0] + (k + 1) as f32 * dw)
+            };
+            let (mid, step) = (frame.to_cells(w[0] + (k as f32 + 0.5) * dw), p1 - p0);
+            p0 = p1;
+            f(mid, step, spread.weight(mid, step));
+        }
+    }
+}
+
 /// Pieces a segment spanning `d` cells is cut into: `m = ceil` of its
 /// longest axis (at most `max_pieces`), at least 1, so that every piece
 /// spans at most one cell along each axis. (Truncating casts instead of

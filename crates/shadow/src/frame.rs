@@ -402,7 +402,7 @@ impl LightFrame {
             Some(f) => {
                 let r = p - f.source;
                 let x = r.dot(self.axes[0]);
-                if !(x > 0.0) {
+                if x.is_nan() || x <= 0.0 {
                     return BEHIND;
                 }
                 let inv = x.recip();

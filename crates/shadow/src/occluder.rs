@@ -279,7 +279,11 @@ impl OccluderView {
     /// Whether the ray from `p` (world coordinates) towards the light
     /// passes through a body.
     pub fn blocks(&self, p: Vec3) -> bool {
-        let dir = self.frame.axes[0];
+        // Towards the source along p's own ray, for a light with one.
+        let dir = match &self.frame.fan {
+            None => self.frame.axes[0],
+            Some(f) => (p - f.source).normalize_or(self.frame.axes[0]),
+        };
         if self
             .spheres
             .iter()

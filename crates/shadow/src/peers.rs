@@ -67,8 +67,9 @@ fn rasterize(frame: &LightFrame, input: &ShadowInput) -> (Fragments, FillStats) 
     let hair = input.hair;
     let offsets = hair.offsets();
     let points = hair.points();
-    // beta per cell of piece length across the light.
-    let k_beta = input.fiber.cross_section() / frame.ds;
+    // beta per cell of piece length across the light (for a fan, per
+    // unit of a piece's weight, see `density::for_each_fan_piece`).
+    let k_beta = input.fiber.cross_section() / frame.fan.map_or(frame.ds, |f| f.du);
     let strands = hair.strand_count();
     let per_chunk = strands.div_ceil(CHUNKS).max(1);
     let lists: Vec<(Vec<(u32, Frag)>, FillStats)> = (0..strands.div_ceil(per_chunk))
@@ -141,6 +142,30 @@ fn strand_fragments(
     let mut stats = FillStats::default();
     let n = frame.n_cells as i32;
     let nf = n as f32;
+    if frame.fan.is_some() {
+        let mut behind = 0u64;
+        crate::density::for_each_fan_piece(
+            frame,
+            pts,
+            |mid, step, weight| {
+                if !(mid.cmpge(Vec3::ZERO).all() && mid.cmplt(Vec3::splat(nf)).all()) {
+                    stats.out_of_map += 1;
+                    return;
+                }
+                stats.samples += 1;
+                let beta = k_beta * weight;
+                let frag = |w: f32| Frag {
+                    z: mid.x - 0.5 * step.x.abs(),
+                    len: step.x.abs(),
+                    beta: beta * w,
+                };
+                splat_fragment(mid, n, frag, out);
+            },
+            |m| behind += u64::from(m),
+        );
+        stats.out_of_map += behind;
+        return stats;
+    }
     crate::density::for_each_segment(frame, pts, |prev, d, across, m| {
         let step = d / m as f32;
         let beta = k_beta * across / m as f32;
@@ -157,24 +182,30 @@ fn strand_fragments(
                     len: step.x.abs(),
                     beta: beta * w,
                 };
-                let (fy, fz) = (mid.y - 0.5, mid.z - 0.5);
-                let (j0, k0) = ((fy + 1.0) as i32 - 1, (fz + 1.0) as i32 - 1);
-                let (ty, tz) = (fy - j0 as f32, fz - k0 as f32);
-                for (dj, dk, w) in [
-                    (0, 0, (1.0 - ty) * (1.0 - tz)),
-                    (1, 0, ty * (1.0 - tz)),
-                    (0, 1, (1.0 - ty) * tz),
-                    (1, 1, ty * tz),
-                ] {
-                    let (j, k) = (j0 + dj, k0 + dk);
-                    if w > 0.0 && (0..n).contains(&j) && (0..n).contains(&k) {
-                        out.push(((k * n + j) as u32, frag(w)));
-                    }
-                }
+                splat_fragment(mid, n, frag, out);
             }
         }
     });
     stats
+}
+
+/// A fragment `frag(w)` into each of the four pixels around `mid` with
+/// bilinear weight `w` (those in the map).
+fn splat_fragment(mid: Vec3, n: i32, frag: impl Fn(f32) -> Frag, out: &mut Vec<(u32, Frag)>) {
+    let (fy, fz) = (mid.y - 0.5, mid.z - 0.5);
+    let (j0, k0) = ((fy + 1.0) as i32 - 1, (fz + 1.0) as i32 - 1);
+    let (ty, tz) = (fy - j0 as f32, fz - k0 as f32);
+    for (dj, dk, w) in [
+        (0, 0, (1.0 - ty) * (1.0 - tz)),
+        (1, 0, ty * (1.0 - tz)),
+        (0, 1, (1.0 - ty) * tz),
+        (1, 1, ty * tz),
+    ] {
+        let (j, k) = (j0 + dj, k0 + dk);
+        if w > 0.0 && (0..n).contains(&j) && (0..n).contains(&k) {
+            out.push(((k * n + j) as u32, frag(w)));
+        }
+    }
 }
 
 /// Blends `f(pixel, x)` over the four pixels around `p` (bilinear, between

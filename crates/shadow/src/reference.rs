@@ -54,6 +54,8 @@ struct Built {
     segs: Vec<u32>,
     /// Fiber radius, in cells.
     radius: f32,
+    /// Fiber width, scene units.
+    width: f32,
     transmit: f32,
     /// Footprint side, in cells.
     side: f32,
@@ -77,7 +79,28 @@ impl ShadowMethod for Reference {
     fn build(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
         let frame = input.fit(GRID)?;
         let n = GRID as i32;
-        let hair = input.hair;
+        // In a fan's cells a long straight fiber is not straight (its depth
+        // varies projectively along it): cut it, evenly in the world, into
+        // segments no longer than a cell, as the density map does.
+        let fine = frame.fan.map(|_| {
+            let max_pieces = (4 * GRID) as f32;
+            let mut fine =
+                strands::Hair::with_capacity(input.hair.strand_count(), input.hair.point_count());
+            let mut pts = Vec::new();
+            for st in input.hair.strands() {
+                pts.clear();
+                pts.push(st[0]);
+                for w in st.windows(2) {
+                    let d = frame.to_cells(w[1]) - frame.to_cells(w[0]);
+                    let m = crate::density::piece_count(d, max_pieces);
+                    pts.extend((1..=m).map(|k| w[0] + (w[1] - w[0]) * (k as f32 / m as f32)));
+                }
+                fine.push_strand(&pts)
+                    .expect("points between finite points are finite");
+            }
+            fine
+        });
+        let hair = fine.as_ref().unwrap_or(input.hair);
         let cells: Vec<Vec3> = hair.points().iter().map(|&p| frame.to_cells(p)).collect();
         let mut strand = Vec::with_capacity(cells.len());
         for (s, st) in hair.strands().enumerate() {
@@ -91,10 +114,19 @@ impl ShadowMethod for Reference {
                 offsets_of_strands[s]..offsets_of_strands[s + 1].saturating_sub(1)
             })
         };
+        // Across the rays a fan's fiber is wider in cells nearer the source.
+        let radius_at = |a: Vec3, b: Vec3| match &frame.fan {
+            None => radius,
+            Some(f) => {
+                let x = f.start.x + a.x.min(b.x).max(0.0) * frame.ds;
+                0.5 * input.fiber.width() / (x.max(1e-30) * f.du)
+            }
+        };
         let columns = |s: u32| {
             let (a, b) = (cells[s as usize], cells[s as usize + 1]);
-            let lo = a.min(b) - radius;
-            let hi = a.max(b) + radius;
+            let r = radius_at(a, b);
+            let lo = a.min(b) - r;
+            let hi = a.max(b) + r;
             let j = (lo.y.max(0.0) as i32).min(n - 1)..=(hi.y.max(0.0) as i32).min(n - 1);
             let k = (lo.z.max(0.0) as i32).min(n - 1)..=(hi.z.max(0.0) as i32).min(n - 1);
             let outside = hi.y < 0.0 || hi.z < 0.0 || lo.y >= n as f32 || lo.z >= n as f32;
@@ -151,6 +183,7 @@ impl ShadowMethod for Reference {
             start,
             segs,
             radius,
+            width: input.fiber.width(),
             side: a,
             transmit: 1.0 - input.fiber.opacity(),
             offsets,
@@ -200,8 +233,27 @@ impl ShadowMethod for Reference {
                 let (mut cover, mut last) = (0.0f64, u32::MAX);
                 for &s in cand.iter() {
                     let (a, e) = (b.cells[s as usize], b.cells[s as usize + 1]);
-                    let len = clipped_across(a, e, [y0, y1, z0, z1], before);
-                    if len <= 0.0 {
+                    let Some((t0, t1)) = clip(a, e, [y0, y1, z0, z1], before) else {
+                        continue;
+                    };
+                    // The area of the fiber's shadow inside the square, in
+                    // cells: its width times its length across the rays
+                    // (for a fan, w sqrt(Q) / (x du), see the density map).
+                    let d = e - a;
+                    let area = match &b.frame.fan {
+                        None => per_length * ((t1 - t0) * (d.y * d.y + d.z * d.z).sqrt()),
+                        Some(f) => {
+                            let mid = a + d * (0.5 * (t0 + t1));
+                            let x = f.start.x + mid.x * b.frame.ds;
+                            let (u, v) = (f.start.y + mid.y * f.du, f.start.z + mid.z * f.du);
+                            let q = 1.0 + u * u + v * v;
+                            let cross = u * d.y + v * d.z;
+                            let across = (q * (d.y * d.y + d.z * d.z) - cross * cross).max(0.0);
+                            b.width * across.sqrt() * (t1 - t0)
+                                / (x.max(1e-30) * f.du * b.side * b.side)
+                        }
+                    };
+                    if area.is_nan() || area <= 0.0 {
                         continue;
                     }
                     // The segments of one strand are one fiber (candidates
@@ -211,7 +263,7 @@ impl ShadowMethod for Reference {
                         t *= 1.0 - alpha * cover.min(1.0);
                         cover = 0.0;
                     }
-                    cover += f64::from(per_length * len);
+                    cover += f64::from(area);
                     last = strand;
                 }
                 t *= 1.0 - alpha * cover.min(1.0);
@@ -236,10 +288,10 @@ impl ShadowMethod for Reference {
     }
 }
 
-/// Length across the light (in cells) of the part of segment `a e` inside
-/// the square `y0..y1 x z0..z1` and in front of depth `before`
-/// (Liang-Barsky clipping).
-fn clipped_across(a: Vec3, e: Vec3, [y0, y1, z0, z1]: [f32; 4], before: f32) -> f32 {
+/// The part `t0..t1` of segment `a e` (`a + t (e - a)`) inside the square
+/// `y0..y1 x z0..z1` and in front of depth `before` (Liang-Barsky
+/// clipping), if any.
+fn clip(a: Vec3, e: Vec3, [y0, y1, z0, z1]: [f32; 4], before: f32) -> Option<(f32, f32)> {
     let d = e - a;
     let (mut t0, mut t1) = (0.0f32, 1.0f32);
     for (p, q) in [
@@ -251,7 +303,7 @@ fn clipped_across(a: Vec3, e: Vec3, [y0, y1, z0, z1]: [f32; 4], before: f32) -> 
     ] {
         if p == 0.0 {
             if q < 0.0 {
-                return 0.0;
+                return None;
             }
         } else {
             let r = q / p;
@@ -262,8 +314,5 @@ fn clipped_across(a: Vec3, e: Vec3, [y0, y1, z0, z1]: [f32; 4], before: f32) -> 
             }
         }
     }
-    if t1 <= t0 {
-        return 0.0;
-    }
-    (t1 - t0) * (d.y * d.y + d.z * d.z).sqrt()
+    (t1 > t0).then_some((t0, t1))
 }

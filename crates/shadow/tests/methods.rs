@@ -382,3 +382,66 @@ fn every_method_gives_the_same_bytes_on_any_number_of_threads() {
         );
     }
 }
+
+#[test]
+fn every_method_and_the_reference_follow_a_close_point_light_along_every_ray() {
+    // The slab lit by a point light half its thickness above it: each
+    // ray's exact attenuation exp(-n w alpha sin(theta) L), averaged over
+    // points of equal depth. The peer methods through the same partition
+    // from the source (a perspective light view); the reference from the
+    // fibers themselves.
+    let (s, h, n) = SLAB;
+    let theta = THETA_DEG.to_radians();
+    let source = Vec3::new(0.0, h + 0.5, 0.0);
+    let light = Light::point(source, 1.0).unwrap();
+    let kappa_per_sin = n * FIBER.0 * FIBER.1;
+    let grid = 16;
+    let inner = 0.35;
+    let error = |m: &dyn ShadowMethod, dir: Vec3| {
+        [0.1f32, 0.25, 0.5, 0.75, 0.9]
+            .iter()
+            .map(|&x| {
+                let points: Vec<Vec3> = (0..grid * grid)
+                    .map(|i| {
+                        let (a, b) = ((i % grid) as f32, (i / grid) as f32);
+                        Vec3::new(
+                            -inner + 2.0 * inner * (a + 0.5) / grid as f32,
+                            h - x,
+                            -inner + 2.0 * inner * (b + 0.5) / grid as f32,
+                        )
+                    })
+                    .collect();
+                let want = points
+                    .iter()
+                    .map(|&p| {
+                        let e = (p - source).normalize();
+                        (-kappa_per_sin * e.cross(dir).length() * x / e.y.abs()).exp()
+                    })
+                    .sum::<f32>()
+                    / points.len() as f32;
+                let mut t = vec![0.0; points.len()];
+                m.lookup(&points, &mut t);
+                let got = t.iter().sum::<f32>() / t.len() as f32;
+                (got - want).abs()
+            })
+            .fold(0.0, f32::max)
+    };
+    let mut configs: Vec<MethodConfig> = ladders().into_iter().map(|l| l[2]).collect();
+    configs.push(MethodConfig::Reference {
+        footprint: None,
+        rays: 64,
+    });
+    // Slanted fibers, and fibers pointing up at the light.
+    for dir in [Vec3::new(theta.sin(), -theta.cos(), 0.0), Vec3::Y] {
+        let hair = fiber_slab(dir, n, s, h, 7);
+        for c in &configs {
+            let err = error(&*run(c, &hair, &light, &[]), dir);
+            assert!(
+                err < 0.025,
+                "fibers along {dir}: {} {}: off by {err}",
+                c.name(),
+                c.parameters()
+            );
+        }
+    }
+}

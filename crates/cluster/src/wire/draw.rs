@@ -42,15 +42,72 @@ pub(crate) fn one_affine(what: &str, f: &[f32]) -> Result<Affine3A, Malformed> {
     }
 }
 
+/// Floats per light on the wire (see `Light` in worker.proto).
+const LIGHT_FLOATS: usize = 10;
+
+fn lights_to_floats(lights: &[Light]) -> Vec<f32> {
+    lights
+        .iter()
+        .flat_map(|l| {
+            let (kind, p, d, cone, falloff, i) = match *l {
+                Light::Directional { direction } => (0.0, Vec3::ZERO, direction, 0.0, 0.0, 0.0),
+                Light::Point {
+                    position,
+                    intensity,
+                } => (1.0, position, Vec3::ZERO, 0.0, 0.0, intensity),
+                Light::Spot {
+                    position,
+                    direction,
+                    cone_deg,
+                    falloff_deg,
+                    intensity,
+                } => (2.0, position, direction, cone_deg, falloff_deg, intensity),
+            };
+            [kind, p.x, p.y, p.z, d.x, d.y, d.z, cone, falloff, i]
+        })
+        .collect()
+}
+
+/// Lights as sent: at most [`MAX_LIGHTS`], each valid as its constructor
+/// checks, with a unit direction (taken as sent, bit for bit).
 fn lights_from_floats(f: &[f32]) -> Result<Vec<Light>, Malformed> {
-    if !f.len().is_multiple_of(3) || f.len() / 3 > MAX_LIGHTS {
+    if !f.len().is_multiple_of(LIGHT_FLOATS) || f.len() / LIGHT_FLOATS > MAX_LIGHTS {
         return Err(bad(format!(
-            "{} light values: not x, y, z triples, or more than {MAX_LIGHTS} lights",
+            "{} light values: not {LIGHT_FLOATS} a light, or more than {MAX_LIGHTS} lights",
             f.len()
         )));
     }
-    f.chunks_exact(3)
-        .map(|d| Light::directional(Vec3::from_slice(d)).map_err(|e| bad(e.to_string())))
+    f.chunks_exact(LIGHT_FLOATS)
+        .map(|v| {
+            let (p, d) = (Vec3::from_slice(&v[1..4]), Vec3::from_slice(&v[4..7]));
+            let unit = |d: Vec3| {
+                if d.is_finite() && (d.length() - 1.0).abs() <= 1e-3 {
+                    Ok(d)
+                } else {
+                    Err(bad(format!("light direction {d} is not a unit vector")))
+                }
+            };
+            let checked = |l: Result<Light, shadow::ShadowError>| l.map_err(|e| bad(e.to_string()));
+            let light = match v[0] {
+                0.0 => Light::Directional {
+                    direction: unit(d)?,
+                },
+                1.0 => checked(Light::point(p, v[9]))?,
+                2.0 => {
+                    // Validated by the constructor, the direction kept as sent.
+                    checked(Light::spot(p, unit(d)?, v[7], v[8], v[9]))?;
+                    Light::Spot {
+                        position: p,
+                        direction: d,
+                        cone_deg: v[7],
+                        falloff_deg: v[8],
+                        intensity: v[9],
+                    }
+                }
+                k => return Err(bad(format!("light kind {k}"))),
+            };
+            Ok(light)
+        })
         .collect()
 }
 
@@ -62,11 +119,7 @@ pub fn pose_plan_to_pb(p: &PosePlan) -> pb::PosePlan {
         ..Default::default()
     };
     bodies_to_floats(&p.drawn_bodies, &mut out.drawn_bodies);
-    out.lights = p
-        .lights
-        .iter()
-        .flat_map(|l| l.direction().to_array())
-        .collect();
+    out.lights = lights_to_floats(&p.lights);
     out
 }
 
@@ -176,7 +229,7 @@ pub fn job_to_pb(j: &DrawJob) -> pb::DrawJob {
             let (s, c) = (&j.shading, j.shading.specular_color);
             vec![s.ambient, s.diffuse, s.specular, s.shininess, c.x, c.y, c.z]
         },
-        to_lights: j.to_lights.iter().flat_map(|l| l.to_array()).collect(),
+        lights: lights_to_floats(&j.lights),
         shadows: j.shadows,
         filter: j.filter,
         head: j.head.to_cols_array().to_vec(),
@@ -293,16 +346,7 @@ pub fn job_from_pb(j: &pb::DrawJob) -> Result<DrawJob, Malformed> {
     if look.iter().any(|v| !v.is_finite() || *v < 0.0) {
         return Err(bad(format!("hair look {look:?}")));
     }
-    if !j.to_lights.len().is_multiple_of(3) || j.to_lights.len() / 3 > MAX_LIGHTS {
-        return Err(bad(format!("{} light direction values", j.to_lights.len())));
-    }
-    let to_lights: Vec<Vec3> = j.to_lights.chunks_exact(3).map(Vec3::from_slice).collect();
-    if to_lights
-        .iter()
-        .any(|l| !l.is_finite() || (l.length() - 1.0).abs() > 1e-3)
-    {
-        return Err(bad("a light direction that is not a unit vector"));
-    }
+    let lights = lights_from_floats(&j.lights)?;
     Ok(DrawJob {
         version: j.version,
         camera,
@@ -319,7 +363,7 @@ pub fn job_from_pb(j: &pb::DrawJob) -> Result<DrawJob, Malformed> {
             specular_color: Vec3::new(sr, sg, sb),
             model: model_from_pb(j)?,
         },
-        to_lights,
+        lights,
         shadows: j.shadows,
         filter: j.filter,
         head: one_affine("draw head", &j.head)?,
@@ -999,7 +1043,11 @@ mod tests {
                 depth_ref: 90.0,
             },
             shading: Shading::default(),
-            to_lights: vec![Vec3::new(-0.9, 0.35, 0.25).normalize()],
+            lights: vec![
+                Light::directional(Vec3::new(0.9, -0.35, -0.25)).unwrap(),
+                Light::point(Vec3::new(1.0, 20.0, 3.0), 400.0).unwrap(),
+                Light::spot(Vec3::new(-5.0, 20.0, 3.0), Vec3::NEG_Y, 25.0, 4.0, 300.0).unwrap(),
+            ],
             shadows: true,
             filter: false,
             head: plan.head,
@@ -1018,7 +1066,16 @@ mod tests {
         bad.width = 100_000;
         assert!(job_from_pb(&bad).is_err());
         let mut bad = job_to_pb(&job);
-        bad.to_lights = vec![0.0, 2.0, 0.0];
+        bad.lights = vec![0.0, 0.0, 0.0, 0.0, 0.0, 2.0, 0.0, 0.0, 0.0, 0.0];
+        assert!(job_from_pb(&bad).is_err());
+        let mut bad = job_to_pb(&job);
+        bad.lights[10] = 7.0;
+        assert!(job_from_pb(&bad).is_err(), "a light of no kind");
+        let mut bad = job_to_pb(&job);
+        bad.lights[29] = -1.0;
+        assert!(job_from_pb(&bad).is_err(), "a spot of negative intensity");
+        let mut bad = job_to_pb(&job);
+        bad.lights[27] = 95.0;
         assert!(job_from_pb(&bad).is_err());
         // The fiber, with multiple scattering and without.
         for multiple in [false, true] {

@@ -83,6 +83,13 @@ pub fn frame_to_pb(f: &LightFrame) -> pb::MapFrame {
         axes: f.axes.iter().flat_map(|a| a.to_array()).collect(),
         ds: f.ds,
         n_cells: f.n_cells,
+        fan: f.fan.map_or_else(Vec::new, |f| {
+            [f.source.to_array(), f.start.to_array()]
+                .concat()
+                .into_iter()
+                .chain([f.du])
+                .collect()
+        }),
     }
 }
 
@@ -113,11 +120,30 @@ pub fn frame_from_pb(m: Option<&pb::MapFrame>) -> Result<LightFrame, Malformed> 
             "map frame with a non-finite origin or an axis that is not a unit vector",
         ));
     }
+    let fan = match m.fan.len() {
+        0 => None,
+        7 => {
+            let v = &m.fan;
+            let fan = shadow::Fan {
+                source: Vec3::from_slice(&v[0..3]),
+                start: Vec3::from_slice(&v[3..6]),
+                du: v[6],
+            };
+            if !(fan.source.is_finite() && fan.start.is_finite() && fan.start.x > 0.0)
+                || !(fan.du.is_finite() && fan.du > 0.0)
+            {
+                return Err(bad(format!("map fan {v:?}")));
+            }
+            Some(fan)
+        }
+        k => return Err(bad(format!("map fan of {k} values (expected 0 or 7)"))),
+    };
     Ok(LightFrame {
         origin,
         axes,
         ds: m.ds,
         n_cells: m.n_cells,
+        fan,
     })
 }
 
