@@ -129,9 +129,12 @@ pub fn frame_from_pb(m: Option<&pb::MapFrame>) -> Result<LightFrame, Malformed> 
                 start: Vec3::from_slice(&v[3..6]),
                 du: v[6],
             };
-            if !(fan.source.is_finite() && fan.start.is_finite() && fan.start.x > 0.0)
-                || !(fan.du.is_finite() && fan.du > 0.0)
-            {
+            let valid = fan.source.is_finite()
+                && fan.start.is_finite()
+                && fan.start.x > 0.0
+                && fan.du.is_finite()
+                && fan.du > 0.0;
+            if !valid {
                 return Err(bad(format!("map fan {v:?}")));
             }
             Some(fan)
