@@ -66,6 +66,40 @@ fn probe_prints_one_row_per_point_in_order_and_full_light_above_the_hair() {
 }
 
 #[test]
+fn probe_reports_point_and_spot_lights_one_column_each() {
+    // A point light above the head and a spot light beside it, after a
+    // directional light: a column each; full light between each source and
+    // the hair, shadow under it. (Transmittance is the shadow alone; the
+    // falloff and the cone are the shading's.)
+    let dir = scratch("probe-point");
+    let scene = write(
+        &dir,
+        "scene.toml",
+        "[hair]\nstyle = \"smooth\"\nstrands_per_wisp = 3\n\n[shadow]\ncells = 64\n\n\
+         [[light]]\ndirection = [0, -1, 0]\n\n[[light]]\nposition = [0, 40, 0]\n\n\
+         [[light]]\nposition = [40, 0, 0]\ndirection = [-1, 0, 0]\ncone_deg = 40\n",
+    );
+    let points = write(&dir, "points.csv", "x,y,z\n0,30,0\n35,0,0\n0,0,0\n");
+    let o = wisplight(&["probe", &scene, "--points", &points]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    let rows: Vec<Vec<f32>> = out
+        .lines()
+        .skip(1)
+        .map(|r| r.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(
+        out.lines().next().unwrap(),
+        "x,y,z,transmittance_0,transmittance_1,transmittance_2"
+    );
+    // Between the point light and the crown; between the spot and the side.
+    assert_eq!(rows[0][4], 1.0, "{out}");
+    assert_eq!(rows[1][5], 1.0, "{out}");
+    // The head's centre is under hair from above and from the side.
+    assert!(rows[2][4] < 1.0 && rows[2][5] < 1.0, "{out}");
+}
+
+#[test]
 fn probe_names_the_file_line_and_field_of_bad_points() {
     let dir = scratch("badpoints");
     let scene = write(&dir, "scene.toml", SMALL);

@@ -1107,3 +1107,30 @@ fn a_physically_based_fiber_draws_the_same_bytes_on_workers() {
     let kk = Scene::from_toml_str(DANCE, std::path::Path::new("kk.toml")).unwrap();
     assert!(local_frames(&kk, 1)[0] != firsts[0]);
 }
+
+#[test]
+fn point_and_spot_lights_draw_the_same_bytes_on_workers() {
+    // The lights and their maps' partition from the source travel with
+    // the pose plan, the deposits and the draw job (protocol 12); the
+    // workers sum and sweep the fans among themselves.
+    let text = format!(
+        "{DANCE}\n[[light]]\nposition = [25, 30, 20]\n\
+         [[light]]\nposition = [-20, 35, 25]\ndirection = [0.5, -0.8, -0.4]\ncone_deg = 25\nfalloff_deg = 6\n"
+    );
+    let scene = Scene::from_toml_str(&text, std::path::Path::new("point.toml")).unwrap();
+    let want = local_frames(&scene, 2);
+    let addrs: Vec<String> = (0..3).map(|_| start_worker().to_string()).collect();
+    let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::Workers, 20)).unwrap();
+    let timing = remote.timing();
+    let mut seq = Sequence::new(&scene).unwrap();
+    seq.set_executor(Box::new(remote)).unwrap();
+    seq.expect_frames(want.len() as u64);
+    for (i, w) in want.iter().enumerate() {
+        assert!(seq.next_frame().unwrap().0 == w, "frame {i}");
+    }
+    let t = *timing.lock().unwrap();
+    assert_eq!((t.workers_lost, t.exchange_fallbacks), (0, 0), "{t:?}");
+    // And the lights matter: the directional default draws otherwise.
+    let sun = Scene::from_toml_str(DANCE, std::path::Path::new("sun.toml")).unwrap();
+    assert!(local_frames(&sun, 1)[0] != want[0]);
+}

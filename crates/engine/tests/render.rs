@@ -3,6 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use engine::{Renderer, Scene, build_hair};
+use glam::Vec3;
 
 /// A small scene: few strands on the default head, a 96x64 picture.
 fn small_scene(extra: &str) -> Scene {
@@ -452,4 +453,52 @@ fn multiple_scattering_gives_self_shadowed_blond_hair_back_its_light() {
         brown >= 1.0 && brown - 1.0 < 0.5 * (blond - 1.0),
         "brown {brown}x, blond {blond}x"
     );
+}
+
+#[test]
+fn nothing_is_lit_outside_a_spot_lights_cone() {
+    // A narrow hard-edged spot on part of the hair, no ambient light: a
+    // vertex outside the cone is black, whatever the shading model; one
+    // well inside it, in front of all hair, is lit.
+    for model in ["", "[shading]\nmodel = \"marschner\"\nambient = 0\n"] {
+        let text = format!(
+            "[hair]\nstrands_per_wisp = 2\n[render]\nwidth = 96\nheight = 64\n\
+             [[light]]\nposition = [40, 10, 30]\ndirection = [-0.8, -0.2, -0.6]\n\
+             cone_deg = 10\nfalloff_deg = 0\n{}",
+            if model.is_empty() {
+                "[shading]\nambient = 0\n"
+            } else {
+                model
+            }
+        );
+        let s = Scene::from_toml_str(&text, Path::new("spot.toml")).unwrap();
+        let mut seq = engine::Sequence::new(&s).unwrap();
+        seq.next_frame().unwrap();
+        let light = s.lights[0];
+        let (pos, dir) = (light.source().unwrap(), light.direction());
+        let cos_cone = 10f32.to_radians().cos();
+        let (mut dark, mut lit) = (0, 0);
+        for (p, c) in seq.hair().points().iter().zip(seq.renderer().colors()) {
+            let cos = (*p - pos).normalize().dot(dir);
+            if cos < cos_cone - 1e-4 {
+                assert_eq!(*c, Vec3::ZERO, "{p} outside the cone: {c}");
+                dark += 1;
+            } else if c.max_element() > 0.0 {
+                lit += 1;
+            }
+        }
+        assert!(
+            dark > 1000 && lit > 100,
+            "{model:?}: {dark} dark, {lit} lit"
+        );
+    }
+}
+
+#[test]
+fn a_light_inside_the_hair_is_refused_with_a_clear_error() {
+    let text = "[hair]\nstrands_per_wisp = 2\n[[light]]\nposition = [0, 0, 0]\n";
+    let s = Scene::from_toml_str(text, Path::new("inside.toml")).unwrap();
+    let mut seq = engine::Sequence::new(&s).unwrap();
+    let e = seq.next_frame().unwrap_err().to_string();
+    assert!(e.contains("inside the hair"), "{e}");
 }

@@ -53,7 +53,7 @@ pub enum ShadowError {
     },
     #[error(
         "the light at {position} is inside the hair or too close to it: all of it must lie \
-         within {max_deg} degrees of the direction from the light to the hair, in front of the light"
+         within {max_deg:.1} degrees of the direction from the light to the hair, in front of the light"
     )]
     LightInside { position: glam::Vec3, max_deg: f32 },
     #[error("map of {0} cells a side is outside 1..={MAX_CELLS}")]

@@ -154,6 +154,10 @@ fn strand_fragments(
                 }
                 stats.samples += 1;
                 let beta = k_beta * weight;
+                // As for parallel rays: a piece along its ray adds nothing.
+                if beta.is_nan() || beta <= 0.0 {
+                    return;
+                }
                 let frag = |w: f32| Frag {
                     z: mid.x - 0.5 * step.x.abs(),
                     len: step.x.abs(),

@@ -89,7 +89,7 @@ impl ShadowMethod for Reference {
             let mut pts = Vec::new();
             for st in input.hair.strands() {
                 pts.clear();
-                pts.push(st[0]);
+                pts.extend(st.first());
                 for w in st.windows(2) {
                     let d = frame.to_cells(w[1]) - frame.to_cells(w[0]);
                     let m = crate::density::piece_count(d, max_pieces);

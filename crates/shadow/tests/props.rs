@@ -1,6 +1,6 @@
 //! Property tests: random hair (with repeated points, one-point strands,
 //! points on a lattice of round coordinates), random lights (axis-aligned
-//! ones among them) and random points, for every shadow method. Every
+//! ones among them, point and spot lights) and random points, for every shadow method. Every
 //! result is finite and in [0, 1], never increases along the light, and is
 //! exactly 1 in front of all hair.
 
@@ -57,7 +57,14 @@ fn light() -> impl Strategy<Value = Light> {
             Vec3::NEG_Z,
         ][i]
     });
-    prop_oneof![any, axis].prop_map(|d| Light::directional(d).unwrap())
+    let directional = prop_oneof![any.clone(), axis].prop_map(|d| Light::directional(d).unwrap());
+    // Point and spot lights 20 to 60 away: outside the hair (within 9 of
+    // the origin), which they see within 30 degrees of their axis.
+    let at = (any.clone(), 20.0f32..60.0).prop_map(|(d, r)| d.normalize() * r);
+    let point = (at.clone(), 1.0f32..1e4).prop_map(|(p, i)| Light::point(p, i).unwrap());
+    let spot = (at, any, 1.0f32..89.0, 0.0f32..1.0, 1.0f32..1e4)
+        .prop_map(|(p, d, cone, f, i)| Light::spot(p, d, cone, f * cone, i).unwrap());
+    prop_oneof![2 => directional, 1 => point, 1 => spot]
 }
 
 fn method() -> impl Strategy<Value = MethodConfig> {
@@ -103,12 +110,20 @@ proptest! {
         // Far enough along the light to cross all hair and the head
         // (coordinates lie in [-5, 5]^3, within 9 of the origin; the head's
         // radius is below 1).
+        // For a light with a source, along rays from it.
+        let ray = |s: Vec3| match light.source() {
+            None => (s - l * (s.dot(l) + 10.0), l, 20.0),
+            Some(src) => {
+                let e = (s - src).normalize_or(Vec3::Y);
+                (src + e, e, (s - src).length() + 10.0)
+            }
+        };
         for s in starts {
-            let front = s - l * (s.dot(l) + 10.0);
+            let (front, l, reach) = ray(s);
             prop_assert_eq!(m.transmittance(front), 1.0, "{} in front of the hair", config.name());
             let mut prev = 1.0f32;
             for i in 0..=40 {
-                let p = front + l * (20.0 * i as f32 / 40.0);
+                let p = front + l * (reach * i as f32 / 40.0);
                 let t = m.transmittance(p);
                 prop_assert!(t.is_finite() && (0.0..=1.0).contains(&t), "{}: T = {} at {}", config.name(), t, p);
                 prop_assert!(t <= prev + slack, "{}: T rises from {} to {} at {}", config.name(), prev, t, p);
