@@ -71,7 +71,16 @@ impl<'a> DensityRepulsion<'a> {
         }
         let (i, j, k) = (c.x as usize, c.y as usize, c.z as usize);
         let tau = f64::from(self.map.hair_quanta(i, j, k)) * shadow::DEPTH_QUANTUM;
-        Some(tau as f32 * self.to_density)
+        match &self.map.frame().fan {
+            None => Some(tau as f32 * self.to_density),
+            // A fan's cell of depth ds holds rays that cross it at
+            // cos = 1 / sqrt(q): rho = tau / (alpha w ds sqrt(q)).
+            Some(f) => {
+                let u = f.start.y + (j as f32 + 0.5) * f.du;
+                let v = f.start.z + (k as f32 + 0.5) * f.du;
+                Some(tau as f32 * self.to_density / (1.0 + u * u + v * v).sqrt())
+            }
+        }
     }
 }
 
@@ -99,7 +108,11 @@ impl sim::ForceField for DensityRepulsion<'_> {
             // A flat neighbourhood: away from the cell's centre.
             (c - (c.floor() + Vec3::splat(0.5))).normalize_or_zero()
         };
-        let away = dir_cells.x * f.axes[0] + dir_cells.y * f.axes[1] + dir_cells.z * f.axes[2];
+        let away = match &f.fan {
+            None => dir_cells.x * f.axes[0] + dir_cells.y * f.axes[1] + dir_cells.z * f.axes[2],
+            // The cells' axes differ from place to place in a fan.
+            Some(_) => (f.to_world(c + 0.5 * dir_cells) - f.to_world(c)).normalize_or_zero(),
+        };
         let a = (self.k * (rho / self.rho_max - 1.0)).min(self.a_max);
         away * a
     }

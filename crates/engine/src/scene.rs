@@ -1569,6 +1569,58 @@ mod tests {
     }
 
     #[test]
+    fn lights_are_directional_point_or_spot_as_their_keys_say() {
+        let s = parse(
+            "[[light]]\ndirection = [0, -1, 0]\n\
+             [[light]]\nposition = [0, 30, 40]\n\
+             [[light]]\nposition = [30, 0, 0]\ndirection = [-1, 0, 0]\ncone_deg = 20\nintensity = 500\n",
+        )
+        .unwrap();
+        assert!(matches!(s.lights[0], Light::Directional { .. }));
+        // Irradiance 1 at the head's centre by default: intensity = r^2.
+        assert!(matches!(s.lights[1], Light::Point { intensity, .. } if intensity == 2500.0));
+        assert!(matches!(
+            s.lights[2],
+            Light::Spot { cone_deg, falloff_deg, intensity, .. }
+                if cone_deg == 20.0 && falloff_deg == DEFAULT_FALLOFF_DEG && intensity == 500.0
+        ));
+        for (text, field, why) in [
+            (
+                "cone_deg = 20\ndirection = [0, -1, 0]",
+                "light.cone_deg",
+                "point and spot",
+            ),
+            (
+                "position = [0, 30, 0]\ncone_deg = 20",
+                "light.cone_deg",
+                "spot lights",
+            ),
+            (
+                "position = [0, 30, 0]\ndirection = [0, -1, 0]\ncone_deg = 90",
+                "light.cone_deg",
+                "(0, 90)",
+            ),
+            (
+                "position = [0, 30, 0]\ndirection = [0, -1, 0]\ncone_deg = 20\nfalloff_deg = 30",
+                "light.falloff_deg",
+                "[0, cone_deg]",
+            ),
+            (
+                "position = [0, 30, 0]\nintensity = 0",
+                "light.intensity",
+                "(0, 1e12]",
+            ),
+            ("position = [0, inf, 0]", "light.position", "finite"),
+            ("", "light", "give direction"),
+        ] {
+            let e = parse(&format!("[[light]]\n{text}\n"))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(field) && e.contains(why), "{text}: {e}");
+        }
+    }
+
+    #[test]
     fn a_style_takes_the_hair_colour_it_is_given() {
         let c = Vec3::new(0.6, 0.45, 0.25);
         let s = parse("[hair]\nstrands_per_wisp = 2\ncolor = [0.6, 0.45, 0.25]\n").unwrap();

@@ -30,7 +30,10 @@ const TABLES: &[(&str, &[&str])] = &[
         ],
     ),
     ("fiber", &["width", "opacity"]),
-    ("light", &["direction"]),
+    (
+        "light",
+        &["direction", "position", "cone_deg", "falloff_deg", "intensity"],
+    ),
     (
         "shadow",
         &[
