@@ -664,7 +664,7 @@ fn malformed_assign_and_step_calls_get_an_error_and_the_worker_lives_on() {
         let pose = pb::PosePlan {
             version: 7,
             head: head.clone(),
-            lights: vec![0.0, -1.0, 0.0],
+            lights: vec![0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0],
             anchor: vec![0.0; 3],
             ..Default::default()
         };
@@ -711,7 +711,7 @@ fn malformed_assign_and_step_calls_get_an_error_and_the_worker_lives_on() {
             },
             pb::StepRequest {
                 pose: Some(pb::PosePlan {
-                    lights: vec![0.0; 3],
+                    lights: vec![0.0; 10],
                     ..pose.clone()
                 }),
                 ..step.clone()
@@ -852,7 +852,7 @@ fn a_step_past_its_deadline_stops_and_frees_the_worker_for_the_next_call() {
         let pose = pb::PosePlan {
             version: 1,
             head: head.clone(),
-            lights: vec![0.0, -1.0, 0.0],
+            lights: vec![0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0],
             anchor: vec![0.0; 3],
             ..Default::default()
         };
