@@ -30,6 +30,9 @@ use shadow::{DensityMap, Fiber};
 #[derive(Debug, Clone, Copy)]
 pub struct DensityRepulsion<'a> {
     map: &'a DensityMap,
+    /// The map's frame, and whether its rays are parallel.
+    frame: shadow::LightFrame,
+    parallel: bool,
     /// `1 / (alpha * w * ds)`: from optical depth to hair density.
     to_density: f32,
     pub rho_max: f32,
@@ -50,6 +53,8 @@ impl<'a> DensityRepulsion<'a> {
         let cross = fiber.cross_section() * map.frame().ds;
         (cross > 0.0 && rho_max > 0.0).then(|| DensityRepulsion {
             map,
+            frame: *map.frame(),
+            parallel: map.frame().fan.is_none(),
             to_density: 1.0 / cross,
             rho_max,
             k,
@@ -60,18 +65,30 @@ impl<'a> DensityRepulsion<'a> {
     /// Hair density (length per volume) of the cell holding `p`, if inside;
     /// opaque spheres in the map (the head) do not count.
     pub fn density_at(&self, p: Vec3) -> Option<f32> {
-        self.density_in_cells(self.map.frame().to_cells(p))
+        self.density_in_cells(self.cells(p))
+    }
+
+    #[inline]
+    fn cells(&self, p: Vec3) -> Vec3 {
+        if self.parallel {
+            self.frame.to_cells_parallel(p)
+        } else {
+            self.frame.to_cells(p)
+        }
     }
 
     /// [`Self::density_at`] from map coordinates `c` (in cells).
     fn density_in_cells(&self, c: Vec3) -> Option<f32> {
-        let n = self.map.frame().n_cells as f32;
+        let n = self.frame.n_cells as f32;
         if !(c.cmpge(Vec3::ZERO).all() && c.cmplt(Vec3::splat(n)).all()) {
             return None;
         }
         let (i, j, k) = (c.x as usize, c.y as usize, c.z as usize);
         let tau = f64::from(self.map.hair_quanta(i, j, k)) * shadow::DEPTH_QUANTUM;
-        match &self.map.frame().fan {
+        if self.parallel {
+            return Some(tau as f32 * self.to_density);
+        }
+        match &self.frame.fan {
             None => Some(tau as f32 * self.to_density),
             // A fan's cell of depth ds holds rays that cross it at
             // cos = 1 / sqrt(q): rho = tau / (alpha w ds sqrt(q)).
@@ -86,8 +103,8 @@ impl<'a> DensityRepulsion<'a> {
 
 impl sim::ForceField for DensityRepulsion<'_> {
     fn acceleration(&self, p: Vec3) -> Vec3 {
-        let f = self.map.frame();
-        let c = f.to_cells(p);
+        let f = &self.frame;
+        let c = self.cells(p);
         let Some(rho) = self.density_in_cells(c) else {
             return Vec3::ZERO;
         };

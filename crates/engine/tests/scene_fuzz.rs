@@ -32,7 +32,13 @@ const TABLES: &[(&str, &[&str])] = &[
     ("fiber", &["width", "opacity"]),
     (
         "light",
-        &["direction", "position", "cone_deg", "falloff_deg", "intensity"],
+        &[
+            "direction",
+            "position",
+            "cone_deg",
+            "falloff_deg",
+            "intensity",
+        ],
     ),
     (
         "shadow",

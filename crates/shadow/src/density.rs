@@ -277,8 +277,14 @@ impl DensityMap {
         pts.par_chunks_mut(4096)
             .zip(points.par_chunks(4096))
             .for_each(|(out, pts)| {
-                for (o, &p) in out.iter_mut().zip(pts) {
-                    *o = frame.to_cells(p);
+                if frame.fan.is_none() {
+                    for (o, &p) in out.iter_mut().zip(pts) {
+                        *o = frame.to_cells_parallel(p);
+                    }
+                } else {
+                    for (o, &p) in out.iter_mut().zip(pts) {
+                        *o = frame.to_cells(p);
+                    }
                 }
             });
         let local = |s: usize| offsets[s] as usize - first..offsets[s + 1] as usize - first;

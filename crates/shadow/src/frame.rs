@@ -391,14 +391,7 @@ impl LightFrame {
     #[inline]
     pub fn to_cells(&self, p: Vec3) -> Vec3 {
         match &self.fan {
-            None => {
-                let q = (p - self.origin) * self.ds.recip();
-                Vec3::new(
-                    q.dot(self.axes[0]),
-                    q.dot(self.axes[1]),
-                    q.dot(self.axes[2]),
-                )
-            }
+            None => self.to_cells_parallel(p),
             Some(f) => {
                 let r = p - f.source;
                 let x = r.dot(self.axes[0]);
@@ -413,6 +406,18 @@ impl LightFrame {
                 )
             }
         }
+    }
+
+    /// [`Self::to_cells`] of a map of parallel rays (`fan` is `None`): for
+    /// loops that have looked at `fan` once.
+    #[inline(always)]
+    pub fn to_cells_parallel(&self, p: Vec3) -> Vec3 {
+        let q = (p - self.origin) * self.ds.recip();
+        Vec3::new(
+            q.dot(self.axes[0]),
+            q.dot(self.axes[1]),
+            q.dot(self.axes[2]),
+        )
     }
 
     /// The world position of continuous map coordinates (inverse of [`Self::to_cells`]).

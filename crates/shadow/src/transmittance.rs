@@ -248,13 +248,16 @@ struct Lookup {
 impl Lookup {
     #[inline(always)]
     fn at(frame: &LightFrame, p: Vec3, filter: bool) -> Lookup {
+        Lookup::of_cells(frame, frame.to_cells(p), filter)
+    }
+
+    /// The lookup at map coordinates `c` (cells).
+    #[inline(always)]
+    fn of_cells(frame: &LightFrame, c: Vec3, filter: bool) -> Lookup {
         let n = frame.n_cells as f32;
         // Shifting by 2 cells keeps the coordinates positive, so truncating
         // casts are floors (`floor` is a libm call on baseline x86-64).
-        let c = frame
-            .to_cells(p)
-            .clamp(Vec3::splat(-2.0), Vec3::splat(n + 2.0))
-            + 2.0;
+        let c = c.clamp(Vec3::splat(-2.0), Vec3::splat(n + 2.0)) + 2.0;
         let x = c.x - 2.0;
         let centre = (c.x as i32 - 2) as f32 + 0.5;
         if filter {
@@ -545,7 +548,13 @@ impl Transmittance {
     #[inline(always)]
     pub fn optical_depth(&self, p: Vec3, filter: bool) -> f32 {
         debug_assert!(p.is_finite());
-        let at = Lookup::at(&self.frame, p, filter);
+        self.depth_in_cells(self.frame.to_cells(p), filter)
+    }
+
+    /// [`Self::optical_depth`] at map coordinates `c` (cells).
+    #[inline(always)]
+    fn depth_in_cells(&self, c: Vec3, filter: bool) -> f32 {
+        let at = Lookup::of_cells(&self.frame, c, filter);
         let (j, k, x) = (at.j, at.k, at.x);
         if filter {
             let d00 = self.column_depth(j, k, x);
@@ -581,8 +590,16 @@ impl Transmittance {
         out.par_chunks_mut(4096)
             .zip(points.par_chunks(4096))
             .for_each(|(o, p)| {
-                for (o, &p) in o.iter_mut().zip(p) {
-                    *o = self.transmittance(p, filter);
+                // Parallel rays or a fan, decided once a chunk.
+                if self.frame.fan.is_none() {
+                    for (o, &p) in o.iter_mut().zip(p) {
+                        let c = self.frame.to_cells_parallel(p);
+                        *o = (-self.depth_in_cells(c, filter)).exp();
+                    }
+                } else {
+                    for (o, &p) in o.iter_mut().zip(p) {
+                        *o = self.transmittance(p, filter);
+                    }
                 }
             });
     }
