@@ -10,8 +10,8 @@
 
 use glam::Vec3;
 use shadow::{
-    Beyond, DensityMap, Fiber, Light, LightFrame, MethodConfig, ShadowInput, ShadowMethod,
-    Transmittance,
+    Beyond, DensityMap, Fiber, Light, LightFrame, MethodConfig, Occluder, ShadowInput,
+    ShadowMethod, Transmittance,
 };
 use strands::{Hair, Rng, Style, StyleParams, WispModel};
 
@@ -676,4 +676,50 @@ fn point_and_spot_lights_keep_every_invariant_in_the_hard_cases() {
         &Fiber::new(0.01, 0.6).unwrap(),
     );
     check_invariants("512", m.as_ref(), &curly, &light, 8);
+}
+
+#[test]
+fn a_head_casts_its_shadow_along_the_rays_of_a_point_light() {
+    // A sphere under a point light: points inside its shadow cone are dark
+    // in every method, one outside it is lit.
+    let mut hair = Hair::new();
+    hair.push_strand(&[Vec3::new(-3.0, -2.0, -3.0), Vec3::new(3.0, -2.5, 3.0)])
+        .unwrap();
+    let fiber = Fiber::new(0.01, 0.5).unwrap();
+    let head = [Occluder::sphere(Vec3::ZERO, 1.0)];
+    let light = Light::point(Vec3::new(0.0, 3.0, 0.0), 9.0).unwrap();
+    // Behind the sphere from the source, and 1.3 off the axis: the
+    // shadow cone from the source has half-angle asin(1 / 3), so at
+    // y = -2.2 (5.2 from it) its radius is 5.2 tan(19.5 deg) = 1.84, where
+    // parallel rays along -y would leave a shadow of radius 1.
+    let (behind, spread) = (Vec3::new(0.0, -2.2, 0.0), Vec3::new(1.3, -2.2, 0.0));
+    let outside = Vec3::new(2.6, -2.2, 0.0);
+    for c in every_method(64) {
+        let mut m = c.create().unwrap();
+        m.build(&ShadowInput {
+            light: &light,
+            hair: &hair,
+            fiber: &fiber,
+            occluders: &head,
+            extent: None,
+        })
+        .unwrap();
+        m.prepare();
+        let name = c.name();
+        assert!(
+            m.transmittance(behind) < 0.05,
+            "{name}: behind the head {}",
+            m.transmittance(behind)
+        );
+        assert!(
+            m.transmittance(spread) < 0.05,
+            "{name}: in the spreading shadow {}",
+            m.transmittance(spread)
+        );
+        assert!(
+            m.transmittance(outside) > 0.95,
+            "{name}: outside it {}",
+            m.transmittance(outside)
+        );
+    }
 }
