@@ -768,18 +768,7 @@ fn strand_pieces(rows: &mut Rows, pts: &[Vec3], k_q: f32, spread: Option<Spread>
                     continue;
                 }
                 let q = (k_q * f.weight(mid, step)).min(u32::MAX as f32);
-                let front = mid.x - 0.5 * step.x.abs();
-                let (fy, fz) = (mid.y - 0.5, mid.z - 0.5);
-                let (j0, k0) = ((fy + 1.0) as i32 - 1, (fz + 1.0) as i32 - 1);
-                let (ty, tz) = (fy - j0 as f32, fz - k0 as f32);
-                let (sy, sz) = (1.0 - ty, 1.0 - tz);
-                let qs = [
-                    (q * sy * sz + 0.5) as u32,
-                    (q * ty * sz + 0.5) as u32,
-                    (q * sy * tz + 0.5) as u32,
-                    (q * ty * tz + 0.5) as u32,
-                ];
-                rows.splat(j0, k0, mid.x as u32, qs, front);
+                tent_splat(rows, mid, step, q);
                 stats.samples += u64::from(own);
             }
             continue;
@@ -825,25 +814,7 @@ fn strand_pieces(rows: &mut Rows, pts: &[Vec3], k_q: f32, spread: Option<Spread>
             for _ in 0..m {
                 let own = rows.owns(mid.z.floor() as i32);
                 if mid.cmpge(Vec3::ZERO).all() && mid.cmplt(Vec3::splat(n)).all() {
-                    let front = mid.x - 0.5 * step.x.abs();
-                    // Tent splat across the light: the piece's quanta go to
-                    // the four columns around its midpoint with bilinear
-                    // weights, so that the map is a smooth function of where
-                    // a fiber lies. A nearest-column deposit aliases against
-                    // combed hair into stripes that move with the grid.
-                    // (fy + 1) > 0, so the truncating cast is a floor.
-                    let (fy, fz) = (mid.y - 0.5, mid.z - 0.5);
-                    let (j0, k0) = ((fy + 1.0) as i32 - 1, (fz + 1.0) as i32 - 1);
-                    let (ty, tz) = (fy - j0 as f32, fz - k0 as f32);
-                    // q w >= 0: adding 0.5 and truncating rounds to nearest.
-                    let (sy, sz) = (1.0 - ty, 1.0 - tz);
-                    let qs = [
-                        (q * sy * sz + 0.5) as u32,
-                        (q * ty * sz + 0.5) as u32,
-                        (q * sy * tz + 0.5) as u32,
-                        (q * ty * tz + 0.5) as u32,
-                    ];
-                    rows.splat(j0, k0, mid.x as u32, qs, front);
+                    tent_splat(rows, mid, step, q);
                     stats.samples += u64::from(own);
                 } else {
                     stats.out_of_map += u64::from(own);
@@ -853,6 +824,31 @@ fn strand_pieces(rows: &mut Rows, pts: &[Vec3], k_q: f32, spread: Option<Spread>
         }
     }
     stats
+}
+
+/// Deposits `q` quanta of a piece at `mid` (inside the map) spanning
+/// `step` (cells), starting half its step along the light before `mid`.
+///
+/// Tent splat across the light: the piece's quanta go to the four columns
+/// around its midpoint with bilinear weights, so that the map is a smooth
+/// function of where a fiber lies. A nearest-column deposit aliases
+/// against combed hair into stripes that move with the grid.
+#[inline(always)]
+fn tent_splat(rows: &mut Rows, mid: Vec3, step: Vec3, q: f32) {
+    let front = mid.x - 0.5 * step.x.abs();
+    // (fy + 1) > 0, so the truncating cast is a floor.
+    let (fy, fz) = (mid.y - 0.5, mid.z - 0.5);
+    let (j0, k0) = ((fy + 1.0) as i32 - 1, (fz + 1.0) as i32 - 1);
+    let (ty, tz) = (fy - j0 as f32, fz - k0 as f32);
+    // q w >= 0: adding 0.5 and truncating rounds to nearest.
+    let (sy, sz) = (1.0 - ty, 1.0 - tz);
+    let qs = [
+        (q * sy * sz + 0.5) as u32,
+        (q * ty * sz + 0.5) as u32,
+        (q * sy * tz + 0.5) as u32,
+        (q * ty * tz + 0.5) as u32,
+    ];
+    rows.splat(j0, k0, mid.x as u32, qs, front);
 }
 
 /// Walks a strand's segments in map coordinates (cells): `f(start, d,
