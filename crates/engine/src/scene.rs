@@ -42,7 +42,7 @@
 //! [[body]]                  # center, radius, follows_head (collision spheres)
 //! ```
 //!
-//! The README lists every key with its default and unit.
+//! docs/scene.md lists every key with its default and unit.
 
 mod motion;
 
@@ -159,11 +159,39 @@ struct RawShading {
     irradiance: Option<f32>,
 }
 
-#[derive(Debug, Deserialize)]
-#[serde(untagged)]
+/// One table (`[light]`) or an array of them (`[[light]]`), told apart
+/// by what TOML holds, so that an error inside either names its key (an
+/// untagged enum would only say that neither matched).
+#[derive(Debug)]
 enum OneOrMany<T> {
     One(T),
     Many(Vec<T>),
+}
+
+impl<'de, T: Deserialize<'de>> Deserialize<'de> for OneOrMany<T> {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        use serde::de::value::{MapAccessDeserializer, SeqAccessDeserializer};
+        struct Either<T>(std::marker::PhantomData<T>);
+        impl<'de, T: Deserialize<'de>> serde::de::Visitor<'de> for Either<T> {
+            type Value = OneOrMany<T>;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a table or an array of tables")
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                a: A,
+            ) -> Result<Self::Value, A::Error> {
+                T::deserialize(MapAccessDeserializer::new(a)).map(OneOrMany::One)
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                a: A,
+            ) -> Result<Self::Value, A::Error> {
+                Vec::<T>::deserialize(SeqAccessDeserializer::new(a)).map(OneOrMany::Many)
+            }
+        }
+        d.deserialize_any(Either(std::marker::PhantomData))
+    }
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -452,7 +480,7 @@ pub struct Scene {
     pub bodies: Vec<BodySettings>,
 }
 
-/// Defaults, documented in the module comment and README.
+/// Defaults, documented in the module comment and docs/scene.md.
 pub const DEFAULT_LIGHT_DIRECTION: [f32; 3] = [0.9, -0.35, -0.25];
 /// A spot light's cone and soft edge, degrees.
 pub const DEFAULT_CONE_DEG: f32 = 30.0;
