@@ -4,6 +4,7 @@
 //! before use: a malformed message is an error, never a panic or a wrong
 //! map.
 
+use prost::encoding::{decode_varint, encode_varint};
 use std::ops::Range;
 
 use glam::{Affine3A, Vec3};
@@ -454,7 +455,7 @@ impl SlabReader {
 
 /// Zero-run varint packing of 32-bit values: each nonzero value `v` is
 /// the LEB128 varint of `v << 1`, each run of `r` zeros the varint of
-/// `r << 1 | 1`. Most cells of a column's span are empty (about 60 % in
+/// `r << 1 | 1` (protobuf's varints, prost's functions). Most cells of a column's span are empty (about 60 % in
 /// the built-in scene), so runs save most of them.
 #[derive(Debug, Default)]
 pub(crate) struct Runs {
@@ -467,14 +468,14 @@ impl Runs {
             self.zeros += 1;
         } else {
             self.finish(out);
-            put_varint(u64::from(v) << 1, out);
+            encode_varint(u64::from(v) << 1, out);
         }
     }
 
     /// Writes the pending run of zeros.
     pub(crate) fn finish(&mut self, out: &mut Vec<u8>) {
         if self.zeros > 0 {
-            put_varint(self.zeros << 1 | 1, out);
+            encode_varint(self.zeros << 1 | 1, out);
             self.zeros = 0;
         }
     }
@@ -492,14 +493,6 @@ pub fn pack(values: &[u32]) -> Vec<u8> {
     out
 }
 
-fn put_varint(mut x: u64, out: &mut Vec<u8>) {
-    while x >= 0x80 {
-        out.push((x as u8) | 0x80);
-        x >>= 7;
-    }
-    out.push(x as u8);
-}
-
 /// Unpacks exactly `count` values packed by [`Runs`] into `out`: a
 /// truncated or overlong varint, a value past 32 bits, an empty run, more
 /// or fewer values than `count`, or bytes left over are refused. Never
@@ -508,24 +501,9 @@ pub(crate) fn unpack_runs(bytes: &[u8], count: usize, out: &mut Vec<u32>) -> Res
     // A value takes at least one byte, a run can stand for many.
     out.reserve(count.min(bytes.len().saturating_mul(64)));
     let end = out.len() + count;
-    let mut i = 0;
-    while i < bytes.len() {
-        let mut x = 0u64;
-        let mut shift = 0;
-        loop {
-            let Some(&b) = bytes.get(i) else {
-                return Err(bad("a packed varint is cut short"));
-            };
-            i += 1;
-            if shift == 63 && b > 1 {
-                return Err(bad("a packed varint exceeds 64 bits"));
-            }
-            x |= u64::from(b & 0x7f) << shift;
-            if b & 0x80 == 0 {
-                break;
-            }
-            shift += 7;
-        }
+    let mut rest = bytes;
+    while !rest.is_empty() {
+        let x = decode_varint(&mut rest).map_err(|e| bad(format!("a packed varint: {e}")))?;
         let left = (end - out.len()) as u64;
         if x & 1 == 1 {
             let run = x >> 1;
