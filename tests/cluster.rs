@@ -465,6 +465,15 @@ fn with_mutual_tls_only_the_clusters_coordinator_gets_work_done() {
     let pki = dir.join("pki");
     let o = run(&["certs", s(&pki)]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // Keys are their owner's alone; certificates are for anyone to read.
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let mode = |n: &str| std::fs::metadata(pki.join(n)).unwrap().permissions().mode() & 0o777;
+        for k in ["ca.key", "worker.key", "coordinator.key"] {
+            assert_eq!(mode(k), 0o600, "{k}");
+        }
+        assert_ne!(mode("ca.pem") & 0o044, 0, "ca.pem");
+    }
     // Run again: refuses to overwrite the keys, exit 1, files unchanged.
     let key = std::fs::read(pki.join("ca.key")).unwrap();
     let o = run(&["certs", s(&pki)]);

@@ -264,7 +264,6 @@ pub struct CertsArgs {
 /// Writes a fresh CA and the worker and coordinator credentials.
 pub fn certs(args: CertsArgs) -> anyhow::Result<()> {
     use std::io::Write;
-    use std::os::unix::fs::OpenOptionsExt;
 
     let pki = cluster::tls::Pki::generate(&args.names)?;
     std::fs::create_dir_all(&args.dir)
@@ -276,25 +275,18 @@ pub fn certs(args: CertsArgs) -> anyhow::Result<()> {
             args.dir.join(name).display()
         );
     }
-    // Each file appears whole: written beside its name, then renamed.
+    // Each file appears whole: written beside its name, then renamed;
+    // keys readable by their owner alone from the start.
     for (name, pem, secret) in files {
         let path = args.dir.join(name);
-        let tmp = args.dir.join(format!(".{name}.tmp"));
-        let write = || -> std::io::Result<()> {
-            let mut f = std::fs::OpenOptions::new()
-                .write(true)
-                .create(true)
-                .truncate(true)
-                .mode(if secret { 0o600 } else { 0o644 })
-                .open(&tmp)?;
-            f.write_all(pem.as_bytes())?;
-            f.sync_all()?;
-            std::fs::rename(&tmp, &path)
-        };
-        if let Err(e) = write() {
-            let _ = std::fs::remove_file(&tmp);
-            return Err(e).with_context(|| format!("cannot write {}", path.display()));
+        let mut file = raster::AtomicFile::create(&path)?;
+        if secret {
+            file = file.private()?;
         }
+        file.writer()
+            .write_all(pem.as_bytes())
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        file.commit()?;
     }
     println!(
         "wrote {} (workers: --tls-ca ca.pem --tls-cert worker.pem --tls-key worker.key; \

@@ -144,6 +144,23 @@ impl AtomicFile {
         &self.path
     }
 
+    /// Makes the file readable and writable by its owner alone (mode
+    /// 0600 on Unix), before anything is written to it: for keys.
+    pub fn private(self) -> Result<AtomicFile, RasterError> {
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let at = self.tmp.as_deref().unwrap_or(&self.path);
+            std::fs::set_permissions(at, std::fs::Permissions::from_mode(0o600)).map_err(
+                |cause| RasterError::Write {
+                    path: self.path.clone(),
+                    cause,
+                },
+            )?;
+        }
+        Ok(self)
+    }
+
     pub fn writer(&mut self) -> &mut BufWriter<std::fs::File> {
         self.out.as_mut().expect("not yet committed")
     }
