@@ -514,6 +514,13 @@ fn bench_accuracy_writes_a_table_a_csv_and_a_plot() {
     // The reference, 8 density-map settings and 4 deep-shadow-map settings.
     assert_eq!(rows.len(), 1 + 1 + 8 + 4, "{text}");
     assert!(rows[1].starts_with("reference,"));
+    // As a CSV reader sees it: seven fields a row, the parameters whole.
+    let mut reader = csv::Reader::from_path(&csv).unwrap();
+    for r in reader.records() {
+        let r = r.unwrap();
+        assert_eq!(r.len(), 7, "{r:?}");
+        assert!(r[1].contains('=') && !r[1].starts_with('"'), "{r:?}");
+    }
     for r in &rows[2..] {
         let f: Vec<f64> = r
             .rsplitn(6, ',')

@@ -1,7 +1,6 @@
 //! `wisplight bench accuracy`: every shadow method at a range of settings
 //! against the exact reference, error against time.
 
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
@@ -164,21 +163,30 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
         );
     }
     if let Some(path) = &a.csv {
-        let mut s = String::from("method,parameters,ms,mean_abs,rms,max,image_error\n");
+        // The csv crate quotes a field where its text calls for it.
+        let mut w = csv::Writer::from_writer(Vec::new());
+        w.write_record([
+            "method",
+            "parameters",
+            "ms",
+            "mean_abs",
+            "rms",
+            "max",
+            "image_error",
+        ])?;
         for r in &rows {
-            writeln!(
-                s,
-                "{},\"{}\",{:.4},{:.6},{:.6},{:.6},{:.6}",
-                r.config.name(),
+            w.write_record([
+                r.config.name().to_string(),
                 r.config.parameters(),
-                r.ms,
-                r.mean_abs,
-                r.rms,
-                r.max,
-                r.image
-            )?;
+                format!("{:.4}", r.ms),
+                format!("{:.6}", r.mean_abs),
+                format!("{:.6}", r.rms),
+                format!("{:.6}", r.max),
+                format!("{:.6}", r.image),
+            ])?;
         }
-        raster::write_bytes_atomic(path, s.as_bytes()).context("cannot save the table")?;
+        let bytes = w.into_inner().context("cannot write the table")?;
+        raster::write_bytes_atomic(path, &bytes).context("cannot save the table")?;
         eprintln!("wrote {}", path.display());
     }
     if let Some(path) = &a.plot {
