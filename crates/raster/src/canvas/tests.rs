@@ -1,0 +1,246 @@
+use super::*;
+
+#[test]
+fn refuses_absurd_sizes() {
+    assert!(Canvas::new(0, 10).is_err());
+    assert!(Canvas::new(100_000, 10).is_err());
+    assert!(Canvas::new(16_000, 16_000).is_err());
+    assert!(Canvas::new(64, 48).is_ok());
+}
+
+#[test]
+fn thread_count_does_not_change_a_single_byte_and_draw_order_only_rounding() {
+    let cam = Camera::new(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, 40.0, 64, 48).unwrap();
+    let mut pts = Vec::new();
+    let mut cols = Vec::new();
+    for s in 0..40 {
+        let f = s as f32 * 0.1;
+        pts.extend([
+            Vec3::new(-2.0 + f, -1.0, f - 2.0),
+            Vec3::new(2.0 - f, 1.5, 1.0 - f),
+        ]);
+        cols.extend([Vec3::new(f / 4.0, 0.3, 0.9 - f / 5.0); 2]);
+    }
+    let offsets: Vec<u32> = (0..=40).map(|s| 2 * s).collect();
+    let draw = |pts: &[Vec3], cols: &[Vec3]| {
+        let mut c = Canvas::new(64, 48).unwrap();
+        c.draw_hair(
+            &cam,
+            pts,
+            &offsets,
+            cols,
+            &HairLook {
+                fiber_width: 0.05,
+                opacity: 0.6,
+                depth_ref: 10.0,
+            },
+            &[],
+        );
+        c.resolve(Vec3::splat(0.1)).into_raw()
+    };
+    let forward = draw(&pts, &cols);
+    let on = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| draw(&pts, &cols))
+    };
+    assert!(forward == on(1) && forward == on(3), "thread counts");
+    // Another order rounds differently, by at most a level.
+    let rev_pts: Vec<Vec3> = pts.chunks(2).rev().flatten().copied().collect();
+    let rev_cols: Vec<Vec3> = cols.chunks(2).rev().flatten().copied().collect();
+    let back = draw(&rev_pts, &rev_cols);
+    assert!(forward.iter().zip(&back).all(|(a, b)| a.abs_diff(*b) <= 1));
+    assert!(forward.iter().any(|&v| v > 40), "something was drawn");
+}
+
+/// Strands in groups drawn on one canvas, and the same groups split
+/// across canvases whose layers are composited: the same bytes, for
+/// any split and thread count, over a head that hides some of them.
+#[test]
+fn groups_split_across_canvases_composite_to_the_same_bytes() {
+    let cam = Camera::new(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, 40.0, 80, 56).unwrap();
+    let (mut pts, mut cols, mut offsets) = (Vec::new(), Vec::new(), vec![0u32]);
+    for s in 0..60 {
+        let f = s as f32 * 0.07;
+        for k in 0..5 {
+            let t = k as f32 / 4.0;
+            pts.push(Vec3::new(-2.5 + f + 0.3 * t, 1.8 - 3.6 * t, 1.5 - f * 0.5));
+            cols.push(Vec3::new(0.2 + f / 8.0, 0.3 * t, 0.5));
+        }
+        offsets.push(pts.len() as u32);
+    }
+    let look = HairLook {
+        fiber_width: 0.04,
+        opacity: 0.7,
+        depth_ref: 10.0,
+    };
+    let head = Sphere {
+        center: Vec3::new(0.5, 0.0, -0.5),
+        radius: 1.2,
+    };
+    let groups = [0, 7, 20, 21, 33, 60];
+    let canvas = |strands: std::ops::Range<usize>| {
+        let mut c = Canvas::new(80, 56).unwrap();
+        c.draw_sphere(&cam, &head, |_, _| Vec3::new(0.6, 0.4, 0.3));
+        // Group boundaries within `strands`, as strand indices from its start.
+        let g: Vec<u32> = groups
+            .iter()
+            .map(|&b| (b as usize).clamp(strands.start, strands.end))
+            .map(|b| (b - strands.start) as u32)
+            .collect();
+        let (p0, p1) = (
+            offsets[strands.start] as usize,
+            offsets[strands.end] as usize,
+        );
+        let off: Vec<u32> = offsets[strands.clone()]
+            .iter()
+            .chain([&offsets[strands.end]])
+            .map(|&o| o - p0 as u32)
+            .collect();
+        c.draw_hair(&cam, &pts[p0..p1], &off, &cols[p0..p1], &look, &g);
+        c
+    };
+    let bg = Vec3::splat(0.05);
+    let whole = canvas(0..60).resolve(bg);
+    assert!(whole.pixels().any(|p| p[0] > 60), "something was drawn");
+    for cuts in [
+        vec![0, 60],
+        vec![0, 21, 60],
+        vec![0, 7, 33, 60],
+        vec![0, 7, 20, 21, 33, 60],
+    ] {
+        let layers: Vec<HairLayer> = cuts
+            .windows(2)
+            .map(|c| canvas(c[0]..c[1]).layer())
+            .collect();
+        // The compositor has the head alone, and the layers, in any order.
+        let mut head_only = Canvas::new(80, 56).unwrap();
+        head_only.draw_sphere(&cam, &head, |_, _| Vec3::new(0.6, 0.4, 0.3));
+        let mut rev = layers.clone();
+        rev.reverse();
+        for ls in [&layers, &rev] {
+            let img = rayon::ThreadPoolBuilder::new()
+                .num_threads(3)
+                .build()
+                .unwrap()
+                .install(|| head_only.resolve_layers(bg, ls));
+            assert!(img == whole, "split at {cuts:?}");
+        }
+    }
+    // The integers themselves add up: split layers sum to the whole's.
+    let all = canvas(0..60).layer();
+    assert!(!all.pixels().is_empty());
+    assert!(all.sums().iter().all(|s| !s.is_zero()));
+    let mut added = std::collections::BTreeMap::new();
+    for c in [0, 7, 20, 21, 33, 60].windows(2) {
+        let l = canvas(c[0]..c[1]).layer();
+        for (&p, s) in l.pixels().iter().zip(l.sums()) {
+            added.entry(p).or_insert(Sums::ZERO).add(s);
+        }
+    }
+    let whole_sums: std::collections::BTreeMap<u32, Sums> = all
+        .pixels()
+        .iter()
+        .copied()
+        .zip(all.sums().iter().copied())
+        .collect();
+    assert_eq!(added, whole_sums);
+    // Stripes of whole bands (the last one short: 56 rows), appended
+    // in order, are the whole layer, for any stripe height.
+    let whole_canvas = canvas(0..60);
+    for step in [16, 32, 48, 56, 64] {
+        let mut striped = HairLayer::new(80, 56);
+        let mut stripes = 0;
+        for y in (0..56).step_by(step) {
+            let stripe = whole_canvas.layer_rows(y..(y + step as u32).min(56));
+            let rows = y * 80..(y + step as u32).min(56) * 80;
+            assert!(stripe.pixels().iter().all(|p| rows.contains(p)));
+            stripes += usize::from(!stripe.pixels().is_empty());
+            striped.append(stripe);
+        }
+        assert!(
+            stripes > 1 || step > 16,
+            "hair in several stripes of {step}"
+        );
+        assert_eq!(striped, all, "stripes of {step} rows");
+    }
+    // A band of rows resolved where part of the hair was drawn, with
+    // the rest's layers (a cluster worker's band): the whole picture's
+    // rows, with the canvas's own hair rasterized there or brought in
+    // as its layer of those rows.
+    let whole_rgb: &[u8] = &whole;
+    let mine = canvas(0..21);
+    let rest = [canvas(21..33).layer(), canvas(33..60).layer()];
+    for rows in [0..16, 16..48, 48..56, 32..56] {
+        let want = &whole_rgb[rows.start as usize * 240..rows.end as usize * 240];
+        assert_eq!(mine.resolve_rows(bg, &rest, rows.clone()), want, "{rows:?}");
+        let mut all_layers = vec![mine.layer_rows(rows.clone())];
+        all_layers.extend(rest.iter().cloned());
+        let got = mine.resolve_layer_rows(bg, &all_layers, rows.clone());
+        assert_eq!(got, want, "{rows:?}, own hair as a layer");
+    }
+}
+
+#[test]
+fn malformed_layers_are_refused() {
+    let s = Sums::ZERO;
+    assert!(HairLayer::from_parts(4, 4, vec![1, 3], vec![s, s]).is_ok());
+    assert!(HairLayer::from_parts(4, 4, vec![3, 1], vec![s, s]).is_err());
+    assert!(HairLayer::from_parts(4, 4, vec![1, 1], vec![s, s]).is_err());
+    assert!(HairLayer::from_parts(4, 4, vec![16], vec![s]).is_err());
+    assert!(HairLayer::from_parts(4, 4, vec![1], vec![]).is_err());
+}
+
+#[test]
+fn a_mesh_covers_its_projected_area_without_cracks_and_the_nearer_face_wins() {
+    // Orthographic enough: a far camera with a narrow field of view.
+    let cam = Camera::new(Vec3::new(0.0, 0.0, 400.0), Vec3::ZERO, 2.0, 96, 96).unwrap();
+    let px = cam.focal() / 400.0; // pixels per unit at the plane z = 0
+    // A square of side 8 px made of a fan of 4 triangles around its centre
+    // (shared edges), and behind it a larger square of another colour.
+    let h = 4.0 / px;
+    let front = [
+        Vec3::new(0.0, 0.0, 0.0),
+        Vec3::new(-h, -h, 0.0),
+        Vec3::new(h, -h, 0.0),
+        Vec3::new(h, h, 0.0),
+        Vec3::new(-h, h, 0.0),
+    ];
+    let back = [
+        Vec3::new(-3.0 * h, -3.0 * h, -1.0),
+        Vec3::new(3.0 * h, -3.0 * h, -1.0),
+        Vec3::new(3.0 * h, 3.0 * h, -1.0),
+        Vec3::new(-3.0 * h, 3.0 * h, -1.0),
+    ];
+    let positions: Vec<Vec3> = back.iter().chain(&front).copied().collect();
+    let normals = vec![Vec3::Z; positions.len()];
+    let tris = [
+        [0, 1, 2],
+        [0, 2, 3],
+        [4, 5, 6],
+        [4, 6, 7],
+        [4, 7, 8],
+        [4, 8, 5],
+    ];
+    let draw = || {
+        let mut c = Canvas::new(96, 96).unwrap();
+        // Colour by depth: the front square white, the back one grey.
+        c.draw_mesh(&cam, &positions, &normals, &tris, |p, n| {
+            assert!((n - Vec3::Z).length() < 1e-5);
+            Vec3::splat(if p.z > -0.5 { 1.0 } else { 0.2 })
+        });
+        c.resolve(Vec3::ZERO)
+    };
+    let img = draw();
+    let count = |v: u8| img.pixels().filter(|p| p[0] == v).count();
+    assert_eq!(count(255), 64, "an 8x8 px square, no crack and no overlap");
+    assert_eq!(count(to_srgb8(Vec3::splat(0.2))[0]), 24 * 24 - 64);
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap()
+        .install(draw);
+    assert!(one == img, "thread counts");
+}
