@@ -44,14 +44,22 @@
 //!
 //! docs/scene.md lists every key with its default and unit.
 
+mod hair;
+mod lights;
 mod motion;
+mod raw;
+mod shading;
+mod shadow_settings;
+mod view;
+
+use hair::Grown;
+use raw::*;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use glam::Vec3;
-use serde::Deserialize;
 use shadow::{Beyond, Fiber, Light, MethodConfig, OpacityMode};
 use strands::{FollowParams, Hair, Style, StyleParams};
 
@@ -77,176 +85,6 @@ pub enum SceneError {
         value: String,
         reason: String,
     },
-}
-
-#[derive(Debug, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawScene {
-    #[serde(default)]
-    hair: RawHair,
-    #[serde(default)]
-    fiber: RawFiber,
-    #[serde(default)]
-    light: Option<OneOrMany<RawLight>>,
-    #[serde(default)]
-    shadow: RawShadow,
-    #[serde(default)]
-    camera: RawCamera,
-    #[serde(default)]
-    render: RawRender,
-    #[serde(default)]
-    head: RawHead,
-    #[serde(default)]
-    shading: RawShading,
-    #[serde(default)]
-    effects: motion::RawEffects,
-    #[serde(default)]
-    animation: motion::RawAnimation,
-    #[serde(default)]
-    dynamics: motion::RawDynamics,
-    #[serde(default)]
-    collision: motion::RawCollision,
-    #[serde(default)]
-    body: Option<Vec<motion::RawBody>>,
-}
-
-#[derive(Debug, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawCamera {
-    view: Option<String>,
-    position: Option<[f32; 3]>,
-    look_at: Option<[f32; 3]>,
-    fov_deg: Option<f32>,
-    up: Option<[f32; 3]>,
-}
-
-#[derive(Debug, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawRender {
-    width: Option<i64>,
-    height: Option<i64>,
-    background: Option<[f32; 3]>,
-    hair_alpha: Option<f32>,
-}
-
-#[derive(Debug, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawHead {
-    visible: Option<bool>,
-    center: Option<[f32; 3]>,
-    radius: Option<f32>,
-    color: Option<[f32; 3]>,
-    mesh: Option<PathBuf>,
-    mesh_scale: Option<f32>,
-    mesh_offset: Option<[f32; 3]>,
-}
-
-#[derive(Debug, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawShading {
-    ambient: Option<f32>,
-    diffuse: Option<f32>,
-    specular: Option<f32>,
-    shininess: Option<f32>,
-    model: Option<String>,
-    eumelanin: Option<f32>,
-    pheomelanin: Option<f32>,
-    sigma_a: Option<[f32; 3]>,
-    eta: Option<f32>,
-    beta_m: Option<f32>,
-    beta_n: Option<f32>,
-    alpha_deg: Option<f32>,
-    irradiance: Option<f32>,
-}
-
-/// One table (`[light]`) or an array of them (`[[light]]`), told apart
-/// by what TOML holds, so that an error inside either names its key (an
-/// untagged enum would only say that neither matched).
-#[derive(Debug)]
-enum OneOrMany<T> {
-    One(T),
-    Many(Vec<T>),
-}
-
-impl<'de, T: Deserialize<'de>> Deserialize<'de> for OneOrMany<T> {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        use serde::de::value::{MapAccessDeserializer, SeqAccessDeserializer};
-        struct Either<T>(std::marker::PhantomData<T>);
-        impl<'de, T: Deserialize<'de>> serde::de::Visitor<'de> for Either<T> {
-            type Value = OneOrMany<T>;
-            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-                f.write_str("a table or an array of tables")
-            }
-            fn visit_map<A: serde::de::MapAccess<'de>>(
-                self,
-                a: A,
-            ) -> Result<Self::Value, A::Error> {
-                T::deserialize(MapAccessDeserializer::new(a)).map(OneOrMany::One)
-            }
-            fn visit_seq<A: serde::de::SeqAccess<'de>>(
-                self,
-                a: A,
-            ) -> Result<Self::Value, A::Error> {
-                Vec::<T>::deserialize(SeqAccessDeserializer::new(a)).map(OneOrMany::Many)
-            }
-        }
-        d.deserialize_any(Either(std::marker::PhantomData))
-    }
-}
-
-#[derive(Debug, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawHair {
-    style: Option<String>,
-    file: Option<PathBuf>,
-    strands: Option<Vec<Vec<[f32; 3]>>>,
-    seed: Option<u64>,
-    strands_per_wisp: Option<i64>,
-    parting: Option<bool>,
-    color: Option<[f32; 3]>,
-    subdivide: Option<i64>,
-    followers: Option<i64>,
-    follow_radius: Option<f32>,
-    tip_spread: Option<f32>,
-    scale: Option<f32>,
-    rotate_deg: Option<[f32; 3]>,
-    translate: Option<[f32; 3]>,
-}
-
-#[derive(Debug, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawFiber {
-    width: Option<f32>,
-    opacity: Option<f32>,
-}
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawLight {
-    direction: Option<[f32; 3]>,
-    position: Option<[f32; 3]>,
-    cone_deg: Option<f32>,
-    falloff_deg: Option<f32>,
-    intensity: Option<f32>,
-}
-
-#[derive(Debug, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawShadow {
-    method: Option<String>,
-    cells: Option<i64>,
-    filter: Option<bool>,
-    slices: Option<i64>,
-    mode: Option<String>,
-    kappa: Option<f32>,
-    offset: Option<f32>,
-    layers: Option<i64>,
-    layer_cells: Option<f32>,
-    beyond: Option<String>,
-    clusters: Option<i64>,
-    tolerance: Option<f32>,
-    footprint: Option<f32>,
-    rays: Option<i64>,
 }
 
 /// Where the hair comes from.
@@ -653,39 +491,6 @@ struct Validator<'a> {
 }
 
 impl Validator<'_> {
-    /// The length unit the groom at `path`, placed by `place`, appears to
-    /// be measured in, relative to the centimetres the length defaults
-    /// (fiber width, follow radius) assume: with `L` the largest side of
-    /// its bounds,
-    ///
-    /// ```text
-    /// unit = 10^floor(log10(L / 10))
-    /// ```
-    ///
-    /// 1 for a groom 10 to 100 units across (centimetres: a head is about
-    /// 16 to 20 across, long hair under 100), 10 for 100 to 1000
-    /// (millimetres), 0.01 for 0.1 to 1 (metres); at most 10^4 either way,
-    /// 1 for an empty groom. Reads the groom (from the scene's files when
-    /// held there).
-    fn groom_unit(&self, path: &Path, place: &Placement) -> Result<f32, SceneError> {
-        let fail = |reason: String| self.invalid("hair.file", path.display(), reason);
-        let hair = match self.files.get(path) {
-            Some(b) => strands::load_bytes(path, b),
-            None => strands::load(path),
-        }
-        .map_err(|e| fail(e.to_string()))?;
-        let b = hair.bounds();
-        if b.is_empty() {
-            return Ok(1.0);
-        }
-        let side = (b.size() * place.scale).max_element();
-        if side.is_nan() || side <= 0.0 {
-            return Ok(1.0);
-        }
-        let e = (side / 10.0).log10().floor().clamp(-4.0, 4.0);
-        Ok(10f32.powf(e))
-    }
-
     /// The collision sphere of a head mesh given without one: fitted to
     /// its crown ([`strands::Mesh::crown_sphere`]), as the mesh is placed.
     fn fitted_sphere(&self, m: &HeadMesh) -> Result<(Vec3, f32), SceneError> {
@@ -719,102 +524,6 @@ impl Validator<'_> {
             value: value.to_string(),
             reason: reason.into(),
         }
-    }
-
-    /// The `[shadow]` table: the method, then the settings it takes; a
-    /// setting of another method is refused by name.
-    fn shadow(&self, s: RawShadow) -> Result<ShadowSettings, SceneError> {
-        let name = s.method.as_deref().unwrap_or("density-map");
-        let cells = self.int(
-            "shadow.cells",
-            s.cells,
-            DEFAULT_CELLS,
-            1..=shadow::MAX_CELLS,
-        )?;
-        let mut m = MethodConfig::with_defaults(name, cells).ok_or_else(|| {
-            self.invalid(
-                "shadow.method",
-                format!("{name:?}"),
-                format!("known methods: {}", MethodConfig::NAMES.join(", ")),
-            )
-        })?;
-        if let Some(f) = s.filter {
-            if matches!(m, MethodConfig::Reference { .. }) {
-                return Err(self.invalid("shadow.filter", f, "the reference does not filter"));
-            }
-            m.set_filter(f);
-        }
-        if s.cells.is_some() && matches!(m, MethodConfig::Reference { .. }) {
-            return Err(self.invalid(
-                "shadow.cells",
-                cells,
-                "the reference has no cells; set shadow.footprint",
-            ));
-        }
-        let not_for = |field: &'static str, value: String, owner: &str| {
-            self.invalid(
-                field,
-                value,
-                format!("applies to method {owner:?} only, not {name:?}"),
-            )
-        };
-        let count = |field: &'static str, v: i64| {
-            u32::try_from(v).map_err(|_| self.invalid(field, v, "must be a whole number >= 0"))
-        };
-        macro_rules! set {
-            ($field:literal, $raw:expr, $owner:literal, $pat:pat => $assign:expr) => {
-                if let Some(v) = $raw {
-                    match &mut m {
-                        $pat => $assign(v)?,
-                        _ => return Err(not_for($field, format!("{v:?}"), $owner)),
-                    }
-                }
-            };
-        }
-        set!("shadow.slices", s.slices, "opacity-shadow-map",
-            MethodConfig::OpacityShadowMap { slices, .. } => |v| count("shadow.slices", v).map(|v| *slices = v));
-        set!("shadow.mode", s.mode.clone(), "opacity-shadow-map",
-        MethodConfig::OpacityShadowMap { mode, .. } => |v: String| match v.as_str() {
-            "linear" => { *mode = OpacityMode::Linear; Ok(()) }
-            "exponential" => {
-                if !matches!(mode, OpacityMode::Exponential { .. }) {
-                    *mode = OpacityMode::Exponential { kappa: 1.0 };
-                }
-                Ok(())
-            }
-            _ => Err(self.invalid("shadow.mode", format!("{v:?}"), "must be \"linear\" or \"exponential\"")),
-        });
-        set!("shadow.kappa", s.kappa, "opacity-shadow-map",
-        MethodConfig::OpacityShadowMap { mode, .. } => |v: f32| match mode {
-            OpacityMode::Exponential { kappa } => { *kappa = v; Ok(()) }
-            OpacityMode::Linear => Err(self.invalid("shadow.kappa", v, "applies to mode \"exponential\" only")),
-        });
-        set!("shadow.offset", s.offset, "opacity-shadow-map",
-            MethodConfig::OpacityShadowMap { offset, .. } => |v| { *offset = v; Ok::<(), SceneError>(()) });
-        set!("shadow.layers", s.layers, "deep-opacity-map",
-            MethodConfig::DeepOpacityMap { layers, .. } => |v| count("shadow.layers", v).map(|v| *layers = v));
-        set!("shadow.layer_cells", s.layer_cells, "deep-opacity-map",
-            MethodConfig::DeepOpacityMap { layer_cells, .. } => |v| { *layer_cells = v; Ok::<(), SceneError>(()) });
-        set!("shadow.beyond", s.beyond.clone(), "deep-opacity-map",
-        MethodConfig::DeepOpacityMap { beyond, .. } => |v: String| match Beyond::from_name(&v) {
-            Some(b) => { *beyond = b; Ok(()) }
-            None => Err(self.invalid("shadow.beyond", format!("{v:?}"), format!("known: {}", Beyond::NAMES.join(", ")))),
-        });
-        set!("shadow.clusters", s.clusters, "density-clustering",
-            MethodConfig::DensityClustering { clusters, .. } => |v| count("shadow.clusters", v).map(|v| *clusters = v));
-        set!("shadow.tolerance", s.tolerance, "deep-shadow-map",
-            MethodConfig::DeepShadowMap { tolerance, .. } => |v| { *tolerance = v; Ok::<(), SceneError>(()) });
-        set!("shadow.footprint", s.footprint, "reference",
-            MethodConfig::Reference { footprint, .. } => |v| { *footprint = Some(v); Ok::<(), SceneError>(()) });
-        set!("shadow.rays", s.rays, "reference",
-            MethodConfig::Reference { rays, .. } => |v| count("shadow.rays", v).map(|v| *rays = v));
-        m.validate().map_err(|e| match e {
-            shadow::ShadowError::Setting { name, value, why } => {
-                self.invalid(setting_field(name), value, why)
-            }
-            other => self.invalid("shadow", name, other.to_string()),
-        })?;
-        Ok(ShadowSettings { method: m })
     }
 
     fn int(
@@ -864,209 +573,6 @@ impl Validator<'_> {
         }
     }
 
-    /// One `[[light]]`: directional (`direction`), point (`position`) or
-    /// spot (`position`, `direction`, `cone_deg`, `falloff_deg`); a light
-    /// with a source has an `intensity` (default: irradiance 1 at
-    /// `head_center`, `intensity = r^2`).
-    fn light(&self, l: &RawLight, head_center: Vec3) -> Result<Light, SceneError> {
-        let finite = |field: &'static str, v: [f32; 3]| {
-            if v.iter().all(|x| x.is_finite()) {
-                Ok(Vec3::from_array(v))
-            } else {
-                Err(self.invalid(field, format!("{v:?}"), "must be finite"))
-            }
-        };
-        let Some(position) = l.position else {
-            for (field, set) in [
-                ("light.cone_deg", l.cone_deg.is_some()),
-                ("light.falloff_deg", l.falloff_deg.is_some()),
-                ("light.intensity", l.intensity.is_some()),
-            ] {
-                if set {
-                    return Err(self.invalid(
-                        field,
-                        "(set)",
-                        "applies to point and spot lights (with light.position)",
-                    ));
-                }
-            }
-            let d = l.direction.ok_or_else(|| {
-                self.invalid(
-                    "light",
-                    "(no direction or position)",
-                    "give direction (a directional light) or position (a point or spot light)",
-                )
-            })?;
-            return Light::directional(Vec3::from_array(d)).map_err(|_| {
-                self.invalid(
-                    "light.direction",
-                    format!("{d:?}"),
-                    "must be finite and not zero",
-                )
-            });
-        };
-        let position = finite("light.position", position)?;
-        let intensity = match l.intensity {
-            Some(i) if !(i.is_finite() && i > 0.0 && i <= 1e12) => {
-                return Err(self.invalid("light.intensity", i, "must be in (0, 1e12]"));
-            }
-            Some(i) => i,
-            None => (head_center - position).length_squared().max(1e-6),
-        };
-        let Some(direction) = l.direction else {
-            for (field, set) in [
-                ("light.cone_deg", l.cone_deg.is_some()),
-                ("light.falloff_deg", l.falloff_deg.is_some()),
-            ] {
-                if set {
-                    return Err(self.invalid(
-                        field,
-                        "(set)",
-                        "applies to spot lights (a position and a direction)",
-                    ));
-                }
-            }
-            return Light::point(position, intensity)
-                .map_err(|e| self.invalid("light.position", format!("{position}"), e.to_string()));
-        };
-        let direction = finite("light.direction", direction)?;
-        let cone = l.cone_deg.unwrap_or(DEFAULT_CONE_DEG);
-        if !(cone > 0.0 && cone < 90.0) {
-            return Err(self.invalid("light.cone_deg", cone, "must be in (0, 90) degrees"));
-        }
-        let falloff = l.falloff_deg.unwrap_or(DEFAULT_FALLOFF_DEG.min(cone));
-        if !(falloff >= 0.0 && falloff <= cone) {
-            return Err(self.invalid("light.falloff_deg", falloff, "must be in [0, cone_deg]"));
-        }
-        Light::spot(position, direction, cone, falloff, intensity).map_err(|_| {
-            self.invalid(
-                "light.direction",
-                format!("{direction}"),
-                "must be finite and not zero",
-            )
-        })
-    }
-
-    fn color(
-        &self,
-        field: &'static str,
-        v: Option<[f32; 3]>,
-        default: [f32; 3],
-    ) -> Result<Vec3, SceneError> {
-        let c = v.unwrap_or(default);
-        if c.iter().all(|x| x.is_finite() && (0.0..=1.0).contains(x)) {
-            Ok(Vec3::from_array(c))
-        } else {
-            Err(self.invalid(
-                field,
-                format!("{c:?}"),
-                "each component must be in [0, 1] (linear RGB)",
-            ))
-        }
-    }
-
-    /// `[shading] model` and the fiber's settings: Kajiya-Kay (the
-    /// default), or `"marschner"`, a physically based fiber whose
-    /// absorption comes from `sigma_a`, from melanin concentrations, or
-    /// (neither given) from each strand's colour.
-    fn shading_model(&self, sh: &RawShading) -> Result<raster::ShadingModel, SceneError> {
-        let fiber_keys = [
-            ("shading.eumelanin", sh.eumelanin.is_some()),
-            ("shading.pheomelanin", sh.pheomelanin.is_some()),
-            ("shading.sigma_a", sh.sigma_a.is_some()),
-            ("shading.eta", sh.eta.is_some()),
-            ("shading.beta_m", sh.beta_m.is_some()),
-            ("shading.beta_n", sh.beta_n.is_some()),
-            ("shading.alpha_deg", sh.alpha_deg.is_some()),
-            ("shading.irradiance", sh.irradiance.is_some()),
-        ];
-        match sh.model.as_deref().unwrap_or("kajiya-kay") {
-            "kajiya-kay" => {
-                self.refuse_set(&fiber_keys, "is a setting of model = \"marschner\"")?;
-                Ok(raster::ShadingModel::KajiyaKay)
-            }
-            "marschner" => {
-                let d = raster::FiberOptics::default();
-                let in_range = |field: &'static str,
-                                v: Option<f32>,
-                                default: f32,
-                                lo: f32,
-                                hi: f32,
-                                open_lo: bool| {
-                    let v = v.unwrap_or(default);
-                    let ok = v.is_finite() && v <= hi && if open_lo { v > lo } else { v >= lo };
-                    if ok {
-                        Ok(v)
-                    } else {
-                        let bracket = if open_lo { "(" } else { "[" };
-                        Err(self.invalid(
-                            field,
-                            v,
-                            format!("must be a number in {bracket}{lo}, {hi}]"),
-                        ))
-                    }
-                };
-                let beta_n = in_range("shading.beta_n", sh.beta_n, d.beta_n, 0.0, 1.0, true)?;
-                let melanin = sh.eumelanin.is_some() || sh.pheomelanin.is_some();
-                if melanin && sh.sigma_a.is_some() {
-                    return Err(self.invalid(
-                        "shading.sigma_a",
-                        "(set)",
-                        "give sigma_a or melanin concentrations (eumelanin, pheomelanin), not both",
-                    ));
-                }
-                let sigma_a = match sh.sigma_a {
-                    Some(s) if s.iter().all(|x| x.is_finite() && (0.0..=100.0).contains(x)) => {
-                        Vec3::from_array(s)
-                    }
-                    Some(s) => {
-                        return Err(self.invalid(
-                            "shading.sigma_a",
-                            format!("{s:?}"),
-                            "each component must be in [0, 100] (per unit of the fiber's diameter)",
-                        ));
-                    }
-                    None => raster::sigma_a_from_melanin(
-                        in_range("shading.eumelanin", sh.eumelanin, 0.0, 0.0, 50.0, false)?,
-                        in_range("shading.pheomelanin", sh.pheomelanin, 0.0, 0.0, 50.0, false)?,
-                    ),
-                };
-                let optics = raster::FiberOptics {
-                    eta: in_range("shading.eta", sh.eta, d.eta, 1.0, 3.0, true)?,
-                    sigma_a,
-                    beta_m: in_range("shading.beta_m", sh.beta_m, d.beta_m, 0.0, 1.0, true)?,
-                    beta_n,
-                    alpha_deg: in_range(
-                        "shading.alpha_deg",
-                        sh.alpha_deg,
-                        d.alpha_deg,
-                        -20.0,
-                        20.0,
-                        false,
-                    )?,
-                };
-                Ok(raster::ShadingModel::Marschner {
-                    optics,
-                    multiple: false,
-                    from_color: !melanin && sh.sigma_a.is_none(),
-                    irradiance: in_range(
-                        "shading.irradiance",
-                        sh.irradiance,
-                        5.0,
-                        0.0,
-                        1000.0,
-                        false,
-                    )?,
-                })
-            }
-            other => Err(self.invalid(
-                "shading.model",
-                other,
-                "must be \"kajiya-kay\" or \"marschner\"",
-            )),
-        }
-    }
-
     /// An error for the first of `fields` that the scene set, saying `why`.
     fn refuse_set(&self, fields: &[(&'static str, bool)], why: &str) -> Result<(), SceneError> {
         match fields.iter().find(|(_, set)| *set) {
@@ -1075,164 +581,13 @@ impl Validator<'_> {
         }
     }
 
-    /// `hair.scale`, `hair.rotate_deg`, `hair.translate`: finite, the
-    /// scale in (0, 1e6], the offset within 1e9 scene units.
-    fn placement(&self, h: &RawHair) -> Result<Placement, SceneError> {
-        let scale = h.scale.unwrap_or(1.0);
-        if !(scale > 0.0 && scale <= 1e6) {
-            return Err(self.invalid("hair.scale", scale, "must be a number in (0, 1e6]"));
-        }
-        let three = |field: &'static str, v: Option<[f32; 3]>, max: f32| match v {
-            Some(a) if !a.iter().all(|x| x.is_finite() && x.abs() <= max) => Err(self.invalid(
-                field,
-                format!("{a:?}"),
-                format!("each component must be finite, within {max:e}"),
-            )),
-            v => Ok(Vec3::from_array(v.unwrap_or([0.0; 3]))),
-        };
-        Ok(Placement {
-            scale,
-            rotate_deg: three("hair.rotate_deg", h.rotate_deg, 1e6)?,
-            translate: three("hair.translate", h.translate, 1e9)?,
-        })
-    }
-
-    /// `hair.strands`: every coordinate finite, at most
-    /// [`MAX_INLINE_POINTS`] points. Strands of one point or none are kept
-    /// (they draw and shadow nothing).
-    fn inline_strands(&self, strands: &[Vec<[f32; 3]>]) -> Result<Hair, SceneError> {
-        let points: usize = strands.iter().map(Vec::len).sum();
-        if points > MAX_INLINE_POINTS {
-            return Err(self.invalid(
-                "hair.strands",
-                format!("({points} points)"),
-                format!("at most {MAX_INLINE_POINTS} points; use hair.file for larger hair"),
-            ));
-        }
-        let mut hair = Hair::new();
-        let mut buf = Vec::new();
-        for (s, st) in strands.iter().enumerate() {
-            buf.clear();
-            buf.extend(st.iter().map(|&p| Vec3::from_array(p)));
-            if let Some(i) = buf.iter().position(|p| !p.is_finite()) {
-                return Err(self.invalid(
-                    "hair.strands",
-                    format!("{:?}", st[i]),
-                    format!("strand {s}, point {i}: coordinates must be finite"),
-                ));
-            }
-            hair.push_strand(&buf).map_err(|e| {
-                self.invalid("hair.strands", format!("(strand {s})"), e.to_string())
-            })?;
-        }
-        Ok(hair)
-    }
-
     fn scene(&self, raw: RawScene) -> Result<Scene, SceneError> {
-        let h = raw.hair;
-        let subdivide = self.int("hair.subdivide", h.subdivide, DEFAULT_SUBDIVIDE, 1..=64)?;
-        let seed = h.seed.unwrap_or(1);
-        let given = [h.style.is_some(), h.file.is_some(), h.strands.is_some()];
-        if given.iter().filter(|&&g| g).count() > 1 {
-            return Err(self.invalid(
-                "hair",
-                "(style, file, strands)",
-                "give one of hair.style, hair.file and hair.strands",
-            ));
-        }
-        // Keys of follow strands, which only hair from files grows.
-        let follow_keys = [
-            ("hair.followers", h.followers.is_some()),
-            ("hair.follow_radius", h.follow_radius.is_some()),
-            ("hair.tip_spread", h.tip_spread.is_some()),
-        ];
-        let place = self.placement(&h)?;
-        // Length defaults in centimetres that follow a groom file's unit
-        // (set once the rest is valid): the fiber width, the follow radius.
-        let mut scale_width = false;
-        let mut scale_follow = false;
-        let hair = match (&h.strands, &h.file) {
-            (Some(strands), _) => {
-                self.refuse_set(&follow_keys, "does not apply to hair.strands")?;
-                self.refuse_set(
-                    &[("hair.seed", h.seed.is_some())],
-                    "does not apply to hair.strands",
-                )?;
-                let mut hair = self.inline_strands(strands)?;
-                place.apply(&mut hair);
-                HairSource::Inline(hair)
-            }
-            (None, Some(file)) => {
-                let path = self.relative(file);
-                let tfx = path
-                    .extension()
-                    .is_some_and(|e| e.eq_ignore_ascii_case("tfx"));
-                let followers = self.int(
-                    "hair.followers",
-                    h.followers,
-                    if tfx { DEFAULT_TFX_FOLLOWERS } else { 0 },
-                    0..=1000,
-                )?;
-                scale_width = raw.fiber.width.is_none();
-                scale_follow = followers > 0 && h.follow_radius.is_none();
-                let radius =
-                    self.positive("hair.follow_radius", h.follow_radius, DEFAULT_FOLLOW_RADIUS)?;
-                let tip_spread = self.positive("hair.tip_spread", h.tip_spread, 1.5)?;
-                let follow = (followers > 0).then_some(FollowParams {
-                    followers,
-                    radius,
-                    tip_spread,
-                    seed,
-                });
-                HairSource::File {
-                    path,
-                    follow,
-                    place,
-                }
-            }
-            (None, None) => {
-                self.refuse_set(
-                    &[
-                        ("hair.scale", h.scale.is_some()),
-                        ("hair.rotate_deg", h.rotate_deg.is_some()),
-                        ("hair.translate", h.translate.is_some()),
-                    ],
-                    "places a groom from hair.file or hair.strands; a style grows on the head",
-                )?;
-                let name = h.style.as_deref().unwrap_or("smooth");
-                let style = Style::from_name(name).ok_or_else(|| {
-                    self.invalid(
-                        "hair.style",
-                        format!("{name:?}"),
-                        "expected \"smooth\" or \"curly\"",
-                    )
-                })?;
-                self.refuse_set(&follow_keys, "applies to hair.file only")?;
-                let mut p = StyleParams::new(style);
-                p.seed = seed;
-                p.strands_per_wisp = self.int(
-                    "hair.strands_per_wisp",
-                    h.strands_per_wisp,
-                    p.strands_per_wisp,
-                    1..=2000,
-                )?;
-                p.parting = h.parting.unwrap_or(false);
-                if h.color.is_some() {
-                    p.color = Some(self.color("hair.color", h.color, [0.0; 3])?);
-                }
-                HairSource::Style(p)
-            }
-        };
-        if !matches!(hair, HairSource::Style(_)) {
-            self.refuse_set(
-                &[
-                    ("hair.strands_per_wisp", h.strands_per_wisp.is_some()),
-                    ("hair.parting", h.parting.is_some()),
-                    ("hair.color", h.color.is_some()),
-                ],
-                "applies to hair.style only",
-            )?;
-        }
+        let Grown {
+            hair,
+            subdivide,
+            scale_width,
+            scale_follow,
+        } = self.hair(&raw.hair, raw.fiber.width.is_none())?;
 
         let width = raw.fiber.width.unwrap_or(DEFAULT_FIBER_WIDTH);
         let opacity = raw.fiber.opacity.unwrap_or(DEFAULT_FIBER_OPACITY);
@@ -1283,90 +638,8 @@ impl Validator<'_> {
                 ),
             ));
         }
-        let c = raw.camera;
-        let vec3 = |field: &'static str, v: Option<[f32; 3]>| -> Result<Option<Vec3>, SceneError> {
-            match v {
-                Some(a) if !a.iter().all(|x| x.is_finite()) => {
-                    Err(self.invalid(field, format!("{a:?}"), "must be finite"))
-                }
-                v => Ok(v.map(Vec3::from_array)),
-            }
-        };
-        let fov_deg = c.fov_deg.unwrap_or(DEFAULT_FOV_DEG);
-        if !(fov_deg > 0.1 && fov_deg < 179.0) {
-            return Err(self.invalid("camera.fov_deg", fov_deg, "must be in (0.1, 179) degrees"));
-        }
-        let view = match c.view.as_deref() {
-            None => CameraView::Auto,
-            Some(v) => CameraView::from_name(v).ok_or_else(|| {
-                self.invalid(
-                    "camera.view",
-                    format!("{v:?}"),
-                    format!("expected one of {}", CameraView::NAMES.join(", ")),
-                )
-            })?,
-        };
-        if view != CameraView::Auto && c.position.is_some() {
-            return Err(self.invalid(
-                "camera.view",
-                format!("{:?}", c.view.as_deref().unwrap_or_default()),
-                "says where a camera without camera.position looks from; give one of them",
-            ));
-        }
-        let camera = CameraSettings {
-            view,
-            position: vec3("camera.position", c.position)?,
-            look_at: vec3("camera.look_at", c.look_at)?,
-            fov_deg,
-            up: vec3("camera.up", c.up)?,
-        };
-        if camera.up.is_some_and(|u| u.length() < 1e-6) {
-            return Err(self.invalid(
-                "camera.up",
-                format!("{:?}", c.up.unwrap_or_default()),
-                "must not be zero",
-            ));
-        }
-        if let (Some(p), Some(l)) = (camera.position, camera.look_at)
-            && p.distance(l) < 1e-6
-        {
-            return Err(self.invalid("camera.look_at", l, "must differ from camera.position"));
-        }
-
-        let r = raw.render;
-        let width = self.int(
-            "render.width",
-            r.width,
-            DEFAULT_WIDTH,
-            1..=raster::canvas_max_side(),
-        )?;
-        let height = self.int(
-            "render.height",
-            r.height,
-            DEFAULT_HEIGHT,
-            1..=raster::canvas_max_side(),
-        )?;
-        if u64::from(width) * u64::from(height) > raster::MAX_PIXELS {
-            return Err(self.invalid(
-                "render.width",
-                width,
-                format!(
-                    "{width}x{height} is more than {} pixels",
-                    raster::MAX_PIXELS
-                ),
-            ));
-        }
-        let background = self.color("render.background", r.background, DEFAULT_BACKGROUND)?;
-        let hair_alpha = r.hair_alpha.unwrap_or(DEFAULT_HAIR_ALPHA);
-        if !(0.0..=1.0).contains(&hair_alpha) {
-            return Err(self.invalid("render.hair_alpha", hair_alpha, "must be in [0, 1]"));
-        }
-        let render = RenderSettings {
-            width,
-            height,
-            background,
-            hair_alpha,
-        };
+        let camera = self.camera(&raw.camera)?;
+        let render = self.render(&raw.render)?;
 
         let hd = raw.head;
         let style_head = match &hair {
@@ -1391,7 +664,9 @@ impl Validator<'_> {
                     Some(HeadMesh {
                         path: self.relative(file),
                         scale,
-                        offset: vec3("head.mesh_offset", hd.mesh_offset)?.unwrap_or(Vec3::ZERO),
+                        offset: self
+                            .vec3("head.mesh_offset", hd.mesh_offset)?
+                            .unwrap_or(Vec3::ZERO),
                     })
                 }
                 None => {
@@ -1405,7 +680,9 @@ impl Validator<'_> {
                     None
                 }
             };
-            let center = vec3("head.center", hd.center)?.or(style_head.map(|h| h.0));
+            let center = self
+                .vec3("head.center", hd.center)?
+                .or(style_head.map(|h| h.0));
             let radius = hd.radius.or(style_head.map(|h| h.1));
             let (center, radius) = match (center, radius, &mesh) {
                 (Some(c), Some(r), _) => (c, r),
@@ -1508,22 +785,6 @@ impl Validator<'_> {
             (h.center, h.radius) = self.fitted_sphere(m)?;
         }
         Ok(scene)
-    }
-}
-
-/// The scene field of a method setting.
-fn setting_field(name: &str) -> &'static str {
-    match name {
-        "slices" => "shadow.slices",
-        "kappa" => "shadow.kappa",
-        "offset" => "shadow.offset",
-        "layers" => "shadow.layers",
-        "layer_cells" => "shadow.layer_cells",
-        "clusters" => "shadow.clusters",
-        "tolerance" => "shadow.tolerance",
-        "footprint" => "shadow.footprint",
-        "rays" => "shadow.rays",
-        _ => "shadow",
     }
 }
 
