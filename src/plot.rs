@@ -1,37 +1,53 @@
-//! A small scatter plot for `bench accuracy`: error against time on a log
-//! axis, the Pareto front marked, a legend. Text comes from a built-in 5x7
-//! pixel font (lowercase, digits and a little punctuation), so the picture
-//! needs no font files.
+//! Charts for the benchmarks, drawn with plotters into a picture: error
+//! against time for `bench accuracy` (a log time axis fitted to the data,
+//! each point labelled with its setting, the Pareto front marked, a legend
+//! of methods) and frame times for `bench scaling` (bars with their
+//! values). Text is set in DejaVu Sans Condensed, built into the program
+//! (`src/fonts/`, with its licence), so no font needs to be installed.
 
-use image::{Rgb, RgbImage};
+use std::sync::Once;
 
-/// One point of the plot.
+use anyhow::anyhow;
+use image::RgbImage;
+use plotters::prelude::*;
+use plotters::style::{FontStyle, register_font};
+
+/// One point of the scatter plot.
 #[derive(Debug, Clone)]
 pub struct Point {
     pub x_ms: f64,
     pub y: f64,
     /// Index into the series (legend entries).
     pub series: usize,
+    /// What the point is (its setting), written beside it.
+    pub label: String,
 }
 
 /// Distinct colours for up to eight series.
-const COLORS: [[u8; 3]; 8] = [
-    [31, 119, 180],
-    [214, 39, 40],
-    [44, 160, 44],
-    [255, 127, 14],
-    [148, 103, 189],
-    [140, 86, 75],
-    [227, 119, 194],
-    [23, 190, 207],
+const COLORS: [RGBColor; 8] = [
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(255, 127, 14),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(23, 190, 207),
 ];
 
-const W: u32 = 960;
-const H: u32 = 600;
-const LEFT: i32 = 90;
-const RIGHT: i32 = 290;
-const TOP: i32 = 50;
-const BOTTOM: i32 = 70;
+const W: u32 = 1100;
+const H: u32 = 680;
+const FONT: &str = "sans-serif";
+
+/// Registers the built-in font once.
+fn font() {
+    static ONCE: Once = Once::new();
+    ONCE.call_once(|| {
+        let bytes: &'static [u8] = include_bytes!("fonts/DejaVuSansCondensed.ttf");
+        // The font is part of the program: it parses.
+        let _ = register_font(FONT, FontStyle::Normal, bytes);
+    });
+}
 
 /// Indices of the points on the Pareto front (no other point is both
 /// faster and at least as accurate), sorted by time.
@@ -54,289 +70,250 @@ pub fn pareto_front(points: &[Point]) -> Vec<usize> {
     front
 }
 
-/// Draws the plot: `series` names the legend entries, `title` and the axis
-/// labels are drawn lowercase.
+/// Draws `draw` on a white picture of `W x H`.
+fn picture(
+    draw: impl FnOnce(&DrawingArea<BitMapBackend, plotters::coord::Shift>) -> anyhow::Result<()>,
+) -> anyhow::Result<RgbImage> {
+    font();
+    let mut buf = vec![0u8; (W * H * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (W, H)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| anyhow!("plot: {e}"))?;
+        draw(&root)?;
+        root.present().map_err(|e| anyhow!("plot: {e}"))?;
+    }
+    RgbImage::from_raw(W, H, buf).ok_or_else(|| anyhow!("plot: picture of the wrong size"))
+}
+
+/// Error against time: one colour per series (`series` names them in the
+/// legend), each point labelled, the Pareto front joined and ringed; the
+/// time axis logarithmic, both axes fitted to the points.
 pub fn scatter(
     title: &str,
     x_label: &str,
     y_label: &str,
     series: &[String],
     points: &[Point],
-) -> RgbImage {
-    let mut img = RgbImage::from_pixel(W, H, Rgb([255, 255, 255]));
-    let (x0, x1) = (LEFT, W as i32 - RIGHT);
-    let (y0, y1) = (H as i32 - BOTTOM, TOP);
-    let xs = points.iter().map(|p| p.x_ms.max(1e-6).log10());
-    let lo = xs.clone().fold(f64::INFINITY, f64::min).floor();
-    let hi = xs.fold(f64::NEG_INFINITY, f64::max).ceil().max(lo + 1.0);
-    let ymax = nice_ceiling(points.iter().map(|p| p.y).fold(0.0, f64::max).max(1e-6));
-    let px = |ms: f64| x0 + ((ms.max(1e-6).log10() - lo) / (hi - lo) * f64::from(x1 - x0)) as i32;
-    let py = |y: f64| y0 - (y / ymax * f64::from(y0 - y1)) as i32;
-    let grid = Rgb([225, 225, 225]);
-    let ink = Rgb([40, 40, 40]);
-    // Decades on x, with 2 and 5 between.
-    let mut d = lo as i32;
-    while f64::from(d) <= hi {
-        for m in [1.0, 2.0, 5.0] {
-            let v = m * 10f64.powi(d);
-            if v.log10() > hi + 1e-9 {
-                break;
-            }
-            let x = px(v);
-            line(&mut img, (x, y0), (x, y1), grid);
-            if m == 1.0 {
-                let label = format_ms(v);
-                text(&mut img, x - 6 * label.len() as i32, y0 + 8, &label, ink);
-            }
-        }
-        d += 1;
-    }
-    y_grid(&mut img, (x0, x1), ymax, 3, &py);
-    line(&mut img, (x0, y0), (x1, y0), ink);
-    line(&mut img, (x0, y0), (x0, y1), ink);
-    text(&mut img, x0, 4, title, ink);
-    text(
-        &mut img,
-        (x0 + x1) / 2 - 6 * x_label.len() as i32,
-        y0 + 35,
-        x_label,
-        ink,
-    );
-    text(&mut img, 8, TOP - 27, y_label, ink);
-    // The Pareto front, then the points over it.
-    let front = pareto_front(points);
-    for w in front.windows(2) {
-        let (a, b) = (&points[w[0]], &points[w[1]]);
-        line(
-            &mut img,
-            (px(a.x_ms), py(a.y)),
-            (px(b.x_ms), py(b.y)),
-            Rgb([0, 0, 0]),
-        );
-    }
-    for p in points {
-        let c = COLORS[p.series % COLORS.len()];
-        disc(&mut img, px(p.x_ms), py(p.y), 4, Rgb(c));
-    }
-    for &i in &front {
-        let p = &points[i];
-        ring(&mut img, px(p.x_ms), py(p.y), 7, Rgb([0, 0, 0]));
-    }
-    // Legend.
-    let lx = x1 + 20;
-    for (i, name) in series.iter().enumerate() {
-        let y = TOP + 10 + 22 * i as i32;
-        disc(&mut img, lx + 5, y + 6, 5, Rgb(COLORS[i % COLORS.len()]));
-        text(&mut img, lx + 16, y, name, ink);
-    }
-    let y = TOP + 10 + 22 * series.len() as i32;
-    ring(&mut img, lx + 5, y + 6, 7, Rgb([0, 0, 0]));
-    text(&mut img, lx + 16, y, "pareto front", ink);
-    img
-}
-
-fn format_ms(v: f64) -> String {
-    if v >= 1.0 {
-        format!("{v:.0} ms")
+) -> anyhow::Result<RgbImage> {
+    let finite: Vec<&Point> = points
+        .iter()
+        .filter(|p| p.x_ms.is_finite() && p.x_ms > 0.0 && p.y.is_finite())
+        .collect();
+    let (lo, hi) = finite.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), p| {
+        (lo.min(p.x_ms), hi.max(p.x_ms))
+    });
+    let (lo, hi) = if finite.is_empty() {
+        (1.0, 10.0)
     } else {
-        format!("{v} ms")
-    }
-}
-
-/// The smallest of 1, 2, 5 times a power of ten at or above `v`.
-/// Six horizontal grid lines from 0 to `ymax` across `x0..x1`, labelled
-/// with `decimals` digits on the left.
-fn y_grid(
-    img: &mut RgbImage,
-    (x0, x1): (i32, i32),
-    ymax: f64,
-    decimals: usize,
-    py: &dyn Fn(f64) -> i32,
-) {
-    let (grid, ink) = (Rgb([225, 225, 225]), Rgb([40, 40, 40]));
-    for i in 0..=5 {
-        let v = ymax * f64::from(i) / 5.0;
-        let y = py(v);
-        line(img, (x0, y), (x1, y), grid);
-        let label = format!("{v:.decimals$}");
-        text(img, x0 - 8 - 12 * label.len() as i32, y - 7, &label, ink);
-    }
-}
-
-fn nice_ceiling(v: f64) -> f64 {
-    let p = 10f64.powf(v.log10().floor());
-    [1.0, 2.0, 5.0, 10.0]
-        .into_iter()
-        .map(|m| m * p)
-        .find(|&c| c >= v)
-        .unwrap_or(10.0 * p)
-}
-
-fn put(img: &mut RgbImage, x: i32, y: i32, c: Rgb<u8>) {
-    if x >= 0 && y >= 0 && (x as u32) < img.width() && (y as u32) < img.height() {
-        img.put_pixel(x as u32, y as u32, c);
-    }
-}
-
-fn line(img: &mut RgbImage, (x0, y0): (i32, i32), (x1, y1): (i32, i32), c: Rgb<u8>) {
-    let (dx, dy) = ((x1 - x0).abs(), -(y1 - y0).abs());
-    let (sx, sy) = (if x0 < x1 { 1 } else { -1 }, if y0 < y1 { 1 } else { -1 });
-    let (mut x, mut y, mut err) = (x0, y0, dx + dy);
-    loop {
-        put(img, x, y, c);
-        if x == x1 && y == y1 {
-            break;
+        (lo / 1.3, hi * 1.6)
+    };
+    let y_top = finite.iter().map(|p| p.y).fold(0.0f64, f64::max).max(1e-3) * 1.12;
+    let front = pareto_front(points);
+    picture(|root| {
+        let err = |e: plotters::drawing::DrawingAreaErrorKind<_>| anyhow!("plot: {e}");
+        let mut chart = ChartBuilder::on(root)
+            .caption(title, (FONT, 24))
+            .margin(16)
+            .x_label_area_size(52)
+            .y_label_area_size(72)
+            .margin_right(150)
+            .build_cartesian_2d(
+                (lo..hi).log_scale().with_key_points(ticks(lo, hi)),
+                0.0..y_top,
+            )
+            .map_err(err)?;
+        chart
+            .configure_mesh()
+            .x_desc(x_label)
+            .y_desc(y_label)
+            .light_line_style(TRANSPARENT)
+            .bold_line_style(RGBColor(225, 225, 225))
+            .label_style((FONT, 15))
+            .axis_desc_style((FONT, 17))
+            .x_label_formatter(&|v| {
+                format!("{v:.3}")
+                    .trim_end_matches('0')
+                    .trim_end_matches('.')
+                    .to_string()
+            })
+            .draw()
+            .map_err(err)?;
+        // The front first, under the points.
+        let line: Vec<(f64, f64)> = front
+            .iter()
+            .map(|&i| (points[i].x_ms, points[i].y))
+            .collect();
+        chart
+            .draw_series(LineSeries::new(line.clone(), BLACK.stroke_width(1)))
+            .map_err(err)?
+            .label("Pareto front")
+            .legend(|(x, y)| Circle::new((x + 10, y), 7, BLACK.stroke_width(1)));
+        chart
+            .draw_series(
+                line.iter()
+                    .map(|&p| Circle::new(p, 9, BLACK.stroke_width(1))),
+            )
+            .map_err(err)?;
+        for (s, name) in series.iter().enumerate() {
+            let color = COLORS[s % COLORS.len()];
+            chart
+                .draw_series(
+                    points
+                        .iter()
+                        .filter(|p| p.series == s)
+                        .map(|p| Circle::new((p.x_ms, p.y), 5, color.filled())),
+                )
+                .map_err(err)?
+                .label(name.as_str())
+                .legend(move |(x, y)| Circle::new((x + 10, y), 5, color.filled()));
+            chart
+                .draw_series(points.iter().filter(|p| p.series == s).map(|p| {
+                    Text::new(
+                        p.label.clone(),
+                        (p.x_ms * 1.04, p.y),
+                        (FONT, 11).into_font().color(&color.mix(0.9)),
+                    )
+                }))
+                .map_err(err)?;
         }
-        let e2 = 2 * err;
-        if e2 >= dy {
-            err += dy;
-            x += sx;
-        }
-        if e2 <= dx {
-            err += dx;
-            y += sy;
-        }
-    }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .label_font((FONT, 15))
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK.mix(0.4))
+            .draw()
+            .map_err(err)?;
+        Ok(())
+    })
 }
 
-fn disc(img: &mut RgbImage, cx: i32, cy: i32, r: i32, c: Rgb<u8>) {
-    for y in -r..=r {
-        for x in -r..=r {
-            if x * x + y * y <= r * r {
-                put(img, cx + x, cy + y, c);
+/// Ticks of a log axis over `lo..hi`: 1, 2 and 5 times each power of ten.
+fn ticks(lo: f64, hi: f64) -> Vec<f64> {
+    let mut out = Vec::new();
+    let mut decade = 10f64.powf(lo.log10().floor());
+    while decade <= hi {
+        for m in [1.0, 2.0, 5.0] {
+            let t = m * decade;
+            if (lo..=hi).contains(&t) {
+                out.push(t);
             }
         }
+        decade *= 10.0;
     }
+    out
 }
 
-fn ring(img: &mut RgbImage, cx: i32, cy: i32, r: i32, c: Rgb<u8>) {
-    for y in -r..=r {
-        for x in -r..=r {
-            let d = x * x + y * y;
-            if d <= r * r && d >= (r - 1) * (r - 1) {
-                put(img, cx + x, cy + y, c);
+/// A bar per label (named under it) with its value written above it,
+/// under `title`.
+pub fn bars(
+    title: &str,
+    y_label: &str,
+    labels: &[String],
+    values: &[f64],
+) -> anyhow::Result<RgbImage> {
+    let n = labels.len().min(values.len());
+    let top = values
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite())
+        .fold(0.0f64, f64::max)
+        .max(1e-3)
+        * 1.15;
+    picture(|root| {
+        let err = |e: plotters::drawing::DrawingAreaErrorKind<_>| anyhow!("plot: {e}");
+        let mut chart = ChartBuilder::on(root)
+            .caption(title, (FONT, 24))
+            .margin(16)
+            .x_label_area_size(50)
+            .y_label_area_size(72)
+            .build_cartesian_2d(-0.5..n as f64 - 0.5, 0.0..top)
+            .map_err(err)?;
+        // Each bar's name under it (at whole numbers).
+        let name = |v: &f64| {
+            let i = v.round();
+            if (v - i).abs() < 1e-6 && i >= 0.0 {
+                labels.get(i as usize).cloned().unwrap_or_default()
+            } else {
+                String::new()
             }
+        };
+        chart
+            .configure_mesh()
+            .disable_x_mesh()
+            .x_labels(n.max(1))
+            .light_line_style(TRANSPARENT)
+            .bold_line_style(RGBColor(225, 225, 225))
+            .x_label_formatter(&name)
+            .y_desc(y_label)
+            .label_style((FONT, 15))
+            .axis_desc_style((FONT, 17))
+            .draw()
+            .map_err(err)?;
+        for (i, &v) in values.iter().take(n).enumerate() {
+            let color = COLORS[i % COLORS.len()];
+            let x = i as f64;
+            let v = if v.is_finite() { v } else { 0.0 };
+            chart
+                .draw_series([Rectangle::new(
+                    [(x - 0.35, 0.0), (x + 0.35, v)],
+                    color.filled(),
+                )])
+                .map_err(err)?;
+            chart
+                .draw_series([Text::new(
+                    format!("{v:.1}"),
+                    (x - 0.08, v + top * 0.04),
+                    (FONT, 15),
+                )])
+                .map_err(err)?;
         }
-    }
-}
-
-/// Draws `s` (lowercased) at 2x scale from its top-left corner; characters
-/// the font lacks are drawn as blanks.
-pub fn text(img: &mut RgbImage, x: i32, y: i32, s: &str, c: Rgb<u8>) {
-    for (i, ch) in s.chars().enumerate() {
-        let rows = glyph(ch.to_ascii_lowercase());
-        let gx = x + 12 * i as i32;
-        for (r, bits) in rows.iter().enumerate() {
-            for col in 0..5 {
-                if bits & (0b10000 >> col) != 0 {
-                    for (sx, sy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-                        put(img, gx + 2 * col + sx, y + 2 * r as i32 + sy, c);
-                    }
-                }
-            }
-        }
-    }
-}
-
-fn glyph(c: char) -> [u8; 7] {
-    match c {
-        '0' => [14, 17, 19, 21, 25, 17, 14],
-        '1' => [4, 12, 4, 4, 4, 4, 14],
-        '2' => [14, 17, 1, 2, 4, 8, 31],
-        '3' => [31, 2, 4, 2, 1, 17, 14],
-        '4' => [2, 6, 10, 18, 31, 2, 2],
-        '5' => [31, 16, 30, 1, 1, 17, 14],
-        '6' => [6, 8, 16, 30, 17, 17, 14],
-        '7' => [31, 1, 2, 4, 8, 8, 8],
-        '8' => [14, 17, 17, 14, 17, 17, 14],
-        '9' => [14, 17, 17, 15, 1, 2, 12],
-        'a' => [0, 0, 14, 1, 15, 17, 15],
-        'b' => [16, 16, 22, 25, 17, 17, 30],
-        'c' => [0, 0, 14, 16, 16, 17, 14],
-        'd' => [1, 1, 13, 19, 17, 17, 15],
-        'e' => [0, 0, 14, 17, 31, 16, 14],
-        'f' => [6, 9, 8, 28, 8, 8, 8],
-        'g' => [0, 15, 17, 17, 15, 1, 14],
-        'h' => [16, 16, 22, 25, 17, 17, 17],
-        'i' => [4, 0, 12, 4, 4, 4, 14],
-        'j' => [2, 0, 6, 2, 2, 18, 12],
-        'k' => [16, 16, 18, 20, 24, 20, 18],
-        'l' => [12, 4, 4, 4, 4, 4, 14],
-        'm' => [0, 0, 26, 21, 21, 17, 17],
-        'n' => [0, 0, 22, 25, 17, 17, 17],
-        'o' => [0, 0, 14, 17, 17, 17, 14],
-        'p' => [0, 0, 30, 17, 30, 16, 16],
-        'q' => [0, 0, 13, 19, 15, 1, 1],
-        'r' => [0, 0, 22, 25, 16, 16, 16],
-        's' => [0, 0, 14, 16, 14, 1, 30],
-        't' => [8, 8, 28, 8, 8, 9, 6],
-        'u' => [0, 0, 17, 17, 17, 19, 13],
-        'v' => [0, 0, 17, 17, 17, 10, 4],
-        'w' => [0, 0, 17, 17, 21, 21, 10],
-        'x' => [0, 0, 17, 10, 4, 10, 17],
-        'y' => [0, 0, 17, 17, 15, 1, 14],
-        'z' => [0, 0, 31, 2, 4, 8, 31],
-        '.' => [0, 0, 0, 0, 0, 12, 12],
-        '-' => [0, 0, 0, 31, 0, 0, 0],
-        '=' => [0, 0, 31, 0, 31, 0, 0],
-        '(' => [2, 4, 8, 8, 8, 4, 2],
-        ')' => [8, 4, 2, 2, 2, 4, 8],
-        '/' => [0, 1, 2, 4, 8, 16, 0],
-        ':' => [0, 12, 12, 0, 12, 12, 0],
-        ',' => [0, 0, 0, 0, 12, 4, 8],
-        '^' => [4, 10, 17, 0, 0, 0, 0],
-        '%' => [24, 25, 2, 4, 8, 19, 3],
-        '_' => [0, 0, 0, 0, 0, 0, 31],
-        '+' => [0, 4, 4, 31, 4, 4, 0],
-        _ => [0; 7],
-    }
-}
-
-/// A bar chart: one bar per label, its value printed above it; the y axis
-/// starts at 0.
-pub fn bars(title: &str, y_label: &str, labels: &[String], values: &[f64]) -> RgbImage {
-    let mut img = RgbImage::from_pixel(W, H, Rgb([255, 255, 255]));
-    let (x0, x1) = (LEFT, W as i32 - 40);
-    let (y0, y1) = (H as i32 - BOTTOM, TOP);
-    let ymax = nice_ceiling(values.iter().copied().fold(0.0, f64::max).max(1e-6));
-    let py = |y: f64| y0 - (y / ymax * f64::from(y0 - y1)) as i32;
-    let ink = Rgb([40, 40, 40]);
-    y_grid(&mut img, (x0, x1), ymax, 1, &py);
-    let n = labels.len().max(1) as i32;
-    let slot = (x1 - x0) / n;
-    for (i, (label, &v)) in labels.iter().zip(values).enumerate() {
-        let cx = x0 + slot * i as i32 + slot / 2;
-        let half = (slot / 3).max(2);
-        let top = py(v);
-        let c = Rgb(COLORS[i % COLORS.len()]);
-        for x in cx - half..=cx + half {
-            line(&mut img, (x, y0), (x, top), c);
-        }
-        let value = format!("{v:.1}");
-        text(&mut img, cx - 6 * value.len() as i32, top - 20, &value, ink);
-        text(&mut img, cx - 6 * label.len() as i32, y0 + 10, label, ink);
-    }
-    line(&mut img, (x0, y0), (x1, y0), ink);
-    line(&mut img, (x0, y0), (x0, y1), ink);
-    text(&mut img, x0, 4, title, ink);
-    text(&mut img, 8, TOP - 27, y_label, ink);
-    img
+        Ok(())
+    })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    fn p(x_ms: f64, y: f64, series: usize) -> Point {
+        Point {
+            x_ms,
+            y,
+            series,
+            label: format!("{x_ms}"),
+        }
+    }
+
     #[test]
     fn the_front_keeps_only_points_no_other_point_beats() {
-        let p = |x_ms, y| Point { x_ms, y, series: 0 };
         let pts = [
-            p(1.0, 0.5),
-            p(2.0, 0.6),
-            p(3.0, 0.1),
-            p(0.5, 0.9),
-            p(10.0, 0.1),
+            p(1.0, 0.5, 0),
+            p(2.0, 0.6, 0),
+            p(3.0, 0.1, 0),
+            p(0.5, 0.9, 0),
+            p(10.0, 0.1, 0),
         ];
         assert_eq!(pareto_front(&pts), vec![3, 0, 2]);
+    }
+
+    #[test]
+    fn charts_draw_their_points_and_bars_in_colour_with_text() {
+        let series = vec!["a".to_string(), "b".to_string()];
+        let img = scatter("T", "x", "y", &series, &[p(6.0, 0.1, 0), p(130.0, 0.05, 1)]).unwrap();
+        let colored =
+            |img: &RgbImage, c: RGBColor| img.pixels().filter(|q| q.0 == [c.0, c.1, c.2]).count();
+        assert!(colored(&img, COLORS[0]) > 20 && colored(&img, COLORS[1]) > 20);
+        // Text is drawn (dark pixels beyond the axes' lines).
+        let dark = img.pixels().filter(|q| q.0.iter().all(|&v| v < 80)).count();
+        assert!(dark > 500, "{dark}");
+        let img = bars(
+            "frame ms",
+            "ms",
+            &["1 process".into(), "3 workers, workers drawing".into()],
+            &[120.0, 80.0],
+        )
+        .unwrap();
+        assert!(colored(&img, COLORS[0]) > 1000 && colored(&img, COLORS[1]) > 1000);
     }
 }

@@ -387,7 +387,7 @@ fn bench_scaling_reports_every_configuration_and_writes_its_plot() {
         std::thread::available_parallelism().unwrap().get()
     );
     let img = image::open(&plot).unwrap();
-    assert_eq!((img.width(), img.height()), (960, 600));
+    assert_eq!((img.width(), img.height()), (1100, 680));
 }
 
 #[test]

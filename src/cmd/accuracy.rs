@@ -190,7 +190,7 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
         eprintln!("wrote {}", path.display());
     }
     if let Some(path) = &a.plot {
-        let img = plot_rows(&rows[1..], &name, cores);
+        let img = plot_rows(&rows[1..], &name, cores)?;
         raster::write_png_atomic(&img, path).context("cannot save the plot")?;
         eprintln!("wrote {}", path.display());
     }
@@ -268,12 +268,33 @@ fn image_error(a: &RgbImage, b: &RgbImage, background: glam::Vec3) -> f64 {
     }
 }
 
-fn plot_rows(rows: &[Row], scene: &str, cores: usize) -> RgbImage {
+fn plot_rows(rows: &[Row], scene: &str, cores: usize) -> anyhow::Result<RgbImage> {
     let series: Vec<String> = MethodConfig::NAMES
         .iter()
         .filter(|n| **n != "reference" && rows.iter().any(|r| r.config.name() == **n))
         .map(|n| n.to_string())
         .collect();
+    // Each point labelled with the settings that differ between its
+    // method's rows (what the method was run at).
+    let label = |r: &Row| {
+        let mine: Vec<String> = r
+            .config
+            .parameters()
+            .split(' ')
+            .map(str::to_string)
+            .collect();
+        let varies = |kv: &String| {
+            rows.iter()
+                .filter(|o| o.config.name() == r.config.name())
+                .any(|o| !o.config.parameters().split(' ').any(|x| x == kv))
+        };
+        let shown: Vec<&str> = mine
+            .iter()
+            .filter(|kv| varies(kv))
+            .map(String::as_str)
+            .collect();
+        shown.join(" ")
+    };
     let points: Vec<plot::Point> = rows
         .iter()
         .map(|r| plot::Point {
@@ -283,6 +304,7 @@ fn plot_rows(rows: &[Row], scene: &str, cores: usize) -> RgbImage {
                 .iter()
                 .position(|s| s == r.config.name())
                 .unwrap_or(0),
+            label: label(r),
         })
         .collect();
     let scene = Path::new(scene)
@@ -291,7 +313,7 @@ fn plot_rows(rows: &[Row], scene: &str, cores: usize) -> RgbImage {
     plot::scatter(
         &format!("shadow error vs time: {scene}, {cores} cores"),
         "three shadow stages, ms (log scale)",
-        "rms error of t at drawn points",
+        "RMS error of T at the drawn points",
         &series,
         &points,
     )

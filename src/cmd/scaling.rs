@@ -413,7 +413,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
         "ms",
         &labels,
         &values,
-    );
+    )?;
     raster::write_png_atomic(&img, &a.plot).context("cannot save the plot")?;
     eprintln!("bench scaling: wrote {}", a.plot.display());
     if rows.iter().any(|r| !r.identical) {
