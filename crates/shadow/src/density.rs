@@ -700,6 +700,24 @@ struct Spread {
 }
 
 impl Spread {
+    /// The `m` pieces of a segment from world point `aw` in world steps
+    /// `dw` (map coordinates `a` to `b`): `f(mid, step)` for each, in
+    /// cells, each piece mapped on its own.
+    #[inline]
+    fn pieces(&self, aw: Vec3, dw: Vec3, a: Vec3, b: Vec3, m: u32, mut f: impl FnMut(Vec3, Vec3)) {
+        let mut p0 = a;
+        for k in 0..m {
+            let p1 = if k + 1 == m {
+                b
+            } else {
+                self.frame.to_cells(aw + (k + 1) as f32 * dw)
+            };
+            let mid = self.frame.to_cells(aw + (k as f32 + 0.5) * dw);
+            f(mid, p1 - p0);
+            p0 = p1;
+        }
+    }
+
     /// `tau / (alpha w / du)` of a piece at `mid` spanning `step` (cells).
     #[inline]
     fn weight(&self, mid: Vec3, step: Vec3) -> f32 {
@@ -752,25 +770,16 @@ fn strand_pieces(rows: &mut Rows, pts: &[Vec3], k_q: f32, spread: Option<Spread>
                 continue;
             }
             let (aw, bw) = (f.frame.to_world(a), f.frame.to_world(b));
-            let dw = (bw - aw) * inv_m;
-            let mut p0 = a;
-            for k in 0..m {
-                let p1 = if k + 1 == m {
-                    b
-                } else {
-                    f.frame.to_cells(aw + (k + 1) as f32 * dw)
-                };
-                let (mid, step) = (f.frame.to_cells(aw + (k as f32 + 0.5) * dw), p1 - p0);
-                p0 = p1;
+            f.pieces(aw, (bw - aw) * inv_m, a, b, m, |mid, step| {
                 let own = rows.owns(mid.z.floor() as i32);
                 if !(mid.cmpge(Vec3::ZERO).all() && mid.cmplt(Vec3::splat(n)).all()) {
                     stats.out_of_map += u64::from(own);
-                    continue;
+                    return;
                 }
                 let q = (k_q * f.weight(mid, step)).min(u32::MAX as f32);
                 tent_splat(rows, mid, step, q);
                 stats.samples += u64::from(own);
-            }
+            });
             continue;
         }
         if near(a) && near(b) {
@@ -904,17 +913,9 @@ pub(crate) fn for_each_fan_piece(
             continue;
         }
         let dw = (w[1] - w[0]) / m as f32;
-        let mut p0 = a;
-        for k in 0..m {
-            let p1 = if k + 1 == m {
-                b
-            } else {
-                frame.to_cells(w[0] + (k + 1) as f32 * dw)
-            };
-            let (mid, step) = (frame.to_cells(w[0] + (k as f32 + 0.5) * dw), p1 - p0);
-            p0 = p1;
-            f(mid, step, spread.weight(mid, step));
-        }
+        spread.pieces(w[0], dw, a, b, m, |mid, step| {
+            f(mid, step, spread.weight(mid, step))
+        });
     }
 }
 
