@@ -39,6 +39,8 @@ enum Command {
     Health(cmd::cluster::HealthArgs),
     /// Makes a certificate authority and certificates for mutual TLS between a coordinator and its workers.
     Certs(cmd::cluster::CertsArgs),
+    /// Serves a page that shows the animation as it renders and steers it: camera, lights, effects, shadow method.
+    View(cmd::view::Args),
     /// Measures the speed of pipeline stages.
     #[command(subcommand)]
     Bench(cmd::bench::Bench),
@@ -116,6 +118,7 @@ fn main() -> ExitCode {
         Command::Worker(a) => a.threads.threads,
         Command::Coordinator(a) => a.threads(),
         Command::Bench(b) => b.threads(),
+        Command::View(a) => a.threads.threads,
         Command::Health(_) | Command::Certs(_) => None,
     };
     let result = init_threads(threads).and_then(|()| match cli.command {
@@ -126,6 +129,7 @@ fn main() -> ExitCode {
         Command::Health(args) => cmd::cluster::health(args),
         Command::Certs(args) => cmd::cluster::certs(args),
         Command::Bench(b) => cmd::bench::run(b),
+        Command::View(args) => cmd::view::run(args),
     });
     match result {
         Ok(()) => ExitCode::SUCCESS,

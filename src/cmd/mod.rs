@@ -7,6 +7,7 @@ pub mod nodes;
 pub mod probe;
 pub mod render;
 pub mod scaling;
+pub mod view;
 
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};

@@ -298,28 +298,9 @@ fn is_gif(p: &Path) -> bool {
     p.extension().is_some_and(|e| e.eq_ignore_ascii_case("gif"))
 }
 
-/// Writes `{"frames": [{"index", "time_s", "steps", "stages": {name: {"ran", "ms"}}}]}`.
+/// Writes `{"frames": [...]}`, each frame's record as
+/// [`FrameStats`] serializes it.
 fn write_stats(path: &Path, frames: &[FrameStats]) -> anyhow::Result<()> {
-    let frames: Vec<serde_json::Value> = frames
-        .iter()
-        .map(|f| {
-            let stages: serde_json::Map<String, serde_json::Value> = f
-                .stages()
-                .map(|(s, r)| {
-                    (
-                        s.name().to_string(),
-                        serde_json::json!({"ran": r.ran, "ms": r.ms}),
-                    )
-                })
-                .collect();
-            serde_json::json!({
-                "index": f.index,
-                "time_s": f.time_s,
-                "steps": f.steps,
-                "stages": stages,
-            })
-        })
-        .collect();
     let doc = serde_json::json!({ "frames": frames });
     let bytes = serde_json::to_vec_pretty(&doc).context("cannot encode the stats")?;
     raster::write_bytes_atomic(path, &bytes).context("cannot save the stats")

@@ -147,6 +147,41 @@ impl FrameStats {
     }
 }
 
+/// The record `--stats` files and the viewer's overlay show:
+/// `{"index", "time_s", "steps", "stages": {name: {"ran", "ms"}}}`, the
+/// stages in [`Stage::ALL`] order.
+impl serde::Serialize for FrameStats {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::{SerializeMap, SerializeStruct};
+
+        struct Stages<'a>(&'a FrameStats);
+        struct Record(StageRecord);
+        impl serde::Serialize for Record {
+            fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+                let mut r = s.serialize_struct("StageRecord", 2)?;
+                r.serialize_field("ran", &self.0.ran)?;
+                r.serialize_field("ms", &self.0.ms)?;
+                r.end()
+            }
+        }
+        impl serde::Serialize for Stages<'_> {
+            fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+                let mut m = s.serialize_map(Some(Stage::ALL.len()))?;
+                for (stage, r) in self.0.stages() {
+                    m.serialize_entry(stage.name(), &Record(r))?;
+                }
+                m.end()
+            }
+        }
+        let mut f = s.serialize_struct("FrameStats", 4)?;
+        f.serialize_field("index", &self.index)?;
+        f.serialize_field("time_s", &self.time_s)?;
+        f.serialize_field("steps", &self.steps)?;
+        f.serialize_field("stages", &Stages(self))?;
+        f.end()
+    }
+}
+
 /// Which hair a map or result was computed from: the pose counter.
 type Version = u64;
 
@@ -175,6 +210,11 @@ pub struct Sequence {
     /// What the last pose reported, when it was posed elsewhere or once
     /// measured here.
     report: Option<PoseReport>,
+    /// The plan of the last pose.
+    last_plan: Option<PosePlan>,
+    /// Whether the drawn hair in this process lags the hair posed
+    /// elsewhere.
+    stale_here: bool,
     /// The hair the self-collision map holds.
     collision_at: Option<Version>,
     /// The hair the shadow result (and the filtered transmittance) holds.
@@ -227,6 +267,27 @@ fn compositor_pool() -> Option<rayon::ThreadPool> {
         .ok()
 }
 
+/// Self-collisions' own density map for `scene`, when they need one and
+/// the shadows do not fill it.
+fn collision_map(
+    scene: &Scene,
+    anim: &Animator,
+) -> Result<Option<Box<dyn ShadowMethod>>, EngineError> {
+    let shares_map =
+        scene.effects.self_shadow && matches!(scene.shadow.method, MethodConfig::DensityMap { .. });
+    let collides = anim.simulates() && scene.effects.self_collision;
+    if !collides || shares_map {
+        return Ok(None);
+    }
+    Ok(Some(
+        MethodConfig::DensityMap {
+            cells: scene.shadow.cells().max(1),
+            filter: false,
+        }
+        .create()?,
+    ))
+}
+
 /// No hair: what the density fill is handed for hair posed elsewhere.
 static NO_HAIR: std::sync::LazyLock<Hair> = std::sync::LazyLock::new(Hair::new);
 
@@ -235,20 +296,7 @@ impl Sequence {
         let anim = Animator::new(scene)?;
         let mut renderer = Renderer::new(scene)?;
         renderer.set_groups(anim.groups().strands.clone());
-        let shares_map = scene.effects.self_shadow
-            && matches!(scene.shadow.method, MethodConfig::DensityMap { .. });
-        let collides = anim.simulates() && scene.effects.self_collision;
-        let collision_map = if collides && !shares_map {
-            Some(
-                MethodConfig::DensityMap {
-                    cells: scene.shadow.cells().max(1),
-                    filter: false,
-                }
-                .create()?,
-            )
-        } else {
-            None
-        };
+        let collision_map = collision_map(scene, &anim)?;
         Ok(Sequence {
             scene: scene.clone(),
             posed_head: anim.head(),
@@ -258,6 +306,8 @@ impl Sequence {
             collision_map,
             version: 0,
             report: None,
+            stale_here: false,
+            last_plan: None,
             collision_at: None,
             shadow_at: None,
             shaded_at: None,
@@ -276,13 +326,84 @@ impl Sequence {
         executor.attach(&self.anim)?;
         self.executor = executor;
         // Hair held elsewhere is posed there before it is used.
+        self.invalidate();
+        Ok(())
+    }
+
+    /// The scene as the frames now render it.
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    /// Renders the frames from the next on with `scene`'s lights, effects,
+    /// shading and shadow settings, the hair's motion carrying on where it
+    /// is (nothing is simulated again) and the camera kept. The next frame
+    /// runs the shadow stages (when on), the shading and the drawing anew;
+    /// with hair held elsewhere, its pose too (an executor whose own
+    /// settings depend on the changed ones is replaced with
+    /// [`Self::set_executor`] after this). Refused, leaving the sequence as
+    /// it was, when `scene` has other hair, motion or dynamics settings, or
+    /// another number of lights: such a scene needs a sequence of its own.
+    pub fn set_scene(&mut self, scene: &Scene) -> Result<(), EngineError> {
+        let same_motion = scene.hair == self.scene.hair
+            && scene.animation == self.scene.animation
+            && scene.dynamics == self.scene.dynamics
+            && scene.effects.dynamics == self.scene.effects.dynamics
+            && scene.head == self.scene.head
+            && scene.render == self.scene.render
+            && scene.fiber == self.scene.fiber
+            && scene.lights.len() == self.scene.lights.len();
+        if !same_motion {
+            return Err(EngineError::Unchangeable(
+                "a running sequence changes only its lights (not their number), effects \
+                 (but dynamics), shading and shadow settings",
+            ));
+        }
+        let renderer = self.renderer.remade(scene)?;
+        self.collision_map = collision_map(scene, &self.anim)?;
+        self.renderer = renderer;
+        self.scene = scene.clone();
+        self.invalidate();
+        Ok(())
+    }
+
+    /// Looks through `camera` from the next frame on (it shades and draws
+    /// anew; nothing else reruns).
+    pub fn set_camera(&mut self, camera: raster::Camera) {
+        self.renderer.set_camera(camera);
+        self.shaded_at = None;
+        self.picture = None;
+    }
+
+    /// Makes the next frame the last one again: no motion, and only the
+    /// stages whose inputs changed since (by [`Self::set_camera`] or
+    /// [`Self::set_scene`]) run; with nothing changed, none. Before the
+    /// first frame, the next is the first.
+    pub fn hold(&mut self) {
+        if self.next > 0 && self.ahead.is_none() {
+            self.next -= 1;
+            self.repeat = true;
+            if let Some(n) = &mut self.expected {
+                *n += 1;
+            }
+        }
+    }
+
+    /// Index of the next frame [`Self::next_frame`] renders.
+    pub fn next_index(&self) -> u64 {
+        self.next
+    }
+
+    /// Forgets every result that depends on the scene's settings: the
+    /// next frame poses (where the hair is held elsewhere), shadows, shades
+    /// and draws anew.
+    fn invalidate(&mut self) {
         self.report = None;
         self.shadow_at = None;
         self.collision_at = None;
         self.shaded_at = None;
         self.picture = None;
         self.ahead = None;
-        Ok(())
     }
 
     /// The drawn hair as last posed in this process (when the executor
@@ -521,7 +642,18 @@ impl Sequence {
         } else if head != self.posed_head || (elsewhere && self.report.is_none()) {
             self.pose(&mut stats, head, Vec::new())?;
         }
+        if !elsewhere && self.stale_here {
+            // Posed elsewhere until a change of settings brought the
+            // drawing here: posed here as it was there.
+            let plan = self.pose_again();
+            self.posed(&mut stats, &plan)?;
+        }
         self.renderer.set_head_pose(head);
+        // Hair held elsewhere whose report was forgotten (new lights)
+        // reports again before its version is read.
+        if elsewhere && self.report.is_none() {
+            self.report(&mut stats)?;
+        }
 
         // Shadows, only when the hair moved since the last result.
         let version = self.version;
@@ -561,7 +693,7 @@ impl Sequence {
     /// head, as [`Animator::new`] poses it here).
     fn report(&mut self, stats: &mut FrameStats) -> Result<&PoseReport, EngineError> {
         if self.report.is_none() {
-            let plan = self.pose_plan(self.posed_head, Vec::new());
+            let plan = self.pose_again();
             if self.draws_elsewhere() {
                 self.posed(stats, &plan)?;
             } else {
@@ -569,6 +701,19 @@ impl Sequence {
             }
         }
         Ok(self.report.as_ref().expect("measured above"))
+    }
+
+    /// The last pose again: the same hair, as a new version, the lights
+    /// as they are now; before any, the hair as it stands.
+    fn pose_again(&self) -> PosePlan {
+        match &self.last_plan {
+            Some(p) => PosePlan {
+                version: self.version + 1,
+                lights: self.scene.lights.clone(),
+                ..p.clone()
+            },
+            None => self.pose_plan(self.posed_head, Vec::new()),
+        }
     }
 
     /// The plan of the next pose under `head`, pushed out of `drawn_bodies`.
@@ -596,10 +741,13 @@ impl Sequence {
     }
 
     fn posed(&mut self, stats: &mut FrameStats, plan: &PosePlan) -> Result<(), EngineError> {
+        self.last_plan = Some(plan.clone());
         if self.draws_elsewhere() {
             let ex = self.executor.as_mut();
             self.report = Some(stats.time(Stage::Pose, || ex.pose(plan))?);
+            self.stale_here = true;
         } else {
+            self.stale_here = false;
             stats.time(Stage::Pose, || self.anim.set_head(plan.head));
             if !plan.drawn_bodies.is_empty() {
                 let b = &plan.drawn_bodies;

@@ -67,6 +67,9 @@ pub enum EngineError {
         bytes: u64,
         limit: u64,
     },
+    /// A change a running sequence cannot take.
+    #[error("{0}")]
+    Unchangeable(&'static str),
     /// An executor that runs stages elsewhere (cluster mode) failed.
     #[error("{0}")]
     Executor(String),

@@ -400,6 +400,42 @@ impl Renderer {
         Ok((composite, drawn))
     }
 
+    /// Looks through `camera` from now on. Fragments keep their depth
+    /// weighting relative to the distance to the camera's target, so an
+    /// orbit at the framed distance weights them as the framed view did
+    /// (unframed, the weighting is set by that distance).
+    pub fn set_camera(&mut self, camera: Camera) {
+        let dist = camera.position.distance(camera.look_at());
+        let depth_ref = match &self.view {
+            Some(v) => {
+                let ratio = dist / v.camera.position.distance(v.camera.look_at());
+                if ratio.is_finite() && ratio > 0.0 {
+                    v.depth_ref * ratio
+                } else {
+                    v.depth_ref
+                }
+            }
+            None if dist.is_finite() => dist,
+            None => 1.0,
+        };
+        self.view = Some(View {
+            camera,
+            depth_ref: depth_ref.max(1e-3),
+        });
+    }
+
+    /// A renderer of `scene` (the same hair, other lights, effects,
+    /// shading or shadow settings) that keeps this one's camera, groups,
+    /// canvas and head pose.
+    pub fn remade(&mut self, scene: &Scene) -> Result<Renderer, EngineError> {
+        let mut r = Renderer::new(scene)?;
+        r.view = self.view;
+        r.groups = self.groups.clone();
+        r.canvas = self.canvas.take();
+        r.set_head_pose(self.shadows.head_pose());
+        Ok(r)
+    }
+
     /// Gives back the canvas a [`Composite`] resolved on, to be reused.
     pub fn restore_canvas(&mut self, canvas: Option<Canvas>) {
         if canvas.is_some() {
