@@ -201,11 +201,9 @@ impl Page {
     }
 
     pub fn frame(&mut self) -> Frame {
-        loop {
-            match self.next().expect("the socket is open") {
-                Ok(f) => return f,
-                Err(e) => panic!("an error instead of a frame: {e}"),
-            }
+        match self.next().expect("the socket is open") {
+            Ok(f) => f,
+            Err(e) => panic!("an error instead of a frame: {e}"),
         }
     }
 
