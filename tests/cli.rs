@@ -1041,3 +1041,99 @@ fn a_render_stopped_by_a_signal_leaves_no_file_and_a_killed_ones_leftover_goes()
         assert!(names_in(&dir).is_empty(), "{:?}", names_in(&dir));
     }
 }
+
+/// `wisplight view` as started from a shell: its first stdout line, and
+/// the page it serves; stopped with SIGTERM, exit 0.
+#[test]
+fn view_prints_the_page_address_serves_the_page_and_stops_on_sigterm() {
+    use std::io::{BufRead, BufReader, Read, Write};
+    let dir = scratch("view");
+    let scene = write(&dir, "s.toml", SMALL);
+    for (listen, token) in [("127.0.0.1:0", false), ("0.0.0.0:0", true)] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_wisplight"))
+            .args(["view", &scene, "--listen", listen])
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().unwrap())
+            .read_line(&mut line)
+            .unwrap();
+        let url = line
+            .trim()
+            .strip_prefix("viewing on ")
+            .unwrap_or_else(|| panic!("{line}"));
+        assert_eq!(url.contains("?token="), token, "{url}");
+        let rest = url.strip_prefix("http://").unwrap();
+        let (host, path) = rest.split_once('/').unwrap();
+        let port = host.rsplit_once(':').unwrap().1;
+        let mut s = std::net::TcpStream::connect(format!("127.0.0.1:{port}")).unwrap();
+        write!(
+            s,
+            "GET /{path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n"
+        )
+        .unwrap();
+        let mut page = String::new();
+        s.read_to_string(&mut page).unwrap();
+        assert!(page.starts_with("HTTP/1.1 200"), "{page}");
+        assert!(page.contains("<title>wisplight</title>"));
+        let pid = child.id().to_string();
+        assert!(
+            Command::new("kill")
+                .args(["-TERM", &pid])
+                .status()
+                .unwrap()
+                .success()
+        );
+        let out = child.wait_with_output().unwrap();
+        assert!(out.status.success(), "{:?} {}", out.status, stderr(&out));
+        // Beyond loopback, a warning.
+        assert_eq!(
+            stderr(&out).contains("beyond loopback"),
+            token,
+            "{}",
+            stderr(&out)
+        );
+    }
+}
+
+#[test]
+fn view_refuses_a_bad_scene_an_address_in_use_and_unreachable_workers() {
+    let dir = scratch("view-bad");
+    let bad = write(&dir, "bad.toml", "[hair]\nstyle = \"wavy\"\n");
+    let o = wisplight(&["view", &bad, "--listen", "127.0.0.1:0"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("wavy"), "{}", stderr(&o));
+
+    let taken = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = taken.local_addr().unwrap().to_string();
+    let scene = write(&dir, "s.toml", SMALL);
+    let o = wisplight(&["view", &scene, "--listen", &addr]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains(&format!("cannot listen on {addr}")),
+        "{}",
+        stderr(&o)
+    );
+
+    let closed = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let gone = closed.local_addr().unwrap().to_string();
+    drop(closed);
+    let o = wisplight(&[
+        "view",
+        &scene,
+        "--listen",
+        "127.0.0.1:0",
+        "--workers",
+        &gone,
+        "--connect-timeout",
+        "2",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains(&gone), "{}", stderr(&o));
+    assert!(stdout(&o).is_empty(), "nothing listened: {}", stdout(&o));
+
+    let o = wisplight(&["view", "--deadline", "0", "--workers", "127.0.0.1:1"]);
+    assert_eq!(o.status.code(), Some(2));
+}

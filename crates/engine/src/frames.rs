@@ -380,7 +380,7 @@ impl Sequence {
     /// [`Self::set_scene`]) run; with nothing changed, none. Before the
     /// first frame, the next is the first.
     pub fn hold(&mut self) {
-        if self.next > 0 && self.ahead.is_none() {
+        if self.next > 0 && self.ahead.is_none() && !self.repeat {
             self.next -= 1;
             self.repeat = true;
             if let Some(n) = &mut self.expected {
@@ -443,8 +443,23 @@ impl Sequence {
         self.expected = Some(frames);
     }
 
-    /// Renders the next frame: its picture and what each stage did.
+    /// Renders the next frame: its picture and what each stage did. A
+    /// frame that fails is the next frame still (a frame held with
+    /// [`Self::hold`] stays held).
     pub fn next_frame(&mut self) -> Result<(&image::RgbImage, FrameStats), EngineError> {
+        let repeat = self.repeat;
+        let stats = match self.render_next() {
+            Ok(stats) => stats,
+            Err(e) => {
+                self.repeat = repeat;
+                return Err(e);
+            }
+        };
+        let (_, img) = self.picture.as_ref().expect("drawn");
+        Ok((img, stats))
+    }
+
+    fn render_next(&mut self) -> Result<FrameStats, EngineError> {
         let index = self.next;
         let mut stats = match self.ahead.take() {
             Some(ahead) => ahead?,
@@ -544,8 +559,7 @@ impl Sequence {
             }
         }
         self.next += 1;
-        let (_, img) = self.picture.as_ref().expect("drawn above");
-        Ok((img, stats))
+        Ok(stats)
     }
 
     /// Renders the last frame again, every stage after its motion run anew

@@ -66,6 +66,8 @@ struct Shared {
     frames: watch::Receiver<Option<Bytes>>,
     viewers: Viewers,
     token: Option<Arc<str>>,
+    /// Turns true when the server stops.
+    stop: watch::Receiver<bool>,
 }
 
 #[derive(serde::Deserialize)]
@@ -146,11 +148,15 @@ async fn serve(
         .name("wisplight-view".into())
         .spawn(move || session.run(received, frames_tx, thread_viewers))
         .map_err(ViewerError::Serve)?;
+    // On shutdown every page's socket closes, so that the server's
+    // graceful end does not wait for pages.
+    let (stop_tx, stop) = watch::channel(false);
     let shared = Shared {
         inputs,
         frames,
         viewers,
         token: token.clone().map(Arc::from),
+        stop,
     };
     bound(&Bound { addr, token });
     let app = Router::new()
@@ -158,7 +164,10 @@ async fn serve(
         .route("/ws", get(socket))
         .with_state(shared);
     axum::serve(listener, app)
-        .with_graceful_shutdown(shutdown)
+        .with_graceful_shutdown(async move {
+            shutdown.await;
+            let _ = stop_tx.send(true);
+        })
         .await
         .map_err(ViewerError::Serve)
 }
@@ -226,6 +235,7 @@ async fn watch_session(mut socket: WebSocket, s: Shared) {
     let _ = s.inputs.try_send(Input::Wake);
     let mut frames = s.frames.clone();
     frames.mark_changed();
+    let mut stop = s.stop.clone();
     let (errors_tx, mut errors) = mpsc::channel::<String>(8);
     loop {
         let out = tokio::select! {
@@ -240,6 +250,10 @@ async fn watch_session(mut socket: WebSocket, s: Shared) {
                 }
             }
             Some(e) = errors.recv() => error_message(&e),
+            _ = stop.changed() => {
+                let _ = socket.send(Message::Close(None)).await;
+                break;
+            }
             msg = socket.recv() => match msg {
                 None | Some(Err(_)) | Some(Ok(Message::Close(_))) => break,
                 Some(Ok(Message::Text(text))) => {

@@ -544,6 +544,7 @@ impl Session {
             "fps": fps,
             "workers": self.workers,
             "effects": effects,
+            "effect_names": EFFECTS,
             "marschner": matches!(scene.shading.model, ShadingModel::Marschner { .. }),
             "shadow": {
                 "method": method.name(),

@@ -358,3 +358,52 @@ fn workers_give_the_frames_of_one_process_through_every_change() {
         assert!(fr.jpeg == fl.jpeg, "after {what}: not the same picture");
     }
 }
+
+#[test]
+fn a_point_light_moves_about_the_hair_and_a_place_inside_it_is_refused() {
+    let text = format!(
+        "{}\n[light]\nposition = [40.0, 30.0, 40.0]\n",
+        common::SCENE
+    );
+    let scene = engine::Scene::from_toml_str(&text, std::path::Path::new("point.toml")).unwrap();
+    let v = start(scene, None, "127.0.0.1:0");
+    let mut page = Page::open(&v);
+    let paused = page.pause();
+    assert_eq!(paused.header["lights"][0]["kind"], "point");
+    page.send(r#"{"type":"light","index":0,"azimuth_deg":-60,"elevation_deg":20,"distance":80}"#);
+    let moved = page.frame();
+    let l = &moved.header["lights"][0];
+    assert!((l["distance"].as_f64().unwrap() - 80.0).abs() < 1e-3, "{l}");
+    assert!(
+        (l["azimuth_deg"].as_f64().unwrap() + 60.0).abs() < 0.01,
+        "{l}"
+    );
+    assert_eq!(
+        moved.stages_run(),
+        ["density", "transmittance", "filter", "shade", "draw"]
+    );
+    // At the hair's centre the light is inside what it lights: the frame
+    // fails, the page is told, and the light goes back.
+    page.send(r#"{"type":"light","index":0,"azimuth_deg":0,"elevation_deg":0,"distance":0.5}"#);
+    let failed = page.frame_where(|f| !f.header["error"].is_null());
+    let e = failed.header["error"].as_str().unwrap();
+    assert!(e.contains("inside") || e.contains("behind"), "{e}");
+    let back = page.frame_where(|f| f.header["error"].is_null());
+    assert!((back.header["lights"][0]["distance"].as_f64().unwrap() - 80.0).abs() < 1e-3);
+    assert!(
+        back.jpeg == moved.jpeg,
+        "the picture before the failed move"
+    );
+}
+
+#[test]
+fn stopping_the_viewer_closes_every_page() {
+    let v = start(scene(), None, "127.0.0.1:0");
+    let mut page = Page::open(&v);
+    page.frame();
+    drop(v);
+    // Frames, then the close: no wait for the page to leave first.
+    while let Some(m) = page.next() {
+        assert!(m.is_ok(), "{m:?}");
+    }
+}
