@@ -1,0 +1,476 @@
+//! The coordinator's drawing calls: partial pictures composited here, or bands composited among the workers; the state a frame is drawn again from.
+
+use super::*;
+
+impl RemoteExecutor {
+    pub(super) fn draw_remote(&mut self, job: &DrawJob) -> Result<DrawReport, ClusterError> {
+        self.ensure_posed()?;
+        if self.posed != Some(job.version) {
+            return Err(ClusterError::Setup(format!(
+                "the workers hold hair version {:?}, not {}",
+                self.posed, job.version
+            )));
+        }
+        let first = pb::DrawChunk {
+            job: Some(wire::job_to_pb(job)),
+            ..Default::default()
+        };
+        let mut requests = Vec::with_capacity(self.workers.len());
+        let mut sent = 0u64;
+        for (i, w) in self.workers.iter().enumerate() {
+            let mut chunks = vec![first.clone()];
+            if job.shadows {
+                for (l, swept) in self.swept.iter().enumerate() {
+                    let (frame, slabs) = swept
+                        .as_ref()
+                        .ok_or_else(|| {
+                            ClusterError::Setup(format!("light {l} was not swept before drawing"))
+                        })?
+                        .get();
+                    // The columns this worker reads; all of them after a loss.
+                    let keep = self.reads[l].as_ref().and_then(|r| r.get(i));
+                    chunks.extend(wire::draw_columns(
+                        l as u32,
+                        frame,
+                        slabs,
+                        keep.map(|k| &k[..]),
+                    ));
+                }
+            }
+            sent += chunks.iter().map(|c| c.encoded_len() as u64).sum::<u64>();
+            requests.push((w.clone(), chunks));
+        }
+        let (width, height) = (job.camera.width(), job.camera.height());
+        let t = Instant::now();
+        let replies = fan_out(
+            &self.rt,
+            requests,
+            "draw",
+            self.deadline,
+            move |mut w, chunks| async move {
+                let mut s = w
+                    .client
+                    .draw(tokio_stream::iter(chunks))
+                    .await
+                    .map_err(|s| call_error(&w.addr, "draw", s))?
+                    .into_inner();
+                let mut reader = wire::LayerReader::new(width, height);
+                let mut bytes = 0u64;
+                // Each chunk is decoded as it comes, while the rest travel.
+                while let Some(c) = s
+                    .message()
+                    .await
+                    .map_err(|e| call_error(&w.addr, "draw", e))?
+                {
+                    bytes += c.encoded_len() as u64;
+                    reader.add(&c).map_err(|e| malformed(&w.addr, e))?;
+                }
+                let times = reader.times;
+                let layer = reader.finish().map_err(|e| malformed(&w.addr, e))?;
+                Ok((layer, times, bytes))
+            },
+        )?;
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        let mut report = DrawReport::default();
+        let mut received = 0u64;
+        let mut slowest = 0.0f64;
+        for (layer, times, bytes) in replies {
+            received += bytes;
+            report.filter_ms = report.filter_ms.max(times.filter_ms);
+            report.shade_ms = report.shade_ms.max(times.shade_ms);
+            report.raster_ms = report.raster_ms.max(times.raster_ms);
+            slowest = slowest.max(times.filter_ms + times.shade_ms + times.raster_ms);
+            report.layers.push(layer);
+        }
+        self.count(|x| {
+            x.draw_sent += sent;
+            x.layers_received += received;
+        });
+        self.clock(|x| {
+            x.draw_ms += ms;
+            x.draw_compute_ms += slowest;
+        });
+        Ok(report)
+    }
+
+    /// Whether the next Draw is composited on the workers.
+    pub(super) fn composites_now(&self) -> bool {
+        self.draw == DrawAt::Workers && self.composite && self.workers.len() >= 2
+    }
+
+    /// One Draw round composited on the workers (see [`wire::Bands`]): each
+    /// resolves a band of rows and sends it finished. Any failure fails the
+    /// round (the caller composites the frame here instead); no worker is
+    /// dropped for it.
+    pub(super) fn draw_composited(
+        &mut self,
+        job: &DrawJob,
+        ahead: bool,
+    ) -> Result<DrawReport, ClusterError> {
+        self.ensure_posed()?;
+        if self.posed != Some(job.version) {
+            return Err(ClusterError::Setup(format!(
+                "the workers hold hair version {:?}, not {}",
+                self.posed, job.version
+            )));
+        }
+        let n = self.workers.len();
+        let (width, height) = (job.camera.width(), job.camera.height());
+        self.calls += 1;
+        let round = self.calls;
+        let peers: Vec<(String, String)> = self
+            .workers
+            .iter()
+            .map(|w| (w.addr.clone(), w.session.clone()))
+            .collect();
+        // The workers hold every column when they swept them together.
+        let exchanged = job.shadows
+            && self.posed == Some(job.version)
+            && self
+                .swept_on_workers
+                .iter()
+                .all(|x| *x == Some(job.version));
+        // The workers' columns go with this Draw.
+        self.swept_on_workers.iter_mut().for_each(|x| *x = None);
+        // Band owners shade the head under the hair's shadow: every column.
+        let all_columns = job.shadows && self.head_shadow;
+        let mut shared = Vec::new();
+        let columns = |ex: &Self, i: usize, out: &mut Vec<pb::DrawChunk>| {
+            for (l, swept) in ex.swept.iter().enumerate() {
+                let (frame, slabs) = swept
+                    .as_ref()
+                    .ok_or_else(|| {
+                        ClusterError::Setup(format!("light {l} was not swept before drawing"))
+                    })?
+                    .get();
+                let keep = if all_columns {
+                    None
+                } else {
+                    ex.reads[l].as_ref().and_then(|r| r.get(i))
+                };
+                out.extend(wire::draw_columns(
+                    l as u32,
+                    frame,
+                    slabs,
+                    keep.map(|k| &k[..]),
+                ));
+            }
+            Ok::<_, ClusterError>(())
+        };
+        if job.shadows && all_columns && !exchanged {
+            columns(self, 0, &mut shared)?;
+        }
+        let mut pb_job = wire::job_to_pb(job);
+        pb_job.exchanged = exchanged;
+        let mut requests = Vec::with_capacity(n);
+        let mut sent = 0u64;
+        for (i, w) in self.workers.iter().enumerate() {
+            let bands = wire::Bands {
+                round,
+                plan: engine::BandPlan::dealt(height, BAND_ROWS, n, i),
+                peers: peers.clone(),
+                wait: self.deadline / 2,
+                tls_domain: self.tls_domain.clone(),
+            };
+            let rows = bands.plan.rows_of(i);
+            let mut chunks = vec![pb::DrawChunk {
+                job: Some(pb_job.clone()),
+                bands: Some(bands.to_pb()),
+                ..Default::default()
+            }];
+            if job.shadows && !exchanged {
+                if all_columns {
+                    chunks.extend(shared.iter().cloned());
+                } else {
+                    columns(self, i, &mut chunks)?;
+                }
+            }
+            sent += chunks.iter().map(|c| c.encoded_len() as u64).sum::<u64>();
+            requests.push((w.clone(), (chunks, rows)));
+        }
+        let deadline = self.deadline;
+        let t = Instant::now();
+        // Each worker's reply: first the word that it rasterized and sent
+        // its stripes (with its times), then its bands once composited.
+        let (mut drawn, mut tasks) = (Vec::with_capacity(n), Vec::with_capacity(n));
+        for (mut w, (chunks, rows)) in requests {
+            let (said, hear) = tokio::sync::oneshot::channel();
+            drawn.push(hear);
+            tasks.push(self.rt.spawn(async move {
+                let addr = w.addr.clone();
+                let call = async move {
+                    let mut s = w
+                        .client
+                        .draw(tokio_stream::iter(chunks))
+                        .await
+                        .map_err(|s| call_error(&w.addr, "draw", s))?
+                        .into_inner();
+                    let first = s
+                        .message()
+                        .await
+                        .map_err(|e| call_error(&w.addr, "draw", e))?
+                        .filter(|c| c.drawn)
+                        .ok_or_else(|| malformed(&w.addr, "a band reply without its first word"))?;
+                    let mut bytes = first.encoded_len() as u64;
+                    let _ = said.send(first);
+                    let mut reader = wire::BandReader::new(width, height, rows);
+                    // A worker that gave up for another's sake names no
+                    // worker to drop: the one at fault fails on its own.
+                    let failed = |e: tonic::Status| match e.code() {
+                        tonic::Code::Aborted => {
+                            ClusterError::Composite(format!("worker {}: {}", w.addr, e.message()))
+                        }
+                        _ => call_error(&w.addr, "draw", e),
+                    };
+                    while let Some(c) = s.message().await.map_err(failed)? {
+                        bytes += c.encoded_len() as u64;
+                        reader.add(&c).map_err(|e| malformed(&w.addr, e))?;
+                    }
+                    let (times, stripes) = (reader.times, reader.stripes_sent);
+                    let bands = reader.finish().map_err(|e| malformed(&w.addr, e))?;
+                    Ok(BandReply {
+                        bands,
+                        times,
+                        bytes,
+                        stripes,
+                    })
+                };
+                match tokio::time::timeout(deadline, call).await {
+                    Ok(r) => r,
+                    Err(_) => Err(ClusterError::Deadline {
+                        addr,
+                        stage: "draw",
+                        secs: deadline.as_secs_f64(),
+                    }),
+                }
+            }));
+        }
+        self.count(|x| x.draw_sent += sent);
+        // Until every worker has rasterized: a failure before is this
+        // round's, and the frame is composited here at once.
+        let words = self.rt.block_on(async {
+            let mut out = Vec::with_capacity(n);
+            for hear in drawn {
+                out.push(hear.await.ok());
+            }
+            out
+        });
+        let mut report = DrawReport::default();
+        let mut slowest = 0.0f64;
+        for w in &words {
+            let Some(c) = w else { continue };
+            report.filter_ms = report.filter_ms.max(c.filter_ms);
+            report.shade_ms = report.shade_ms.max(c.shade_ms);
+            report.raster_ms = report.raster_ms.max(c.raster_ms);
+            slowest = slowest.max(c.filter_ms + c.shade_ms + c.raster_ms);
+        }
+        let round = BandRound {
+            rt: self.rt.handle().clone(),
+            tasks,
+            width,
+            height,
+            traffic: self.traffic.clone(),
+            timing: self.timing.clone(),
+        };
+        if words.iter().any(Option::is_none) {
+            let e = round.finish().err().unwrap_or_else(|| {
+                ClusterError::Composite("a worker's reply ended before its first word".into())
+            });
+            return Err(ClusterError::Composite(e.to_string()));
+        }
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        self.clock(|x| {
+            x.draw_ms += ms;
+            x.draw_compute_ms += slowest;
+        });
+        if ahead {
+            let failure = self.failure.clone();
+            report.pending = Some(PendingPicture::new(move || {
+                round.finish().map_err(|e| {
+                    let msg = e.to_string();
+                    if let Ok(mut f) = failure.lock() {
+                        *f = Some(e);
+                    }
+                    EngineError::Executor(msg)
+                })
+            }));
+        } else {
+            report.picture = Some(
+                round
+                    .finish()
+                    .map_err(|e| ClusterError::Composite(e.to_string()))?,
+            );
+        }
+        Ok(report)
+    }
+
+    /// What drawing hair version `version` again takes, as things stand.
+    pub(super) fn snapshot(&self, version: u64) -> Drawn {
+        Drawn {
+            version,
+            states: self
+                .hair
+                .as_ref()
+                .map(|h| h.states.clone())
+                .unwrap_or_default(),
+            pose: self.last_pose.clone(),
+            swept: self.swept.clone(),
+            reads: self.reads.clone(),
+            workers: self.addrs(),
+        }
+    }
+
+    /// Back to `to`: the workers are assigned its states and pose it again
+    /// before their next stage (reading every column when they changed).
+    pub(super) fn restore(&mut self, to: Drawn) {
+        if let Some(h) = &mut self.hair {
+            h.states = to.states;
+        }
+        self.last_pose = to.pose;
+        self.swept = to.swept;
+        self.exchanged.iter_mut().for_each(|x| *x = None);
+        self.swept_on_workers.iter_mut().for_each(|x| *x = None);
+        self.reads = if self.addrs() == to.workers {
+            to.reads
+        } else {
+            vec![None; self.swept.len()]
+        };
+        self.shares = None;
+        self.posed = None;
+    }
+
+    /// A Draw, composited on the workers when they can (and, `ahead`, its
+    /// picture left to finish while the next frame's stages run),
+    /// otherwise here.
+    pub(super) fn draw_with(
+        &mut self,
+        job: &DrawJob,
+        ahead: bool,
+    ) -> Result<DrawReport, EngineError> {
+        self.drawn = None;
+        if self.composites_now() {
+            match self.draw_composited(job, ahead) {
+                Ok(r) => {
+                    if ahead {
+                        self.drawn = Some(self.snapshot(job.version));
+                    }
+                    return Ok(r);
+                }
+                Err(e) => {
+                    // The frame is composited here instead, with whichever
+                    // workers answer; a worker that fails that is dropped.
+                    tracing::warn!(error = %e, "compositing on the workers failed; this frame is composited on the coordinator");
+                    self.clock(|t| t.composite_fallbacks += 1);
+                    let before = self.workers.len();
+                    let r = self
+                        .with_survivors(|ex| ex.draw_remote(job))
+                        .map_err(engine_error);
+                    if r.is_ok() && self.workers.len() == before {
+                        self.composite_failures += 1;
+                        if self.composite_failures >= 2 {
+                            self.composite = false;
+                            tracing::warn!(
+                                "the workers failed twice to composite together with none of them lost (can they reach each other at the addresses the coordinator dials? with TLS, do their certificates allow client use?); the coordinator composites from now on"
+                            );
+                        }
+                    }
+                    return r;
+                }
+            }
+        }
+        self.with_survivors(|ex| ex.draw_remote(job))
+            .map_err(engine_error)
+    }
+}
+
+/// One worker's bands of a Draw round composited on the workers.
+pub(super) struct BandReply {
+    pub(super) bands: Vec<(Range<u32>, Vec<u8>)>,
+    pub(super) times: engine::DrawTimes,
+    pub(super) bytes: u64,
+    pub(super) stripes: u64,
+}
+
+/// A Draw round composited on the workers, past their rasterization: the
+/// calls still bringing the finished bands.
+pub(super) struct BandRound {
+    pub(super) rt: tokio::runtime::Handle,
+    pub(super) tasks: Vec<tokio::task::JoinHandle<Result<BandReply, ClusterError>>>,
+    pub(super) width: u32,
+    pub(super) height: u32,
+    pub(super) traffic: Arc<Mutex<Traffic>>,
+    pub(super) timing: Arc<Mutex<Timing>>,
+}
+
+impl BandRound {
+    /// The finished picture, once every worker's bands came: the first
+    /// failure otherwise (the other calls are stopped).
+    pub(super) fn finish(self) -> Result<image::RgbImage, ClusterError> {
+        let aborts: Vec<_> = self.tasks.iter().map(|t| t.abort_handle()).collect();
+        let replies = self.rt.block_on(async {
+            let mut out = Vec::with_capacity(self.tasks.len());
+            for t in self.tasks {
+                let r = t
+                    .await
+                    .map_err(|e| ClusterError::Setup(e.to_string()))
+                    .and_then(|r| r);
+                if r.is_err() {
+                    aborts.iter().for_each(|a| a.abort());
+                }
+                out.push(r);
+            }
+            out
+        });
+        let mut img = image::RgbImage::new(self.width, self.height);
+        let (mut received, mut stripes) = (0u64, 0u64);
+        let (mut wait, mut composite) = (0.0f64, 0.0f64);
+        let mut first_error = None;
+        for r in replies {
+            match r {
+                Ok(reply) => {
+                    let row = 3 * self.width as usize;
+                    let buf: &mut [u8] = &mut img;
+                    for (rows, rgb) in reply.bands {
+                        let at = rows.start as usize * row;
+                        buf[at..at + rgb.len()].copy_from_slice(&rgb);
+                    }
+                    received += reply.bytes;
+                    stripes += reply.stripes;
+                    wait = wait.max(reply.times.wait_ms);
+                    composite = composite.max(reply.times.composite_ms);
+                }
+                Err(e) => {
+                    if first_error
+                        .as_ref()
+                        .is_none_or(|f: &ClusterError| f.worker().is_none() && e.worker().is_some())
+                    {
+                        first_error = Some(e);
+                    }
+                }
+            }
+        }
+        if let Ok(mut t) = self.traffic.lock() {
+            t.bands_received += received;
+            t.stripes_between_workers += stripes;
+        }
+        if let Some(e) = first_error {
+            return Err(e);
+        }
+        if let Ok(mut t) = self.timing.lock() {
+            t.band_wait_ms += wait;
+            t.band_composite_ms += composite;
+        }
+        Ok(img)
+    }
+}
+
+/// What one worker's Deposit reply held, decoded and checked.
+#[derive(Default)]
+pub(super) struct Gathered {
+    pub(super) columns: Vec<wire::Columns>,
+    pub(super) bytes: u64,
+    pub(super) samples: u64,
+    pub(super) out_of_map: u64,
+    /// The columns its strands' lookups read, for posed strands.
+    pub(super) read: Option<Vec<u64>>,
+}

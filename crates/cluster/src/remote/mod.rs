@@ -1,0 +1,612 @@
+//! The coordinator's side: an [`engine::Executor`] that runs every stage
+//! that grows with the hair on workers over gRPC, with the same bytes as
+//! one process.
+//!
+//! Each live worker owns a contiguous share of the hair's groups (whole
+//! wisps, weighted by their drawn strands) and, per sweep, a contiguous
+//! share of the columns (weighted by their occupied cells). With
+//! [`DrawAt::Workers`] (the default) a worker also poses, filters, shades
+//! and rasterizes its strands into a partial picture, and the workers
+//! composite the picture among themselves, each resolving bands of rows
+//! it owns from the others' stripes (one worker's, or a round that failed,
+//! the coordinator composites); with [`DrawAt::Coordinator`] (the paper's scheme) the
+//! coordinator poses and draws every strand from the wisps' states. When a
+//! worker fails a call (it died, missed the deadline, or sent something
+//! malformed) it is dropped: its share goes to the survivors with the
+//! state the coordinator gathered last, they pose it again, and the stage
+//! runs again, so the frame comes out the same.
+
+mod draw;
+mod fill;
+mod step;
+
+use draw::*;
+
+use std::ops::Range;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use engine::{
+    Animator, DrawJob, DrawReport, EngineError, Executor, FrameStats, PendingPicture, PosePlan,
+    PoseReport, Scene, SceneSource, Stage, StepPlan, split_by,
+};
+use prost::Message;
+use shadow::{ColumnSlab, DensityMap, Fiber, FillStats, LightFrame, Transmittance};
+use sim::WispState;
+use strands::Hair;
+
+use crate::client::{Remote, call_error, collect, fan_out, fan_out_all, hello, malformed};
+use crate::{ClusterError, Timing, Tls, Traffic, pb, wire};
+
+/// Rows of each band the workers composite (whole canvas bands): bands
+/// dealt to the workers in turn share the hair out evenly; 720 rows make
+/// 15 bands.
+const BAND_ROWS: u32 = 48;
+
+/// Where the drawn hair is posed, filtered, shaded and rasterized.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum DrawAt {
+    /// On the workers, each its own strands; with two or more, they
+    /// composite the picture among themselves (bands of rows dealt out),
+    /// otherwise the coordinator composites their partial pictures.
+    #[default]
+    Workers,
+    /// On the coordinator, every strand (the paper's scheme: workers
+    /// simulate, fill and sweep).
+    Coordinator,
+}
+
+impl DrawAt {
+    pub fn name(self) -> &'static str {
+        match self {
+            DrawAt::Workers => "workers",
+            DrawAt::Coordinator => "coordinator",
+        }
+    }
+}
+
+/// How a coordinator runs its workers.
+#[derive(Debug, Clone, Default)]
+pub struct Options {
+    /// Bounds every call, from its first byte sent to its last received.
+    pub deadline: Duration,
+    /// Bounds connecting to a worker and its Hello: a worker that does
+    /// not answer in time is left out of the run.
+    pub connect_timeout: Duration,
+    /// Mutual TLS on every connection, when given.
+    pub tls: Option<Tls>,
+    pub draw: DrawAt,
+}
+
+/// The hair the workers share, learnt from the frame's animator.
+#[derive(Debug)]
+struct SharedHair {
+    /// Drawn strands of each group: the weights for sharing groups out.
+    strands: Vec<u64>,
+    /// Wisp boundaries of the groups, for simulated hair.
+    wisps: Option<Vec<u32>>,
+    points_per_wisp: usize,
+    /// Every wisp's state as gathered last (reassigned after a loss).
+    states: Vec<WispState>,
+}
+
+/// Workers that run the stages of the hair (see the module docs).
+#[derive(Debug)]
+pub struct RemoteExecutor {
+    rt: tokio::runtime::Runtime,
+    /// The live workers, in order.
+    workers: Vec<Remote>,
+    deadline: Duration,
+    draw: DrawAt,
+    /// Counts calls, for the ids of those not about a posed hair version.
+    calls: u64,
+    traffic: Arc<Mutex<Traffic>>,
+    timing: Arc<Mutex<Timing>>,
+    /// The scene the workers build their shares from.
+    source: SceneSource,
+    /// Whether lookups filter (the workers' columns read depend on it).
+    filter: bool,
+    hair: Option<SharedHair>,
+    /// Each live worker's groups, once assigned.
+    shares: Option<Vec<Range<usize>>>,
+    /// The hair version the workers posed last, that pose's plan and
+    /// report.
+    posed: Option<u64>,
+    last_pose: Option<PosePlan>,
+    report: Option<PoseReport>,
+    /// Per light, the columns each live worker's lookups read (from its
+    /// last posed Deposit), in worker order.
+    reads: Vec<Option<Vec<Vec<u64>>>>,
+    /// Per light, the frame and slabs of its last sweep.
+    swept: Vec<Option<Swept>>,
+    /// Whether the workers composite the picture among themselves (two
+    /// or more drawing): on until they fail to twice with none lost.
+    composite: bool,
+    composite_failures: u32,
+    /// Whether the workers sum and sweep each light's map among
+    /// themselves (two or more drawing): on until they fail to twice with
+    /// none lost.
+    exchange: bool,
+    exchange_failures: u32,
+    /// Whether the maps filled are swept for the frame's shadows (the
+    /// density-map method, self-shadowing on); otherwise a fill is the
+    /// self-collisions' alone, and the workers need not sweep it.
+    sweeps_follow: bool,
+    /// Per light, the hair version whose map the live workers last summed
+    /// and swept among themselves (each holding every column for its Draw).
+    exchanged: Vec<Option<u64>>,
+    /// Per light, the hair version whose map's transmittance came from the
+    /// workers' own sweep (the frame's shadow map, not another map filled
+    /// on the workers such as a separate self-collision map).
+    swept_on_workers: Vec<Option<u64>>,
+    /// Per light, each column's weight in the last map (its occupied
+    /// cells), for cutting the next map's columns among the workers.
+    column_weights: Vec<Option<Vec<u32>>>,
+    /// Whether the head is shadowed by the hair (the workers resolving
+    /// bands shade it: they get every swept column); also whether the
+    /// head is in the maps, as an occluder.
+    head_shadow: bool,
+    /// The name expected in workers' certificates, for their calls to
+    /// each other.
+    tls_domain: Option<String>,
+    /// The first failure of a picture left to finish (see
+    /// [`Executor::draw_ahead`]), for [`Executor::redraw`].
+    failure: Arc<Mutex<Option<ClusterError>>>,
+    /// What the workers held when they drew the picture left to finish.
+    drawn: Option<Drawn>,
+}
+
+/// A light's last sweep: its frame and slabs.
+type Swept = Arc<SweptMap>;
+
+/// A light's last sweep: its frame and slabs, or (when the workers summed
+/// and swept it among themselves) the summed map, swept here only if a
+/// frame must be drawn from it through the coordinator.
+#[derive(Debug)]
+struct SweptMap {
+    frame: LightFrame,
+    slabs: std::sync::OnceLock<Vec<ColumnSlab>>,
+    map: Option<DensityMap>,
+}
+
+impl SweptMap {
+    fn of_slabs(frame: LightFrame, slabs: Vec<ColumnSlab>) -> SweptMap {
+        SweptMap {
+            frame,
+            slabs: std::sync::OnceLock::from(slabs),
+            map: None,
+        }
+    }
+
+    fn of_map(map: DensityMap) -> SweptMap {
+        SweptMap {
+            frame: *map.frame(),
+            slabs: std::sync::OnceLock::new(),
+            map: Some(map),
+        }
+    }
+
+    /// The frame and its slabs (of every column).
+    fn get(&self) -> (&LightFrame, &[ColumnSlab]) {
+        let slabs = self.slabs.get_or_init(|| {
+            let map = self.map.as_ref().expect("a sweep has its slabs or its map");
+            vec![shadow::sweep(map, 0..self.frame.columns() as u32)]
+        });
+        (&self.frame, slabs)
+    }
+}
+
+/// What drawing a frame again takes, kept while its picture is finished
+/// on the workers and the next frame's stages run.
+#[derive(Debug)]
+struct Drawn {
+    version: u64,
+    states: Vec<WispState>,
+    pose: Option<PosePlan>,
+    swept: Vec<Option<Swept>>,
+    reads: Vec<Option<Vec<Vec<u64>>>>,
+    workers: Vec<String>,
+}
+
+impl RemoteExecutor {
+    /// Connects to every worker and checks its protocol version, for
+    /// `scene` (whose data files are read now, to send them).
+    pub fn connect(
+        addrs: &[String],
+        scene: &Scene,
+        options: &Options,
+    ) -> Result<RemoteExecutor, ClusterError> {
+        if addrs.is_empty() {
+            return Err(ClusterError::Setup("no workers given".into()));
+        }
+        let mut scene = scene.clone();
+        scene
+            .read_data_files()
+            .map_err(|e| ClusterError::Setup(e.to_string()))?;
+        let rt = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(2)
+            .enable_all()
+            .build()
+            .map_err(|e| ClusterError::Setup(format!("cannot start the network runtime: {e}")))?;
+        distinct(addrs)?;
+        let (fiber, deadline) = (scene.fiber, options.deadline);
+        let connect = options.connect_timeout.min(deadline);
+        // All at once, each bounded by the connect timeout.
+        let answers = rt.block_on(async {
+            let calls: Vec<_> = addrs
+                .iter()
+                .map(|addr| {
+                    let (addr, tls) = (addr.clone(), options.tls.clone());
+                    tokio::spawn(async move {
+                        let greet = hello(&addr, &fiber, connect, tls.as_ref());
+                        match tokio::time::timeout(connect, greet).await {
+                            Ok(r) => r,
+                            Err(_) => Err(ClusterError::Connect {
+                                msg: format!("no answer within {} s", connect.as_secs_f64()),
+                                addr,
+                            }),
+                        }
+                    })
+                })
+                .collect();
+            let mut out = Vec::with_capacity(calls.len());
+            for c in calls {
+                out.push(c.await.map_err(|e| ClusterError::Setup(e.to_string()))?);
+            }
+            Ok::<_, ClusterError>(out)
+        })?;
+        // A worker that cannot be reached or does not answer is left out,
+        // as one lost mid-run would be; one that refuses (another protocol
+        // version, no room for another session) stops the run: it is set
+        // up wrong.
+        let mut workers = Vec::with_capacity(addrs.len());
+        let mut missing = Vec::new();
+        for a in answers {
+            match a {
+                Ok(w) => workers.push(w),
+                Err(e @ ClusterError::Connect { .. }) => missing.push(e),
+                Err(e) => return Err(e),
+            }
+        }
+        if workers.is_empty() {
+            return Err(match missing.len() {
+                1 => missing.remove(0),
+                _ => ClusterError::Setup(format!(
+                    "no worker answered: {}",
+                    missing
+                        .iter()
+                        .map(|e| e.to_string())
+                        .collect::<Vec<_>>()
+                        .join("; ")
+                )),
+            });
+        }
+        for e in &missing {
+            tracing::warn!(error = %e, "worker left out of the run");
+        }
+        Ok(RemoteExecutor {
+            rt,
+            workers,
+            deadline,
+            draw: options.draw,
+            calls: 0,
+            traffic: Arc::new(Mutex::new(Traffic::default())),
+            timing: Arc::new(Mutex::new(Timing::default())),
+            filter: scene.shadow.method.filter(),
+            reads: vec![None; scene.lights.len()],
+            swept: vec![None; scene.lights.len()],
+            composite: true,
+            composite_failures: 0,
+            exchange: true,
+            exchange_failures: 0,
+            sweeps_follow: scene.effects.self_shadow
+                && matches!(scene.shadow.method, shadow::MethodConfig::DensityMap { .. }),
+            exchanged: vec![None; scene.lights.len()],
+            swept_on_workers: vec![None; scene.lights.len()],
+            column_weights: vec![None; scene.lights.len()],
+            head_shadow: scene.head.is_some() && scene.effects.head_shadow,
+            tls_domain: options
+                .tls
+                .as_ref()
+                .and_then(|t| t.domain().map(str::to_string)),
+            failure: Arc::default(),
+            drawn: None,
+            source: scene.source,
+            hair: None,
+            shares: None,
+            posed: None,
+            last_pose: None,
+            report: None,
+        })
+    }
+
+    /// A handle on where the remote stages' time went.
+    pub fn timing(&self) -> Arc<Mutex<Timing>> {
+        self.timing.clone()
+    }
+
+    pub fn worker_count(&self) -> usize {
+        self.workers.len()
+    }
+
+    /// A handle on the bytes counted so far (all stages, all frames).
+    pub fn traffic(&self) -> Arc<Mutex<Traffic>> {
+        self.traffic.clone()
+    }
+
+    fn count(&self, f: impl FnOnce(&mut Traffic)) {
+        if let Ok(mut t) = self.traffic.lock() {
+            f(&mut t);
+        }
+    }
+
+    fn clock(&self, f: impl FnOnce(&mut Timing)) {
+        if let Ok(mut t) = self.timing.lock() {
+            f(&mut t);
+        }
+    }
+
+    fn hair(&self) -> Result<&SharedHair, ClusterError> {
+        self.hair
+            .as_ref()
+            .ok_or_else(|| ClusterError::Setup("the executor was not attached to the hair".into()))
+    }
+
+    /// After `e`: drops the worker it names, when others are left, and
+    /// returns Ok so the caller runs its stage again on the survivors;
+    /// otherwise returns `e`.
+    fn lose_worker(&mut self, e: ClusterError) -> Result<(), ClusterError> {
+        let Some(addr) = e.worker() else {
+            return Err(e);
+        };
+        let Some(i) = self.workers.iter().position(|w| w.addr == addr) else {
+            return Err(e);
+        };
+        if self.workers.len() == 1 {
+            return Err(e);
+        }
+        self.workers.remove(i);
+        self.shares = None;
+        self.posed = None;
+        self.reads.iter_mut().for_each(|r| *r = None);
+        self.exchanged.iter_mut().for_each(|x| *x = None);
+        self.swept_on_workers.iter_mut().for_each(|x| *x = None);
+        self.clock(|t| t.workers_lost += 1);
+        tracing::warn!(
+            error = %e,
+            survivors = self.workers.len(),
+            "worker lost; its share of the hair and its columns go to the survivors"
+        );
+        Ok(())
+    }
+
+    /// Runs `attempt` until it succeeds, dropping a failed worker before
+    /// each new try while others are left.
+    fn with_survivors<T>(
+        &mut self,
+        mut attempt: impl FnMut(&mut Self) -> Result<T, ClusterError>,
+    ) -> Result<T, ClusterError> {
+        loop {
+            match attempt(self) {
+                Ok(t) => return Ok(t),
+                Err(e) => self.lose_worker(e)?,
+            }
+        }
+    }
+}
+
+/// Refuses a list naming one worker twice (the same address, or two that
+/// resolve to the same socket): it would be counted as two, and its
+/// sessions would share one process.
+fn distinct(addrs: &[String]) -> Result<(), ClusterError> {
+    use std::net::ToSocketAddrs;
+    let mut resolved: Vec<(std::net::SocketAddr, &str)> = Vec::new();
+    for (i, a) in addrs.iter().enumerate() {
+        if addrs[..i].contains(a) {
+            return Err(ClusterError::Setup(format!("worker {a} is given twice")));
+        }
+        // An address that does not resolve is reported when dialled.
+        for r in a.to_socket_addrs().into_iter().flatten() {
+            if let Some((_, b)) = resolved.iter().find(|s| s.0 == r && s.1 != a) {
+                return Err(ClusterError::Setup(format!(
+                    "workers {b} and {a} are the same worker ({r})"
+                )));
+            }
+            resolved.push((r, a));
+        }
+    }
+    Ok(())
+}
+
+impl Drop for RemoteExecutor {
+    /// Ends this coordinator's session on every live worker (best effort:
+    /// a worker that does not answer ends it when it has been idle long
+    /// enough).
+    fn drop(&mut self) {
+        let workers = std::mem::take(&mut self.workers);
+        if workers.is_empty() || tokio::runtime::Handle::try_current().is_ok() {
+            return;
+        }
+        self.rt.block_on(async move {
+            let ends = workers.into_iter().map(|mut w| {
+                tokio::spawn(async move {
+                    let end = w.client.end(pb::EndRequest {});
+                    let _ = tokio::time::timeout(Duration::from_secs(2), end).await;
+                })
+            });
+            for e in ends.collect::<Vec<_>>() {
+                let _ = e.await;
+            }
+        });
+    }
+}
+
+fn engine_error(e: ClusterError) -> EngineError {
+    EngineError::Executor(e.to_string())
+}
+
+impl Executor for RemoteExecutor {
+    fn attach(&mut self, anim: &Animator) -> Result<(), EngineError> {
+        let groups = anim.groups();
+        let strands = groups
+            .strands
+            .windows(2)
+            .map(|g| u64::from(g[1] - g[0]))
+            .collect();
+        let states = (0..anim.wisp_count())
+            .map(|w| anim.wisp_state(w).cloned())
+            .collect::<Option<Vec<_>>>()
+            .ok_or_else(|| EngineError::Executor("a wisp without a state".into()))?;
+        self.hair = Some(SharedHair {
+            strands,
+            wisps: groups.wisps.clone(),
+            points_per_wisp: anim.points_per_wisp(),
+            states,
+        });
+        self.shares = None;
+        self.posed = None;
+        Ok(())
+    }
+
+    fn simulate(
+        &mut self,
+        anim: &mut Animator,
+        plan: &StepPlan,
+        stats: &mut FrameStats,
+    ) -> Result<(), EngineError> {
+        stats
+            .time(Stage::Simulate, || {
+                self.with_survivors(|ex| ex.step(anim, plan))
+            })
+            .map_err(engine_error)?;
+        stats.steps += plan.heads.len() as u32;
+        Ok(())
+    }
+
+    fn fill(
+        &mut self,
+        light: usize,
+        map: &mut DensityMap,
+        hair: &Hair,
+        _fiber: &Fiber,
+        version: Option<u64>,
+    ) -> Result<FillStats, EngineError> {
+        for x in [&mut self.exchanged, &mut self.swept_on_workers] {
+            if let Some(x) = x.get_mut(light) {
+                *x = None;
+            }
+        }
+        if self.draw == DrawAt::Workers && self.exchange && self.sweeps_follow && version.is_some()
+        {
+            let before = self.workers.len();
+            // A worker lost in the round is dropped, and the survivors
+            // try again.
+            let r = self.with_survivors(|ex| {
+                ex.ensure_posed()?;
+                if ex.workers.len() >= 2 && ex.posed == version {
+                    ex.fill_exchanged(light, map, version.unwrap_or_default())
+                        .map(Some)
+                } else {
+                    Ok(None)
+                }
+            });
+            match r {
+                Ok(Some(stats)) => return Ok(stats),
+                Ok(None) => {}
+                Err(e) if e.worker().is_none() => {
+                    // This frame is summed and swept through the
+                    // coordinator instead.
+                    tracing::warn!(error = %e, "summing and sweeping on the workers failed; this frame's map goes through the coordinator");
+                    self.clock(|t| t.exchange_fallbacks += 1);
+                    if self.workers.len() == before {
+                        self.exchange_failures += 1;
+                        if self.exchange_failures >= 2 {
+                            self.exchange = false;
+                            tracing::warn!(
+                                "the workers failed twice to sum and sweep together with none of them lost (can they reach each other at the addresses the coordinator dials? with TLS, do their certificates allow client use?); the coordinator sums and hands out the columns from now on"
+                            );
+                        }
+                    }
+                }
+                Err(e) => return Err(engine_error(e)),
+            }
+        }
+        // After a loss the survivors pose the lost worker's share again
+        // (drawing on the workers), or are sent strands (drawing here).
+        self.with_survivors(|ex| ex.fill_remote(light, map, hair, version))
+            .map_err(engine_error)
+    }
+
+    fn sweep(&mut self, light: usize, map: &DensityMap) -> Result<Transmittance, EngineError> {
+        if self.posed.is_some() && self.exchanged.get(light).copied().flatten() == self.posed {
+            return self.sweep_here(light, map).map_err(engine_error);
+        }
+        self.with_survivors(|ex| ex.sweep_remote(light, map))
+            .map_err(engine_error)
+    }
+
+    fn draws(&self) -> bool {
+        self.draw == DrawAt::Workers
+    }
+
+    fn pose(&mut self, plan: &PosePlan) -> Result<PoseReport, EngineError> {
+        if self.posed != Some(plan.version) {
+            self.with_survivors(|ex| {
+                if ex.shares.is_none() {
+                    ex.assign()?;
+                }
+                ex.pose_call(plan)
+            })
+            .map_err(engine_error)?;
+        }
+        self.report
+            .clone()
+            .ok_or_else(|| EngineError::Executor("no worker reported its pose".into()))
+    }
+
+    fn composites(&self) -> bool {
+        self.composites_now()
+    }
+
+    fn draw(&mut self, job: &DrawJob) -> Result<DrawReport, EngineError> {
+        self.draw_with(job, false)
+    }
+
+    fn draw_ahead(&mut self, job: &DrawJob) -> Result<DrawReport, EngineError> {
+        self.draw_with(job, true)
+    }
+
+    fn redraw(&mut self, job: &DrawJob) -> Result<DrawReport, EngineError> {
+        let failed = self.failure.lock().ok().and_then(|mut f| f.take());
+        let Some(then) = self.drawn.take().filter(|d| d.version == job.version) else {
+            return self.draw(job);
+        };
+        // A worker the failure names is dropped (the last one cannot be).
+        if let Some(e) = failed
+            && e.worker()
+                .is_some_and(|a| self.workers.iter().any(|w| w.addr == a))
+        {
+            self.lose_worker(e).map_err(engine_error)?;
+        }
+        // Back to the frame drawn: its wisps' states, pose and maps; the
+        // workers are assigned and pose it again.
+        let now = self.snapshot(self.posed.unwrap_or_default());
+        let report = self.report.clone();
+        self.restore(then);
+        tracing::warn!(
+            frame_version = job.version,
+            "drawing the frame again, composited here"
+        );
+        let r = self.with_survivors(|ex| ex.draw_remote(job));
+        // On to the frames after, as they stood.
+        self.restore(now);
+        self.report = report;
+        r.map_err(engine_error)
+    }
+}
+
+impl RemoteExecutor {
+    fn addrs(&self) -> Vec<String> {
+        self.workers.iter().map(|w| w.addr.clone()).collect()
+    }
+}

@@ -1,0 +1,155 @@
+//! Draw rounds with a band plan: the band this worker composites from the other workers' stripes.
+
+use super::*;
+
+impl WorkerService {
+    /// A Draw composited on the workers (see [`wire::Bands`]): one
+    /// Composite call to each other band's worker carries this worker's
+    /// stripes of that band while it rasterizes; then the others' stripes
+    /// of its own band are gathered, and the band's finished rows are the
+    /// reply.
+    pub(super) fn draw_band(
+        &self,
+        session: &Session,
+        job: engine::DrawJob,
+        maps: Vec<shadow::Transmittance>,
+        received: (Grant, Vec<Grant>),
+        bands: wire::Bands,
+    ) -> Result<Chunks<pb::LayerChunk>, Status> {
+        let n = bands.plan.workers;
+        let own = bands.plan.own;
+        session.inbox.begin(bands.round);
+        let (width, height) = (job.camera.width(), job.camera.height());
+        let failed: Arc<Mutex<Option<String>>> = Arc::default();
+        let mut senders: Vec<Option<tokio::sync::mpsc::Sender<pb::LayerChunk>>> = vec![None; n];
+        for (b, slot) in senders.iter_mut().enumerate() {
+            if b == own {
+                continue;
+            }
+            let (addr, sid) = &bands.peers[b];
+            let mut client = self.peer(addr, sid, bands.tls_domain.as_deref(), bands.wait)?;
+            let (tx, rx) = tokio::sync::mpsc::channel(STRIPES_IN_FLIGHT);
+            let header = pb::LayerChunk {
+                width,
+                height,
+                round: bands.round,
+                from: own as u32,
+                ..Default::default()
+            };
+            tx.try_send(header)
+                .map_err(|_| Status::internal("a new channel refused its first chunk"))?;
+            *slot = Some(tx);
+            let (failed, addr) = (failed.clone(), addr.clone());
+            tokio::spawn(async move {
+                let stream = tokio_stream::wrappers::ReceiverStream::new(rx);
+                if let Err(s) = client.composite(stream).await
+                    && let Ok(mut f) = failed.lock()
+                {
+                    f.get_or_insert(format!(
+                        "the worker of band {b} ({addr}) did not take this worker's stripes: {:?}: {}",
+                        s.code(),
+                        s.message()
+                    ));
+                }
+            });
+        }
+        let (tx, rx) = tokio::sync::mpsc::channel(STRIPES_IN_FLIGHT);
+        let (held, inbox) = (session.held.clone(), session.inbox.clone());
+        tokio::task::spawn_blocking(move || {
+            let _received = received;
+            let peer_failed = || failed.lock().ok().and_then(|f| f.clone());
+            let mut canvas = None;
+            let drawn = (|| {
+                let others: Vec<u32> = (0..n as u32).filter(|&b| b != own as u32).collect();
+                let mut stripes_sent = 0u64;
+                // Rasterized and sent under the share's lock, which is then
+                // free for the next frame's calls while this one composites.
+                let (work, background) = {
+                    let mut slot = held.lock().map_err(poisoned)?;
+                    let h = slot.as_mut().ok_or_else(|| {
+                        Status::failed_precondition("no share of the hair here: call Assign first")
+                    })?;
+                    let background = raster::to_srgb8(h.share.background());
+                    let mut encoders: Vec<wire::StripeEncoder> =
+                        (0..n).map(|_| wire::StripeEncoder::new()).collect();
+                    let work = on_pool(|| {
+                        h.share.draw_band(&job, &maps, &bands.plan, |b, stripe| {
+                            let to = senders[b].as_ref().expect("a call for each other worker");
+                            for c in encoders[b].chunks(&stripe) {
+                                stripes_sent += c.encoded_len() as u64;
+                                if to.blocking_send(c).is_err() {
+                                    return Err(engine::EngineError::Executor(
+                                        peer_failed().unwrap_or_else(|| {
+                                            format!("the call to worker {b} of the round ended")
+                                        }),
+                                    ));
+                                }
+                            }
+                            Ok(())
+                        })
+                    })
+                    .map_err(|e| Status::aborted(e.to_string()))?;
+                    (work, background)
+                };
+                // The calls' streams end: the others can finish.
+                drop(senders);
+                let mut marker = wire::StripeEncoder::new().last(width, height, &work.times);
+                marker.drawn = true;
+                if tx.blocking_send(Ok(marker)).is_err() {
+                    return Err(cancelled("Draw"));
+                }
+                let t = Instant::now();
+                let gathered = inbox.gather(bands.round, &others, bands.wait, || {
+                    if tx.is_closed() {
+                        return Err("the coordinator left the Draw".into());
+                    }
+                    peer_failed().map_or(Ok(()), Err)
+                });
+                let wait_ms = t.elapsed().as_secs_f64() * 1e3;
+                let gathered = match gathered {
+                    // Their memory goes as it did: the resolve copies them.
+                    Ok(g) => g.into_iter().map(|(layer, _)| layer).collect(),
+                    Err(e) => {
+                        canvas = Some(work.into_canvas());
+                        return Err(Status::aborted(e.to_string()));
+                    }
+                };
+                let (bands_drawn, mut times, done) = work.resolve(gathered);
+                canvas = Some(done);
+                times.wait_ms = wait_ms;
+                let mut chunks = Vec::new();
+                for (rows, rgb) in &bands_drawn {
+                    chunks.extend(wire::band_chunks(
+                        width, height, rows.start, rgb, background,
+                    ));
+                }
+                let mut last = wire::StripeEncoder::new().last(width, height, &times);
+                last.stripes_sent = stripes_sent;
+                chunks.push(last);
+                Ok(chunks)
+            })();
+            match drawn {
+                Ok(chunks) => {
+                    for c in chunks {
+                        if tx.blocking_send(Ok(c)).is_err() {
+                            break;
+                        }
+                    }
+                }
+                Err(s) => {
+                    let _ = tx.blocking_send(Err(s));
+                }
+            }
+            // The canvas back to the share, for the next frame's draw.
+            if let Some(c) = canvas
+                && let Ok(mut slot) = held.lock()
+                && let Some(h) = slot.as_mut()
+            {
+                h.share.put_canvas(c);
+            }
+        });
+        // The band's rows (or the refusal, as the stream's status) come
+        // once it is resolved.
+        Ok(Box::pin(tokio_stream::wrappers::ReceiverStream::new(rx)))
+    }
+}

@@ -1,0 +1,375 @@
+//! Deposit rounds with a column plan: this worker's columns summed and swept among the workers (reduce-scatter, then all-gather), and what the rounds leave for the Draw.
+
+use super::*;
+
+/// The calls carrying this worker's columns to each other worker of a
+/// column plan: per worker (none for this one), a sender of the density
+/// call and one of the swept columns' call; and the first failure of any.
+pub(super) struct ExchangeSends {
+    pub(super) density: Vec<Option<tokio::sync::mpsc::Sender<pb::ExchangeChunk>>>,
+    pub(super) swept: Vec<Option<tokio::sync::mpsc::Sender<pb::ExchangeChunk>>>,
+    pub(super) failed: Arc<Mutex<Option<String>>>,
+}
+
+impl WorkerService {
+    /// Opens the Exchange calls of a Deposit round with column plan
+    /// `plan`: two to each other worker, fed as the round goes.
+    pub(super) fn exchange_calls(
+        &self,
+        session: &Session,
+        plan: &wire::ColumnPlan,
+    ) -> Result<ExchangeSends, Status> {
+        let n = plan.workers();
+        // Earlier rounds' columns go, but for those of the rounds just
+        // before (another light's, whose swept columns may still be
+        // gathered).
+        session
+            .exchange
+            .begin((2 * plan.round).saturating_sub(4 * wire::MAX_LIGHTS as u64));
+        let failed: Arc<Mutex<Option<String>>> = Arc::default();
+        let mut sends = ExchangeSends {
+            density: vec![None; n],
+            swept: vec![None; n],
+            failed: failed.clone(),
+        };
+        for b in (0..n).filter(|&b| b != plan.own) {
+            let (addr, sid) = &plan.peers[b];
+            let client = self.peer(addr, sid, plan.tls_domain.as_deref(), plan.wait)?;
+            for swept in [false, true] {
+                let (tx, rx) = tokio::sync::mpsc::channel(STRIPES_IN_FLIGHT);
+                let (failed, addr, mut client) = (failed.clone(), addr.clone(), client.clone());
+                tokio::spawn(async move {
+                    let stream = tokio_stream::wrappers::ReceiverStream::new(rx);
+                    if let Err(s) = client.exchange(stream).await
+                        && let Ok(mut f) = failed.lock()
+                    {
+                        f.get_or_insert(format!(
+                            "worker {b} ({addr}) did not take this worker's columns: {:?}: {}",
+                            s.code(),
+                            s.message()
+                        ));
+                    }
+                });
+                if swept {
+                    sends.swept[b] = Some(tx);
+                } else {
+                    sends.density[b] = Some(tx);
+                }
+            }
+        }
+        Ok(sends)
+    }
+}
+
+/// One worker's part of a Deposit round with a column plan (see
+/// [`wire::ColumnPlan`]).
+pub(super) struct ExchangeRound {
+    pub(super) version: u64,
+    pub(super) frame: LightFrame,
+    pub(super) plan: wire::ColumnPlan,
+    pub(super) sends: ExchangeSends,
+}
+
+/// What is left of a round once the worker's columns are summed and
+/// swept: the all-gather of the swept columns.
+pub(super) struct SweptRound {
+    pub(super) round: ExchangeRound,
+    /// This worker's swept columns, as the Exchange chunks that carry them.
+    pub(super) own: Vec<pb::ExchangeChunk>,
+}
+
+impl ExchangeRound {
+    /// Deposits the share's strands, sends each other worker its columns,
+    /// sums the others' density of this worker's columns, adds the head
+    /// and sweeps them. The reply: the summed density of this worker's
+    /// columns, the last chunk with the fill's counts and the bytes this
+    /// worker sends the others; and the rest of the round.
+    pub(super) fn sum(
+        mut self,
+        share: &mut Share,
+        maps: &Mutex<Vec<DensityMap>>,
+        fiber: &Fiber,
+        inbox: &Inbox<Exchanged>,
+        go: impl Fn() -> bool + Clone + Send + Sync,
+    ) -> Result<(Vec<pb::ColumnChunk>, SweptRound), Status> {
+        let (frame, plan) = (self.frame, &self.plan);
+        let (n, own) = (plan.workers(), plan.own);
+        let others: Vec<u32> = (0..n as u32).filter(|&b| b != own as u32).collect();
+        let mine = plan.range(own);
+        let failed = self.sends.failed.clone();
+        let go_on = || {
+            if !go() {
+                return Err("the coordinator left the Deposit".to_string());
+            }
+            failed
+                .lock()
+                .ok()
+                .and_then(|f| f.clone())
+                .map_or(Ok(()), Err)
+        };
+        let mut map = WorkerService::map_in(maps, frame);
+        let stats = on_pool(|| share.deposit_while(self.version, &mut map, fiber, go.clone()))
+            .map_err(refused)?
+            .ok_or_else(|| cancelled("Deposit"))?;
+        // Reduce-scatter: each other worker's columns to it.
+        let mut density_sent = 0u64;
+        for b in 0..n {
+            let Some(to) = self.sends.density[b].take() else {
+                continue;
+            };
+            for (i, c) in wire::column_chunks(&map, plan.range(b))
+                .into_iter()
+                .enumerate()
+            {
+                density_sent += self.sends.send(
+                    &to,
+                    pb::ExchangeChunk {
+                        round: plan.round,
+                        from: own as u32,
+                        map: (i == 0).then(|| wire::frame_to_pb(&frame)),
+                        density: Some(c),
+                        ..Default::default()
+                    },
+                )?;
+            }
+        }
+        let got = inbox
+            .gather(2 * plan.round, &others, plan.wait, go_on)
+            .map_err(|e| Status::aborted(e.to_string()))?;
+        for (b, (item, _)) in others.iter().zip(got) {
+            let Exchanged::Density(f, chunks) = item else {
+                return Err(Status::aborted(format!(
+                    "worker {b} sent swept columns for density"
+                )));
+            };
+            if f != frame {
+                return Err(Status::aborted(format!(
+                    "worker {b}'s density is of another map"
+                )));
+            }
+            for c in &chunks {
+                let d = wire::decode_columns(&frame, c)
+                    .map_err(|e| Status::aborted(format!("worker {b}'s density: {e}")))?;
+                if !d.within(mine.clone()) {
+                    return Err(Status::aborted(format!(
+                        "worker {b}'s density reaches past this worker's columns {mine:?}"
+                    )));
+                }
+                wire::add_columns(&mut map, &d);
+            }
+        }
+        let mut reply = wire::column_chunks(&map, mine.clone());
+        // The head, then the sweep of this worker's columns.
+        if let Some(h) = plan.head {
+            share.deposit_head(&mut map, h);
+        }
+        let slab = on_pool(|| shadow::sweep_while(&map, mine.start as u32..mine.end as u32, go));
+        WorkerService::give_back(maps, map);
+        let slab = slab.ok_or_else(|| cancelled("Deposit"))?;
+        let own_swept: Vec<pb::ExchangeChunk> = wire::swept_chunks(&frame, &slab)
+            .into_iter()
+            .map(|c| pb::ExchangeChunk {
+                round: plan.round,
+                from: own as u32,
+                swept: true,
+                columns: Some(c),
+                ..Default::default()
+            })
+            .collect();
+        // Each other worker gets them all.
+        let swept_sent = (n as u64 - 1)
+            * own_swept
+                .iter()
+                .map(|c| c.encoded_len() as u64)
+                .sum::<u64>();
+        if let Some(c) = reply.last_mut() {
+            c.samples = stats.samples;
+            c.out_of_map = stats.out_of_map;
+            c.exchanged_density = density_sent;
+            c.exchanged_swept = swept_sent;
+        }
+        Ok((
+            reply,
+            SweptRound {
+                round: self,
+                own: own_swept,
+            },
+        ))
+    }
+}
+
+impl ExchangeSends {
+    /// Sends `c` on `to`: its bytes, or the round's failure.
+    pub(super) fn send(
+        &self,
+        to: &tokio::sync::mpsc::Sender<pb::ExchangeChunk>,
+        c: pb::ExchangeChunk,
+    ) -> Result<u64, Status> {
+        let bytes = c.encoded_len() as u64;
+        to.blocking_send(c).map_err(|_| {
+            Status::aborted(
+                self.failed
+                    .lock()
+                    .ok()
+                    .and_then(|f| f.clone())
+                    .unwrap_or_else(|| "a call to another worker ended".to_string()),
+            )
+        })?;
+        Ok(bytes)
+    }
+}
+
+impl SweptRound {
+    /// Sends this worker's swept columns to every other worker, gathers
+    /// theirs, and assembles the light's transmittance, in the budget.
+    pub(super) fn finish(
+        self,
+        inbox: &Inbox<Exchanged>,
+        memory: &Budget,
+    ) -> Result<(shadow::Transmittance, Grant), String> {
+        let SweptRound { mut round, own } = self;
+        let plan = &round.plan;
+        let n = plan.workers();
+        let others: Vec<u32> = (0..n as u32).filter(|&b| b != plan.own as u32).collect();
+        for b in 0..n {
+            let Some(to) = round.sends.swept[b].take() else {
+                continue;
+            };
+            for c in &own {
+                round
+                    .sends
+                    .send(&to, c.clone())
+                    .map_err(|s| s.message().to_string())?;
+            }
+        }
+        let failed = round.sends.failed.clone();
+        let go_on = || {
+            failed
+                .lock()
+                .ok()
+                .and_then(|f| f.clone())
+                .map_or(Ok(()), Err)
+        };
+        let got = inbox
+            .gather(2 * plan.round + 1, &others, plan.wait, go_on)
+            .map_err(|e| e.to_string())?;
+        let mut owners: Vec<Vec<pb::DrawChunk>> = vec![Vec::new(); n];
+        owners[plan.own] = own.into_iter().filter_map(|c| c.columns).collect();
+        let mut grants = Vec::with_capacity(n);
+        for (&b, (item, grant)) in others.iter().zip(got) {
+            let Exchanged::Swept(chunks) = item else {
+                return Err(format!("worker {b} sent density for swept columns"));
+            };
+            owners[b as usize] = chunks;
+            grants.push(grant);
+        }
+        let trans = wire::assemble_swept(round.frame, plan, &owners)
+            .map_err(|e| format!("the swept columns: {e}"))?;
+        drop(owners);
+        drop(grants);
+        // Kept until the Draw, in the budget.
+        let mut kept = Grant::default();
+        memory
+            .take(
+                &mut kept,
+                trans.bytes() as u64,
+                "the swept columns kept for the Draw",
+            )
+            .map_err(|s| s.message().to_string())?;
+        Ok((trans, kept))
+    }
+}
+
+/// The transmittance each Deposit round with a column plan leaves for the
+/// Draw of its hair version, light by light, as the rounds finish.
+#[derive(Debug, Default)]
+pub(super) struct SweptStore {
+    pub(super) state: Mutex<SweptHere>,
+    pub(super) ready: std::sync::Condvar,
+}
+
+impl SweptStore {
+    /// A round of hair `version`, light `light`, begins.
+    pub(super) fn begin(&self, version: u64, light: usize) {
+        if let Ok(mut st) = self.state.lock() {
+            if st.version != version {
+                *st = SweptHere {
+                    version,
+                    ..Default::default()
+                };
+            }
+            if st.maps.len() <= light {
+                st.maps.resize_with(light + 1, || None);
+                st.pending.resize(light + 1, false);
+            }
+            st.maps[light] = None;
+            st.pending[light] = true;
+        }
+    }
+
+    /// The round of `version`, `light` ended with `result`.
+    pub(super) fn end(
+        &self,
+        version: u64,
+        light: usize,
+        result: Result<(shadow::Transmittance, Grant), String>,
+    ) {
+        if let Ok(mut st) = self.state.lock()
+            && st.version == version
+            && light < st.maps.len()
+        {
+            st.pending[light] = false;
+            match result {
+                Ok(m) => st.maps[light] = Some(m),
+                Err(e) => {
+                    tracing::warn!(version, light, error = %e, "the swept columns were not gathered");
+                    st.failed.get_or_insert(e);
+                }
+            }
+            self.ready.notify_all();
+        }
+    }
+
+    /// Every light's transmittance of hair `version`, `lights` of them,
+    /// once the rounds gathered them (waiting at most `wait`), and their
+    /// memory; why not otherwise.
+    #[allow(clippy::type_complexity)]
+    pub(super) fn take(
+        &self,
+        version: u64,
+        lights: usize,
+        wait: Duration,
+    ) -> Result<(Vec<shadow::Transmittance>, Vec<Grant>), String> {
+        let until = Instant::now() + wait;
+        let mut st = self.state.lock().map_err(|_| "worker state poisoned")?;
+        loop {
+            if st.version != version || st.maps.len() != lights {
+                return Err(format!(
+                    "no columns of all {lights} lights summed here for hair version {version}"
+                ));
+            }
+            if let Some(e) = &st.failed {
+                return Err(e.clone());
+            }
+            if st.maps.iter().all(Option::is_some) {
+                st.pending.clear();
+                return Ok(st.maps.drain(..).map(|m| m.expect("checked")).unzip());
+            }
+            if !st.pending.iter().any(|&p| p) {
+                return Err("a light's columns were not summed here".into());
+            }
+            let now = Instant::now();
+            if now >= until {
+                return Err(format!(
+                    "the other workers' swept columns did not come within {} ms",
+                    wait.as_millis()
+                ));
+            }
+            st = self
+                .ready
+                .wait_timeout(st, (until - now).min(Duration::from_millis(50)))
+                .map_err(|_| "worker state poisoned")?
+                .0;
+        }
+    }
+}

@@ -1,0 +1,770 @@
+//! The worker: holds a share of a scene's hair (whole groups of strands,
+//! with their wisps), steps and poses it, fills partial density maps,
+//! sweeps column ranges, and filters, shades and rasterizes its strands
+//! into partial pictures for a coordinator, behind the `wisplight.v1.Worker`
+//! gRPC service, with grpc.health.v1 health and server reflection. The
+//! stages are the engine's own ([`engine::Share`]).
+
+mod draw;
+mod exchange;
+mod inbox;
+mod listen;
+mod memory;
+mod session;
+mod share;
+mod status;
+
+use exchange::*;
+use inbox::*;
+pub use listen::{Bound, Listen, run, serve};
+use memory::*;
+use session::*;
+use share::*;
+use status::*;
+
+use std::collections::HashMap;
+use std::net::SocketAddr;
+use std::pin::Pin;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use std::ops::Range;
+
+use engine::{FrameStats, Scene, SceneSource, Share, StepPlan};
+use prost::Message;
+use shadow::{ColumnSlab, DensityMap, Fiber, FillStats, LightFrame};
+use strands::Hair;
+use tokio_stream::Stream;
+use tonic::{Request, Response, Status, Streaming};
+
+use crate::pb::worker_server::{Worker, WorkerServer};
+use crate::{ClusterError, Tls, pb, wire};
+
+type Chunks<T> = Pin<Box<dyn Stream<Item = Result<T, Status>> + Send>>;
+
+/// Rows of a partial picture rasterized and sent at a time (whole bands
+/// of the canvas's 16): 720 rows go as six stripes.
+const STRIPE_ROWS: u32 = 128;
+
+/// Chunks of a partial picture encoded ahead of the reply: the drawing
+/// waits when the coordinator reads slower.
+const STRIPES_IN_FLIGHT: usize = 8;
+
+/// What a session's pool of maps may hold at most, outside the memory
+/// budget: [`POOLED_MAPS`] maps of [`POOLED_CELLS`] cells (161 a side)
+/// with their scratch (about 86 MiB).
+pub const POOL_BYTES: u64 =
+    POOLED_MAPS as u64 * (DensityMap::bytes_for(161) + POOLED_SCRATCH_POINTS as u64 * 20);
+
+/// The default memory budget: 2 GiB.
+pub const DEFAULT_MAX_MEMORY: u64 = 2 << 30;
+
+/// The gRPC metadata key that names a call's session.
+pub const SESSION_KEY: &str = "wisplight-session";
+
+/// How many sessions a worker holds at once, and how long an unused one
+/// lives.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SessionLimits {
+    pub max_sessions: usize,
+    pub idle: Duration,
+    /// The memory budget of all sessions and calls, bytes.
+    pub max_memory: u64,
+    /// The memory budget of each session and its calls, bytes (at most
+    /// `max_memory` counts).
+    pub max_session_memory: u64,
+}
+
+impl Default for SessionLimits {
+    /// Four sessions; ten minutes idle; 2 GiB, any of it to one session.
+    fn default() -> SessionLimits {
+        SessionLimits {
+            max_sessions: 4,
+            idle: Duration::from_secs(600),
+            max_memory: DEFAULT_MAX_MEMORY,
+            max_session_memory: DEFAULT_MAX_MEMORY,
+        }
+    }
+}
+
+/// The worker: its sessions, one per coordinator it serves, each with its
+/// own state, none seeing another's.
+#[derive(Debug)]
+pub struct WorkerService {
+    sessions: Mutex<HashMap<String, Arc<Session>>>,
+    limits: SessionLimits,
+    memory: Memory,
+    /// The credentials this worker serves with, to call other workers
+    /// with when they composite a picture together.
+    peer_tls: Option<Tls>,
+    /// Connections to other workers, by address and expected name.
+    peers: Mutex<HashMap<(String, Option<String>), tonic::transport::Channel>>,
+}
+
+impl Default for WorkerService {
+    fn default() -> WorkerService {
+        WorkerService::new(SessionLimits::default())
+    }
+}
+
+#[tonic::async_trait]
+impl Worker for WorkerService {
+    async fn hello(
+        &self,
+        req: Request<pb::HelloRequest>,
+    ) -> Result<Response<pb::HelloReply>, Status> {
+        let peer = req.remote_addr();
+        let served = async move {
+            let r = req.into_inner();
+            if r.protocol_version != wire::PROTOCOL_VERSION {
+                return Err(Status::failed_precondition(format!(
+                    "this worker speaks wisplight protocol version {}, the coordinator version {}",
+                    wire::PROTOCOL_VERSION,
+                    r.protocol_version
+                )));
+            }
+            let fiber = Fiber::new(r.fiber_width, r.fiber_opacity)
+                .map_err(|e| Status::invalid_argument(e.to_string()))?;
+            self.end_idle();
+            let id = session_id()?;
+            {
+                let mut sessions = self.sessions.lock().map_err(poisoned)?;
+                if sessions.len() >= self.limits.max_sessions {
+                    return Err(Status::resource_exhausted(format!(
+                        "this worker already holds {} sessions, its limit (--max-sessions); \
+                         one ends when its coordinator finishes or after {} s unused",
+                        sessions.len(),
+                        self.limits.idle.as_secs()
+                    )));
+                }
+                sessions.insert(
+                    id.clone(),
+                    Arc::new(Session {
+                        fiber,
+                        maps: Arc::default(),
+                        held: Arc::default(),
+                        last_used: Mutex::new(Instant::now()),
+                        memory: Memory::new(
+                            self.limits.max_session_memory,
+                            "this session's",
+                            "--max-session-memory-mib",
+                        ),
+                        inbox: Arc::default(),
+                        exchange: Arc::default(),
+                        swept: Arc::default(),
+                    }),
+                );
+                tracing::info!(session = %&id[..8], sessions = sessions.len(), "session opened");
+            }
+            Ok(Response::new(pb::HelloReply {
+                protocol_version: wire::PROTOCOL_VERSION,
+                worker: format!("wisplight-worker {}", env!("CARGO_PKG_VERSION")),
+                session: id,
+            }))
+        };
+        logged(peer, "Hello", served.await)
+    }
+
+    async fn end(&self, req: Request<pb::EndRequest>) -> Result<Response<pb::EndReply>, Status> {
+        let peer = req.remote_addr();
+        let served = async move {
+            let id = named_session(req.metadata())?;
+            let mut sessions = self.sessions.lock().map_err(poisoned)?;
+            sessions.remove(id).ok_or_else(|| not_open(id))?;
+            tracing::info!(session = %&id[..id.len().min(8)], sessions = sessions.len(), "session ended");
+            Ok(Response::new(pb::EndReply {}))
+        };
+        logged(peer, "End", served.await)
+    }
+
+    type DepositStream = Chunks<pb::ColumnChunk>;
+
+    async fn deposit(
+        &self,
+        req: Request<Streaming<pb::DepositChunk>>,
+    ) -> Result<Response<Self::DepositStream>, Status> {
+        let peer = req.remote_addr();
+        let served = async move {
+            let session = self.session(req.metadata())?;
+            let fiber = session.fiber;
+            let mut stream = req.into_inner();
+            let first = first_message(&mut stream, "Deposit").await?;
+            let frame = wire::frame_from_pb(first.map.as_ref()).map_err(invalid)?;
+            let (frame_id, light) = (first.frame_id, first.light);
+            let mut hair = Hair::new();
+            // The strands' memory, held until the call ends.
+            let mut received = Grant::default();
+            let memory = self.budget(&session);
+            let mut add = |c: &pb::DepositChunk| -> Result<(), Status> {
+                let bytes = c.points.len() as u64 / 3 * POINT_BYTES
+                    + c.strand_lengths.len() as u64 * STRAND_BYTES;
+                memory.take(&mut received, bytes, "the Deposit's strands")?;
+                wire::add_strands(&mut hair, c).map_err(invalid)
+            };
+            add(&first)?;
+            while let Some(c) = stream.message().await? {
+                add(&c)?;
+            }
+            let maps = session.maps.clone();
+            // Held until the map is back in the pool or dropped.
+            let budget = (memory.map(&frame).await?, received);
+            // The deposit stops between runs of strands once the call is gone.
+            let (_stop_on_drop, go) = stop_switch();
+            let plan = first
+                .columns
+                .as_ref()
+                .map(|p| wire::ColumnPlan::from_pb(p, frame.columns()))
+                .transpose()
+                .map_err(invalid)?;
+            let chunks = if let Some(plan) = plan {
+                if !first.posed || hair.strand_count() > 0 {
+                    return Err(Status::invalid_argument(
+                        "a Deposit with a column plan is of posed strands, and carries none",
+                    ));
+                }
+                if light as usize >= wire::MAX_LIGHTS {
+                    return Err(Status::invalid_argument(format!(
+                        "light {light} (at most {} lights)",
+                        wire::MAX_LIGHTS
+                    )));
+                }
+                let (version, light) = (first.version, light as usize);
+                let round = ExchangeRound {
+                    version,
+                    frame,
+                    sends: self.exchange_calls(&session, &plan)?,
+                    plan,
+                };
+                let (inbox, store, memory) = (
+                    session.exchange.clone(),
+                    session.swept.clone(),
+                    memory.clone(),
+                );
+                store.begin(version, light);
+                // The summed columns go back as soon as they are, while the
+                // swept columns are gathered for the Draw.
+                let (tx, mut rx) = tokio::sync::mpsc::channel(STRIPES_IN_FLIGHT);
+                let held = session.held.clone();
+                tokio::task::spawn_blocking(move || {
+                    let go = || !tx.is_closed();
+                    let summed = (|| {
+                        let mut slot = held.lock().map_err(poisoned)?;
+                        let h = slot.as_mut().ok_or_else(|| {
+                            Status::failed_precondition(
+                                "no share of the hair here: call Assign first",
+                            )
+                        })?;
+                        round.sum(&mut h.share, &maps, &fiber, &inbox, go)
+                    })();
+                    drop(budget);
+                    match summed {
+                        Err(s) => {
+                            store.end(version, light, Err(s.message().to_string()));
+                            let _ = tx.blocking_send(Err(s));
+                        }
+                        Ok((mut reply, rest)) => {
+                            if let Some(c) = reply.first_mut() {
+                                c.frame_id = frame_id;
+                                c.light = light as u32;
+                            }
+                            for c in reply {
+                                if tx.blocking_send(Ok(c)).is_err() {
+                                    store.end(
+                                        version,
+                                        light,
+                                        Err("the coordinator left the Deposit".into()),
+                                    );
+                                    return;
+                                }
+                            }
+                            drop(tx);
+                            store.end(version, light, rest.finish(&inbox, &memory));
+                        }
+                    }
+                });
+                // A refusal before any column is the call's own status.
+                let first = match rx.recv().await {
+                    Some(Ok(c)) => c,
+                    Some(Err(s)) => return Err(s),
+                    None => {
+                        return Err(Status::internal("the Deposit's task ended without a reply"));
+                    }
+                };
+                let rest = tokio_stream::wrappers::ReceiverStream::new(rx);
+                let stream: Chunks<pb::ColumnChunk> = Box::pin(tokio_stream::StreamExt::chain(
+                    tokio_stream::once(Ok::<_, Status>(first)),
+                    rest,
+                ));
+                return Ok(Response::new(stream));
+            } else if first.posed {
+                if hair.strand_count() > 0 {
+                    return Err(Status::invalid_argument(
+                        "a posed Deposit carries no strands",
+                    ));
+                }
+                let (version, filter) = (first.version, first.filter);
+                with_share(&session.held, move |share| {
+                    let _budget = budget;
+                    deposit_reply(&maps, frame, |map| {
+                        let stats = share
+                            .deposit_while(version, map, &fiber, go)
+                            .map_err(refused)?
+                            .ok_or_else(|| cancelled("Deposit"))?;
+                        let read = share
+                            .columns_read(version, &frame, filter)
+                            .map_err(refused)?;
+                        Ok((stats, Some(read)))
+                    })
+                })
+                .await?
+            } else {
+                tokio::task::spawn_blocking(move || {
+                    let _budget = budget;
+                    deposit_reply(&maps, frame, |map| {
+                        let stats = map
+                            .deposit_while(&hair, 0..hair.strand_count(), &fiber, go)
+                            .ok_or_else(|| cancelled("Deposit"))?;
+                        Ok((stats, None))
+                    })
+                })
+                .await
+                .map_err(|e| Status::internal(format!("deposit task failed: {e}")))??
+            };
+            let mut chunks = chunks;
+            if let Some(c) = chunks.first_mut() {
+                c.frame_id = frame_id;
+                c.light = light;
+            }
+            tracing::debug!(frame_id, light, chunks = chunks.len(), "deposit done");
+            Ok(Response::new(stream_of(chunks)))
+        };
+        logged(peer, "Deposit", served.await)
+    }
+
+    async fn assign(
+        &self,
+        req: Request<Streaming<pb::AssignChunk>>,
+    ) -> Result<Response<pb::AssignReply>, Status> {
+        let peer = req.remote_addr();
+        let served = async move {
+            let session = self.session(req.metadata())?;
+            let mut stream = req.into_inner();
+            let first = first_message(&mut stream, "Assign").await?;
+            let groups = first.first_group as usize..first.end_group as usize;
+            let path = first.scene_path.clone();
+            let mut text = String::new();
+            let mut states: Vec<pb::WispChunk> = Vec::new();
+            let mut files: Vec<(String, Vec<u8>)> = Vec::new();
+            // What the call has made this worker keep, checked before each
+            // chunk is kept.
+            let (mut file_bytes, mut state_floats) = (0usize, 0usize);
+            // What the Assign received, in the memory budget; kept with the
+            // share it makes.
+            let mut received = Grant::default();
+            let memory = self.budget(&session);
+            let mut take = |c: pb::AssignChunk| -> Result<(), Status> {
+                // The scene text may come in pieces, one a chunk.
+                if text.len() + c.scene_toml.len() > wire::MAX_SCENE_TEXT {
+                    return Err(Status::resource_exhausted(format!(
+                        "a scene of more than {} bytes (wire::MAX_SCENE_TEXT)",
+                        wire::MAX_SCENE_TEXT
+                    )));
+                }
+                let bytes = c.scene_toml.len() + c.file_data.len() + c.file_path.len();
+                let floats = c.state.as_ref().map_or(0, |w| w.pos.len() + w.prev.len());
+                memory.take(
+                    &mut received,
+                    (bytes + 4 * floats) as u64,
+                    "the Assign's scene, data files and wisp states",
+                )?;
+                text.push_str(&c.scene_toml);
+                file_bytes += c.file_data.len() + c.file_path.len();
+                if file_bytes > wire::MAX_FILE_BYTES {
+                    return Err(Status::resource_exhausted(format!(
+                        "data files of more than {} bytes (wire::MAX_FILE_BYTES)",
+                        wire::MAX_FILE_BYTES
+                    )));
+                }
+                state_floats += floats;
+                if state_floats > wire::MAX_STATE_FLOATS {
+                    return Err(Status::resource_exhausted(format!(
+                        "wisp states of more than {} values (wire::MAX_STATE_FLOATS)",
+                        wire::MAX_STATE_FLOATS
+                    )));
+                }
+                states.extend(c.state);
+                if !c.file_path.is_empty() {
+                    files.push((c.file_path, Vec::new()));
+                }
+                if !c.file_data.is_empty() {
+                    let (_, data) = files.last_mut().ok_or_else(|| {
+                        Status::invalid_argument("file data before any file's path")
+                    })?;
+                    data.extend_from_slice(&c.file_data);
+                }
+                Ok(())
+            };
+            take(first)?;
+            while let Some(c) = stream.message().await? {
+                take(c)?;
+            }
+            let mut source = SceneSource {
+                text: text.into(),
+                path: path.into(),
+                files: Default::default(),
+            };
+            for (path, data) in files {
+                source.files.insert(path.into(), data.into());
+            }
+            let held = session.held.clone();
+            let reply = tokio::task::spawn_blocking(move || {
+                let mut slot = held.lock().map_err(poisoned)?;
+                let h = build_share(slot.take(), source, groups, &states, &memory, received)?;
+                let anim = h.share.animator();
+                let wisps = h.share.wisps();
+                let reply = pb::AssignReply {
+                    points_per_wisp: anim.points_per_wisp() as u32,
+                    groups: anim.groups().count() as u32,
+                    first_wisp: wisps.start as u32,
+                    end_wisp: wisps.end as u32,
+                };
+                tracing::info!(groups = ?h.share.groups(), wisps = ?wisps, "share assigned");
+                *slot = Some(h);
+                Ok::<_, Status>(reply)
+            })
+            .await
+            .map_err(|e| Status::internal(format!("assign task failed: {e}")))??;
+            Ok(Response::new(reply))
+        };
+        logged(peer, "Assign", served.await)
+    }
+
+    type StepStream = Chunks<pb::WispChunk>;
+
+    async fn step(
+        &self,
+        req: Request<pb::StepRequest>,
+    ) -> Result<Response<Self::StepStream>, Status> {
+        let peer = req.remote_addr();
+        let served = async move {
+            let session = self.session(req.metadata())?;
+            let r = req.into_inner();
+            // Set when this call is dropped (cancelled, or past its deadline):
+            // the steps stop at the next one and the share is free again.
+            let (_stop_on_drop, go) = stop_switch();
+            let chunks = with_share(&session.held, move |share| {
+                let start = std::time::Instant::now();
+                let (plan, accel) = step_plan(&r, share).map_err(invalid)?;
+                let mut stats = FrameStats::new(r.frame_id, 0.0);
+                if !share.step_while(&plan, accel.as_deref(), &mut stats, go) {
+                    return Err(Status::cancelled(format!(
+                        "the Step was cancelled after {} of {} time steps",
+                        stats.steps,
+                        plan.heads.len()
+                    )));
+                }
+                let report = share.pose(&plan.pose);
+                let mut chunks = share_chunks(share)?;
+                if let Some(c) = chunks.last_mut() {
+                    c.compute_ms = start.elapsed().as_secs_f64() * 1e3;
+                    c.report = Some(wire::report_to_pb(&report));
+                }
+                tracing::debug!(
+                    frame_id = r.frame_id,
+                    version = plan.pose.version,
+                    steps = stats.steps,
+                    "step done"
+                );
+                Ok(chunks)
+            })
+            .await?;
+            Ok(Response::new(stream_of(chunks)))
+        };
+        logged(peer, "Step", served.await)
+    }
+
+    async fn pose(&self, req: Request<pb::PosePlan>) -> Result<Response<pb::PoseReport>, Status> {
+        let peer = req.remote_addr();
+        let served = async move {
+            let session = self.session(req.metadata())?;
+            let plan = wire::pose_plan_from_pb(&req.into_inner()).map_err(invalid)?;
+            let report = with_share(&session.held, move |share| Ok(share.pose(&plan))).await?;
+            Ok(Response::new(wire::report_to_pb(&report)))
+        };
+        logged(peer, "Pose", served.await)
+    }
+
+    type SweepStream = Chunks<pb::SlabChunk>;
+
+    async fn sweep(
+        &self,
+        req: Request<Streaming<pb::ColumnChunk>>,
+    ) -> Result<Response<Self::SweepStream>, Status> {
+        let peer = req.remote_addr();
+        let served = async move {
+            let session = self.session(req.metadata())?;
+            let mut stream = req.into_inner();
+            let first = first_message(&mut stream, "Sweep").await?;
+            let frame = wire::frame_from_pb(first.map.as_ref()).map_err(invalid)?;
+            let (lo, hi) = (first.first_column, first.end_column);
+            if lo > hi || hi as usize > frame.columns() {
+                return Err(Status::invalid_argument(format!(
+                    "columns {lo}..{hi} in a map of {} columns",
+                    frame.columns()
+                )));
+            }
+            let maps = session.maps.clone();
+            let budget = self.budget(&session).map(&frame).await?;
+            // On an error the map is dropped (the pool makes another).
+            let mut map = WorkerService::map_in(&maps, frame);
+            wire::merge_columns(&mut map, &first).map_err(invalid)?;
+            while let Some(c) = stream.message().await? {
+                wire::merge_columns(&mut map, &c).map_err(invalid)?;
+            }
+            // The sweep stops between runs of columns once the call is gone.
+            let (_stop_on_drop, go) = stop_switch();
+            let chunks = tokio::task::spawn_blocking(move || {
+                let slab: Option<ColumnSlab> = shadow::sweep_while(&map, lo..hi, go);
+                WorkerService::give_back(&maps, map);
+                drop(budget);
+                slab.map(|s| wire::slab_chunks(&s))
+                    .ok_or_else(|| cancelled("Sweep"))
+            })
+            .await
+            .map_err(|e| Status::internal(format!("sweep task failed: {e}")))??;
+            tracing::debug!(
+                frame_id = first.frame_id,
+                light = first.light,
+                columns = hi - lo,
+                "sweep done"
+            );
+            Ok(Response::new(stream_of(chunks)))
+        };
+        logged(peer, "Sweep", served.await)
+    }
+
+    type DrawStream = Chunks<pb::LayerChunk>;
+
+    async fn draw(
+        &self,
+        req: Request<Streaming<pb::DrawChunk>>,
+    ) -> Result<Response<Self::DrawStream>, Status> {
+        let peer = req.remote_addr();
+        let served = async move {
+            let session = self.session(req.metadata())?;
+            let mut stream = req.into_inner();
+            let first = first_message(&mut stream, "Draw").await?;
+            let job = first.job.as_ref().ok_or_else(|| {
+                Status::invalid_argument("a Draw call's first chunk carries the job")
+            })?;
+            let exchanged = job.exchanged;
+            let job = wire::job_from_pb(job).map_err(invalid)?;
+            let bands = first
+                .bands
+                .as_ref()
+                .map(|b| wire::Bands::from_pb(b, job.camera.height()))
+                .transpose()
+                .map_err(invalid)?;
+            let mut reader =
+                wire::ColumnsReader::new(if job.shadows { job.lights.len() } else { 0 });
+            // The swept columns' memory, held until the picture is drawn.
+            let mut received = Grant::default();
+            let memory = self.budget(&session);
+            let mut add = |c: &pb::DrawChunk| -> Result<(), Status> {
+                let bytes = wire::ColumnsReader::bytes_to_add(c);
+                memory.take(&mut received, bytes, "the Draw's swept columns")?;
+                reader.add(c).map_err(invalid)
+            };
+            if exchanged && (first.map.is_some() || !first.column_steps.is_empty()) {
+                return Err(Status::invalid_argument(
+                    "a Draw with the exchanged columns carries none",
+                ));
+            }
+            if first.map.is_some() || !first.column_steps.is_empty() {
+                add(&first)?;
+            }
+            while let Some(c) = stream.message().await? {
+                if c.job.is_some() {
+                    return Err(Status::invalid_argument("a Draw call carries one job"));
+                }
+                if exchanged {
+                    return Err(Status::invalid_argument(
+                        "a Draw with the exchanged columns carries none",
+                    ));
+                }
+                add(&c)?;
+            }
+            // The columns swept here, or those the call brought.
+            let (maps, kept) = if exchanged && job.shadows {
+                let (store, version, lights) =
+                    (session.swept.clone(), job.version, job.lights.len());
+                let wait = bands.as_ref().map_or(Duration::from_secs(30), |b| b.wait);
+                tokio::task::spawn_blocking(move || store.take(version, lights, wait))
+                    .await
+                    .map_err(|e| Status::internal(format!("worker task failed: {e}")))?
+                    .map_err(Status::aborted)?
+            } else {
+                (reader.finish().map_err(invalid)?, Vec::new())
+            };
+            let received = (received, kept);
+            if let Some(bands) = bands {
+                let stream = self.draw_band(&session, job, maps, received, bands)?;
+                return Ok(Response::new(stream));
+            }
+            // The picture streams a stripe of rows at a time, each sent
+            // (and decoded by the coordinator) while the next is rasterized.
+            let (tx, mut rx) = tokio::sync::mpsc::channel(STRIPES_IN_FLIGHT);
+            let held = session.held.clone();
+            let (width, height) = (job.camera.width(), job.camera.height());
+            tokio::task::spawn_blocking(move || {
+                let _received = received;
+                let send = |c: Result<pb::LayerChunk, Status>| tx.blocking_send(c).is_ok();
+                let drawn = (|| {
+                    let mut slot = held.lock().map_err(poisoned)?;
+                    let h = slot.as_mut().ok_or_else(|| {
+                        Status::failed_precondition("no share of the hair here: call Assign first")
+                    })?;
+                    let mut encoder = wire::StripeEncoder::new();
+                    let times = h
+                        .share
+                        .draw_stripes(&job, &maps, STRIPE_ROWS, |stripe| {
+                            for c in encoder.chunks(&stripe) {
+                                if !send(Ok(c)) {
+                                    return Err(engine::EngineError::Executor(
+                                        "the coordinator stopped reading the picture".into(),
+                                    ));
+                                }
+                            }
+                            Ok(())
+                        })
+                        .map_err(refused)?;
+                    Ok(encoder.last(width, height, &times))
+                })();
+                send(drawn);
+            });
+            // A refusal before any pixel is the call's own status.
+            let first = match rx.recv().await {
+                Some(Ok(c)) => c,
+                Some(Err(s)) => return Err(s),
+                None => return Err(Status::internal("the Draw's task ended without a picture")),
+            };
+            let rest = tokio_stream::wrappers::ReceiverStream::new(rx);
+            let stream: Chunks<pb::LayerChunk> = Box::pin(tokio_stream::StreamExt::chain(
+                tokio_stream::once(Ok::<_, Status>(first)),
+                rest,
+            ));
+            Ok(Response::new(stream))
+        };
+        logged(peer, "Draw", served.await)
+    }
+
+    async fn composite(
+        &self,
+        req: Request<Streaming<pb::LayerChunk>>,
+    ) -> Result<Response<pb::CompositeReply>, Status> {
+        let peer = req.remote_addr();
+        let served = async move {
+            let session = self.session(req.metadata())?;
+            let memory = self.budget(&session);
+            let mut stream = req.into_inner();
+            let first = first_message(&mut stream, "Composite").await?;
+            let (round, from) = (first.round, first.from);
+            let (w, h) = (first.width, first.height);
+            if from as usize >= wire::MAX_WORKERS
+                || w == 0
+                || h == 0
+                || u64::from(w) * u64::from(h) > raster::MAX_PIXELS
+            {
+                return Err(Status::invalid_argument(format!(
+                    "stripes from worker {from} of a {w}x{h} picture (at most {} workers, {} pixels)",
+                    wire::MAX_WORKERS,
+                    raster::MAX_PIXELS
+                )));
+            }
+            let mut reader = wire::LayerReader::new(w, h);
+            let mut grant = Grant::default();
+            let mut add = |c: &pb::LayerChunk| -> Result<(), Status> {
+                let bytes = u64::from(c.count) * STRIPE_PIXEL_BYTES;
+                memory.take(&mut grant, bytes, "a Composite call's stripes")?;
+                reader.add(c).map_err(invalid)
+            };
+            add(&first)?;
+            while let Some(c) = stream.message().await? {
+                add(&c)?;
+            }
+            let layer = reader.finish().map_err(invalid)?;
+            session.inbox.deliver(round, from, layer, grant)?;
+            Ok(Response::new(pb::CompositeReply {}))
+        };
+        logged(peer, "Composite", served.await)
+    }
+
+    async fn exchange(
+        &self,
+        req: Request<Streaming<pb::ExchangeChunk>>,
+    ) -> Result<Response<pb::ExchangeReply>, Status> {
+        let peer = req.remote_addr();
+        let served = async move {
+            let session = self.session(req.metadata())?;
+            let memory = self.budget(&session);
+            let mut stream = req.into_inner();
+            let first = first_message(&mut stream, "Exchange").await?;
+            let (round, from, swept) = (first.round, first.from, first.swept);
+            if from as usize >= wire::MAX_WORKERS || round >= u64::MAX / 2 {
+                return Err(Status::invalid_argument(format!(
+                    "columns from worker {from} of round {round} (at most {} workers)",
+                    wire::MAX_WORKERS
+                )));
+            }
+            let frame = if swept {
+                None
+            } else {
+                Some(wire::frame_from_pb(first.map.as_ref()).map_err(invalid)?)
+            };
+            let mut grant = Grant::default();
+            let (mut density, mut columns) = (Vec::new(), Vec::new());
+            let mut add = |c: pb::ExchangeChunk| -> Result<(), Status> {
+                match (swept, c.density, c.columns) {
+                    (false, Some(d), None) => {
+                        // The cells unpacked, and the chunk as it came.
+                        let cells: u64 =
+                            d.lo.iter()
+                                .zip(&d.hi)
+                                .map(|(&lo, &hi)| u64::from(hi.saturating_sub(lo)) + 1)
+                                .sum();
+                        let bytes = cells * 4 + d.encoded_len() as u64;
+                        memory.take(&mut grant, bytes, "an Exchange call's density")?;
+                        density.push(d);
+                    }
+                    (true, None, Some(col)) => {
+                        let bytes =
+                            wire::ColumnsReader::bytes_to_add(&col) + col.encoded_len() as u64;
+                        memory.take(&mut grant, bytes, "an Exchange call's swept columns")?;
+                        columns.push(col);
+                    }
+                    (_, None, None) => {}
+                    _ => {
+                        return Err(Status::invalid_argument(
+                            "an Exchange chunk carries what its call does not (density in a call of swept columns, or the reverse, or both)",
+                        ));
+                    }
+                }
+                Ok(())
+            };
+            add(first)?;
+            while let Some(c) = stream.message().await? {
+                add(c)?;
+            }
+            let item = match frame {
+                Some(f) => Exchanged::Density(f, density),
+                None => Exchanged::Swept(columns),
+            };
+            session
+                .exchange
+                .deliver(2 * round + u64::from(swept), from, item, grant)?;
+            Ok(Response::new(pb::ExchangeReply {}))
+        };
+        logged(peer, "Exchange", served.await)
+    }
+}

@@ -1,0 +1,206 @@
+//! A coordinator's session on a worker: its state, its memory, its pool of maps, and finding it from a call.
+
+use super::*;
+
+/// The most cells a map kept between calls (a session's pool) may have:
+/// 2^22 (16 MiB of quanta); larger maps are dropped after their call.
+pub(super) const POOLED_CELLS: u64 = 1 << 22;
+
+/// The most maps a session keeps between calls.
+pub(super) const POOLED_MAPS: usize = 4;
+
+/// The most deposit scratch points a pooled map keeps (5 MiB).
+pub(super) const POOLED_SCRATCH_POINTS: usize = 1 << 18;
+
+/// What one coordinator's calls share: the fiber it said Hello with, its
+/// share of the scene's hair, and density maps kept between calls (their
+/// memory, not their content).
+#[derive(Debug)]
+pub(super) struct Session {
+    pub(super) fiber: Fiber,
+    pub(super) maps: Arc<Mutex<Vec<DensityMap>>>,
+    pub(super) held: Arc<Mutex<Option<Held>>>,
+    pub(super) last_used: Mutex<Instant>,
+    /// The session's own memory budget.
+    pub(super) memory: Memory,
+    /// Other workers' stripes of this worker's band, by Draw round.
+    pub(super) inbox: Arc<Inbox<raster::HairLayer>>,
+    /// Other workers' columns, by Deposit round (twice the round for
+    /// density, and one more for swept columns).
+    pub(super) exchange: Arc<Inbox<Exchanged>>,
+    /// What the last Deposit rounds with a column plan swept.
+    pub(super) swept: Arc<SweptStore>,
+}
+
+/// What another worker sent in an Exchange call: its density of this
+/// worker's columns, or its own swept columns.
+#[derive(Debug)]
+pub(super) enum Exchanged {
+    Density(LightFrame, Vec<pb::ColumnChunk>),
+    Swept(Vec<pb::DrawChunk>),
+}
+
+/// The transmittance a session's workers swept among themselves for one
+/// hair version, light by light, until its Draw takes it (with its memory).
+#[derive(Debug, Default)]
+pub(super) struct SweptHere {
+    pub(super) version: u64,
+    pub(super) maps: Vec<Option<(shadow::Transmittance, Grant)>>,
+    /// Per light, whether its round is still gathering.
+    pub(super) pending: Vec<bool>,
+    /// The first round of the version that failed.
+    pub(super) failed: Option<String>,
+}
+
+/// A share of a scene's hair and the scene it came from (a new Assign of
+/// the same scene and groups keeps it).
+#[derive(Debug)]
+pub(super) struct Held {
+    pub(super) source: SceneSource,
+    pub(super) share: Share,
+    /// The memory budget the scene, its files, the states and the share
+    /// take, given back when the share is dropped.
+    pub(super) _memory: Grant,
+}
+
+impl WorkerService {
+    /// A worker holding at most `limits` sessions.
+    pub fn new(limits: SessionLimits) -> WorkerService {
+        WorkerService {
+            sessions: Mutex::default(),
+            memory: Memory::new(limits.max_memory, "this worker's", "--max-memory-mib"),
+            limits,
+            peer_tls: None,
+            peers: Mutex::default(),
+        }
+    }
+
+    /// A client of the worker at `addr`, naming session `session` there:
+    /// one connection per worker, kept.
+    pub(super) fn peer(
+        &self,
+        addr: &str,
+        session: &str,
+        domain: Option<&str>,
+        timeout: Duration,
+    ) -> Result<crate::client::SessionClient, Status> {
+        let header = crate::client::SessionHeader::new(session)
+            .ok_or_else(|| Status::invalid_argument("a band's session is not a header value"))?;
+        let key = (addr.to_string(), domain.map(str::to_string));
+        let mut peers = self.peers.lock().map_err(poisoned)?;
+        let channel = match peers.get(&key) {
+            Some(c) => c.clone(),
+            None => {
+                let tls = match (&self.peer_tls, domain) {
+                    (Some(t), Some(d)) => Some(t.clone().with_domain(d)),
+                    (t, _) => t.clone(),
+                };
+                let c = crate::client::endpoint(addr, timeout, tls.as_ref())
+                    .map_err(|e| Status::invalid_argument(e.to_string()))?
+                    .connect_lazy();
+                if peers.len() >= 4 * wire::MAX_WORKERS {
+                    peers.clear();
+                }
+                peers.insert(key, c.clone());
+                c
+            }
+        };
+        Ok(
+            crate::pb::worker_client::WorkerClient::with_interceptor(channel, header)
+                .max_decoding_message_size(wire::MAX_MESSAGE_BYTES)
+                .max_encoding_message_size(wire::MAX_MESSAGE_BYTES),
+        )
+    }
+
+    /// What a call of `session` may take: from its budget and the worker's.
+    pub(super) fn budget(&self, session: &Session) -> Budget {
+        Budget {
+            session: session.memory.clone(),
+            worker: self.memory.clone(),
+        }
+    }
+
+    /// The session a call names in its metadata, marked used now.
+    pub(super) fn session(
+        &self,
+        meta: &tonic::metadata::MetadataMap,
+    ) -> Result<Arc<Session>, Status> {
+        let id = named_session(meta)?;
+        let sessions = self.sessions.lock().map_err(poisoned)?;
+        let s = sessions.get(id).cloned().ok_or_else(|| not_open(id))?;
+        *s.last_used.lock().map_err(poisoned)? = Instant::now();
+        Ok(s)
+    }
+
+    /// Ends the sessions unused for longer than the idle limit; how many.
+    pub fn end_idle(&self) -> usize {
+        let Ok(mut sessions) = self.sessions.lock() else {
+            return 0;
+        };
+        let idle = self.limits.idle;
+        let before = sessions.len();
+        sessions.retain(|_, s| {
+            s.last_used
+                .lock()
+                .map(|t| t.elapsed() < idle)
+                .unwrap_or(false)
+        });
+        let ended = before - sessions.len();
+        if ended > 0 {
+            tracing::info!(ended, left = sessions.len(), "idle sessions ended");
+        }
+        ended
+    }
+
+    /// A map in `frame`, empty, from the pool when one is free.
+    pub(super) fn map_in(maps: &Mutex<Vec<DensityMap>>, frame: LightFrame) -> DensityMap {
+        let pooled = maps.lock().ok().and_then(|mut m| m.pop());
+        match pooled {
+            Some(mut m) => {
+                m.set_frame(frame);
+                m
+            }
+            None => DensityMap::new(frame),
+        }
+    }
+
+    pub(super) fn give_back(maps: &Mutex<Vec<DensityMap>>, mut map: DensityMap) {
+        if u64::from(map.frame().n_cells).pow(3) > POOLED_CELLS {
+            return;
+        }
+        map.trim_scratch(POOLED_SCRATCH_POINTS);
+        if let Ok(mut m) = maps.lock()
+            && m.len() < POOLED_MAPS
+        {
+            m.push(map);
+        }
+    }
+}
+
+/// Runs `f` on one of the thread pool's threads, so that the parallel
+/// stages inside it run there, not each handed from this thread to the
+/// pool and back (with one thread a worker otherwise spends about a
+/// tenth of its time switching between the two). `f` must not wait on
+/// anything the pool would have to do.
+pub(super) fn on_pool<T: Send>(f: impl FnOnce() -> T + Send) -> T {
+    let mut out = None;
+    rayon::scope(|_| out = Some(f()));
+    out.expect("the scope ran its closure")
+}
+
+/// Runs `f` on the held share off the async threads.
+pub(super) async fn with_share<T: Send + 'static>(
+    held: &Arc<Mutex<Option<Held>>>,
+    f: impl FnOnce(&mut Share) -> Result<T, Status> + Send + 'static,
+) -> Result<T, Status> {
+    let held = held.clone();
+    tokio::task::spawn_blocking(move || {
+        let mut slot = held.lock().map_err(poisoned)?;
+        let h = slot.as_mut().ok_or_else(|| {
+            Status::failed_precondition("no share of the hair here: call Assign first")
+        })?;
+        on_pool(|| f(&mut h.share))
+    })
+    .await
+    .map_err(|e| Status::internal(format!("worker task failed: {e}")))?
+}
