@@ -99,7 +99,7 @@ struct Row {
 pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
     let scene = super::load_scene(a.scene.as_deref())?;
     let hair = super::build_hair(&scene)?;
-    let (name, threads, cores) = super::bench::machine(a.scene.as_deref());
+    let (name, threads, cores) = super::machine(a.scene.as_deref());
     let configs: Vec<MethodConfig> = sweep()
         .into_iter()
         .filter(|c| a.methods.is_empty() || a.methods.iter().any(|m| m == c.name()))

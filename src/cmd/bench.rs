@@ -88,7 +88,7 @@ fn shadow(a: ShadowArgs) -> anyhow::Result<()> {
     scene.effects.self_shadow = true;
     scene.animation.motion = sim::Motion::Still;
     let mut seq = engine::Sequence::new(&scene).context("cannot set up the scene")?;
-    let (name, threads, cores) = machine(a.scene.as_deref());
+    let (name, threads, cores) = super::machine(a.scene.as_deref());
     eprintln!(
         "bench shadow: {name}: {} segments, {} points, {}^3 cells, {} light(s), {threads} threads on {cores} cores, {} runs",
         seq.hair().segment_count(),
@@ -142,7 +142,7 @@ fn shadow(a: ShadowArgs) -> anyhow::Result<()> {
 
 fn frame(a: FrameArgs) -> anyhow::Result<()> {
     let scene = super::load_scene(a.scene.as_deref())?;
-    let (name, threads, cores) = machine(a.scene.as_deref());
+    let (name, threads, cores) = super::machine(a.scene.as_deref());
     let mut seq = engine::Sequence::new(&scene).context("cannot set up the scene")?;
     eprintln!(
         "bench frame: {name}: {} segments, {}x{}, {}^3 cells, {} motion, {threads} threads on {cores} cores, {} runs",
@@ -204,12 +204,4 @@ fn frame(a: FrameArgs) -> anyhow::Result<()> {
         println!("{j}");
     }
     Ok(())
-}
-
-/// What a benchmark reports beside its times: the scene's name, the worker
-/// threads, and the machine's cores.
-pub(crate) fn machine(scene: Option<&std::path::Path>) -> (String, usize, usize) {
-    let name = scene.map_or("built-in".to_string(), |p| p.display().to_string());
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    (name, rayon::current_num_threads(), cores)
 }

@@ -111,3 +111,11 @@ impl MethodArg {
         }
     }
 }
+
+/// What a benchmark reports beside its times: the scene's name, the worker
+/// threads, and the machine's cores.
+pub(crate) fn machine(scene: Option<&std::path::Path>) -> (String, usize, usize) {
+    let name = scene.map_or("built-in".to_string(), |p| p.display().to_string());
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    (name, rayon::current_num_threads(), cores)
+}

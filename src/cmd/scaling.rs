@@ -170,7 +170,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
             a.plot.display()
         )));
     }
-    let (name, threads, cores) = super::bench::machine(a.scene.as_deref());
+    let (name, threads, cores) = super::machine(a.scene.as_deref());
     if let Some(c) = a.node_cpus
         && !(c.is_finite() && c >= 0.01 && c <= cores as f64)
     {

@@ -58,7 +58,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let workers = args.workers.clone();
         Some(Box::new(move |scene: &engine::Scene| {
             let ex = cluster::RemoteExecutor::connect(&workers, scene, &options)
-                .map_err(|e| engine::EngineError::Executor(e.to_string()))?;
+                .map_err(|e| engine::EngineError::Executor(Box::new(e)))?;
             Ok(Box::new(ex) as Box<dyn engine::Executor>)
         }))
     };

@@ -7,8 +7,12 @@ use std::time::Duration;
 use shadow::Fiber;
 use tonic::transport::{Channel, Endpoint};
 
+use crate::error::{WorkerError, WorkerErrorKind, root_cause};
 use crate::pb::worker_client::WorkerClient;
 use crate::{ClusterError, Tls, pb, tls, wire};
+
+/// The gRPC metadata key that names a call's session.
+pub const SESSION_KEY: &str = "wisplight-session";
 
 /// Bytes on the wire, by stage and direction (protobuf message bytes;
 /// HTTP/2 framing adds a little).
@@ -141,7 +145,7 @@ pub struct Timing {
 }
 
 /// Names a session in the metadata of every call (see
-/// [`crate::worker::SESSION_KEY`]).
+/// [`SESSION_KEY`]).
 #[derive(Debug, Clone)]
 pub struct SessionHeader(tonic::metadata::AsciiMetadataValue);
 
@@ -154,8 +158,7 @@ impl SessionHeader {
 
 impl tonic::service::Interceptor for SessionHeader {
     fn call(&mut self, mut req: tonic::Request<()>) -> Result<tonic::Request<()>, tonic::Status> {
-        req.metadata_mut()
-            .insert(crate::worker::SESSION_KEY, self.0.clone());
+        req.metadata_mut().insert(SESSION_KEY, self.0.clone());
         Ok(req)
     }
 }
@@ -220,22 +223,22 @@ pub(crate) async fn hello(
             fiber_opacity: fiber.opacity(),
         })
         .await
-        .map_err(|s| match s.code() {
-            tonic::Code::FailedPrecondition => ClusterError::Version {
-                addr: addr.to_string(),
-                msg: s.message().to_string(),
-            },
-            tonic::Code::ResourceExhausted => ClusterError::Version {
-                addr: addr.to_string(),
-                msg: s.message().to_string(),
-            },
-            tonic::Code::Unimplemented => ClusterError::Connect {
-                addr: addr.to_string(),
-                msg: "this address serves no wisplight worker (unimplemented: a health port?)"
-                    .into(),
-            },
-            _ if s.message().is_empty() => err(s.code().description().to_string()),
-            _ => err(s.message().to_string()),
+        .map_err(|s| {
+            let e = WorkerError::from(s);
+            match e.kind {
+                WorkerErrorKind::Precondition | WorkerErrorKind::Exhausted => {
+                    ClusterError::Version {
+                        addr: addr.to_string(),
+                        msg: e.message,
+                    }
+                }
+                WorkerErrorKind::Other(tonic::Code::Unimplemented) => ClusterError::Connect {
+                    addr: addr.to_string(),
+                    msg: "this address serves no wisplight worker (unimplemented: a health port?)"
+                        .into(),
+                },
+                _ => err(e.message),
+            }
         })?
         .into_inner();
     if reply.protocol_version != wire::PROTOCOL_VERSION {
@@ -263,18 +266,6 @@ pub(crate) async fn hello(
             .max_decoding_message_size(wire::MAX_MESSAGE_BYTES)
             .max_encoding_message_size(wire::MAX_MESSAGE_BYTES),
     })
-}
-
-/// The innermost cause: "Connection refused (os error 111)" rather than
-/// three layers of "transport error".
-pub(crate) fn root_cause(e: &dyn std::error::Error) -> String {
-    let mut last = e.to_string();
-    let mut s = e.source();
-    while let Some(x) = s {
-        last = x.to_string();
-        s = x.source();
-    }
-    last
 }
 
 /// Starts `call` on every worker at once, each bounded by `deadline`.
@@ -371,7 +362,7 @@ pub(crate) fn call_error(addr: &str, stage: &'static str, s: tonic::Status) -> C
     ClusterError::Call {
         addr: addr.to_string(),
         stage,
-        msg: format!("{:?}: {}", s.code(), s.message()),
+        error: WorkerError::from(s),
     }
 }
 

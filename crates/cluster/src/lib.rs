@@ -16,66 +16,18 @@ pub mod pb {
 
 mod client;
 pub mod codec;
+mod error;
 pub mod remote;
 pub mod tls;
 pub mod wire;
 pub mod worker;
 
 pub use client::{SessionClient, SessionHeader, Timing, Traffic};
+pub use error::{ClusterError, WorkerError, WorkerErrorKind};
 pub use remote::{DrawAt, Options, RemoteExecutor};
 pub use tls::Tls;
 
-use std::net::SocketAddr;
-
 /// What went wrong in cluster mode, naming the worker.
-#[derive(Debug, thiserror::Error)]
-pub enum ClusterError {
-    #[error("cannot listen on {0}: {1}")]
-    Bind(SocketAddr, std::io::Error),
-    #[error("{0}")]
-    Setup(String),
-    #[error("TLS: {0}")]
-    Tls(String),
-    #[error("the worker server stopped: {0}")]
-    Serve(String),
-    #[error("cannot reach worker {addr}: {msg}")]
-    Connect { addr: String, msg: String },
-    #[error("worker {addr} refused: {msg}")]
-    Version { addr: String, msg: String },
-    #[error("worker {addr} failed the {stage} stage: {msg}")]
-    Call {
-        addr: String,
-        stage: &'static str,
-        msg: String,
-    },
-    #[error("worker {addr} did not finish the {stage} stage within {secs} s")]
-    Deadline {
-        addr: String,
-        stage: &'static str,
-        secs: f64,
-    },
-    #[error("worker {addr} sent a malformed reply: {msg}")]
-    Malformed { addr: String, msg: String },
-    #[error("compositing on the workers failed: {0}")]
-    Composite(String),
-    #[error("summing and sweeping on the workers failed: {0}")]
-    Exchange(String),
-}
-
-impl ClusterError {
-    /// The worker an error is about, when it is about one.
-    pub fn worker(&self) -> Option<&str> {
-        match self {
-            ClusterError::Connect { addr, .. }
-            | ClusterError::Version { addr, .. }
-            | ClusterError::Call { addr, .. }
-            | ClusterError::Deadline { addr, .. }
-            | ClusterError::Malformed { addr, .. } => Some(addr),
-            _ => None,
-        }
-    }
-}
-
 /// Asks the worker at `addr` for its grpc.health.v1 status (the overall
 /// server, service ""): Ok(true) when it is SERVING. With `tls`, over
 /// mutual TLS.
@@ -98,7 +50,7 @@ pub fn check_health(
         let channel = client::endpoint(addr, deadline, tls)?
             .connect()
             .await
-            .map_err(|e| err(client::root_cause(&e)))?;
+            .map_err(|e| err(error::root_cause(&e)))?;
         let reply = HealthClient::new(channel)
             .check(HealthCheckRequest {
                 service: String::new(),

@@ -94,7 +94,7 @@ impl Tls {
         ClusterError::Tls(format!(
             "{} were refused: {}",
             self.origin,
-            crate::client::root_cause(e)
+            crate::error::root_cause(e)
         ))
     }
 }

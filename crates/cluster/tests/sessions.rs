@@ -10,7 +10,7 @@ use std::time::Duration;
 
 use cluster::pb::worker_client::WorkerClient;
 use cluster::worker::{Listen, SessionLimits, WorkerService};
-use cluster::{DrawAt, Options, RemoteExecutor, pb, wire};
+use cluster::{ClusterError, DrawAt, Options, RemoteExecutor, WorkerErrorKind, pb, wire};
 use engine::{Scene, Sequence};
 
 use common::{DANCE, local_frames};
@@ -361,4 +361,49 @@ fn a_session_past_its_own_memory_is_refused_and_the_others_are_served() {
             assert!(samples > 0);
         }
     });
+}
+
+#[test]
+fn a_workers_refusal_reaches_the_frame_as_its_own_type() {
+    // A session allowed too little memory for the scene's hair: the
+    // worker refuses it (RESOURCE_EXHAUSTED), and the frame's error is
+    // that refusal, typed, not its text.
+    let limits = SessionLimits {
+        max_session_memory: 1 << 10,
+        ..SessionLimits::default()
+    };
+    let (addr, _stop) = common::start_service(WorkerService::new(limits), Listen::default());
+    let scene = scene(DANCE);
+    let options = Options {
+        deadline: Duration::from_secs(20),
+        connect_timeout: Duration::from_secs(5),
+        tls: None,
+        draw: DrawAt::Workers,
+    };
+    let err = match RemoteExecutor::connect(&[addr.to_string()], &scene, &options) {
+        Err(e) => engine::EngineError::Executor(Box::new(e)),
+        Ok(remote) => {
+            let mut seq = Sequence::new(&scene).unwrap();
+            match seq.set_executor(Box::new(remote)) {
+                Err(e) => e,
+                Ok(()) => seq.next_frame().map(|_| ()).unwrap_err(),
+            }
+        }
+    };
+    let engine::EngineError::Executor(source) = &err else {
+        panic!("not the executor's error: {err}");
+    };
+    let cluster = source
+        .downcast_ref::<ClusterError>()
+        .unwrap_or_else(|| panic!("not a cluster error: {source}"));
+    match cluster {
+        ClusterError::Call {
+            addr: at, error, ..
+        } => {
+            assert_eq!(at, &addr.to_string());
+            assert_eq!(error.kind, WorkerErrorKind::Exhausted, "{error}");
+            assert!(error.message.contains("memory"), "{error}");
+        }
+        other => panic!("not a worker's refusal: {other}"),
+    }
 }

@@ -1042,7 +1042,7 @@ impl Executor for GivesUp {
             real.wait()?;
             self.gave_up.store(true, Ordering::Relaxed);
             r.pending = Some(engine::PendingPicture::new(|| {
-                Err(EngineError::Executor("given up".into()))
+                Err(EngineError::executor("given up"))
             }));
         }
         Ok(r)

@@ -290,7 +290,7 @@ impl Animator {
     pub fn set_wisp_state(&mut self, w: usize, state: WispState) -> Result<(), EngineError> {
         match &mut self.source {
             Source::Wisps { sim, .. } if w < sim.wisp_count() => Ok(sim.set_wisp(w, state)?),
-            _ => Err(EngineError::Executor(format!(
+            _ => Err(EngineError::executor(format!(
                 "wisp {w} is not a simulated wisp of this scene"
             ))),
         }

@@ -219,8 +219,8 @@ pub trait Executor: Send + Sync + std::fmt::Debug {
     /// simulation's steps, if any), and reports on it.
     fn pose(&mut self, plan: &PosePlan) -> Result<PoseReport, EngineError> {
         let _ = plan;
-        Err(EngineError::Executor(
-            "this executor does not hold the drawn hair".into(),
+        Err(EngineError::executor(
+            "this executor does not hold the drawn hair",
         ))
     }
     /// Filters the transmittance of the last [`Self::sweep`] of every
@@ -228,8 +228,8 @@ pub trait Executor: Send + Sync + std::fmt::Debug {
     /// they are held: one partial picture per share.
     fn draw(&mut self, job: &DrawJob) -> Result<DrawReport, EngineError> {
         let _ = job;
-        Err(EngineError::Executor(
-            "this executor does not hold the drawn hair".into(),
+        Err(EngineError::executor(
+            "this executor does not hold the drawn hair",
         ))
     }
 }

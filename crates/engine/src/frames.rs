@@ -19,168 +19,16 @@
 use std::time::Instant;
 
 use glam::Affine3A;
-use shadow::{MethodConfig, ShadowInput, ShadowMethod};
+use shadow::{DensityMapMethod, MethodConfig, ShadowInput};
 use sim::Body;
 use strands::Hair;
 
 use crate::animate::Animator;
 use crate::collide::DensityRepulsion;
 use crate::{
-    Composite, EngineError, Executor, LocalExecutor, PosePlan, PoseReport, Renderer, Scene,
-    StepPlan,
+    Composite, EngineError, Executor, FrameStats, LocalExecutor, PosePlan, PoseReport, Renderer,
+    Scene, Stage, StepPlan,
 };
-
-/// A stage of a frame.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Stage {
-    Simulate,
-    SelfCollide,
-    BodyCollide,
-    Pose,
-    Density,
-    Transmittance,
-    Filter,
-    Shade,
-    Draw,
-}
-
-impl Stage {
-    /// Every stage, in the order a frame runs them (self-collision forces
-    /// are sampled before each simulation step).
-    pub const ALL: [Stage; 9] = [
-        Stage::SelfCollide,
-        Stage::Simulate,
-        Stage::BodyCollide,
-        Stage::Pose,
-        Stage::Density,
-        Stage::Transmittance,
-        Stage::Filter,
-        Stage::Shade,
-        Stage::Draw,
-    ];
-
-    /// The stage's name in `--stats` files.
-    pub fn name(self) -> &'static str {
-        match self {
-            Stage::Simulate => "simulate",
-            Stage::SelfCollide => "self_collide",
-            Stage::BodyCollide => "body_collide",
-            Stage::Pose => "pose",
-            Stage::Density => "density",
-            Stage::Transmittance => "transmittance",
-            Stage::Filter => "filter",
-            Stage::Shade => "shade",
-            Stage::Draw => "draw",
-        }
-    }
-
-    fn index(self) -> usize {
-        Stage::ALL
-            .iter()
-            .position(|&s| s == self)
-            .expect("every stage is listed")
-    }
-}
-
-/// Whether a stage ran in a frame and its wall-clock milliseconds (summed
-/// over the simulation steps of the frame).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct StageRecord {
-    pub ran: bool,
-    pub ms: f64,
-}
-
-/// What one frame did.
-#[derive(Debug, Clone, PartialEq)]
-pub struct FrameStats {
-    pub index: u64,
-    /// Scene time of the frame, seconds.
-    pub time_s: f32,
-    stages: [StageRecord; 9],
-    /// Simulation steps taken (the first frame's include the settling).
-    pub steps: u32,
-    /// Density samples the frame's shadow fill deposited, over all lights
-    /// (0 when the shadows were reused).
-    pub samples: u64,
-}
-
-impl FrameStats {
-    pub fn new(index: u64, time_s: f32) -> FrameStats {
-        FrameStats {
-            index,
-            time_s,
-            stages: [StageRecord::default(); 9],
-            steps: 0,
-            samples: 0,
-        }
-    }
-
-    pub fn stage(&self, s: Stage) -> StageRecord {
-        self.stages[s.index()]
-    }
-
-    /// Every stage with its record, in [`Stage::ALL`] order.
-    pub fn stages(&self) -> impl Iterator<Item = (Stage, StageRecord)> + '_ {
-        Stage::ALL.iter().map(|&s| (s, self.stage(s)))
-    }
-
-    /// Milliseconds of all stages.
-    pub fn total_ms(&self) -> f64 {
-        self.stages.iter().map(|r| r.ms).sum()
-    }
-
-    /// Marks stage `s` as run, adding `ms` milliseconds measured elsewhere.
-    pub fn record(&mut self, s: Stage, ms: f64) {
-        let r = &mut self.stages[s.index()];
-        r.ran = true;
-        r.ms += ms.max(0.0);
-    }
-
-    /// Runs `f` as stage `s`, adding its time.
-    pub fn time<T>(&mut self, s: Stage, f: impl FnOnce() -> T) -> T {
-        let t = Instant::now();
-        let out = f();
-        let r = &mut self.stages[s.index()];
-        r.ran = true;
-        r.ms += t.elapsed().as_secs_f64() * 1e3;
-        out
-    }
-}
-
-/// The record `--stats` files and the viewer's overlay show:
-/// `{"index", "time_s", "steps", "stages": {name: {"ran", "ms"}}}`, the
-/// stages in [`Stage::ALL`] order.
-impl serde::Serialize for FrameStats {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        use serde::ser::{SerializeMap, SerializeStruct};
-
-        struct Stages<'a>(&'a FrameStats);
-        struct Record(StageRecord);
-        impl serde::Serialize for Record {
-            fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-                let mut r = s.serialize_struct("StageRecord", 2)?;
-                r.serialize_field("ran", &self.0.ran)?;
-                r.serialize_field("ms", &self.0.ms)?;
-                r.end()
-            }
-        }
-        impl serde::Serialize for Stages<'_> {
-            fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-                let mut m = s.serialize_map(Some(Stage::ALL.len()))?;
-                for (stage, r) in self.0.stages() {
-                    m.serialize_entry(stage.name(), &Record(r))?;
-                }
-                m.end()
-            }
-        }
-        let mut f = s.serialize_struct("FrameStats", 4)?;
-        f.serialize_field("index", &self.index)?;
-        f.serialize_field("time_s", &self.time_s)?;
-        f.serialize_field("steps", &self.steps)?;
-        f.serialize_field("stages", &Stages(self))?;
-        f.end()
-    }
-}
 
 /// Which hair a map or result was computed from: the pose counter.
 type Version = u64;
@@ -202,7 +50,7 @@ pub struct Sequence {
     executor: Box<dyn Executor>,
     /// Self-collisions' own density map, when the shadows do not fill one
     /// (self-shadowing off, or another shadow method).
-    collision_map: Option<Box<dyn ShadowMethod>>,
+    collision_map: Option<DensityMapMethod>,
     /// Counts poses of the drawn hair.
     version: Version,
     /// The head transform the drawn hair was last posed under.
@@ -269,23 +117,17 @@ fn compositor_pool() -> Option<rayon::ThreadPool> {
 
 /// Self-collisions' own density map for `scene`, when they need one and
 /// the shadows do not fill it.
-fn collision_map(
-    scene: &Scene,
-    anim: &Animator,
-) -> Result<Option<Box<dyn ShadowMethod>>, EngineError> {
+fn collision_map(scene: &Scene, anim: &Animator) -> Result<Option<DensityMapMethod>, EngineError> {
     let shares_map =
         scene.effects.self_shadow && matches!(scene.shadow.method, MethodConfig::DensityMap { .. });
     let collides = anim.simulates() && scene.effects.self_collision;
     if !collides || shares_map {
         return Ok(None);
     }
-    Ok(Some(
-        MethodConfig::DensityMap {
-            cells: scene.shadow.cells().max(1),
-            filter: false,
-        }
-        .create()?,
-    ))
+    Ok(Some(DensityMapMethod::new(
+        scene.shadow.cells().max(1),
+        false,
+    )?))
 }
 
 /// No hair: what the density fill is handed for hair posed elsewhere.
@@ -525,7 +367,7 @@ impl Sequence {
                             Some(img) => (None, img),
                             None if composite.add_layers(again.layers) => composite.resolve(),
                             None => {
-                                return Err(EngineError::Executor(format!(
+                                return Err(EngineError::executor(format!(
                                     "frame {index} could not be drawn again: {e}"
                                 )));
                             }
@@ -572,8 +414,8 @@ impl Sequence {
     pub fn again(&mut self) -> Result<(&image::RgbImage, FrameStats), EngineError> {
         if self.next > 0 {
             if self.ahead.is_some() {
-                return Err(EngineError::Executor(
-                    "a frame cannot be rendered again once the next one's stages ran ahead".into(),
+                return Err(EngineError::executor(
+                    "a frame cannot be rendered again once the next one's stages ran ahead",
                 ));
             }
             self.next -= 1;
@@ -798,11 +640,7 @@ impl Sequence {
             };
             let version = Some(self.version);
             let ex = self.executor.as_mut();
-            match self
-                .collision_map
-                .as_mut()
-                .and_then(|m| m.as_density_map_method())
-            {
+            match self.collision_map.as_mut() {
                 Some(m) => {
                     let input = ShadowInput {
                         light: &self.scene.lights[0],
@@ -828,7 +666,7 @@ impl Sequence {
             self.collision_at = Some(self.version);
         }
         let map = match &self.collision_map {
-            Some(m) => m.density_map(),
+            Some(m) => m.map(),
             None => self.renderer.shadows().density_map(),
         };
         let field = map.filter(|_| fx.self_collision).and_then(|m| {

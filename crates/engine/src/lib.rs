@@ -19,28 +19,32 @@ pub mod animate;
 pub mod collide;
 pub mod exec;
 pub mod frames;
+pub mod hair;
 pub mod head;
 pub mod part;
 pub mod pipeline;
 pub mod render;
 pub mod scene;
 pub mod share;
+pub mod stats;
 
 pub use animate::{Animator, GROUPS, Groups, split_by};
 pub use exec::{
     DrawJob, DrawReport, Executor, LocalExecutor, PendingPicture, PosePlan, PoseReport, StepPlan,
     step_wisps, step_wisps_while,
 };
-pub use frames::{FrameStats, Sequence, Stage, StageRecord};
+pub use frames::Sequence;
+pub use hair::{MAX_SEGMENTS, build_hair, drawn_segments};
 pub use head::Head;
 pub use part::{HairPart, draw_head};
-pub use pipeline::{ShadowPipeline, build_hair, drawn_segments};
+pub use pipeline::ShadowPipeline;
 pub use render::{Composite, Renderer};
 pub use scene::{
     Animation, BodySettings, CameraView, Collision, Dynamics, Effects, HairSource, HeadMesh,
     HeadSettings, Placement, Scene, SceneError, SceneSource, ShadowSettings,
 };
 pub use share::{BandPlan, BandWork, DrawTimes, Share};
+pub use stats::{FrameStats, Stage, StageRecord};
 
 /// Errors of the engine, each naming what is wrong and where.
 #[derive(Debug, thiserror::Error)]
@@ -70,7 +74,16 @@ pub enum EngineError {
     /// A change a running sequence cannot take.
     #[error("{0}")]
     Unchangeable(&'static str),
-    /// An executor that runs stages elsewhere (cluster mode) failed.
-    #[error("{0}")]
-    Executor(String),
+    /// An executor that runs stages elsewhere (cluster mode) failed: its
+    /// own error, kept whole (a `cluster::ClusterError` there, which a
+    /// caller may downcast to), or what went wrong in handing stages to it.
+    #[error(transparent)]
+    Executor(Box<dyn std::error::Error + Send + Sync>),
+}
+
+impl EngineError {
+    /// An executor's failure described by `message`.
+    pub fn executor(message: impl Into<String>) -> EngineError {
+        EngineError::Executor(message.into().into())
+    }
 }

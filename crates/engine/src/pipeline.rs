@@ -1,15 +1,10 @@
-//! Building a scene's hair and running the shadow stages for each light.
+//! Running the shadow stages for each light.
 
 use glam::{Affine3A, Vec3};
 use shadow::{Extent, Fiber, FillStats, Light, Occluder, ShadowInput, ShadowMethod};
-use strands::{Hair, WispModel, grow_followers, resample};
+use strands::Hair;
 
-use crate::{EngineError, Executor, HairSource, Head, LocalExecutor, Scene};
-
-/// The most drawn segments one scene may ask for (about 1.6 GB of points):
-/// beyond this a typo in `strands_per_wisp` or `followers` is more likely
-/// than a real groom.
-pub const MAX_SEGMENTS: u64 = 100_000_000;
+use crate::{EngineError, Executor, Head, LocalExecutor, Scene};
 
 /// How far off an opaque surface its lookups of the hair's shadow go,
 /// along its normal, in map cells (see
@@ -19,81 +14,6 @@ pub const HEAD_NORMAL_BIAS: f32 = 1.5;
 /// How far towards the light an opaque surface's lookups go, in map
 /// cells, past the rounding of its deposit's front.
 pub const HEAD_LIGHT_BIAS: f32 = 0.5;
-
-/// Builds the hair a scene describes: generated or loaded, with follow
-/// strands when asked, then Catmull-Rom resampled into drawn points.
-pub fn build_hair(scene: &Scene) -> Result<Hair, EngineError> {
-    let control = match &scene.hair {
-        HairSource::Style(p) => {
-            let segs = u64::from(p.wisps)
-                * u64::from(p.strands_per_wisp)
-                * 31
-                * u64::from(scene.subdivide);
-            check_size(segs)?;
-            WispModel::generate(p).interpolate()
-        }
-        HairSource::File {
-            path,
-            follow,
-            place,
-        } => {
-            let mut guides = load_groom(scene, path)?;
-            place.apply(&mut guides);
-            match follow {
-                Some(f) => {
-                    check_size(
-                        guides.segment_count() as u64
-                            * (u64::from(f.followers) + 1)
-                            * u64::from(scene.subdivide),
-                    )?;
-                    grow_followers(&guides, f)
-                }
-                None => guides,
-            }
-        }
-        HairSource::Inline(hair) => hair.clone(),
-    };
-    check_size(control.segment_count() as u64 * u64::from(scene.subdivide))?;
-    Ok(resample(&control, scene.subdivide))
-}
-
-/// The groom `path` of `scene`'s `hair.file`; an error names both.
-fn load_groom(scene: &Scene, path: &std::path::Path) -> Result<Hair, EngineError> {
-    strands::load_with(path, |p| scene.data_file(p)).map_err(|error| EngineError::Load {
-        scene: scene.source.path.clone(),
-        error,
-    })
-}
-
-/// The drawn segments [`build_hair`] makes of a scene's hair, counted
-/// without making them (a loaded groom is loaded, not resampled). Checked
-/// against [`MAX_SEGMENTS`].
-pub fn drawn_segments(scene: &Scene) -> Result<u64, EngineError> {
-    let sub = u64::from(scene.subdivide);
-    let segs = match &scene.hair {
-        HairSource::Style(p) => u64::from(p.wisps) * u64::from(p.strands_per_wisp) * 31 * sub,
-        HairSource::File { path, follow, .. } => {
-            // Placing the groom changes no count.
-            let guides = load_groom(scene, path)?;
-            let per = follow.as_ref().map_or(1, |f| u64::from(f.followers) + 1);
-            guides.segment_count() as u64 * per * sub
-        }
-        HairSource::Inline(hair) => hair.segment_count() as u64 * sub,
-    };
-    check_size(segs)?;
-    Ok(segs)
-}
-
-fn check_size(segments: u64) -> Result<(), EngineError> {
-    if segments > MAX_SEGMENTS {
-        return Err(EngineError::TooLarge {
-            what: format!("{segments} drawn segments"),
-            bytes: segments * 16,
-            limit: MAX_SEGMENTS * 16,
-        });
-    }
-    Ok(())
-}
 
 /// The three shadow stages for every light of a scene, by the scene's
 /// method. Each light owns its method's maps.
@@ -115,7 +35,7 @@ pub struct ShadowPipeline {
 #[derive(Debug)]
 struct LightState {
     light: Light,
-    method: Box<dyn ShadowMethod>,
+    method: ShadowMethod,
 }
 
 impl ShadowPipeline {
@@ -126,7 +46,7 @@ impl ShadowPipeline {
             .map(|&light| {
                 Ok(LightState {
                     light,
-                    method: scene.shadow.method.create()?,
+                    method: ShadowMethod::new(&scene.shadow.method)?,
                 })
             })
             .collect::<Result<_, EngineError>>()?;
@@ -206,11 +126,11 @@ impl ShadowPipeline {
                 occluders: &self.occluders,
                 extent: extents.map(|(a, e)| (a, e[i])),
             };
-            let stats = match l.method.as_density_map_method() {
-                Some(m) => {
+            let stats = match &mut l.method {
+                ShadowMethod::DensityMap(m) => {
                     m.build_with(&input, |map| ex.fill(i, map, hair, &self.fiber, version))?
                 }
-                None => l.method.build(&input)?,
+                other => other.build(&input)?,
             };
             if stats.out_of_map > 0 {
                 tracing::warn!(
@@ -232,9 +152,9 @@ impl ShadowPipeline {
     /// [`Self::transmittance`] with the columns swept through `ex`.
     pub fn transmittance_with(&mut self, ex: &mut dyn Executor) -> Result<(), EngineError> {
         for (i, l) in self.lights.iter_mut().enumerate() {
-            match l.method.as_density_map_method() {
-                Some(m) => m.prepare_with(|map| ex.sweep(i, map))?,
-                None => l.method.prepare(),
+            match &mut l.method {
+                ShadowMethod::DensityMap(m) => m.prepare_with(|map| ex.sweep(i, map))?,
+                other => other.prepare(),
             }
         }
         Ok(())
@@ -333,18 +253,5 @@ mod tests {
     fn median_of_odd_and_even() {
         assert_eq!(median(&mut [3.0, 1.0, 2.0]), 2.0);
         assert_eq!(median(&mut [4.0, 1.0, 3.0, 2.0]), 2.5);
-    }
-
-    #[test]
-    fn absurd_sizes_are_refused_before_building() {
-        let mut scene = Scene::default();
-        if let HairSource::Style(p) = &mut scene.hair {
-            p.strands_per_wisp = 2000;
-        }
-        scene.subdivide = 64;
-        assert!(matches!(
-            build_hair(&scene),
-            Err(EngineError::TooLarge { .. })
-        ));
     }
 }

@@ -244,7 +244,7 @@ impl Renderer {
     pub fn draw_job(&self, version: u64, shadows: bool) -> Result<DrawJob, EngineError> {
         let view = self
             .view
-            .ok_or_else(|| EngineError::Executor("the camera is framed before drawing".into()))?;
+            .ok_or_else(|| EngineError::executor("the camera is framed before drawing"))?;
         let s = &self.scene;
         Ok(DrawJob {
             version,
@@ -271,7 +271,7 @@ impl Renderer {
     fn canvas_with_head(&mut self, shadows: bool) -> Result<(View, &mut Canvas), EngineError> {
         let view = self
             .view
-            .ok_or_else(|| EngineError::Executor("the camera is framed before drawing".into()))?;
+            .ok_or_else(|| EngineError::executor("the camera is framed before drawing"))?;
         let lights = self.lights();
         let s = &self.scene;
         if self.canvas.is_none() {
@@ -388,7 +388,7 @@ impl Renderer {
                 canvas.height()
             );
             self.canvas = Some(canvas);
-            return Err(EngineError::Executor(msg));
+            return Err(EngineError::executor(msg));
         }
         let composite = Composite {
             canvas: Some(canvas),

@@ -104,7 +104,7 @@ impl BandPlan {
         if ok {
             Ok(())
         } else {
-            Err(EngineError::Executor(format!(
+            Err(EngineError::executor(format!(
                 "bands {:?} (worker {} of {}) do not cut a picture of {height} rows in whole bands of {band}",
                 self.cuts, self.own, self.workers
             )))
@@ -182,7 +182,7 @@ impl Share {
         let anim = Animator::new(scene)?;
         let n = anim.groups().count();
         if groups.start > groups.end || groups.end > n {
-            return Err(EngineError::Executor(format!(
+            return Err(EngineError::executor(format!(
                 "groups {}..{} of a scene of {n}",
                 groups.start, groups.end
             )));
@@ -263,12 +263,10 @@ impl Share {
     pub fn posed(&self, version: u64) -> Result<&Hair, EngineError> {
         match &self.posed {
             Some((v, hair)) if *v == version => Ok(hair),
-            Some((v, _)) => Err(EngineError::Executor(format!(
+            Some((v, _)) => Err(EngineError::executor(format!(
                 "the posed strands are hair version {v}, not {version}"
             ))),
-            None => Err(EngineError::Executor(
-                "no strands posed here yet".to_string(),
-            )),
+            None => Err(EngineError::executor("no strands posed here yet")),
         }
     }
 
@@ -444,7 +442,7 @@ impl Share {
         let hair = match &self.posed {
             Some((v, hair)) if *v == job.version => hair,
             _ => {
-                return Err(EngineError::Executor(format!(
+                return Err(EngineError::executor(format!(
                     "no strands posed here as hair version {}",
                     job.version
                 )));
@@ -452,7 +450,7 @@ impl Share {
         };
         if job.shadows {
             if maps.len() != job.lights.len() {
-                return Err(EngineError::Executor(format!(
+                return Err(EngineError::executor(format!(
                     "{} maps for {} lights",
                     maps.len(),
                     job.lights.len()

@@ -229,7 +229,7 @@ impl Executor for Unfinished {
         if fails {
             self.kept = Some((job.version, layers));
             drawn.pending = Some(engine::PendingPicture::new(|| {
-                Err(EngineError::Executor("a worker went away".into()))
+                Err(EngineError::executor("a worker went away"))
             }));
         } else {
             drawn.layers = layers;

@@ -3,7 +3,10 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::{MAX_CELLS, ShadowError};
+use crate::ShadowError;
+
+/// The largest map side, in cells. 512^3 cells already take 512 MiB.
+pub const MAX_CELLS: u32 = 512;
 
 /// A light source. Each light owns its own map; nothing here assumes a
 /// single light.

@@ -15,22 +15,26 @@
 //!
 //! The crate knows nothing of cameras, shading, files or networks.
 
+mod config;
 mod density;
 mod fiber;
 mod frame;
+mod input;
 mod method;
 mod occluder;
 mod peers;
-pub mod reference;
+mod reference;
 mod transmittance;
 
-pub use density::{ColumnMeta, DEPOSIT_RUN_WORK, DEPTH_QUANTUM, DensityMap, FillStats, MAX_CELLS};
+pub use config::{Beyond, MethodConfig, OpacityMode};
+pub use density::{ColumnMeta, DEPOSIT_RUN_WORK, DEPTH_QUANTUM, DensityMap, FillStats};
 pub use fiber::Fiber;
-pub use frame::{Extent, Fan, Light, LightFrame, MAX_FAN_TAN};
-pub use method::{
-    Beyond, DensityMapMethod, MethodConfig, OPAQUE_DEPTH, OpacityMode, ShadowInput, ShadowMethod,
-};
+pub use frame::{Extent, Fan, Light, LightFrame, MAX_CELLS, MAX_FAN_TAN};
+pub use input::{OPAQUE_DEPTH, ShadowInput};
+pub use method::{DensityMapMethod, ShadowMethod};
 pub use occluder::{Occluder, OccluderView};
+pub use peers::{DeepOpacityMap, DeepShadowMap, DensityClustering, OpacityShadowMap};
+pub use reference::Reference;
 pub use transmittance::{
     ColumnSlab, DEPTH_STEP, SWEEP_RUN_COLUMNS, Span, Transmittance, columns_read, sweep,
     sweep_while,

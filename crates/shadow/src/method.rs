@@ -1,8 +1,8 @@
-//! One interface for every shadow method: the paper's density map, the peer
+//! One type for every shadow method: the paper's density map, the peer
 //! methods it is compared with, and an exact reference.
 //!
 //! All of them estimate the same physical quantity from the same fiber
-//! width `w` and opacity `alpha` (see [`Fiber`]): the transmittance
+//! width `w` and opacity `alpha` (see [`crate::Fiber`]): the transmittance
 //! `T(p) = exp(-D(p))` of light reaching `p`, where `D` is the optical depth
 //! of the hair between `p` and the light. Each runs in three stages, named
 //! after the density map's so that timings compare:
@@ -11,62 +11,121 @@
 //! 2. `prepare` (the "transmittance" stage): turn the samples into something
 //!    to look up (a sweep, prefix sums, clustering, compression);
 //! 3. `lookup` (the "filter" stage): transmittance at the drawn points.
-
-use std::fmt;
+//!
+//! The set is closed: [`ShadowMethod`] is an enum, and a caller that works
+//! on the density map itself (filling or sweeping it elsewhere) matches its
+//! [`ShadowMethod::DensityMap`] variant.
 
 use glam::Vec3;
 use rayon::prelude::*;
-use strands::Hair;
 
-use crate::{
-    DensityMap, Extent, Fiber, FillStats, Light, LightFrame, Occluder, ShadowError, Transmittance,
-    peers, reference,
-};
+use crate::config::MethodConfig;
+use crate::input::{OPAQUE_DEPTH, ShadowInput};
+use crate::peers::{DeepOpacityMap, DeepShadowMap, DensityClustering, OpacityShadowMap};
+use crate::reference::Reference;
+use crate::{DensityMap, FillStats, LightFrame, ShadowError, Transmittance};
 
-/// Optical depth of an opaque body (a head) along any ray through it:
-/// `exp(-30)` is 1e-13, no light.
-pub const OPAQUE_DEPTH: f32 = 30.0;
-
-/// What one light's shadow method works from in one frame.
-#[derive(Debug, Clone, Copy)]
-pub struct ShadowInput<'a> {
-    pub light: &'a Light,
-    pub hair: &'a Hair,
-    pub fiber: &'a Fiber,
-    pub occluders: &'a [Occluder],
-    /// Where the map is fitted from: the hair's [`Extent`] along this
-    /// light's axes from an anchor point near it, when the caller knows
-    /// it (for hair posed elsewhere, `hair` is then empty); `None`: from
-    /// `hair`'s points, anchored at its first.
-    pub extent: Option<(Vec3, Extent)>,
+/// A shadow method with its settings and the results of its last build.
+#[derive(Debug)]
+pub enum ShadowMethod {
+    /// Bertails, Ménier and Cani 2005: the light-oriented density map.
+    DensityMap(DensityMapMethod),
+    /// Kim and Neumann 2001 as Koster et al. 2004 describe it.
+    OpacityShadowMap(OpacityShadowMap),
+    /// Yuksel and Keyser 2008.
+    DeepOpacityMap(DeepOpacityMap),
+    /// Mertens et al. 2004.
+    DensityClustering(DensityClustering),
+    /// Lokovic and Veach 2000.
+    DeepShadowMap(DeepShadowMap),
+    /// Transmittance from the fiber geometry itself.
+    Reference(Reference),
 }
 
-impl ShadowInput<'_> {
-    /// A map of `n` cells a side fitted to the hair and the occluders.
-    pub fn fit(&self, n: u32) -> Result<LightFrame, ShadowError> {
-        let corners: Vec<Vec3> = self.occluders.iter().flat_map(|o| o.corners()).collect();
-        match self.extent {
-            Some((anchor, e)) => {
-                let all = e.union(Extent::of(self.light, anchor, &corners));
-                LightFrame::fit_extent(self.light, anchor, all, n)
-            }
-            None => LightFrame::fit_with(self.light, self.hair.points(), &corners, n),
+/// Calls `$call` on whichever method `$self` holds.
+macro_rules! each {
+    ($self:expr, $m:ident => $call:expr) => {
+        match $self {
+            ShadowMethod::DensityMap($m) => $call,
+            ShadowMethod::OpacityShadowMap($m) => $call,
+            ShadowMethod::DeepOpacityMap($m) => $call,
+            ShadowMethod::DensityClustering($m) => $call,
+            ShadowMethod::DeepShadowMap($m) => $call,
+            ShadowMethod::Reference($m) => $call,
         }
-    }
+    };
 }
 
-/// A shadow method: three stages, run in order for every frame.
-pub trait ShadowMethod: Send + Sync + fmt::Debug {
-    /// Stage 1: sample the hair (and occluders) from the light.
-    fn build(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError>;
-    /// Stage 2: make the samples ready for lookups.
-    fn prepare(&mut self);
+impl ShadowMethod {
+    /// A fresh method with the settings `config`, once they validate.
+    pub fn new(config: &MethodConfig) -> Result<ShadowMethod, ShadowError> {
+        config.validate()?;
+        Ok(match *config {
+            MethodConfig::DensityMap { cells, filter } => {
+                ShadowMethod::DensityMap(DensityMapMethod::new(cells, filter)?)
+            }
+            MethodConfig::OpacityShadowMap {
+                resolution,
+                slices,
+                mode,
+                offset,
+                filter,
+            } => ShadowMethod::OpacityShadowMap(OpacityShadowMap::new(
+                resolution, slices, mode, offset, filter,
+            )),
+            MethodConfig::DeepOpacityMap {
+                resolution,
+                layers,
+                layer_cells,
+                beyond,
+                filter,
+            } => ShadowMethod::DeepOpacityMap(DeepOpacityMap::new(
+                resolution,
+                layers,
+                layer_cells,
+                beyond,
+                filter,
+            )),
+            MethodConfig::DensityClustering {
+                resolution,
+                clusters,
+                filter,
+            } => ShadowMethod::DensityClustering(DensityClustering::new(
+                resolution, clusters, filter,
+            )),
+            MethodConfig::DeepShadowMap {
+                resolution,
+                tolerance,
+                filter,
+            } => ShadowMethod::DeepShadowMap(DeepShadowMap::new(resolution, tolerance, filter)),
+            MethodConfig::Reference { footprint, rays } => {
+                ShadowMethod::Reference(Reference::new(footprint, rays))
+            }
+        })
+    }
+
+    /// Stage 1: samples the hair (and occluders) from the light.
+    pub fn build(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
+        each!(self, m => m.build(input))
+    }
+
+    /// Stage 2: makes the samples ready for lookups. Panics before `build`.
+    pub fn prepare(&mut self) {
+        each!(self, m => m.prepare())
+    }
+
     /// Stage 3 at one point: `T(p)` in [0, 1]. Panics before `prepare`.
-    fn transmittance(&self, p: Vec3) -> f32;
+    pub fn transmittance(&self, p: Vec3) -> f32 {
+        each!(self, m => m.transmittance(p))
+    }
+
     /// Stage 3 at many points, in parallel; the same values as
     /// [`Self::transmittance`] one by one.
-    fn lookup(&self, points: &[Vec3], out: &mut [f32]) {
+    pub fn lookup(&self, points: &[Vec3], out: &mut [f32]) {
         assert_eq!(points.len(), out.len());
+        if let ShadowMethod::DensityMap(m) = self {
+            return m.lookup(points, out);
+        }
         out.par_chunks_mut(2048)
             .zip(points.par_chunks(2048))
             .for_each(|(o, p)| {
@@ -75,382 +134,24 @@ pub trait ShadowMethod: Send + Sync + fmt::Debug {
                 }
             });
     }
+
     /// The frame of the last build: its first axis is the light direction
     /// and `ds` its resolution, for biasing lookups on surfaces.
-    fn frame(&self) -> Option<&LightFrame>;
-    /// The density map of the last build, for methods that fill one (the
-    /// simulation's self-collisions read it too).
-    fn density_map(&self) -> Option<&DensityMap> {
-        None
+    pub fn frame(&self) -> Option<&LightFrame> {
+        each!(self, m => m.frame())
     }
-    /// The density-map method itself, for callers that fill and sweep its
-    /// map elsewhere (on other threads or machines).
-    fn as_density_map_method(&mut self) -> Option<&mut DensityMapMethod> {
-        None
-    }
-}
 
-/// Koster et al.'s two ways of turning accumulated opacity `Omega` into
-/// transmittance.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum OpacityMode {
-    /// `T = max(0, 1 - Omega)`.
-    Linear,
-    /// `T = exp(-kappa Omega)`. With `Omega` an optical depth in physical
-    /// units, `kappa = 1` estimates the same quantity as every other method
-    /// (Koster's 5.56 made up for opacities in arbitrary units).
-    Exponential { kappa: f32 },
-}
-
-/// What a deep opacity map does with hair past its last layer (Yuksel and
-/// Keyser 2008, section 3.2).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Beyond {
-    /// It casts no shadow.
-    Ignore,
-    /// It counts in the last layer (the paper's choice).
-    LastLayer,
-    /// Each pixel stretches its layers to end at its last hair.
-    Cover,
-}
-
-impl Beyond {
-    pub const NAMES: &[&str] = &["ignore", "last-layer", "cover"];
-
-    pub fn from_name(name: &str) -> Option<Beyond> {
-        match name {
-            "ignore" => Some(Beyond::Ignore),
-            "last-layer" => Some(Beyond::LastLayer),
-            "cover" => Some(Beyond::Cover),
+    /// The density map of the last build, for the method that fills one
+    /// (the simulation's self-collisions read it too).
+    pub fn density_map(&self) -> Option<&DensityMap> {
+        match self {
+            ShadowMethod::DensityMap(m) => m.map(),
             _ => None,
         }
     }
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Beyond::Ignore => "ignore",
-            Beyond::LastLayer => "last-layer",
-            Beyond::Cover => "cover",
-        }
-    }
 }
 
-/// A shadow method and its settings. Resolutions are in cells (or light
-/// view pixels) per side of a map fitted to the hair.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum MethodConfig {
-    /// Bertails, Ménier and Cani 2005: the light-oriented density map.
-    DensityMap { cells: u32, filter: bool },
-    /// Kim and Neumann 2001, as Koster et al. 2004 describe it: `slices`
-    /// uniform maps of accumulated opacity between the hair's nearest and
-    /// farthest depth, interpolated linearly between maps; lookups shifted
-    /// `offset` slice spacings towards the light.
-    OpacityShadowMap {
-        resolution: u32,
-        slices: u32,
-        mode: OpacityMode,
-        offset: f32,
-        filter: bool,
-    },
-    /// Yuksel and Keyser 2008: per pixel, `layers` layers of
-    /// `layer_cells` cells each, starting at the pixel's first hair.
-    DeepOpacityMap {
-        resolution: u32,
-        layers: u32,
-        layer_cells: f32,
-        beyond: Beyond,
-        filter: bool,
-    },
-    /// Mertens et al. 2004: per pixel, one k-means iteration over the
-    /// fragments' depths, one histogram bin of `mu +- sqrt(3) sigma` per
-    /// cluster.
-    DensityClustering {
-        resolution: u32,
-        clusters: u32,
-        filter: bool,
-    },
-    /// Lokovic and Veach 2000: per pixel, the visibility function of all
-    /// fragments, compressed to a piecewise linear function within
-    /// `tolerance` (in transmittance).
-    DeepShadowMap {
-        resolution: u32,
-        tolerance: f32,
-        filter: bool,
-    },
-    /// Transmittance from the fiber geometry itself (see
-    /// [`reference::Reference`]) over a square footprint of side
-    /// `footprint` scene units (default: one cell of a 128^3 map fitted to
-    /// the hair); `rays` samples of the footprint for opaque occluders.
-    Reference { footprint: Option<f32>, rays: u32 },
-}
-
-impl MethodConfig {
-    pub const NAMES: &[&str] = &[
-        "density-map",
-        "opacity-shadow-map",
-        "deep-opacity-map",
-        "density-clustering",
-        "deep-shadow-map",
-        "reference",
-    ];
-
-    /// The method `name` with its default settings at `cells` a side.
-    pub fn with_defaults(name: &str, cells: u32) -> Option<MethodConfig> {
-        Some(match name {
-            "density-map" => MethodConfig::DensityMap {
-                cells,
-                filter: true,
-            },
-            "opacity-shadow-map" => MethodConfig::OpacityShadowMap {
-                resolution: cells,
-                slices: 64,
-                mode: OpacityMode::Exponential { kappa: 1.0 },
-                offset: 0.0,
-                filter: true,
-            },
-            "deep-opacity-map" => MethodConfig::DeepOpacityMap {
-                resolution: cells,
-                layers: 4,
-                layer_cells: 4.0,
-                beyond: Beyond::LastLayer,
-                filter: true,
-            },
-            "density-clustering" => MethodConfig::DensityClustering {
-                resolution: cells,
-                clusters: 4,
-                filter: true,
-            },
-            "deep-shadow-map" => MethodConfig::DeepShadowMap {
-                resolution: cells,
-                tolerance: 0.01,
-                filter: true,
-            },
-            "reference" => MethodConfig::Reference {
-                footprint: None,
-                rays: 64,
-            },
-            _ => return None,
-        })
-    }
-
-    pub fn name(&self) -> &'static str {
-        match self {
-            MethodConfig::DensityMap { .. } => "density-map",
-            MethodConfig::OpacityShadowMap { .. } => "opacity-shadow-map",
-            MethodConfig::DeepOpacityMap { .. } => "deep-opacity-map",
-            MethodConfig::DensityClustering { .. } => "density-clustering",
-            MethodConfig::DeepShadowMap { .. } => "deep-shadow-map",
-            MethodConfig::Reference { .. } => "reference",
-        }
-    }
-
-    /// Cells (or light-view pixels) a side; the reference bins its segments
-    /// on a 128-column grid.
-    pub fn resolution(&self) -> u32 {
-        match *self {
-            MethodConfig::DensityMap { cells, .. } => cells,
-            MethodConfig::OpacityShadowMap { resolution, .. }
-            | MethodConfig::DeepOpacityMap { resolution, .. }
-            | MethodConfig::DensityClustering { resolution, .. }
-            | MethodConfig::DeepShadowMap { resolution, .. } => resolution,
-            MethodConfig::Reference { .. } => 128,
-        }
-    }
-
-    /// Sets the resolution (the reference has none to set).
-    pub fn set_resolution(&mut self, n: u32) {
-        match self {
-            MethodConfig::DensityMap { cells: r, .. }
-            | MethodConfig::OpacityShadowMap { resolution: r, .. }
-            | MethodConfig::DeepOpacityMap { resolution: r, .. }
-            | MethodConfig::DensityClustering { resolution: r, .. }
-            | MethodConfig::DeepShadowMap { resolution: r, .. } => *r = n,
-            MethodConfig::Reference { .. } => {}
-        }
-    }
-
-    /// Whether lookups interpolate between cells (the reference always
-    /// averages over its footprint).
-    pub fn filter(&self) -> bool {
-        match *self {
-            MethodConfig::DensityMap { filter, .. }
-            | MethodConfig::OpacityShadowMap { filter, .. }
-            | MethodConfig::DeepOpacityMap { filter, .. }
-            | MethodConfig::DensityClustering { filter, .. }
-            | MethodConfig::DeepShadowMap { filter, .. } => filter,
-            MethodConfig::Reference { .. } => true,
-        }
-    }
-
-    /// Turns filtering on or off (the reference has no switch).
-    pub fn set_filter(&mut self, on: bool) {
-        match self {
-            MethodConfig::DensityMap { filter, .. }
-            | MethodConfig::OpacityShadowMap { filter, .. }
-            | MethodConfig::DeepOpacityMap { filter, .. }
-            | MethodConfig::DensityClustering { filter, .. }
-            | MethodConfig::DeepShadowMap { filter, .. } => *filter = on,
-            MethodConfig::Reference { .. } => {}
-        }
-    }
-
-    /// Checks the settings, naming the first that is out of range.
-    pub fn validate(&self) -> Result<(), ShadowError> {
-        let bad = |name: &'static str, value: String, why: &'static str| {
-            Err(ShadowError::Setting { name, value, why })
-        };
-        let res = |r: u32| {
-            if (1..=crate::MAX_CELLS).contains(&r) {
-                Ok(())
-            } else {
-                Err(ShadowError::Cells(r))
-            }
-        };
-        match *self {
-            MethodConfig::DensityMap { cells, .. } => res(cells),
-            MethodConfig::OpacityShadowMap {
-                resolution,
-                slices,
-                mode,
-                offset,
-                ..
-            } => {
-                res(resolution)?;
-                if !(2..=4096).contains(&slices) {
-                    return bad("slices", slices.to_string(), "must be in 2..=4096");
-                }
-                if let OpacityMode::Exponential { kappa } = mode
-                    && !(kappa.is_finite() && kappa >= 0.0)
-                {
-                    return bad("kappa", kappa.to_string(), "must be finite and >= 0");
-                }
-                if !(offset.is_finite() && offset >= 0.0) {
-                    return bad("offset", offset.to_string(), "must be finite and >= 0");
-                }
-                Ok(())
-            }
-            MethodConfig::DeepOpacityMap {
-                resolution,
-                layers,
-                layer_cells,
-                ..
-            } => {
-                res(resolution)?;
-                if !(1..=64).contains(&layers) {
-                    return bad("layers", layers.to_string(), "must be in 1..=64");
-                }
-                if !(layer_cells.is_finite() && layer_cells >= 0.0) {
-                    return bad(
-                        "layer_cells",
-                        layer_cells.to_string(),
-                        "must be finite and >= 0",
-                    );
-                }
-                Ok(())
-            }
-            MethodConfig::DensityClustering {
-                resolution,
-                clusters,
-                ..
-            } => {
-                res(resolution)?;
-                if !(1..=16).contains(&clusters) {
-                    return bad("clusters", clusters.to_string(), "must be in 1..=16");
-                }
-                Ok(())
-            }
-            MethodConfig::DeepShadowMap {
-                resolution,
-                tolerance,
-                ..
-            } => {
-                res(resolution)?;
-                if !(tolerance.is_finite() && (0.0..1.0).contains(&tolerance)) {
-                    return bad("tolerance", tolerance.to_string(), "must be in [0, 1)");
-                }
-                Ok(())
-            }
-            MethodConfig::Reference { footprint, rays } => {
-                if let Some(f) = footprint
-                    && !(f.is_finite() && f > 0.0)
-                {
-                    return bad("footprint", f.to_string(), "must be finite and > 0");
-                }
-                if !(1..=4096).contains(&rays) {
-                    return bad("rays", rays.to_string(), "must be in 1..=4096");
-                }
-                Ok(())
-            }
-        }
-    }
-
-    /// The settings as `key=value` pairs, for tables and CSV.
-    pub fn parameters(&self) -> String {
-        match *self {
-            MethodConfig::DensityMap { cells, filter } => {
-                format!("cells={cells} filter={filter}")
-            }
-            MethodConfig::OpacityShadowMap {
-                resolution,
-                slices,
-                mode,
-                offset,
-                filter,
-            } => {
-                let mode = match mode {
-                    OpacityMode::Linear => "linear".to_string(),
-                    OpacityMode::Exponential { kappa } => format!("exponential kappa={kappa}"),
-                };
-                format!(
-                    "resolution={resolution} slices={slices} mode={mode} offset={offset} filter={filter}"
-                )
-            }
-            MethodConfig::DeepOpacityMap {
-                resolution,
-                layers,
-                layer_cells,
-                beyond,
-                filter,
-            } => format!(
-                "resolution={resolution} layers={layers} layer_cells={layer_cells} beyond={} filter={filter}",
-                beyond.name()
-            ),
-            MethodConfig::DensityClustering {
-                resolution,
-                clusters,
-                filter,
-            } => format!("resolution={resolution} clusters={clusters} filter={filter}"),
-            MethodConfig::DeepShadowMap {
-                resolution,
-                tolerance,
-                filter,
-            } => format!("resolution={resolution} tolerance={tolerance} filter={filter}"),
-            MethodConfig::Reference { footprint, rays } => match footprint {
-                Some(f) => format!("footprint={f} rays={rays}"),
-                None => format!("footprint=auto rays={rays}"),
-            },
-        }
-    }
-
-    /// A fresh method with these settings.
-    pub fn create(&self) -> Result<Box<dyn ShadowMethod>, ShadowError> {
-        self.validate()?;
-        Ok(match *self {
-            MethodConfig::DensityMap { cells, filter } => Box::new(DensityMapMethod {
-                cells,
-                filter,
-                map: None,
-                trans: None,
-            }),
-            MethodConfig::Reference { footprint, rays } => {
-                Box::new(reference::Reference::new(footprint, rays))
-            }
-            other => Box::new(peers::PixelMethod::new(other)),
-        })
-    }
-}
-
-/// The paper's method behind the common interface.
+/// The paper's method: a density map swept into transmittance.
 #[derive(Debug)]
 pub struct DensityMapMethod {
     cells: u32,
@@ -460,6 +161,22 @@ pub struct DensityMapMethod {
 }
 
 impl DensityMapMethod {
+    /// A map of `cells` a side, its lookups filtered trilinearly or not.
+    pub fn new(cells: u32, filter: bool) -> Result<DensityMapMethod, ShadowError> {
+        MethodConfig::DensityMap { cells, filter }.validate()?;
+        Ok(DensityMapMethod {
+            cells,
+            filter,
+            map: None,
+            trans: None,
+        })
+    }
+
+    /// The map of the last build.
+    pub fn map(&self) -> Option<&DensityMap> {
+        self.map.as_ref()
+    }
+
     /// Stage 1 with the hair's density filled by `fill`: fits the map and
     /// empties it, lets `fill` add the density of every strand to the empty
     /// map, then adds the occluders.
@@ -493,9 +210,7 @@ impl DensityMapMethod {
         self.trans = Some(sweep(map)?);
         Ok(())
     }
-}
 
-impl ShadowMethod for DensityMapMethod {
     fn build(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
         // The map is already empty: deposit, without clearing it again.
         let all = 0..input.hair.strand_count();
@@ -523,39 +238,5 @@ impl ShadowMethod for DensityMapMethod {
 
     fn frame(&self) -> Option<&LightFrame> {
         self.map.as_ref().map(|m| m.frame())
-    }
-
-    fn density_map(&self) -> Option<&DensityMap> {
-        self.map.as_ref()
-    }
-
-    fn as_density_map_method(&mut self) -> Option<&mut DensityMapMethod> {
-        Some(self)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn every_name_has_defaults_that_validate_and_round_trip() {
-        for name in MethodConfig::NAMES {
-            let c = MethodConfig::with_defaults(name, 64).unwrap();
-            assert_eq!(c.name(), *name);
-            c.validate().unwrap();
-        }
-        assert!(MethodConfig::with_defaults("raytrace", 64).is_none());
-        let bad = MethodConfig::OpacityShadowMap {
-            resolution: 64,
-            slices: 1,
-            mode: OpacityMode::Linear,
-            offset: 0.0,
-            filter: true,
-        };
-        assert!(matches!(
-            bad.validate(),
-            Err(ShadowError::Setting { name: "slices", .. })
-        ));
     }
 }

@@ -26,7 +26,7 @@
 
 use glam::Vec3;
 
-use crate::method::{ShadowInput, ShadowMethod};
+use crate::input::ShadowInput;
 use crate::occluder::OccluderView;
 use crate::{FillStats, LightFrame, ShadowError};
 
@@ -66,17 +66,15 @@ struct Built {
 }
 
 impl Reference {
-    pub fn new(footprint: Option<f32>, rays: u32) -> Reference {
+    pub(crate) fn new(footprint: Option<f32>, rays: u32) -> Reference {
         Reference {
             footprint,
             rays: rays.max(1),
             built: None,
         }
     }
-}
 
-impl ShadowMethod for Reference {
-    fn build(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
+    pub(crate) fn build(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
         let frame = input.fit(GRID)?;
         let n = GRID as i32;
         // In a fan's cells a long straight fiber is not straight (its depth
@@ -193,11 +191,11 @@ impl ShadowMethod for Reference {
         Ok(stats)
     }
 
-    fn prepare(&mut self) {
+    pub(crate) fn prepare(&mut self) {
         assert!(self.built.is_some(), "build runs before prepare");
     }
 
-    fn transmittance(&self, p: Vec3) -> f32 {
+    pub(crate) fn transmittance(&self, p: Vec3) -> f32 {
         let b = self.built.as_ref().expect("build runs before lookups");
         let n = GRID as i32;
         let c = b.frame.to_cells(p);
@@ -283,7 +281,7 @@ impl ShadowMethod for Reference {
         t.clamp(0.0, 1.0) as f32
     }
 
-    fn frame(&self) -> Option<&LightFrame> {
+    pub(crate) fn frame(&self) -> Option<&LightFrame> {
         self.built.as_ref().map(|b| &b.frame)
     }
 }

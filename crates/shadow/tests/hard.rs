@@ -23,13 +23,8 @@ fn every_method(cells: u32) -> Vec<MethodConfig> {
         .collect()
 }
 
-fn build(
-    config: &MethodConfig,
-    hair: &Hair,
-    light: &Light,
-    fiber: &Fiber,
-) -> Box<dyn ShadowMethod> {
-    let mut m = config.create().unwrap();
+fn build(config: &MethodConfig, hair: &Hair, light: &Light, fiber: &Fiber) -> ShadowMethod {
+    let mut m = ShadowMethod::new(config).unwrap();
     let stats = m
         .build(&ShadowInput {
             light,
@@ -66,7 +61,7 @@ const SLACK: f32 = 1e-5;
 /// the transmittance at every point, ray by ray.
 fn check_invariants(
     what: &str,
-    m: &dyn ShadowMethod,
+    m: &ShadowMethod,
     hair: &Hair,
     light: &Light,
     rays: usize,
@@ -76,7 +71,7 @@ fn check_invariants(
 
 fn check_invariants_within(
     what: &str,
-    m: &dyn ShadowMethod,
+    m: &ShadowMethod,
     hair: &Hair,
     light: &Light,
     rays: usize,
@@ -185,7 +180,7 @@ fn extremely_dense_hair_keeps_optical_depth_finite_and_leaves_no_light() {
     let behind = 0.6 * light.direction();
     for c in every_method(32) {
         let m = build(&c, &hair, &light, &fiber);
-        check_invariants(c.name(), m.as_ref(), &hair, &light, 12);
+        check_invariants(c.name(), &m, &hair, &light, 12);
         let t = m.transmittance(behind);
         assert!(t < 1e-3, "{}: T = {t} behind the dense core", c.name());
     }
@@ -226,13 +221,7 @@ fn lights_along_the_grid_axes_and_straight_up_or_down_do_not_degenerate() {
         let light = Light::directional(d).unwrap();
         for c in every_method(24) {
             let m = build(&c, &hair, &light, &fiber);
-            let rays = check_invariants(
-                &format!("{} light {d}", c.name()),
-                m.as_ref(),
-                &hair,
-                &light,
-                24,
-            );
+            let rays = check_invariants(&format!("{} light {d}", c.name()), &m, &hair, &light, 24);
             // Some ray crosses hair and loses light.
             assert!(
                 rays.iter().any(|r| r[31] < 0.99),
@@ -258,7 +247,7 @@ fn fibers_along_the_light_block_nothing_in_the_density_map() {
     let fiber = Fiber::new(0.01, 1.0).unwrap();
     for c in every_method(32) {
         let m = build(&c, &hair, &light, &fiber);
-        let rays = check_invariants(c.name(), m.as_ref(), &hair, &light, 24);
+        let rays = check_invariants(c.name(), &m, &hair, &light, 24);
         if matches!(c, MethodConfig::DensityMap { .. }) {
             assert!(
                 rays.iter().flatten().all(|&t| t == 1.0),
@@ -349,7 +338,7 @@ fn zero_length_segments_repeated_points_and_one_point_strands_add_nothing() {
     for c in every_method(32) {
         let a = build(&c, &hair, &light, &fiber);
         let m = build(&c, &odd, &light, &fiber);
-        check_invariants(c.name(), m.as_ref(), &odd, &light, 12);
+        check_invariants(c.name(), &m, &odd, &light, 12);
         for &p in &points {
             let (ta, tm) = (a.transmittance(p), m.transmittance(p));
             assert!(
@@ -440,7 +429,7 @@ fn hair_far_from_the_origin_shadows_like_hair_at_the_origin() {
         let m = build(&c, &far, &light, &fiber);
         // At 1e5 a point's coordinates are multiples of 1/128: successive
         // points of a ray zigzag across it by up to that much.
-        check_invariants_within(c.name(), m.as_ref(), &far, &light, 12, 5e-3);
+        check_invariants_within(c.name(), &m, &far, &light, 12, 5e-3);
         // Coordinates near 1e5 carry 1/128 of a unit of rounding: compare
         // the mean, which such jitter moves little.
         let diff: f32 = points
@@ -470,7 +459,7 @@ fn one_cell_and_512_cells_a_side_keep_every_invariant() {
             // 512 cells: a coordinate's rounding is a larger share of a cell.
             let slack = SLACK * cells.max(64) as f32 / 64.0;
             let what = format!("{} at {cells}", c.name());
-            let rays = check_invariants_within(&what, m.as_ref(), &hair, &light, 12, slack);
+            let rays = check_invariants_within(&what, &m, &hair, &light, 12, slack);
             assert!(
                 rays.iter().any(|r| r[31] < 0.999),
                 "{} at {cells}: no shadow",
@@ -489,7 +478,7 @@ fn opacity_zero_casts_no_shadow_and_opacity_one_the_darkest() {
         let clear = build(&c, &hair, &light, &Fiber::new(0.01, 0.0).unwrap());
         let half = build(&c, &hair, &light, &Fiber::new(0.01, 0.5).unwrap());
         let full = build(&c, &hair, &light, &Fiber::new(0.01, 1.0).unwrap());
-        check_invariants(c.name(), full.as_ref(), &hair, &light, 12);
+        check_invariants(c.name(), &full, &hair, &light, 12);
         for &p in &points {
             assert_eq!(
                 clear.transmittance(p),
@@ -546,7 +535,7 @@ fn a_sheet_at_one_depth_gives_its_known_shadow_in_every_method() {
     for c in &configs {
         let m = build(c, &hair, &light, &fiber);
         let what = format!("{} {}", c.name(), c.parameters());
-        check_invariants(&what, m.as_ref(), &hair, &light, 12);
+        check_invariants(&what, &m, &hair, &light, 12);
         for x in [-0.5f32, 0.0, 0.31] {
             for z in [-0.5f32, 0.2] {
                 assert_eq!(
@@ -654,7 +643,7 @@ fn point_and_spot_lights_keep_every_invariant_in_the_hard_cases() {
                     let slack = if c.name() == "reference" { 2e-3 } else { 1e-4 };
                     check_invariants_within(
                         &format!("{what} {} {cells}", c.name()),
-                        m.as_ref(),
+                        &m,
                         hair,
                         light,
                         8,
@@ -675,7 +664,7 @@ fn point_and_spot_lights_keep_every_invariant_in_the_hard_cases() {
         &light,
         &Fiber::new(0.01, 0.6).unwrap(),
     );
-    check_invariants("512", m.as_ref(), &curly, &light, 8);
+    check_invariants("512", &m, &curly, &light, 8);
 }
 
 #[test]
@@ -695,7 +684,7 @@ fn a_head_casts_its_shadow_along_the_rays_of_a_point_light() {
     let (behind, spread) = (Vec3::new(0.0, -2.2, 0.0), Vec3::new(1.3, -2.2, 0.0));
     let outside = Vec3::new(2.6, -2.2, 0.0);
     for c in every_method(64) {
-        let mut m = c.create().unwrap();
+        let mut m = ShadowMethod::new(&c).unwrap();
         m.build(&ShadowInput {
             light: &light,
             hair: &hair,

@@ -15,14 +15,9 @@ const FIBER: (f32, f32) = (0.0004, 0.5);
 const SLAB: (f32, f32, f32) = (0.6, 1.0, 10_000.0);
 const THETA_DEG: f32 = 60.0;
 
-fn run(
-    config: &MethodConfig,
-    hair: &Hair,
-    light: &Light,
-    occluders: &[Occluder],
-) -> Box<dyn ShadowMethod> {
+fn run(config: &MethodConfig, hair: &Hair, light: &Light, occluders: &[Occluder]) -> ShadowMethod {
     let fiber = Fiber::new(FIBER.0, FIBER.1).unwrap();
-    let mut m = config.create().unwrap();
+    let mut m = ShadowMethod::new(config).unwrap();
     let stats = m
         .build(&ShadowInput {
             light,
@@ -80,7 +75,7 @@ fn two_layers() -> (Hair, impl Fn(f32) -> f32) {
 
 /// Largest difference from `truth` of the mean T over a grid of points at
 /// each of `depths` below the top face.
-fn depth_error(m: &dyn ShadowMethod, depths: &[f32], truth: impl Fn(f32) -> f32) -> f32 {
+fn depth_error(m: &ShadowMethod, depths: &[f32], truth: impl Fn(f32) -> f32) -> f32 {
     let h = SLAB.1;
     let grid = 16;
     let inner = 0.4;
@@ -105,7 +100,7 @@ fn depth_error(m: &dyn ShadowMethod, depths: &[f32], truth: impl Fn(f32) -> f32)
         .fold(0.0, f32::max)
 }
 
-fn slab_error(m: &dyn ShadowMethod, kappa: f32) -> f32 {
+fn slab_error(m: &ShadowMethod, kappa: f32) -> f32 {
     depth_error(m, &[0.1, 0.25, 0.5, 0.75, 0.9], |x| (-kappa * x).exp())
 }
 
@@ -154,7 +149,7 @@ fn every_method_matches_beer_lambert_in_a_uniform_slab() {
     let light = Light::directional(Vec3::NEG_Y).unwrap();
     for ladder in ladders() {
         let finest = ladder.last().unwrap();
-        let err = slab_error(&*run(finest, &hair, &light, &[]), kappa);
+        let err = slab_error(&run(finest, &hair, &light, &[]), kappa);
         assert!(
             err < 0.02,
             "{} {}: off by {err}",
@@ -173,7 +168,7 @@ fn every_method_converges_to_beer_lambert_as_its_resolution_grows() {
     for ladder in ladders() {
         let errors: Vec<f32> = ladder
             .iter()
-            .map(|c| depth_error(&*run(c, &hair, &light, &[]), &depths, &truth))
+            .map(|c| depth_error(&run(c, &hair, &light, &[]), &depths, &truth))
             .collect();
         let name = ladder[0].name();
         eprintln!("{name}: {errors:?}");
@@ -269,7 +264,7 @@ fn the_reference_matches_the_slab_within_sampling_noise() {
     );
     // 256 points a depth, each footprint crossed by dozens of fibers: the
     // mean's sampling noise is well below the tolerance.
-    let err = slab_error(&*m, kappa);
+    let err = slab_error(&m, kappa);
     eprintln!("reference {err}");
     assert!(err < 0.02, "reference off Beer-Lambert by {err}");
 }
@@ -397,7 +392,7 @@ fn every_method_and_the_reference_follow_a_close_point_light_along_every_ray() {
     let kappa_per_sin = n * FIBER.0 * FIBER.1;
     let grid = 16;
     let inner = 0.35;
-    let error = |m: &dyn ShadowMethod, dir: Vec3| {
+    let error = |m: &ShadowMethod, dir: Vec3| {
         [0.1f32, 0.25, 0.5, 0.75, 0.9]
             .iter()
             .map(|&x| {
@@ -435,7 +430,7 @@ fn every_method_and_the_reference_follow_a_close_point_light_along_every_ray() {
     for dir in [Vec3::new(theta.sin(), -theta.cos(), 0.0), Vec3::Y] {
         let hair = fiber_slab(dir, n, s, h, 7);
         for c in &configs {
-            let err = error(&*run(c, &hair, &light, &[]), dir);
+            let err = error(&run(c, &hair, &light, &[]), dir);
             assert!(
                 err < 0.025,
                 "fibers along {dir}: {} {}: off by {err}",

@@ -87,7 +87,7 @@ proptest! {
     ) {
         let fiber = Fiber::new(width, opacity).unwrap();
         let occluders: Vec<Occluder> = head.map(|(center, radius)| Occluder::sphere(center, radius)).into_iter().collect();
-        let mut m = config.create().unwrap();
+        let mut m = shadow::ShadowMethod::new(&config).unwrap();
         let stats = m.build(&ShadowInput { light: &light, hair: &hair, fiber: &fiber, occluders: &occluders, extent: None }).unwrap();
         prop_assert_eq!(stats.out_of_map, 0);
         m.prepare();

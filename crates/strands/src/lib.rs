@@ -12,6 +12,7 @@
 //! beyond reading the one file a loader is given.
 
 mod catmull_rom;
+mod files;
 mod follow;
 mod hair;
 mod load;
@@ -21,16 +22,14 @@ mod rng;
 mod style;
 
 pub use catmull_rom::{resample, resample_into};
+pub use files::{
+    LoadError, MeshLoadError, load, load_bytes, load_mesh, load_mesh_bytes, load_obj,
+    load_obj_bytes, load_with, mesh_parser,
+};
 pub use follow::{FollowParams, grow_followers};
 pub use hair::{Bounds, Hair, HairError};
-pub use load::{
-    FormatError, LoadError, load, load_bytes, load_with, parse_ct2hair_bin, parse_hair_format,
-    parse_tfx, parse_usc_data,
-};
-pub use mesh::{
-    MAX_MESH_ELEMENTS, Mesh, MeshError, MeshLoadError, load_mesh, load_mesh_bytes, load_obj,
-    load_obj_bytes, mesh_parser, parse_obj,
-};
+pub use load::{FormatError, parse_ct2hair_bin, parse_hair_format, parse_tfx, parse_usc_data};
+pub use mesh::{MAX_MESH_ELEMENTS, Mesh, MeshError, parse_obj};
 pub use ply::{parse_ply_mesh, parse_ply_strands};
 pub use rng::Rng;
 pub use style::{GUIDES_PER_WISP, Member, Style, StyleParams, WispModel};

@@ -1,40 +1,13 @@
-//! File loaders: Cem Yuksel's HAIR format, TressFX 4 `.tfx` and
-//! USC-HairSalon `.data`.
+//! Strand file parsers: Cem Yuksel's HAIR format, TressFX 4 `.tfx`,
+//! USC-HairSalon `.data` and CT2Hair `.bin` (PLY in `ply`; by extension in `files`).
 //!
 //! The parsers work on bytes already read, and check every count a header
 //! claims against the bytes actually present *before* allocating anything
 //! sized by it: a lying header gets an error, not a 10^12-element allocation.
 
-use std::path::{Path, PathBuf};
-
 use glam::Vec3;
 
 use crate::hair::{Hair, HairError};
-
-/// A file that could not be loaded, with its path.
-#[derive(Debug, thiserror::Error)]
-pub enum LoadError {
-    #[error("cannot read {}: {cause}", path.display())]
-    Io {
-        path: PathBuf,
-        cause: std::io::Error,
-    },
-    #[error("{}: {cause}", path.display())]
-    Format { path: PathBuf, cause: FormatError },
-    #[error(
-        "{}: unknown hair file type (expected .hair, .tfx, USC-HairSalon .data, CT2Hair .bin or PLY strands; convert Alembic curves to one of them, e.g. with hairutil)",
-        path.display()
-    )]
-    UnknownExtension { path: PathBuf },
-    /// Alembic archives are not read: the Rust readers of Ogawa archives
-    /// (ogawa-rs 0.4) are unfinished and trust the sizes a file claims.
-    #[error(
-        "{}: Alembic archives are not read; convert the curves to PLY strands first, e.g. `hairutil convert -i {} -o ply` (github.com/kenshi84/hairutil), and name the .ply",
-        path.display(),
-        path.display()
-    )]
-    Alembic { path: PathBuf },
-}
 
 /// A file's first bytes as text, escaped where not printable ASCII.
 fn magic_text(b: &[u8]) -> String {
@@ -125,57 +98,6 @@ pub enum FormatError {
     },
     #[error("PLY: {0}")]
     Ply(String),
-}
-
-/// Loads `.hair`, `.tfx`, `.data`, `.bin` or `.ply` by extension.
-pub fn load(path: &Path) -> Result<Hair, LoadError> {
-    load_with(path, |p| std::fs::read(p).map(std::borrow::Cow::Owned))
-}
-
-/// Loads `.hair`, `.tfx`, `.data`, `.bin` or `.ply` by extension, its bytes from `read` (called
-/// once the extension is known: an unknown one is refused first).
-pub fn load_with<'a>(
-    path: &Path,
-    read: impl FnOnce(&Path) -> std::io::Result<std::borrow::Cow<'a, [u8]>>,
-) -> Result<Hair, LoadError> {
-    parser(path)?;
-    let bytes = read(path).map_err(|cause| LoadError::Io {
-        path: path.to_owned(),
-        cause,
-    })?;
-    load_bytes(path, &bytes)
-}
-
-/// Parses the bytes of the file `path` (`.hair`, `.tfx`, `.data`, `.bin` or `.ply` by extension;
-/// the path names the file in errors).
-pub fn load_bytes(path: &Path, bytes: &[u8]) -> Result<Hair, LoadError> {
-    parser(path)?(bytes).map_err(|cause| LoadError::Format {
-        path: path.to_owned(),
-        cause,
-    })
-}
-
-type Parser = fn(&[u8]) -> Result<Hair, FormatError>;
-
-/// The parser for `path`'s extension.
-fn parser(path: &Path) -> Result<Parser, LoadError> {
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    match ext.as_deref() {
-        Some("hair") => Ok(parse_hair_format),
-        Some("tfx") => Ok(parse_tfx),
-        Some("data") => Ok(parse_usc_data),
-        Some("bin") => Ok(parse_ct2hair_bin),
-        Some("ply") => Ok(crate::ply::parse_ply_strands),
-        Some("abc") => Err(LoadError::Alembic {
-            path: path.to_owned(),
-        }),
-        _ => Err(LoadError::UnknownExtension {
-            path: path.to_owned(),
-        }),
-    }
 }
 
 fn u32_at(b: &[u8], at: usize) -> u32 {
@@ -724,24 +646,5 @@ mod tests {
         let mut f = tfx_file(2, 2, &pts);
         f[0..4].copy_from_slice(&3.0f32.to_le_bytes());
         assert_eq!(parse_tfx(&f), Err(FormatError::TfxVersion(3.0)));
-    }
-
-    #[test]
-    fn unknown_extension_and_missing_file_name_the_path() {
-        let e = load(Path::new("groom.obj")).unwrap_err();
-        assert!(e.to_string().contains("groom.obj"), "{e}");
-        // An Alembic archive is refused before it is read, with a way out.
-        let e = load(Path::new("/nonexistent/groom.abc")).unwrap_err();
-        assert!(
-            matches!(e, LoadError::Alembic { .. })
-                && e.to_string()
-                    .contains("hairutil convert -i /nonexistent/groom.abc -o ply"),
-            "{e}"
-        );
-        let e = load(Path::new("/nonexistent/x.hair")).unwrap_err();
-        assert!(
-            e.to_string().starts_with("cannot read /nonexistent/x.hair"),
-            "{e}"
-        );
     }
 }

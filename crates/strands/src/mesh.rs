@@ -1,8 +1,6 @@
 //! Triangle meshes for heads and bodies, and readers of Wavefront OBJ and
 //! (in `ply.rs`) PLY.
 
-use std::path::{Path, PathBuf};
-
 use glam::{Affine3A, Vec3};
 
 use crate::Bounds;
@@ -40,20 +38,6 @@ pub enum MeshError {
     Obj { line: usize, detail: String },
     #[error("PLY: {0}")]
     Ply(String),
-}
-
-/// Why an OBJ file cannot be loaded.
-#[derive(Debug, thiserror::Error)]
-pub enum MeshLoadError {
-    #[error("cannot read {}: {cause}", path.display())]
-    Io {
-        path: PathBuf,
-        cause: std::io::Error,
-    },
-    #[error("{}: {cause}", path.display())]
-    Format { path: PathBuf, cause: MeshError },
-    #[error("{}: unknown mesh file type (expected .obj or .ply)", path.display())]
-    UnknownExtension { path: PathBuf },
 }
 
 impl Mesh {
@@ -269,62 +253,6 @@ fn vertex_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
             }
         })
         .collect()
-}
-
-/// Reads a mesh from Wavefront OBJ or PLY, by the file's extension.
-pub fn load_mesh(path: &Path) -> Result<Mesh, MeshLoadError> {
-    mesh_parser(path)?;
-    let bytes = std::fs::read(path).map_err(|cause| MeshLoadError::Io {
-        path: path.to_owned(),
-        cause,
-    })?;
-    load_mesh_bytes(path, &bytes)
-}
-
-/// Parses the bytes of the mesh file `path` (`.obj` or `.ply` by
-/// extension; the path names the file in errors).
-pub fn load_mesh_bytes(path: &Path, bytes: &[u8]) -> Result<Mesh, MeshLoadError> {
-    mesh_parser(path)?(bytes).map_err(|cause| MeshLoadError::Format {
-        path: path.to_owned(),
-        cause,
-    })
-}
-
-type MeshParser = fn(&[u8]) -> Result<Mesh, MeshError>;
-
-/// The mesh parser for `path`'s extension.
-pub fn mesh_parser(path: &Path) -> Result<MeshParser, MeshLoadError> {
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    match ext.as_deref() {
-        Some("obj") => Ok(parse_obj),
-        Some("ply") => Ok(crate::ply::parse_ply_mesh),
-        _ => Err(MeshLoadError::UnknownExtension {
-            path: path.to_owned(),
-        }),
-    }
-}
-
-/// Reads a Wavefront OBJ file: `v x y z` vertices and `f` faces (indices
-/// `i`, `i/t`, `i//n` or `i/t/n`, 1-based or negative relative ones;
-/// polygons are split into fans). Normals, texture coordinates, groups and
-/// materials are ignored: normals are recomputed from the faces.
-pub fn load_obj(path: &Path) -> Result<Mesh, MeshLoadError> {
-    let bytes = std::fs::read(path).map_err(|cause| MeshLoadError::Io {
-        path: path.to_owned(),
-        cause,
-    })?;
-    load_obj_bytes(path, &bytes)
-}
-
-/// Parses the bytes of the OBJ file `path` (which names it in errors).
-pub fn load_obj_bytes(path: &Path, bytes: &[u8]) -> Result<Mesh, MeshLoadError> {
-    parse_obj(bytes).map_err(|cause| MeshLoadError::Format {
-        path: path.to_owned(),
-        cause,
-    })
 }
 
 /// Parses OBJ text (see [`load_obj`]).

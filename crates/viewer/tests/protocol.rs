@@ -293,7 +293,7 @@ fn connect_to(workers: Vec<String>) -> viewer::Connect {
     };
     Box::new(move |scene: &engine::Scene| {
         let ex = cluster::RemoteExecutor::connect(&workers, scene, &options)
-            .map_err(|e| engine::EngineError::Executor(e.to_string()))?;
+            .map_err(|e| engine::EngineError::Executor(Box::new(e)))?;
         Ok(Box::new(ex) as Box<dyn engine::Executor>)
     })
 }

@@ -216,11 +216,15 @@ impl RemoteExecutor {
                     let mut reader = wire::BandReader::new(width, height, rows);
                     // A worker that gave up for another's sake names no
                     // worker to drop: the one at fault fails on its own.
-                    let failed = |e: tonic::Status| match e.code() {
-                        tonic::Code::Aborted => {
-                            ClusterError::Composite(format!("worker {}: {}", w.addr, e.message()))
+                    let failed = |e: tonic::Status| match WorkerError::from(e) {
+                        e if e.kind == WorkerErrorKind::Aborted => {
+                            ClusterError::Composite(format!("worker {}: {}", w.addr, e.message))
                         }
-                        _ => call_error(&w.addr, "draw", e),
+                        error => ClusterError::Call {
+                            addr: w.addr.clone(),
+                            stage: "draw",
+                            error,
+                        },
                     };
                     while let Some(c) = s.message().await.map_err(failed)? {
                         bytes += c.encoded_len() as u64;
@@ -287,11 +291,10 @@ impl RemoteExecutor {
             let failure = self.failure.clone();
             report.pending = Some(PendingPicture::new(move || {
                 round.finish().map_err(|e| {
-                    let msg = e.to_string();
                     if let Ok(mut f) = failure.lock() {
-                        *f = Some(e);
+                        *f = Some(e.clone());
                     }
-                    EngineError::Executor(msg)
+                    EngineError::Executor(Box::new(e))
                 })
             }));
         } else {

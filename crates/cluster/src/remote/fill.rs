@@ -120,11 +120,15 @@ impl RemoteExecutor {
             move |mut w, (chunk, range)| async move {
                 // A worker that gave up for another's sake names no
                 // worker to drop: the one at fault fails on its own.
-                let failed = |e: tonic::Status| match e.code() {
-                    tonic::Code::Aborted => {
-                        ClusterError::Exchange(format!("worker {}: {}", w.addr, e.message()))
+                let failed = |e: tonic::Status| match WorkerError::from(e) {
+                    e if e.kind == WorkerErrorKind::Aborted => {
+                        ClusterError::Exchange(format!("worker {}: {}", w.addr, e.message))
                     }
-                    _ => call_error(&w.addr, "deposit", e),
+                    error => ClusterError::Call {
+                        addr: w.addr.clone(),
+                        stage: "deposit",
+                        error,
+                    },
                 };
                 let mut s = w
                     .client

@@ -36,7 +36,7 @@ use sim::WispState;
 use strands::Hair;
 
 use crate::client::{Remote, call_error, collect, fan_out, fan_out_all, hello, malformed};
-use crate::{ClusterError, Timing, Tls, Traffic, pb, wire};
+use crate::{ClusterError, Timing, Tls, Traffic, WorkerError, WorkerErrorKind, pb, wire};
 
 /// Rows of each band the workers composite (whole canvas bands): bands
 /// dealt to the workers in turn share the hair out evenly; 720 rows make
@@ -442,7 +442,7 @@ impl Drop for RemoteExecutor {
 }
 
 fn engine_error(e: ClusterError) -> EngineError {
-    EngineError::Executor(e.to_string())
+    EngineError::Executor(Box::new(e))
 }
 
 impl Executor for RemoteExecutor {
@@ -456,7 +456,7 @@ impl Executor for RemoteExecutor {
         let states = (0..anim.wisp_count())
             .map(|w| anim.wisp_state(w).cloned())
             .collect::<Option<Vec<_>>>()
-            .ok_or_else(|| EngineError::Executor("a wisp without a state".into()))?;
+            .ok_or_else(|| EngineError::executor("a wisp without a state"))?;
         self.hair = Some(SharedHair {
             strands,
             wisps: groups.wisps.clone(),
@@ -561,7 +561,7 @@ impl Executor for RemoteExecutor {
         }
         self.report
             .clone()
-            .ok_or_else(|| EngineError::Executor("no worker reported its pose".into()))
+            .ok_or_else(|| EngineError::executor("no worker reported its pose"))
     }
 
     fn composites(&self) -> bool {

@@ -37,7 +37,7 @@ impl WorkerService {
                 ..Default::default()
             };
             tx.try_send(header)
-                .map_err(|_| Status::internal("a new channel refused its first chunk"))?;
+                .map_err(|_| status(Kind::Internal, "a new channel refused its first chunk"))?;
             *slot = Some(tx);
             let (failed, addr) = (failed.clone(), addr.clone());
             tokio::spawn(async move {
@@ -67,7 +67,10 @@ impl WorkerService {
                 let (work, background) = {
                     let mut slot = held.lock().map_err(poisoned)?;
                     let h = slot.as_mut().ok_or_else(|| {
-                        Status::failed_precondition("no share of the hair here: call Assign first")
+                        status(
+                            Kind::Precondition,
+                            "no share of the hair here: call Assign first",
+                        )
                     })?;
                     let background = raster::to_srgb8(h.share.background());
                     let mut encoders: Vec<wire::StripeEncoder> =
@@ -78,7 +81,7 @@ impl WorkerService {
                             for c in encoders[b].chunks(&stripe) {
                                 stripes_sent += c.encoded_len() as u64;
                                 if to.blocking_send(c).is_err() {
-                                    return Err(engine::EngineError::Executor(
+                                    return Err(engine::EngineError::executor(
                                         peer_failed().unwrap_or_else(|| {
                                             format!("the call to worker {b} of the round ended")
                                         }),
@@ -88,7 +91,7 @@ impl WorkerService {
                             Ok(())
                         })
                     })
-                    .map_err(|e| Status::aborted(e.to_string()))?;
+                    .map_err(|e| status(Kind::Aborted, e.to_string()))?;
                     (work, background)
                 };
                 // The calls' streams end: the others can finish.
@@ -111,7 +114,7 @@ impl WorkerService {
                     Ok(g) => g.into_iter().map(|(layer, _)| layer).collect(),
                     Err(e) => {
                         canvas = Some(work.into_canvas());
-                        return Err(Status::aborted(e.to_string()));
+                        return Err(status(Kind::Aborted, e.to_string()));
                     }
                 };
                 let (bands_drawn, mut times, done) = work.resolve(gathered);

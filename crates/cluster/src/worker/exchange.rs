@@ -135,25 +135,28 @@ impl ExchangeRound {
         }
         let got = inbox
             .gather(2 * plan.round, &others, plan.wait, go_on)
-            .map_err(|e| Status::aborted(e.to_string()))?;
+            .map_err(|e| status(Kind::Aborted, e.to_string()))?;
         for (b, (item, _)) in others.iter().zip(got) {
             let Exchanged::Density(f, chunks) = item else {
-                return Err(Status::aborted(format!(
-                    "worker {b} sent swept columns for density"
-                )));
+                return Err(status(
+                    Kind::Aborted,
+                    format!("worker {b} sent swept columns for density"),
+                ));
             };
             if f != frame {
-                return Err(Status::aborted(format!(
-                    "worker {b}'s density is of another map"
-                )));
+                return Err(status(
+                    Kind::Aborted,
+                    format!("worker {b}'s density is of another map"),
+                ));
             }
             for c in &chunks {
                 let d = wire::decode_columns(&frame, c)
-                    .map_err(|e| Status::aborted(format!("worker {b}'s density: {e}")))?;
+                    .map_err(|e| status(Kind::Aborted, format!("worker {b}'s density: {e}")))?;
                 if !d.within(mine.clone()) {
-                    return Err(Status::aborted(format!(
-                        "worker {b}'s density reaches past this worker's columns {mine:?}"
-                    )));
+                    return Err(status(
+                        Kind::Aborted,
+                        format!("worker {b}'s density reaches past this worker's columns {mine:?}"),
+                    ));
                 }
                 wire::add_columns(&mut map, &d);
             }
@@ -207,7 +210,8 @@ impl ExchangeSends {
     ) -> Result<u64, Status> {
         let bytes = c.encoded_len() as u64;
         to.blocking_send(c).map_err(|_| {
-            Status::aborted(
+            status(
+                Kind::Aborted,
                 self.failed
                     .lock()
                     .ok()

@@ -62,14 +62,16 @@ impl<T> Inbox<T> {
             return Ok(());
         }
         if st.items.iter().any(|l| l.0 == round && l.1 == from) {
-            return Err(Status::invalid_argument(format!(
-                "worker {from}'s call of round {round} comes twice"
-            )));
+            return Err(status(
+                Kind::Invalid,
+                format!("worker {from}'s call of round {round} comes twice"),
+            ));
         }
         if st.items.len() >= INBOX_LAYERS {
-            return Err(Status::resource_exhausted(format!(
-                "{INBOX_LAYERS} calls of other workers already wait here"
-            )));
+            return Err(status(
+                Kind::Exhausted,
+                format!("{INBOX_LAYERS} calls of other workers already wait here"),
+            ));
         }
         st.items.push((round, from, item, grant));
         self.ready.notify_all();
@@ -86,7 +88,7 @@ impl<T> Inbox<T> {
         wait: Duration,
         go: impl Fn() -> Result<(), String>,
     ) -> Result<Vec<(T, Grant)>, engine::EngineError> {
-        let fail = |m: String| engine::EngineError::Executor(m);
+        let fail = |m: String| engine::EngineError::executor(m);
         let until = Instant::now() + wait;
         let mut st = self
             .state

@@ -32,11 +32,11 @@ pub async fn serve(
     shutdown: impl std::future::Future<Output = ()> + Send,
 ) -> Result<(), ClusterError> {
     let incoming = tonic::transport::server::TcpIncoming::bind(addr)
-        .map_err(|e| ClusterError::Bind(addr, e))?
+        .map_err(|e| ClusterError::Bind(addr, e.into()))?
         .with_nodelay(Some(true));
     let local = incoming
         .local_addr()
-        .map_err(|e| ClusterError::Bind(addr, e))?;
+        .map_err(|e| ClusterError::Bind(addr, e.into()))?;
     let (health, health_service) = tonic_health::server::health_reporter();
     health.set_serving::<WorkerServer<WorkerService>>().await;
     health
@@ -84,11 +84,11 @@ pub async fn serve(
     let health_server = match listen.health {
         Some(h) => {
             let incoming = tonic::transport::server::TcpIncoming::bind(h)
-                .map_err(|e| ClusterError::Bind(h, e))?;
+                .map_err(|e| ClusterError::Bind(h, e.into()))?;
             health_addr = Some(
                 incoming
                     .local_addr()
-                    .map_err(|e| ClusterError::Bind(h, e))?,
+                    .map_err(|e| ClusterError::Bind(h, e.into()))?,
             );
             let mut stopped = stopped.clone();
             let probe = health_service.clone();

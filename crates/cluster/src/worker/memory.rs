@@ -46,15 +46,18 @@ impl Memory {
     }
 
     pub(super) fn too_much(&self, bytes: u64, what: &str) -> Status {
-        Status::resource_exhausted(format!(
-            "{what} would take {} MiB of {} memory budget of {} MiB, \
+        status(
+            Kind::Exhausted,
+            format!(
+                "{what} would take {} MiB of {} memory budget of {} MiB, \
              of which {} MiB are free ({})",
-            bytes.div_ceil(1 << 20),
-            self.whose,
-            self.total >> 20,
-            (self.free.available_permits() as u64 * GRANULE) >> 20,
-            self.flag
-        ))
+                bytes.div_ceil(1 << 20),
+                self.whose,
+                self.total >> 20,
+                (self.free.available_permits() as u64 * GRANULE) >> 20,
+                self.flag
+            ),
+        )
     }
 
     /// Waits until `bytes` fit; held until dropped. More than the whole
@@ -67,7 +70,7 @@ impl Memory {
             .clone()
             .acquire_many_owned(Memory::units(bytes))
             .await
-            .map_err(|_| Status::unavailable("the worker is stopping"))
+            .map_err(|_| status(Kind::Unavailable, "the worker is stopping"))
     }
 
     /// Takes `bytes` now, into `held`, or refuses.

@@ -5,6 +5,7 @@
 //! gRPC service, with grpc.health.v1 health and server reflection. The
 //! stages are the engine's own ([`engine::Share`]).
 
+mod deposit;
 mod draw;
 mod exchange;
 mod inbox;
@@ -38,6 +39,8 @@ use strands::Hair;
 use tokio_stream::Stream;
 use tonic::{Request, Response, Status, Streaming};
 
+use crate::client::SESSION_KEY;
+use crate::error::{WorkerError, WorkerErrorKind as Kind};
 use crate::pb::worker_server::{Worker, WorkerServer};
 use crate::{ClusterError, Tls, pb, wire};
 
@@ -59,9 +62,6 @@ pub const POOL_BYTES: u64 =
 
 /// The default memory budget: 2 GiB.
 pub const DEFAULT_MAX_MEMORY: u64 = 2 << 30;
-
-/// The gRPC metadata key that names a call's session.
-pub const SESSION_KEY: &str = "wisplight-session";
 
 /// How many sessions a worker holds at once, and how long an unused one
 /// lives.
@@ -118,25 +118,31 @@ impl Worker for WorkerService {
         let served = async move {
             let r = req.into_inner();
             if r.protocol_version != wire::PROTOCOL_VERSION {
-                return Err(Status::failed_precondition(format!(
-                    "this worker speaks wisplight protocol version {}, the coordinator version {}",
-                    wire::PROTOCOL_VERSION,
-                    r.protocol_version
-                )));
+                return Err(status(
+                    Kind::Precondition,
+                    format!(
+                        "this worker speaks wisplight protocol version {}, the coordinator version {}",
+                        wire::PROTOCOL_VERSION,
+                        r.protocol_version
+                    ),
+                ));
             }
             let fiber = Fiber::new(r.fiber_width, r.fiber_opacity)
-                .map_err(|e| Status::invalid_argument(e.to_string()))?;
+                .map_err(|e| status(Kind::Invalid, e.to_string()))?;
             self.end_idle();
             let id = session_id()?;
             {
                 let mut sessions = self.sessions.lock().map_err(poisoned)?;
                 if sessions.len() >= self.limits.max_sessions {
-                    return Err(Status::resource_exhausted(format!(
-                        "this worker already holds {} sessions, its limit (--max-sessions); \
+                    return Err(status(
+                        Kind::Exhausted,
+                        format!(
+                            "this worker already holds {} sessions, its limit (--max-sessions); \
                          one ends when its coordinator finishes or after {} s unused",
-                        sessions.len(),
-                        self.limits.idle.as_secs()
-                    )));
+                            sessions.len(),
+                            self.limits.idle.as_secs()
+                        ),
+                    ));
                 }
                 sessions.insert(
                     id.clone(),
@@ -184,162 +190,7 @@ impl Worker for WorkerService {
         &self,
         req: Request<Streaming<pb::DepositChunk>>,
     ) -> Result<Response<Self::DepositStream>, Status> {
-        let peer = req.remote_addr();
-        let served = async move {
-            let session = self.session(req.metadata())?;
-            let fiber = session.fiber;
-            let mut stream = req.into_inner();
-            let first = first_message(&mut stream, "Deposit").await?;
-            let frame = wire::frame_from_pb(first.map.as_ref()).map_err(invalid)?;
-            let (frame_id, light) = (first.frame_id, first.light);
-            let mut hair = Hair::new();
-            // The strands' memory, held until the call ends.
-            let mut received = Grant::default();
-            let memory = self.budget(&session);
-            let mut add = |c: &pb::DepositChunk| -> Result<(), Status> {
-                let bytes = c.points.len() as u64 / 3 * POINT_BYTES
-                    + c.strand_lengths.len() as u64 * STRAND_BYTES;
-                memory.take(&mut received, bytes, "the Deposit's strands")?;
-                wire::add_strands(&mut hair, c).map_err(invalid)
-            };
-            add(&first)?;
-            while let Some(c) = stream.message().await? {
-                add(&c)?;
-            }
-            let maps = session.maps.clone();
-            // Held until the map is back in the pool or dropped.
-            let budget = (memory.map(&frame).await?, received);
-            // The deposit stops between runs of strands once the call is gone.
-            let (_stop_on_drop, go) = stop_switch();
-            let plan = first
-                .columns
-                .as_ref()
-                .map(|p| wire::ColumnPlan::from_pb(p, frame.columns()))
-                .transpose()
-                .map_err(invalid)?;
-            let chunks = if let Some(plan) = plan {
-                if !first.posed || hair.strand_count() > 0 {
-                    return Err(Status::invalid_argument(
-                        "a Deposit with a column plan is of posed strands, and carries none",
-                    ));
-                }
-                if light as usize >= wire::MAX_LIGHTS {
-                    return Err(Status::invalid_argument(format!(
-                        "light {light} (at most {} lights)",
-                        wire::MAX_LIGHTS
-                    )));
-                }
-                let (version, light) = (first.version, light as usize);
-                let round = ExchangeRound {
-                    version,
-                    frame,
-                    sends: self.exchange_calls(&session, &plan)?,
-                    plan,
-                };
-                let (inbox, store, memory) = (
-                    session.exchange.clone(),
-                    session.swept.clone(),
-                    memory.clone(),
-                );
-                store.begin(version, light);
-                // The summed columns go back as soon as they are, while the
-                // swept columns are gathered for the Draw.
-                let (tx, mut rx) = tokio::sync::mpsc::channel(STRIPES_IN_FLIGHT);
-                let held = session.held.clone();
-                tokio::task::spawn_blocking(move || {
-                    let go = || !tx.is_closed();
-                    let summed = (|| {
-                        let mut slot = held.lock().map_err(poisoned)?;
-                        let h = slot.as_mut().ok_or_else(|| {
-                            Status::failed_precondition(
-                                "no share of the hair here: call Assign first",
-                            )
-                        })?;
-                        round.sum(&mut h.share, &maps, &fiber, &inbox, go)
-                    })();
-                    drop(budget);
-                    match summed {
-                        Err(s) => {
-                            store.end(version, light, Err(s.message().to_string()));
-                            let _ = tx.blocking_send(Err(s));
-                        }
-                        Ok((mut reply, rest)) => {
-                            if let Some(c) = reply.first_mut() {
-                                c.frame_id = frame_id;
-                                c.light = light as u32;
-                            }
-                            for c in reply {
-                                if tx.blocking_send(Ok(c)).is_err() {
-                                    store.end(
-                                        version,
-                                        light,
-                                        Err("the coordinator left the Deposit".into()),
-                                    );
-                                    return;
-                                }
-                            }
-                            drop(tx);
-                            store.end(version, light, rest.finish(&inbox, &memory));
-                        }
-                    }
-                });
-                // A refusal before any column is the call's own status.
-                let first = match rx.recv().await {
-                    Some(Ok(c)) => c,
-                    Some(Err(s)) => return Err(s),
-                    None => {
-                        return Err(Status::internal("the Deposit's task ended without a reply"));
-                    }
-                };
-                let rest = tokio_stream::wrappers::ReceiverStream::new(rx);
-                let stream: Chunks<pb::ColumnChunk> = Box::pin(tokio_stream::StreamExt::chain(
-                    tokio_stream::once(Ok::<_, Status>(first)),
-                    rest,
-                ));
-                return Ok(Response::new(stream));
-            } else if first.posed {
-                if hair.strand_count() > 0 {
-                    return Err(Status::invalid_argument(
-                        "a posed Deposit carries no strands",
-                    ));
-                }
-                let (version, filter) = (first.version, first.filter);
-                with_share(&session.held, move |share| {
-                    let _budget = budget;
-                    deposit_reply(&maps, frame, |map| {
-                        let stats = share
-                            .deposit_while(version, map, &fiber, go)
-                            .map_err(refused)?
-                            .ok_or_else(|| cancelled("Deposit"))?;
-                        let read = share
-                            .columns_read(version, &frame, filter)
-                            .map_err(refused)?;
-                        Ok((stats, Some(read)))
-                    })
-                })
-                .await?
-            } else {
-                tokio::task::spawn_blocking(move || {
-                    let _budget = budget;
-                    deposit_reply(&maps, frame, |map| {
-                        let stats = map
-                            .deposit_while(&hair, 0..hair.strand_count(), &fiber, go)
-                            .ok_or_else(|| cancelled("Deposit"))?;
-                        Ok((stats, None))
-                    })
-                })
-                .await
-                .map_err(|e| Status::internal(format!("deposit task failed: {e}")))??
-            };
-            let mut chunks = chunks;
-            if let Some(c) = chunks.first_mut() {
-                c.frame_id = frame_id;
-                c.light = light;
-            }
-            tracing::debug!(frame_id, light, chunks = chunks.len(), "deposit done");
-            Ok(Response::new(stream_of(chunks)))
-        };
-        logged(peer, "Deposit", served.await)
+        self.deposit_call(req).await
     }
 
     async fn assign(
@@ -366,10 +217,13 @@ impl Worker for WorkerService {
             let mut take = |c: pb::AssignChunk| -> Result<(), Status> {
                 // The scene text may come in pieces, one a chunk.
                 if text.len() + c.scene_toml.len() > wire::MAX_SCENE_TEXT {
-                    return Err(Status::resource_exhausted(format!(
-                        "a scene of more than {} bytes (wire::MAX_SCENE_TEXT)",
-                        wire::MAX_SCENE_TEXT
-                    )));
+                    return Err(status(
+                        Kind::Exhausted,
+                        format!(
+                            "a scene of more than {} bytes (wire::MAX_SCENE_TEXT)",
+                            wire::MAX_SCENE_TEXT
+                        ),
+                    ));
                 }
                 let bytes = c.scene_toml.len() + c.file_data.len() + c.file_path.len();
                 let floats = c.state.as_ref().map_or(0, |w| w.pos.len() + w.prev.len());
@@ -381,26 +235,32 @@ impl Worker for WorkerService {
                 text.push_str(&c.scene_toml);
                 file_bytes += c.file_data.len() + c.file_path.len();
                 if file_bytes > wire::MAX_FILE_BYTES {
-                    return Err(Status::resource_exhausted(format!(
-                        "data files of more than {} bytes (wire::MAX_FILE_BYTES)",
-                        wire::MAX_FILE_BYTES
-                    )));
+                    return Err(status(
+                        Kind::Exhausted,
+                        format!(
+                            "data files of more than {} bytes (wire::MAX_FILE_BYTES)",
+                            wire::MAX_FILE_BYTES
+                        ),
+                    ));
                 }
                 state_floats += floats;
                 if state_floats > wire::MAX_STATE_FLOATS {
-                    return Err(Status::resource_exhausted(format!(
-                        "wisp states of more than {} values (wire::MAX_STATE_FLOATS)",
-                        wire::MAX_STATE_FLOATS
-                    )));
+                    return Err(status(
+                        Kind::Exhausted,
+                        format!(
+                            "wisp states of more than {} values (wire::MAX_STATE_FLOATS)",
+                            wire::MAX_STATE_FLOATS
+                        ),
+                    ));
                 }
                 states.extend(c.state);
                 if !c.file_path.is_empty() {
                     files.push((c.file_path, Vec::new()));
                 }
                 if !c.file_data.is_empty() {
-                    let (_, data) = files.last_mut().ok_or_else(|| {
-                        Status::invalid_argument("file data before any file's path")
-                    })?;
+                    let (_, data) = files
+                        .last_mut()
+                        .ok_or_else(|| status(Kind::Invalid, "file data before any file's path"))?;
                     data.extend_from_slice(&c.file_data);
                 }
                 Ok(())
@@ -434,7 +294,7 @@ impl Worker for WorkerService {
                 Ok::<_, Status>(reply)
             })
             .await
-            .map_err(|e| Status::internal(format!("assign task failed: {e}")))??;
+            .map_err(|e| status(Kind::Internal, format!("assign task failed: {e}")))??;
             Ok(Response::new(reply))
         };
         logged(peer, "Assign", served.await)
@@ -458,11 +318,14 @@ impl Worker for WorkerService {
                 let (plan, accel) = step_plan(&r, share).map_err(invalid)?;
                 let mut stats = FrameStats::new(r.frame_id, 0.0);
                 if !share.step_while(&plan, accel.as_deref(), &mut stats, go) {
-                    return Err(Status::cancelled(format!(
-                        "the Step was cancelled after {} of {} time steps",
-                        stats.steps,
-                        plan.heads.len()
-                    )));
+                    return Err(status(
+                        Kind::Cancelled,
+                        format!(
+                            "the Step was cancelled after {} of {} time steps",
+                            stats.steps,
+                            plan.heads.len()
+                        ),
+                    ));
                 }
                 let report = share.pose(&plan.pose);
                 let mut chunks = share_chunks(share)?;
@@ -509,10 +372,10 @@ impl Worker for WorkerService {
             let frame = wire::frame_from_pb(first.map.as_ref()).map_err(invalid)?;
             let (lo, hi) = (first.first_column, first.end_column);
             if lo > hi || hi as usize > frame.columns() {
-                return Err(Status::invalid_argument(format!(
-                    "columns {lo}..{hi} in a map of {} columns",
-                    frame.columns()
-                )));
+                return Err(status(
+                    Kind::Invalid,
+                    format!("columns {lo}..{hi} in a map of {} columns", frame.columns()),
+                ));
             }
             let maps = session.maps.clone();
             let budget = self.budget(&session).map(&frame).await?;
@@ -532,7 +395,7 @@ impl Worker for WorkerService {
                     .ok_or_else(|| cancelled("Sweep"))
             })
             .await
-            .map_err(|e| Status::internal(format!("sweep task failed: {e}")))??;
+            .map_err(|e| status(Kind::Internal, format!("sweep task failed: {e}")))??;
             tracing::debug!(
                 frame_id = first.frame_id,
                 light = first.light,
@@ -556,7 +419,7 @@ impl Worker for WorkerService {
             let mut stream = req.into_inner();
             let first = first_message(&mut stream, "Draw").await?;
             let job = first.job.as_ref().ok_or_else(|| {
-                Status::invalid_argument("a Draw call's first chunk carries the job")
+                status(Kind::Invalid, "a Draw call's first chunk carries the job")
             })?;
             let exchanged = job.exchanged;
             let job = wire::job_from_pb(job).map_err(invalid)?;
@@ -577,7 +440,8 @@ impl Worker for WorkerService {
                 reader.add(c).map_err(invalid)
             };
             if exchanged && (first.map.is_some() || !first.column_steps.is_empty()) {
-                return Err(Status::invalid_argument(
+                return Err(status(
+                    Kind::Invalid,
                     "a Draw with the exchanged columns carries none",
                 ));
             }
@@ -586,10 +450,11 @@ impl Worker for WorkerService {
             }
             while let Some(c) = stream.message().await? {
                 if c.job.is_some() {
-                    return Err(Status::invalid_argument("a Draw call carries one job"));
+                    return Err(status(Kind::Invalid, "a Draw call carries one job"));
                 }
                 if exchanged {
-                    return Err(Status::invalid_argument(
+                    return Err(status(
+                        Kind::Invalid,
                         "a Draw with the exchanged columns carries none",
                     ));
                 }
@@ -602,7 +467,7 @@ impl Worker for WorkerService {
                 let wait = bands.as_ref().map_or(Duration::from_secs(30), |b| b.wait);
                 tokio::task::spawn_blocking(move || store.take(version, lights, wait))
                     .await
-                    .map_err(|e| Status::internal(format!("worker task failed: {e}")))?
+                    .map_err(|e| status(Kind::Internal, format!("worker task failed: {e}")))?
                     .map_err(Status::aborted)?
             } else {
                 (reader.finish().map_err(invalid)?, Vec::new())
@@ -623,7 +488,10 @@ impl Worker for WorkerService {
                 let drawn = (|| {
                     let mut slot = held.lock().map_err(poisoned)?;
                     let h = slot.as_mut().ok_or_else(|| {
-                        Status::failed_precondition("no share of the hair here: call Assign first")
+                        status(
+                            Kind::Precondition,
+                            "no share of the hair here: call Assign first",
+                        )
                     })?;
                     let mut encoder = wire::StripeEncoder::new();
                     let times = h
@@ -631,8 +499,8 @@ impl Worker for WorkerService {
                         .draw_stripes(&job, &maps, STRIPE_ROWS, |stripe| {
                             for c in encoder.chunks(&stripe) {
                                 if !send(Ok(c)) {
-                                    return Err(engine::EngineError::Executor(
-                                        "the coordinator stopped reading the picture".into(),
+                                    return Err(engine::EngineError::executor(
+                                        "the coordinator stopped reading the picture",
                                     ));
                                 }
                             }
@@ -647,7 +515,12 @@ impl Worker for WorkerService {
             let first = match rx.recv().await {
                 Some(Ok(c)) => c,
                 Some(Err(s)) => return Err(s),
-                None => return Err(Status::internal("the Draw's task ended without a picture")),
+                None => {
+                    return Err(status(
+                        Kind::Internal,
+                        "the Draw's task ended without a picture",
+                    ));
+                }
             };
             let rest = tokio_stream::wrappers::ReceiverStream::new(rx);
             let stream: Chunks<pb::LayerChunk> = Box::pin(tokio_stream::StreamExt::chain(
@@ -676,11 +549,14 @@ impl Worker for WorkerService {
                 || h == 0
                 || u64::from(w) * u64::from(h) > raster::MAX_PIXELS
             {
-                return Err(Status::invalid_argument(format!(
-                    "stripes from worker {from} of a {w}x{h} picture (at most {} workers, {} pixels)",
-                    wire::MAX_WORKERS,
-                    raster::MAX_PIXELS
-                )));
+                return Err(status(
+                    Kind::Invalid,
+                    format!(
+                        "stripes from worker {from} of a {w}x{h} picture (at most {} workers, {} pixels)",
+                        wire::MAX_WORKERS,
+                        raster::MAX_PIXELS
+                    ),
+                ));
             }
             let mut reader = wire::LayerReader::new(w, h);
             let mut grant = Grant::default();
@@ -712,10 +588,13 @@ impl Worker for WorkerService {
             let first = first_message(&mut stream, "Exchange").await?;
             let (round, from, swept) = (first.round, first.from, first.swept);
             if from as usize >= wire::MAX_WORKERS || round >= u64::MAX / 2 {
-                return Err(Status::invalid_argument(format!(
-                    "columns from worker {from} of round {round} (at most {} workers)",
-                    wire::MAX_WORKERS
-                )));
+                return Err(status(
+                    Kind::Invalid,
+                    format!(
+                        "columns from worker {from} of round {round} (at most {} workers)",
+                        wire::MAX_WORKERS
+                    ),
+                ));
             }
             let frame = if swept {
                 None
@@ -745,7 +624,8 @@ impl Worker for WorkerService {
                     }
                     (_, None, None) => {}
                     _ => {
-                        return Err(Status::invalid_argument(
+                        return Err(status(
+                            Kind::Invalid,
                             "an Exchange chunk carries what its call does not (density in a call of swept columns, or the reverse, or both)",
                         ));
                     }

@@ -85,7 +85,7 @@ impl WorkerService {
         timeout: Duration,
     ) -> Result<crate::client::SessionClient, Status> {
         let header = crate::client::SessionHeader::new(session)
-            .ok_or_else(|| Status::invalid_argument("a band's session is not a header value"))?;
+            .ok_or_else(|| status(Kind::Invalid, "a band's session is not a header value"))?;
         let key = (addr.to_string(), domain.map(str::to_string));
         let mut peers = self.peers.lock().map_err(poisoned)?;
         let channel = match peers.get(&key) {
@@ -96,7 +96,7 @@ impl WorkerService {
                     (t, _) => t.clone(),
                 };
                 let c = crate::client::endpoint(addr, timeout, tls.as_ref())
-                    .map_err(|e| Status::invalid_argument(e.to_string()))?
+                    .map_err(|e| status(Kind::Invalid, e.to_string()))?
                     .connect_lazy();
                 if peers.len() >= 4 * wire::MAX_WORKERS {
                     peers.clear();
@@ -197,10 +197,13 @@ pub(super) async fn with_share<T: Send + 'static>(
     tokio::task::spawn_blocking(move || {
         let mut slot = held.lock().map_err(poisoned)?;
         let h = slot.as_mut().ok_or_else(|| {
-            Status::failed_precondition("no share of the hair here: call Assign first")
+            status(
+                Kind::Precondition,
+                "no share of the hair here: call Assign first",
+            )
         })?;
         on_pool(|| f(&mut h.share))
     })
     .await
-    .map_err(|e| Status::internal(format!("worker task failed: {e}")))?
+    .map_err(|e| status(Kind::Internal, format!("worker task failed: {e}")))?
 }

@@ -31,7 +31,7 @@ pub(super) fn share_chunks(share: &Share) -> Result<Vec<pb::WispChunk>, Status> 
         .clone()
         .map(|w| share.animator().wisp_state(w))
         .collect();
-    let states = states.ok_or_else(|| Status::internal("a wisp of the share is missing"))?;
+    let states = states.ok_or_else(|| status(Kind::Internal, "a wisp of the share is missing"))?;
     Ok(wire::wisp_chunks(wisps.start, states))
 }
 
@@ -52,12 +52,12 @@ pub(super) fn build_share(
         old => {
             drop(old);
             let scene = Scene::from_source(&source)
-                .map_err(|e| Status::invalid_argument(format!("the scene: {e}")))?;
+                .map_err(|e| status(Kind::Invalid, format!("the scene: {e}")))?;
             let bytes = share_bytes(&scene)
-                .map_err(|e| Status::invalid_argument(format!("the scene's hair: {e}")))?;
+                .map_err(|e| status(Kind::Invalid, format!("the scene's hair: {e}")))?;
             memory.take(&mut received, bytes, "the scene's hair and picture")?;
             let share = Share::new(&scene, groups)
-                .map_err(|e| Status::invalid_argument(format!("the scene's hair: {e}")))?;
+                .map_err(|e| status(Kind::Invalid, format!("the scene's hair: {e}")))?;
             Held {
                 source,
                 share,
@@ -74,15 +74,15 @@ pub(super) fn build_share(
             share
                 .animator_mut()
                 .set_wisp_state(w, state)
-                .map_err(|e| Status::invalid_argument(e.to_string()))?;
+                .map_err(|e| status(Kind::Invalid, e.to_string()))?;
             seen[w - wisps.start] = true;
         }
     }
     if let Some(i) = seen.iter().position(|s| !s) {
-        return Err(Status::invalid_argument(format!(
-            "no state for wisp {}",
-            wisps.start + i
-        )));
+        return Err(status(
+            Kind::Invalid,
+            format!("no state for wisp {}", wisps.start + i),
+        ));
     }
     Ok(held)
 }

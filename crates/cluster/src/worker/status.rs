@@ -2,14 +2,20 @@
 
 use super::*;
 
+/// A status of `kind` with the worker's `reason`, through the one mapping
+/// of worker errors to status codes ([`WorkerError`]).
+pub(super) fn status(kind: Kind, reason: impl Into<String>) -> Status {
+    WorkerError::new(kind, reason).into()
+}
+
 pub(super) fn invalid(e: wire::Malformed) -> Status {
-    Status::invalid_argument(e.to_string())
+    status(Kind::Invalid, e.to_string())
 }
 
 /// An engine error of a call about the share (a hair version it does not
 /// hold, say): the coordinator asked for something this worker lacks.
 pub(super) fn refused(e: engine::EngineError) -> Status {
-    Status::failed_precondition(e.to_string())
+    status(Kind::Precondition, e.to_string())
 }
 
 pub(super) fn stream_of<T: Send + 'static>(items: Vec<T>) -> Chunks<T> {
@@ -20,8 +26,12 @@ pub(super) fn stream_of<T: Send + 'static>(items: Vec<T>) -> Chunks<T> {
 /// coordinator that opened a session can name it).
 pub(super) fn session_id() -> Result<String, Status> {
     let mut b = [0u8; 16];
-    getrandom::fill(&mut b)
-        .map_err(|e| Status::internal(format!("no randomness for a session id: {e}")))?;
+    getrandom::fill(&mut b).map_err(|e| {
+        status(
+            Kind::Internal,
+            format!("no randomness for a session id: {e}"),
+        )
+    })?;
     Ok(b.iter().map(|x| format!("{x:02x}")).collect())
 }
 
@@ -48,7 +58,7 @@ pub(super) fn stop_switch() -> (
 
 /// What a call whose caller has gone answers (nobody reads it).
 pub(super) fn cancelled(call: &str) -> Status {
-    Status::cancelled(format!("the {call} was cancelled"))
+    status(Kind::Cancelled, format!("the {call} was cancelled"))
 }
 
 /// Logs a refused call at the default level, with its peer and the
@@ -68,7 +78,8 @@ pub(super) fn logged<T>(
 /// The session id a call's metadata names.
 pub(super) fn named_session(meta: &tonic::metadata::MetadataMap) -> Result<&str, Status> {
     let id = meta.get(SESSION_KEY).ok_or_else(|| {
-        Status::failed_precondition(
+        status(
+            Kind::Precondition,
             "the call names no session: call Hello first and send its session id",
         )
     })?;
@@ -76,18 +87,21 @@ pub(super) fn named_session(meta: &tonic::metadata::MetadataMap) -> Result<&str,
 }
 
 pub(super) fn not_open(id: &str) -> Status {
-    Status::failed_precondition(format!(
-        "session {id:.8}... is not open on this worker (ended, idle too long, or never opened)"
-    ))
+    status(
+        Kind::Precondition,
+        format!(
+            "session {id:.8}... is not open on this worker (ended, idle too long, or never opened)"
+        ),
+    )
 }
 
 /// The first message of a client stream; a stream of none is refused.
 pub(super) async fn first_message<T>(s: &mut Streaming<T>, call: &str) -> Result<T, Status> {
     s.message()
         .await?
-        .ok_or_else(|| Status::invalid_argument(format!("an empty {call} call")))
+        .ok_or_else(|| status(Kind::Invalid, format!("an empty {call} call")))
 }
 
 pub(super) fn poisoned<T>(_: T) -> Status {
-    Status::internal("worker state poisoned")
+    status(Kind::Internal, "worker state poisoned")
 }

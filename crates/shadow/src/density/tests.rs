@@ -1,4 +1,6 @@
 use super::*;
+use crate::Fiber;
+use strands::Hair;
 
 #[test]
 fn deposits_in_runs_give_the_cells_of_one_and_stop_when_told() {

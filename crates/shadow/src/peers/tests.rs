@@ -1,4 +1,6 @@
-use super::*;
+use super::deep_shadow_map::{compress, visibility, visibility_at};
+use super::density_clustering::{Bin, cluster_bins};
+use super::fragments::Frag;
 
 fn frag(z: f32, len: f32, beta: f32) -> Frag {
     Frag { z, len, beta }

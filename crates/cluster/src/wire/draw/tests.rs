@@ -1,5 +1,6 @@
 use super::*;
 use glam::Affine3A;
+use raster::{HairLayer, Sums};
 
 #[test]
 fn pose_plans_reports_and_jobs_round_trip_exactly() {

@@ -1,0 +1,243 @@
+//! The cluster's errors.
+
+use std::net::SocketAddr;
+
+/// A failure of the cluster: of a worker, of the network, or of the setup.
+#[derive(Debug, Clone, thiserror::Error)]
+pub enum ClusterError {
+    #[error("cannot listen on {0}: {1}")]
+    Bind(SocketAddr, std::sync::Arc<std::io::Error>),
+    #[error("{0}")]
+    Setup(String),
+    #[error("TLS: {0}")]
+    Tls(String),
+    #[error("the worker server stopped: {0}")]
+    Serve(String),
+    #[error("cannot reach worker {addr}: {msg}")]
+    Connect { addr: String, msg: String },
+    #[error("worker {addr} refused: {msg}")]
+    Version { addr: String, msg: String },
+    #[error("worker {addr} failed the {stage} stage: {error}")]
+    Call {
+        addr: String,
+        stage: &'static str,
+        error: WorkerError,
+    },
+    #[error("worker {addr} did not finish the {stage} stage within {secs} s")]
+    Deadline {
+        addr: String,
+        stage: &'static str,
+        secs: f64,
+    },
+    #[error("worker {addr} sent a malformed reply: {msg}")]
+    Malformed { addr: String, msg: String },
+    #[error("compositing on the workers failed: {0}")]
+    Composite(String),
+    #[error("summing and sweeping on the workers failed: {0}")]
+    Exchange(String),
+}
+
+impl ClusterError {
+    /// The worker an error is about, when it is about one.
+    pub fn worker(&self) -> Option<&str> {
+        match self {
+            ClusterError::Connect { addr, .. }
+            | ClusterError::Version { addr, .. }
+            | ClusterError::Call { addr, .. }
+            | ClusterError::Deadline { addr, .. }
+            | ClusterError::Malformed { addr, .. } => Some(addr),
+            _ => None,
+        }
+    }
+}
+
+/// The innermost cause: "Connection refused (os error 111)" rather than
+/// three layers of "transport error".
+pub(crate) fn root_cause(e: &dyn std::error::Error) -> String {
+    let mut last = e.to_string();
+    let mut s = e.source();
+    while let Some(x) = s {
+        last = x.to_string();
+        s = x.source();
+    }
+    last
+}
+
+/// What kind of failure a worker's answer is: the one mapping between a
+/// worker's errors and gRPC status codes. The worker answers with
+/// [`WorkerError::code`]; the coordinator reads an answer back with
+/// [`WorkerError::from`] a status.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum WorkerErrorKind {
+    /// The request is malformed or out of range: `INVALID_ARGUMENT`.
+    Invalid,
+    /// The worker lacks what the call needs (no open session, another
+    /// protocol, a hair version it does not hold): `FAILED_PRECONDITION`.
+    Precondition,
+    /// The call gave way: another session took the worker, or the call
+    /// gave up for another worker's failure: `ABORTED`.
+    Aborted,
+    /// Over the worker's memory budget or limits: `RESOURCE_EXHAUSTED`.
+    Exhausted,
+    /// The caller went away: `CANCELLED`.
+    Cancelled,
+    /// The worker cannot serve now (stopping, a peer unreachable):
+    /// `UNAVAILABLE`.
+    Unavailable,
+    /// A fault inside the worker: `INTERNAL`.
+    Internal,
+    /// Any other status, from something that is not a wisplight worker
+    /// (`UNIMPLEMENTED` from another server) or from the transport.
+    Other(tonic::Code),
+}
+
+impl WorkerErrorKind {
+    /// Every kind a worker answers with.
+    pub const ALL: [WorkerErrorKind; 7] = [
+        WorkerErrorKind::Invalid,
+        WorkerErrorKind::Precondition,
+        WorkerErrorKind::Aborted,
+        WorkerErrorKind::Exhausted,
+        WorkerErrorKind::Cancelled,
+        WorkerErrorKind::Unavailable,
+        WorkerErrorKind::Internal,
+    ];
+
+    /// The status code of this kind.
+    pub fn code(self) -> tonic::Code {
+        use tonic::Code as C;
+        match self {
+            WorkerErrorKind::Invalid => C::InvalidArgument,
+            WorkerErrorKind::Precondition => C::FailedPrecondition,
+            WorkerErrorKind::Aborted => C::Aborted,
+            WorkerErrorKind::Exhausted => C::ResourceExhausted,
+            WorkerErrorKind::Cancelled => C::Cancelled,
+            WorkerErrorKind::Unavailable => C::Unavailable,
+            WorkerErrorKind::Internal => C::Internal,
+            WorkerErrorKind::Other(c) => c,
+        }
+    }
+
+    /// The kind of a status code.
+    pub fn of(code: tonic::Code) -> WorkerErrorKind {
+        Self::ALL
+            .into_iter()
+            .find(|k| k.code() == code)
+            .unwrap_or(WorkerErrorKind::Other(code))
+    }
+}
+
+/// A worker's refusal or failure of a call: its kind and the worker's
+/// reason.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{:?}: {message}", self.kind.code())]
+pub struct WorkerError {
+    pub kind: WorkerErrorKind,
+    pub message: String,
+}
+
+impl WorkerError {
+    pub fn new(kind: WorkerErrorKind, message: impl Into<String>) -> WorkerError {
+        WorkerError {
+            kind,
+            message: message.into(),
+        }
+    }
+
+    pub fn invalid(message: impl Into<String>) -> WorkerError {
+        WorkerError::new(WorkerErrorKind::Invalid, message)
+    }
+
+    pub fn precondition(message: impl Into<String>) -> WorkerError {
+        WorkerError::new(WorkerErrorKind::Precondition, message)
+    }
+
+    pub fn aborted(message: impl Into<String>) -> WorkerError {
+        WorkerError::new(WorkerErrorKind::Aborted, message)
+    }
+
+    pub fn exhausted(message: impl Into<String>) -> WorkerError {
+        WorkerError::new(WorkerErrorKind::Exhausted, message)
+    }
+
+    pub fn cancelled(message: impl Into<String>) -> WorkerError {
+        WorkerError::new(WorkerErrorKind::Cancelled, message)
+    }
+
+    pub fn unavailable(message: impl Into<String>) -> WorkerError {
+        WorkerError::new(WorkerErrorKind::Unavailable, message)
+    }
+
+    pub fn internal(message: impl Into<String>) -> WorkerError {
+        WorkerError::new(WorkerErrorKind::Internal, message)
+    }
+
+    /// The status code the worker answers with.
+    pub fn code(&self) -> tonic::Code {
+        self.kind.code()
+    }
+}
+
+impl From<WorkerError> for tonic::Status {
+    fn from(e: WorkerError) -> tonic::Status {
+        tonic::Status::new(e.kind.code(), e.message)
+    }
+}
+
+impl From<tonic::Status> for WorkerError {
+    fn from(s: tonic::Status) -> WorkerError {
+        let message = if s.message().is_empty() {
+            s.code().description().to_string()
+        } else {
+            s.message().to_string()
+        };
+        WorkerError::new(WorkerErrorKind::of(s.code()), message)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_kind_goes_to_its_code_and_back() {
+        let mut codes = std::collections::HashSet::new();
+        for kind in WorkerErrorKind::ALL {
+            let sent = tonic::Status::from(WorkerError::new(kind, "why"));
+            assert!(codes.insert(sent.code()), "{kind:?} shares a code");
+            assert_eq!(WorkerError::from(sent), WorkerError::new(kind, "why"));
+        }
+        // The codes a worker answers with, by name.
+        assert_eq!(
+            tonic::Status::from(WorkerError::invalid("x")).code(),
+            tonic::Code::InvalidArgument
+        );
+        assert_eq!(
+            tonic::Status::from(WorkerError::precondition("x")).code(),
+            tonic::Code::FailedPrecondition
+        );
+        assert_eq!(
+            tonic::Status::from(WorkerError::exhausted("x")).code(),
+            tonic::Code::ResourceExhausted
+        );
+        assert_eq!(
+            tonic::Status::from(WorkerError::aborted("x")).code(),
+            tonic::Code::Aborted
+        );
+    }
+
+    #[test]
+    fn every_code_reads_as_a_kind_that_answers_with_it() {
+        for c in 0..=16 {
+            let code = tonic::Code::from_i32(c);
+            let e = WorkerError::from(tonic::Status::new(code, ""));
+            assert_eq!(e.code(), code);
+            // An empty reason reads as the code's description.
+            assert_eq!(e.message, code.description());
+        }
+        assert_eq!(
+            WorkerErrorKind::of(tonic::Code::Unimplemented),
+            WorkerErrorKind::Other(tonic::Code::Unimplemented)
+        );
+    }
+}

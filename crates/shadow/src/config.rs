@@ -1,0 +1,372 @@
+//! The shadow methods' names and settings.
+
+use crate::{MAX_CELLS, ShadowError};
+
+/// Koster et al.'s two ways of turning accumulated opacity `Omega` into
+/// transmittance.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum OpacityMode {
+    /// `T = max(0, 1 - Omega)`.
+    Linear,
+    /// `T = exp(-kappa Omega)`. With `Omega` an optical depth in physical
+    /// units, `kappa = 1` estimates the same quantity as every other method
+    /// (Koster's 5.56 made up for opacities in arbitrary units).
+    Exponential { kappa: f32 },
+}
+
+/// What a deep opacity map does with hair past its last layer (Yuksel and
+/// Keyser 2008, section 3.2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Beyond {
+    /// It casts no shadow.
+    Ignore,
+    /// It counts in the last layer (the paper's choice).
+    LastLayer,
+    /// Each pixel stretches its layers to end at its last hair.
+    Cover,
+}
+
+impl Beyond {
+    pub const NAMES: &[&str] = &["ignore", "last-layer", "cover"];
+
+    pub fn from_name(name: &str) -> Option<Beyond> {
+        match name {
+            "ignore" => Some(Beyond::Ignore),
+            "last-layer" => Some(Beyond::LastLayer),
+            "cover" => Some(Beyond::Cover),
+            _ => None,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Beyond::Ignore => "ignore",
+            Beyond::LastLayer => "last-layer",
+            Beyond::Cover => "cover",
+        }
+    }
+}
+
+/// A shadow method and its settings. Resolutions are in cells (or light
+/// view pixels) per side of a map fitted to the hair.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MethodConfig {
+    /// Bertails, Ménier and Cani 2005: the light-oriented density map.
+    DensityMap { cells: u32, filter: bool },
+    /// Kim and Neumann 2001, as Koster et al. 2004 describe it: `slices`
+    /// uniform maps of accumulated opacity between the hair's nearest and
+    /// farthest depth, interpolated linearly between maps; lookups shifted
+    /// `offset` slice spacings towards the light.
+    OpacityShadowMap {
+        resolution: u32,
+        slices: u32,
+        mode: OpacityMode,
+        offset: f32,
+        filter: bool,
+    },
+    /// Yuksel and Keyser 2008: per pixel, `layers` layers of
+    /// `layer_cells` cells each, starting at the pixel's first hair.
+    DeepOpacityMap {
+        resolution: u32,
+        layers: u32,
+        layer_cells: f32,
+        beyond: Beyond,
+        filter: bool,
+    },
+    /// Mertens et al. 2004: per pixel, one k-means iteration over the
+    /// fragments' depths, one histogram bin of `mu +- sqrt(3) sigma` per
+    /// cluster.
+    DensityClustering {
+        resolution: u32,
+        clusters: u32,
+        filter: bool,
+    },
+    /// Lokovic and Veach 2000: per pixel, the visibility function of all
+    /// fragments, compressed to a piecewise linear function within
+    /// `tolerance` (in transmittance).
+    DeepShadowMap {
+        resolution: u32,
+        tolerance: f32,
+        filter: bool,
+    },
+    /// Transmittance from the fiber geometry itself (see
+    /// [`crate::Reference`]) over a square footprint of side
+    /// `footprint` scene units (default: one cell of a 128^3 map fitted to
+    /// the hair); `rays` samples of the footprint for opaque occluders.
+    Reference { footprint: Option<f32>, rays: u32 },
+}
+
+impl MethodConfig {
+    pub const NAMES: &[&str] = &[
+        "density-map",
+        "opacity-shadow-map",
+        "deep-opacity-map",
+        "density-clustering",
+        "deep-shadow-map",
+        "reference",
+    ];
+
+    /// The method `name` with its default settings at `cells` a side.
+    pub fn with_defaults(name: &str, cells: u32) -> Option<MethodConfig> {
+        Some(match name {
+            "density-map" => MethodConfig::DensityMap {
+                cells,
+                filter: true,
+            },
+            "opacity-shadow-map" => MethodConfig::OpacityShadowMap {
+                resolution: cells,
+                slices: 64,
+                mode: OpacityMode::Exponential { kappa: 1.0 },
+                offset: 0.0,
+                filter: true,
+            },
+            "deep-opacity-map" => MethodConfig::DeepOpacityMap {
+                resolution: cells,
+                layers: 4,
+                layer_cells: 4.0,
+                beyond: Beyond::LastLayer,
+                filter: true,
+            },
+            "density-clustering" => MethodConfig::DensityClustering {
+                resolution: cells,
+                clusters: 4,
+                filter: true,
+            },
+            "deep-shadow-map" => MethodConfig::DeepShadowMap {
+                resolution: cells,
+                tolerance: 0.01,
+                filter: true,
+            },
+            "reference" => MethodConfig::Reference {
+                footprint: None,
+                rays: 64,
+            },
+            _ => return None,
+        })
+    }
+
+    pub fn name(&self) -> &'static str {
+        match self {
+            MethodConfig::DensityMap { .. } => "density-map",
+            MethodConfig::OpacityShadowMap { .. } => "opacity-shadow-map",
+            MethodConfig::DeepOpacityMap { .. } => "deep-opacity-map",
+            MethodConfig::DensityClustering { .. } => "density-clustering",
+            MethodConfig::DeepShadowMap { .. } => "deep-shadow-map",
+            MethodConfig::Reference { .. } => "reference",
+        }
+    }
+
+    /// Cells (or light-view pixels) a side; the reference bins its segments
+    /// on a 128-column grid.
+    pub fn resolution(&self) -> u32 {
+        match *self {
+            MethodConfig::DensityMap { cells, .. } => cells,
+            MethodConfig::OpacityShadowMap { resolution, .. }
+            | MethodConfig::DeepOpacityMap { resolution, .. }
+            | MethodConfig::DensityClustering { resolution, .. }
+            | MethodConfig::DeepShadowMap { resolution, .. } => resolution,
+            MethodConfig::Reference { .. } => 128,
+        }
+    }
+
+    /// Sets the resolution (the reference has none to set).
+    pub fn set_resolution(&mut self, n: u32) {
+        match self {
+            MethodConfig::DensityMap { cells: r, .. }
+            | MethodConfig::OpacityShadowMap { resolution: r, .. }
+            | MethodConfig::DeepOpacityMap { resolution: r, .. }
+            | MethodConfig::DensityClustering { resolution: r, .. }
+            | MethodConfig::DeepShadowMap { resolution: r, .. } => *r = n,
+            MethodConfig::Reference { .. } => {}
+        }
+    }
+
+    /// Whether lookups interpolate between cells (the reference always
+    /// averages over its footprint).
+    pub fn filter(&self) -> bool {
+        match *self {
+            MethodConfig::DensityMap { filter, .. }
+            | MethodConfig::OpacityShadowMap { filter, .. }
+            | MethodConfig::DeepOpacityMap { filter, .. }
+            | MethodConfig::DensityClustering { filter, .. }
+            | MethodConfig::DeepShadowMap { filter, .. } => filter,
+            MethodConfig::Reference { .. } => true,
+        }
+    }
+
+    /// Turns filtering on or off (the reference has no switch).
+    pub fn set_filter(&mut self, on: bool) {
+        match self {
+            MethodConfig::DensityMap { filter, .. }
+            | MethodConfig::OpacityShadowMap { filter, .. }
+            | MethodConfig::DeepOpacityMap { filter, .. }
+            | MethodConfig::DensityClustering { filter, .. }
+            | MethodConfig::DeepShadowMap { filter, .. } => *filter = on,
+            MethodConfig::Reference { .. } => {}
+        }
+    }
+
+    /// Checks the settings, naming the first that is out of range.
+    pub fn validate(&self) -> Result<(), ShadowError> {
+        let bad = |name: &'static str, value: String, why: &'static str| {
+            Err(ShadowError::Setting { name, value, why })
+        };
+        let res = |r: u32| {
+            if (1..=MAX_CELLS).contains(&r) {
+                Ok(())
+            } else {
+                Err(ShadowError::Cells(r))
+            }
+        };
+        match *self {
+            MethodConfig::DensityMap { cells, .. } => res(cells),
+            MethodConfig::OpacityShadowMap {
+                resolution,
+                slices,
+                mode,
+                offset,
+                ..
+            } => {
+                res(resolution)?;
+                if !(2..=4096).contains(&slices) {
+                    return bad("slices", slices.to_string(), "must be in 2..=4096");
+                }
+                if let OpacityMode::Exponential { kappa } = mode
+                    && !(kappa.is_finite() && kappa >= 0.0)
+                {
+                    return bad("kappa", kappa.to_string(), "must be finite and >= 0");
+                }
+                if !(offset.is_finite() && offset >= 0.0) {
+                    return bad("offset", offset.to_string(), "must be finite and >= 0");
+                }
+                Ok(())
+            }
+            MethodConfig::DeepOpacityMap {
+                resolution,
+                layers,
+                layer_cells,
+                ..
+            } => {
+                res(resolution)?;
+                if !(1..=64).contains(&layers) {
+                    return bad("layers", layers.to_string(), "must be in 1..=64");
+                }
+                if !(layer_cells.is_finite() && layer_cells >= 0.0) {
+                    return bad(
+                        "layer_cells",
+                        layer_cells.to_string(),
+                        "must be finite and >= 0",
+                    );
+                }
+                Ok(())
+            }
+            MethodConfig::DensityClustering {
+                resolution,
+                clusters,
+                ..
+            } => {
+                res(resolution)?;
+                if !(1..=16).contains(&clusters) {
+                    return bad("clusters", clusters.to_string(), "must be in 1..=16");
+                }
+                Ok(())
+            }
+            MethodConfig::DeepShadowMap {
+                resolution,
+                tolerance,
+                ..
+            } => {
+                res(resolution)?;
+                if !(tolerance.is_finite() && (0.0..1.0).contains(&tolerance)) {
+                    return bad("tolerance", tolerance.to_string(), "must be in [0, 1)");
+                }
+                Ok(())
+            }
+            MethodConfig::Reference { footprint, rays } => {
+                if let Some(f) = footprint
+                    && !(f.is_finite() && f > 0.0)
+                {
+                    return bad("footprint", f.to_string(), "must be finite and > 0");
+                }
+                if !(1..=4096).contains(&rays) {
+                    return bad("rays", rays.to_string(), "must be in 1..=4096");
+                }
+                Ok(())
+            }
+        }
+    }
+
+    /// The settings as `key=value` pairs, for tables and CSV.
+    pub fn parameters(&self) -> String {
+        match *self {
+            MethodConfig::DensityMap { cells, filter } => {
+                format!("cells={cells} filter={filter}")
+            }
+            MethodConfig::OpacityShadowMap {
+                resolution,
+                slices,
+                mode,
+                offset,
+                filter,
+            } => {
+                let mode = match mode {
+                    OpacityMode::Linear => "linear".to_string(),
+                    OpacityMode::Exponential { kappa } => format!("exponential kappa={kappa}"),
+                };
+                format!(
+                    "resolution={resolution} slices={slices} mode={mode} offset={offset} filter={filter}"
+                )
+            }
+            MethodConfig::DeepOpacityMap {
+                resolution,
+                layers,
+                layer_cells,
+                beyond,
+                filter,
+            } => format!(
+                "resolution={resolution} layers={layers} layer_cells={layer_cells} beyond={} filter={filter}",
+                beyond.name()
+            ),
+            MethodConfig::DensityClustering {
+                resolution,
+                clusters,
+                filter,
+            } => format!("resolution={resolution} clusters={clusters} filter={filter}"),
+            MethodConfig::DeepShadowMap {
+                resolution,
+                tolerance,
+                filter,
+            } => format!("resolution={resolution} tolerance={tolerance} filter={filter}"),
+            MethodConfig::Reference { footprint, rays } => match footprint {
+                Some(f) => format!("footprint={f} rays={rays}"),
+                None => format!("footprint=auto rays={rays}"),
+            },
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_name_has_defaults_that_validate_and_round_trip() {
+        for name in MethodConfig::NAMES {
+            let c = MethodConfig::with_defaults(name, 64).unwrap();
+            assert_eq!(c.name(), *name);
+            c.validate().unwrap();
+        }
+        assert!(MethodConfig::with_defaults("raytrace", 64).is_none());
+        let bad = MethodConfig::OpacityShadowMap {
+            resolution: 64,
+            slices: 1,
+            mode: OpacityMode::Linear,
+            offset: 0.0,
+            filter: true,
+        };
+        assert!(matches!(
+            bad.validate(),
+            Err(ShadowError::Setting { name: "slices", .. })
+        ));
+    }
+}

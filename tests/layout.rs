@@ -1,0 +1,259 @@
+//! The source tree's layout rules: no library source file over 800 lines
+//! (unit tests in a sibling `tests.rs` aside), and no import cycle between
+//! sibling modules of any crate.
+//!
+//! A module's imports are the `crate::` and `super::` paths its code (not
+//! its comments or unit tests) names. A path to a name the crate root
+//! re-exports counts as a path to the module the name comes from. An import
+//! from inside sibling `a` into sibling `b` (or anything inside `b`) is an
+//! edge `a -> b`; a child naming its parent's items is not an edge.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+type Module = Vec<String>;
+
+const MAX_LINES: usize = 800;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Every crate's source directory and root file.
+fn crates() -> Vec<(PathBuf, PathBuf)> {
+    let mut out = vec![(root().join("src"), root().join("src/main.rs"))];
+    for e in std::fs::read_dir(root().join("crates")).unwrap() {
+        let src = e.unwrap().path().join("src");
+        if src.join("lib.rs").exists() {
+            out.push((src.clone(), src.join("lib.rs")));
+        }
+    }
+    out.sort();
+    out
+}
+
+fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            rust_files(&p, out);
+        } else if p.extension().is_some_and(|x| x == "rs") {
+            out.push(p);
+        }
+    }
+}
+
+/// `src/a/b.rs` and `src/a/b/mod.rs` are module `a::b`; the root is `[]`.
+fn module_of(src: &Path, file: &Path) -> Module {
+    let rel = file.strip_prefix(src).unwrap().with_extension("");
+    let mut m: Module = rel
+        .components()
+        .map(|c| c.as_os_str().to_string_lossy().into_owned())
+        .collect();
+    if matches!(m.last().map(String::as_str), Some("mod" | "lib" | "main")) {
+        m.pop();
+    }
+    m
+}
+
+/// The code of a file without comments, string contents aside, and without
+/// an inline `#[cfg(test)] mod tests { ... }` at its end.
+fn code(text: &str) -> String {
+    let text = match text.find("#[cfg(test)]\nmod tests {") {
+        Some(i) => &text[..i],
+        None => text,
+    };
+    text.lines()
+        .map(|l| match l.find("//") {
+            Some(i) => &l[..i],
+            None => l,
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+fn is_ident(c: char) -> bool {
+    c.is_ascii_alphanumeric() || c == '_'
+}
+
+/// The first segment of every path that follows `prefix` (`crate::` or
+/// `super::`), looking into `{a, b::c}` groups.
+fn first_segments(code: &str, prefix: &str) -> BTreeSet<String> {
+    let mut out = BTreeSet::new();
+    let mut rest = code;
+    while let Some(i) = rest.find(prefix) {
+        let before_ok = i == 0 || !rest[..i].ends_with(is_ident);
+        rest = &rest[i + prefix.len()..];
+        if !before_ok {
+            continue;
+        }
+        if let Some(group) = rest.strip_prefix('{') {
+            let end = group.find('}').unwrap_or(group.len());
+            for part in group[..end].split(',') {
+                let name: String = part.trim().chars().take_while(|&c| is_ident(c)).collect();
+                if !name.is_empty() {
+                    out.insert(name);
+                }
+            }
+        } else {
+            let name: String = rest.chars().take_while(|&c| is_ident(c)).collect();
+            if !name.is_empty() {
+                out.insert(name);
+            }
+        }
+    }
+    out
+}
+
+/// The names the crate root re-exports (`pub use m::{A, B};`), by module.
+fn reexports(root_code: &str) -> BTreeMap<String, String> {
+    let mut out = BTreeMap::new();
+    for stmt in root_code.split(';') {
+        let Some(i) = stmt.find("pub use ") else {
+            continue;
+        };
+        let path = stmt[i + "pub use ".len()..].trim();
+        let Some((module, names)) = path.split_once("::") else {
+            continue;
+        };
+        if !module.chars().all(is_ident) {
+            continue;
+        }
+        for name in names
+            .split(|c: char| !is_ident(c))
+            .filter(|n| !n.is_empty())
+        {
+            out.insert(name.to_string(), module.to_string());
+        }
+    }
+    out
+}
+
+/// Edges between siblings: `(parent, a) -> (parent, b)`.
+fn sibling_edges(src: &Path, root_file: &Path) -> BTreeMap<Module, BTreeSet<Module>> {
+    let mut files = Vec::new();
+    rust_files(src, &mut files);
+    let modules: BTreeMap<Module, PathBuf> = files
+        .iter()
+        .map(|f| (module_of(src, f), f.clone()))
+        .collect();
+    let exported = reexports(&code(&std::fs::read_to_string(root_file).unwrap()));
+    let mut edges: BTreeMap<Module, BTreeSet<Module>> = BTreeMap::new();
+    for (m, file) in &modules {
+        if m.is_empty() || m.last().is_some_and(|n| n == "tests") {
+            continue;
+        }
+        let c = code(&std::fs::read_to_string(file).unwrap());
+        let mut targets: BTreeSet<Module> = BTreeSet::new();
+        for name in first_segments(&c, "crate::") {
+            if modules.contains_key(&vec![name.clone()]) {
+                targets.insert(vec![name]);
+            } else if let Some(module) = exported.get(&name) {
+                targets.insert(vec![module.clone()]);
+            }
+        }
+        let parent = &m[..m.len() - 1];
+        for name in first_segments(&c, "super::") {
+            let mut sibling = parent.to_vec();
+            sibling.push(name);
+            if modules.contains_key(&sibling) {
+                targets.insert(sibling);
+            }
+        }
+        for t in targets {
+            let common = m.iter().zip(&t).take_while(|(a, b)| a == b).count();
+            if common >= m.len() || common >= t.len() {
+                continue; // an ancestor or a descendant
+            }
+            edges
+                .entry(m[..=common].to_vec())
+                .or_default()
+                .insert(t[..=common].to_vec());
+        }
+    }
+    edges
+}
+
+/// A cycle through `start`, if any: the path back to it.
+fn cycle_from(edges: &BTreeMap<Module, BTreeSet<Module>>, start: &Module) -> Option<Vec<Module>> {
+    let mut stack = vec![(start.clone(), vec![start.clone()])];
+    let mut seen = BTreeSet::new();
+    while let Some((at, path)) = stack.pop() {
+        for next in edges.get(&at).into_iter().flatten() {
+            if next == start {
+                return Some(path.clone());
+            }
+            if seen.insert(next.clone()) {
+                let mut p = path.clone();
+                p.push(next.clone());
+                stack.push((next.clone(), p));
+            }
+        }
+    }
+    None
+}
+
+#[test]
+fn no_import_cycles_between_sibling_modules() {
+    let mut cycles = Vec::new();
+    for (src, root_file) in crates() {
+        let edges = sibling_edges(&src, &root_file);
+        for m in edges.keys() {
+            if let Some(c) = cycle_from(&edges, m) {
+                let names: Vec<String> = c.iter().map(|m| m.join("::")).collect();
+                cycles.push(format!("{}: {}", src.display(), names.join(" -> ")));
+            }
+        }
+    }
+    assert!(cycles.is_empty(), "import cycles:\n{}", cycles.join("\n"));
+}
+
+#[test]
+fn the_checker_sees_a_cycle() {
+    // Two modules naming each other, one through a root re-export.
+    let dir = std::env::temp_dir().join(format!("wisplight-layout-{}", std::process::id()));
+    let src = dir.join("src");
+    std::fs::create_dir_all(&src).unwrap();
+    std::fs::write(src.join("lib.rs"), "mod a;\nmod b;\npub use b::B;\n").unwrap();
+    std::fs::write(src.join("a.rs"), "use crate::B;\npub struct A;\n").unwrap();
+    std::fs::write(
+        src.join("b.rs"),
+        "// crate::c in a comment\npub struct B(crate::a::A);\n",
+    )
+    .unwrap();
+    let edges = sibling_edges(&src, &src.join("lib.rs"));
+    let a = vec!["a".to_string()];
+    assert_eq!(
+        cycle_from(&edges, &a),
+        Some(vec![a.clone(), vec!["b".to_string()]])
+    );
+    std::fs::write(src.join("b.rs"), "pub struct B;\n").unwrap();
+    assert_eq!(
+        cycle_from(&sibling_edges(&src, &src.join("lib.rs")), &a),
+        None
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn no_library_source_file_is_over_800_lines() {
+    let mut long = Vec::new();
+    for (src, _) in crates() {
+        let mut files = Vec::new();
+        rust_files(&src, &mut files);
+        for f in files {
+            if f.file_name().is_some_and(|n| n == "tests.rs") {
+                continue;
+            }
+            let lines = std::fs::read_to_string(&f).unwrap().lines().count();
+            if lines > MAX_LINES {
+                long.push(format!("{} ({lines} lines)", f.display()));
+            }
+        }
+    }
+    assert!(
+        long.is_empty(),
+        "over {MAX_LINES} lines: {}",
+        long.join(", ")
+    );
+}
