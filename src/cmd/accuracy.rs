@@ -230,7 +230,7 @@ fn measure(
     }
     let img = img.expect("at least one frame");
     let t = seq.renderer().transmittance().concat();
-    Ok((engine::pipeline::median(&mut times), t, img))
+    Ok((super::median(&mut times), t, img))
 }
 
 /// Mean absolute, RMS and largest difference between `t` and `reference`.

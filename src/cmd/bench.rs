@@ -110,8 +110,7 @@ fn shadow(a: ShadowArgs) -> anyhow::Result<()> {
         }
         samples = stats.samples;
     }
-    let [density_ms, transmittance_ms, filter_ms] =
-        times.map(|mut v| engine::pipeline::median(&mut v));
+    let [density_ms, transmittance_ms, filter_ms] = times.map(|mut v| super::median(&mut v));
     let total_ms = density_ms + transmittance_ms + filter_ms;
     println!("stage           median ms");
     println!("density         {density_ms:9.3}");
@@ -176,11 +175,8 @@ fn frame(a: FrameArgs) -> anyhow::Result<()> {
             whole.push(ms);
         }
     }
-    let medians: Vec<f64> = per_stage
-        .iter_mut()
-        .map(|v| engine::pipeline::median(v))
-        .collect();
-    let frame_ms = engine::pipeline::median(&mut whole);
+    let medians: Vec<f64> = per_stage.iter_mut().map(|v| super::median(v)).collect();
+    let frame_ms = super::median(&mut whole);
     println!("stage           median ms");
     for (s, m) in Stage::ALL.iter().zip(&medians) {
         println!("{:<15} {m:9.3}", s.name());

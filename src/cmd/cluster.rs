@@ -265,7 +265,7 @@ pub struct CertsArgs {
 pub fn certs(args: CertsArgs) -> anyhow::Result<()> {
     use std::io::Write;
 
-    let pki = cluster::tls::Pki::generate(&args.names)?;
+    let pki = cluster::Pki::generate(&args.names)?;
     std::fs::create_dir_all(&args.dir)
         .with_context(|| format!("cannot create the directory {}", args.dir.display()))?;
     let files = pki.files();

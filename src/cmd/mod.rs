@@ -119,3 +119,29 @@ pub(crate) fn machine(scene: Option<&std::path::Path>) -> (String, usize, usize)
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     (name, rayon::current_num_threads(), cores)
 }
+
+/// The median of `v` (the mean of the middle two for even lengths).
+pub fn median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    let m = v.len() / 2;
+    if v.len() % 2 == 1 {
+        v[m]
+    } else {
+        0.5 * (v[m - 1] + v[m])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn median_of_odd_and_even() {
+        assert_eq!(median(&mut [3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(&mut [4.0, 1.0, 3.0, 2.0]), 2.5);
+        assert!(median(&mut []).is_nan());
+    }
+}

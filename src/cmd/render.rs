@@ -217,7 +217,7 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
         } else {
             "no shadows"
         },
-        engine::pipeline::median(&mut frame_ms),
+        super::median(&mut frame_ms),
         start.elapsed().as_secs_f64() * 1e3
     );
     Ok(())

@@ -7,8 +7,8 @@ use std::path::PathBuf;
 use std::process::{Child, Stdio};
 use std::time::{Duration, Instant};
 
+use super::median;
 use anyhow::{Context, bail};
-use engine::pipeline::median;
 
 use super::nodes::{Nodes, Request};
 

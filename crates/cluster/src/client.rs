@@ -12,7 +12,7 @@ use crate::pb::worker_client::WorkerClient;
 use crate::{ClusterError, Tls, pb, tls, wire};
 
 /// The gRPC metadata key that names a call's session.
-pub const SESSION_KEY: &str = "wisplight-session";
+pub(crate) const SESSION_KEY: &str = "wisplight-session";
 
 /// Bytes on the wire, by stage and direction (protobuf message bytes;
 /// HTTP/2 framing adds a little).

@@ -12,7 +12,7 @@ use tonic_prost::{ProstCodec, ProstEncoder};
 
 /// prost's codec with decode errors as `INVALID_ARGUMENT`.
 #[derive(Debug, Clone)]
-pub struct Protobuf<T, U>(PhantomData<(T, U)>);
+pub(crate) struct Protobuf<T, U>(PhantomData<(T, U)>);
 
 impl<T, U> Default for Protobuf<T, U> {
     fn default() -> Self {
@@ -41,7 +41,7 @@ where
 
 /// Decodes `U`, naming the message that failed.
 #[derive(Debug, Clone)]
-pub struct Checked<U>(PhantomData<U>);
+pub(crate) struct Checked<U>(PhantomData<U>);
 
 impl<U: Message + Default> Decoder for Checked<U> {
     type Item = U;

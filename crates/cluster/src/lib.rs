@@ -5,6 +5,8 @@
 //! densities, hands out columns and slabs, and composites. The only crate
 //! that knows protobuf, tonic and tokio.
 
+#![warn(unreachable_pub)]
+
 pub mod pb {
     //! Code generated from `proto/wisplight/v1/worker.proto`.
     #![allow(missing_debug_implementations, clippy::all)]
@@ -15,17 +17,17 @@ pub mod pb {
 }
 
 mod client;
-pub mod codec;
+mod codec;
 mod error;
-pub mod remote;
-pub mod tls;
+mod remote;
+mod tls;
 pub mod wire;
 pub mod worker;
 
 pub use client::{SessionClient, SessionHeader, Timing, Traffic};
 pub use error::{ClusterError, WorkerError, WorkerErrorKind};
 pub use remote::{DrawAt, Options, RemoteExecutor};
-pub use tls::Tls;
+pub use tls::{Pki, Tls};
 
 /// What went wrong in cluster mode, naming the worker.
 /// Asks the worker at `addr` for its grpc.health.v1 status (the overall

@@ -11,7 +11,7 @@ use std::net::SocketAddr;
 use std::sync::OnceLock;
 use std::time::Duration;
 
-use cluster::tls::Pki;
+use cluster::Pki;
 use cluster::worker::Listen;
 use cluster::{ClusterError, RemoteExecutor, Tls};
 use engine::{Executor, LocalExecutor};

@@ -28,7 +28,7 @@ use shadow::{DensityMap, Fiber};
 /// between the centres of two dense cells; where the neighbourhood is flat
 /// it points away from the cell's centre `c`, as in the paper.
 #[derive(Debug, Clone, Copy)]
-pub struct DensityRepulsion<'a> {
+pub(crate) struct DensityRepulsion<'a> {
     map: &'a DensityMap,
     /// The map's frame, and whether its rays are parallel.
     frame: shadow::LightFrame,
@@ -43,7 +43,7 @@ pub struct DensityRepulsion<'a> {
 impl<'a> DensityRepulsion<'a> {
     /// `None` when the fiber casts no shadow (`alpha * w = 0`): the map then
     /// holds no density to collide with.
-    pub fn new(
+    pub(crate) fn new(
         map: &'a DensityMap,
         fiber: &Fiber,
         rho_max: f32,
@@ -64,7 +64,8 @@ impl<'a> DensityRepulsion<'a> {
 
     /// Hair density (length per volume) of the cell holding `p`, if inside;
     /// opaque spheres in the map (the head) do not count.
-    pub fn density_at(&self, p: Vec3) -> Option<f32> {
+    #[cfg(test)]
+    fn density_at(&self, p: Vec3) -> Option<f32> {
         self.density_in_cells(self.cells(p))
     }
 

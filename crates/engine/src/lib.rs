@@ -15,18 +15,20 @@
 //! The engine is synchronous and deterministic: it does no networking, and
 //! does not print; the binary decides what the user sees.
 
-pub mod animate;
-pub mod collide;
-pub mod exec;
-pub mod frames;
-pub mod hair;
-pub mod head;
-pub mod part;
-pub mod pipeline;
-pub mod render;
-pub mod scene;
-pub mod share;
-pub mod stats;
+#![warn(unreachable_pub)]
+
+mod animate;
+mod collide;
+mod exec;
+mod frames;
+mod hair;
+mod head;
+mod part;
+mod pipeline;
+mod render;
+mod scene;
+mod share;
+mod stats;
 
 pub use animate::{Animator, GROUPS, Groups, split_by};
 pub use exec::{
@@ -38,7 +40,7 @@ pub use hair::{MAX_SEGMENTS, build_hair, drawn_segments};
 pub use head::Head;
 pub use part::{HairPart, draw_head};
 pub use pipeline::ShadowPipeline;
-pub use render::{Composite, Renderer};
+pub use render::{Composite, DEFAULT_HAIR_COLOR, Renderer, view_direction};
 pub use scene::{
     Animation, BodySettings, CameraView, Collision, Dynamics, Effects, HairSource, HeadMesh,
     HeadSettings, Placement, Scene, SceneError, SceneSource, ShadowSettings,

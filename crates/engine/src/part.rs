@@ -313,7 +313,7 @@ impl HairPart {
 /// ([`Light::falloff`], 1 for a directional light) and `T_l` its
 /// transmittance there, `trans(l)` (asked only where the light reaches
 /// the surface).
-pub fn head_lambert(
+pub(crate) fn head_lambert(
     color: Vec3,
     ambient: f32,
     lights: &[Light],

@@ -9,11 +9,11 @@ use crate::{EngineError, Executor, Head, LocalExecutor, Scene};
 /// How far off an opaque surface its lookups of the hair's shadow go,
 /// along its normal, in map cells (see
 /// [`ShadowPipeline::transmittance_off_surface`]).
-pub const HEAD_NORMAL_BIAS: f32 = 1.5;
+pub(crate) const HEAD_NORMAL_BIAS: f32 = 1.5;
 
 /// How far towards the light an opaque surface's lookups go, in map
 /// cells, past the rounding of its deposit's front.
-pub const HEAD_LIGHT_BIAS: f32 = 0.5;
+pub(crate) const HEAD_LIGHT_BIAS: f32 = 0.5;
 
 /// The three shadow stages for every light of a scene, by the scene's
 /// method. Each light owns its method's maps.
@@ -218,7 +218,7 @@ impl ShadowPipeline {
 /// The point a surface point `p` of normal `n` looks its transmittance up
 /// at in a map of frame `f`: see
 /// [`ShadowPipeline::transmittance_off_surface`].
-pub fn off_surface(f: &shadow::LightFrame, p: Vec3, n: Vec3) -> Vec3 {
+pub(crate) fn off_surface(f: &shadow::LightFrame, p: Vec3, n: Vec3) -> Vec3 {
     let n = n.normalize_or_zero();
     match &f.fan {
         None => p + (n * HEAD_NORMAL_BIAS - f.axes[0] * HEAD_LIGHT_BIAS) * f.ds,
@@ -228,30 +228,5 @@ pub fn off_surface(f: &shadow::LightFrame, p: Vec3, n: Vec3) -> Vec3 {
             let width = f.cell_width(f.to_cells(p).x).max(f.ds);
             p + (n * HEAD_NORMAL_BIAS - ray * HEAD_LIGHT_BIAS) * width
         }
-    }
-}
-
-/// The median of `v` (the mean of the middle two for even lengths).
-pub fn median(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(f64::total_cmp);
-    let m = v.len() / 2;
-    if v.len() % 2 == 1 {
-        v[m]
-    } else {
-        0.5 * (v[m - 1] + v[m])
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn median_of_odd_and_even() {
-        assert_eq!(median(&mut [3.0, 1.0, 2.0]), 2.0);
-        assert_eq!(median(&mut [4.0, 1.0, 3.0, 2.0]), 2.5);
     }
 }

@@ -63,10 +63,7 @@ use glam::Vec3;
 use shadow::{Beyond, Fiber, Light, MethodConfig, OpacityMode};
 use strands::{FollowParams, Hair, Style, StyleParams};
 
-pub use motion::{
-    Animation, BodySettings, Collision, DEFAULT_COLLISION_DENSITY, DEFAULT_FPS,
-    DEFAULT_MAX_ACCELERATION, DEFAULT_REPULSION, DEFAULT_SETTLE_S, Dynamics, Effects,
-};
+pub use motion::{Animation, BodySettings, Collision, Dynamics, Effects};
 
 /// A scene that could not be read, naming the file and the field.
 #[derive(Debug, thiserror::Error)]
@@ -152,24 +149,24 @@ impl Placement {
 }
 
 /// At most this many points written out in `hair.strands`.
-pub const MAX_INLINE_POINTS: usize = 100_000;
+pub(crate) const MAX_INLINE_POINTS: usize = 100_000;
 
 /// The largest scene text (16 MiB): checked before it is parsed.
-pub const MAX_SCENE_BYTES: usize = 16 << 20;
+pub(crate) const MAX_SCENE_BYTES: usize = 16 << 20;
 
 /// The most lights a scene may have: each fills and sweeps a map of its own.
-pub const MAX_LIGHTS: usize = 16;
+pub(crate) const MAX_LIGHTS: usize = 16;
 
 /// The most bodies a scene may have: each is tested at every guide point
 /// of every time step.
-pub const MAX_BODIES: usize = 256;
+pub(crate) const MAX_BODIES: usize = 256;
 
 /// The most density-map cells of all the lights' maps together (about
 /// 1 GB of quanta): 512^3 for two lights, 256^3 for sixteen.
-pub const MAX_MAP_CELLS: u64 = 1 << 28;
+pub(crate) const MAX_MAP_CELLS: u64 = 1 << 28;
 
 /// The most keyframes of a keyframed motion.
-pub const MAX_KEYFRAMES: usize = 10_000;
+pub(crate) const MAX_KEYFRAMES: usize = 10_000;
 
 /// The shadow method and its settings (see [`MethodConfig`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -319,27 +316,27 @@ pub struct Scene {
 }
 
 /// Defaults, documented in the module comment and docs/scene.md.
-pub const DEFAULT_LIGHT_DIRECTION: [f32; 3] = [0.9, -0.35, -0.25];
+pub(crate) const DEFAULT_LIGHT_DIRECTION: [f32; 3] = [0.9, -0.35, -0.25];
 /// A spot light's cone and soft edge, degrees.
-pub const DEFAULT_CONE_DEG: f32 = 30.0;
-pub const DEFAULT_FALLOFF_DEG: f32 = 5.0;
-pub const DEFAULT_FIBER_WIDTH: f32 = 0.1;
-pub const DEFAULT_FOLLOW_RADIUS: f32 = 0.4;
-pub const DEFAULT_FIBER_OPACITY: f32 = 0.5;
-pub const DEFAULT_CELLS: u32 = 128;
-pub const DEFAULT_SUBDIVIDE: u32 = 2;
-pub const DEFAULT_TFX_FOLLOWERS: u32 = 15;
-pub const DEFAULT_WIDTH: u32 = 1280;
-pub const DEFAULT_HEIGHT: u32 = 720;
-pub const DEFAULT_FOV_DEG: f32 = 30.0;
-pub const DEFAULT_BACKGROUND: [f32; 3] = [0.02, 0.025, 0.035];
-pub const DEFAULT_HAIR_ALPHA: f32 = 0.85;
-pub const DEFAULT_HEAD_COLOR: [f32; 3] = [0.55, 0.38, 0.3];
+pub(crate) const DEFAULT_CONE_DEG: f32 = 30.0;
+pub(crate) const DEFAULT_FALLOFF_DEG: f32 = 5.0;
+pub(crate) const DEFAULT_FIBER_WIDTH: f32 = 0.1;
+pub(crate) const DEFAULT_FOLLOW_RADIUS: f32 = 0.4;
+pub(crate) const DEFAULT_FIBER_OPACITY: f32 = 0.5;
+pub(crate) const DEFAULT_CELLS: u32 = 128;
+pub(crate) const DEFAULT_SUBDIVIDE: u32 = 2;
+pub(crate) const DEFAULT_TFX_FOLLOWERS: u32 = 15;
+pub(crate) const DEFAULT_WIDTH: u32 = 1280;
+pub(crate) const DEFAULT_HEIGHT: u32 = 720;
+pub(crate) const DEFAULT_FOV_DEG: f32 = 30.0;
+pub(crate) const DEFAULT_BACKGROUND: [f32; 3] = [0.02, 0.025, 0.035];
+pub(crate) const DEFAULT_HAIR_ALPHA: f32 = 0.85;
+pub(crate) const DEFAULT_HEAD_COLOR: [f32; 3] = [0.55, 0.38, 0.3];
 
 /// The built-in scene: the smooth style with a middle parting and a fringe
 /// on a head with a face ([`BUILT_IN_HEAD`]), dancing, seen from three
 /// quarters on the lit side; every other key at its default.
-pub const BUILT_IN_SCENE: &str = "[hair]\nstyle = \"smooth\"\nparting = true\n\n\
+pub(crate) const BUILT_IN_SCENE: &str = "[hair]\nstyle = \"smooth\"\nparting = true\n\n\
 [head]\nmesh = \"head.obj\"\n\n\
 [animation]\nmotion = \"dance\"\n\n\
 [camera]\nview = \"three-quarter-left\"\n";
@@ -347,7 +344,7 @@ pub const BUILT_IN_SCENE: &str = "[hair]\nstyle = \"smooth\"\nparting = true\n\n
 /// The built-in scene's head mesh, `head.obj` in it: `scenes/head.obj`,
 /// made by `scenes/make_head.py` (the styles' sphere of radius 10 above the
 /// middle, a jaw, a nose and a neck below).
-pub const BUILT_IN_HEAD: &[u8] = include_bytes!("../../../scenes/head.obj");
+pub(crate) const BUILT_IN_HEAD: &[u8] = include_bytes!("../../../scenes/head.obj");
 
 impl Default for Scene {
     /// The built-in scene ([`BUILT_IN_SCENE`]), its head mesh held in its

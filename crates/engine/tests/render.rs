@@ -360,25 +360,25 @@ fn the_default_view_turns_to_three_quarters_for_a_groom_seen_edge_on() {
         min: Vec3::new(-10.0, -20.0, -8.0),
         max: Vec3::new(10.0, 12.0, 9.0),
     };
-    let front = engine::render::view_direction(head, CameraView::Auto);
+    let front = engine::view_direction(head, CameraView::Auto);
     assert!(front.x == 0.0 && front.z > 0.9, "{front}");
     // A mohawk: 3 wide, 24 deep.
     let mohawk_bounds = Bounds {
         min: Vec3::new(-1.5, 0.0, -12.0),
         max: Vec3::new(1.5, 10.0, 12.0),
     };
-    let mohawk = engine::render::view_direction(mohawk_bounds, CameraView::Auto);
+    let mohawk = engine::view_direction(mohawk_bounds, CameraView::Auto);
     assert!(
         (mohawk.x - mohawk.z).abs() < 1e-6 && mohawk.x > 0.6,
         "{mohawk}"
     );
     assert!((mohawk.length() - 1.0).abs() < 1e-6 && (front.length() - 1.0).abs() < 1e-6);
     // A view asked for is kept, edge-on or not.
-    let asked = engine::render::view_direction(mohawk_bounds, CameraView::Front);
+    let asked = engine::view_direction(mohawk_bounds, CameraView::Front);
     assert!(asked.x == 0.0 && asked.z > 0.9, "{asked}");
-    let left = engine::render::view_direction(head, CameraView::ThreeQuarterLeft);
+    let left = engine::view_direction(head, CameraView::ThreeQuarterLeft);
     assert!((left.x + left.z).abs() < 1e-6 && left.z > 0.6, "{left}");
-    let side = engine::render::view_direction(head, CameraView::Right);
+    let side = engine::view_direction(head, CameraView::Right);
     assert!(side.x > 0.9 && side.z == 0.0, "{side}");
 }
 

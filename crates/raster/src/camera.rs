@@ -9,6 +9,7 @@ use crate::RasterError;
 /// `width x height` pixels.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Camera {
+    /// The eye, scene units.
     pub position: Vec3,
     /// Right, up and forward unit axes of the view.
     right: Vec3,
@@ -26,9 +27,13 @@ pub struct Camera {
 }
 
 /// Points closer to the camera than this (scene units) are not drawn.
-pub const NEAR: f32 = 1e-3;
+pub(crate) const NEAR: f32 = 1e-3;
 
 impl Camera {
+    /// A camera at `position` looking at `look_at` (+y up, or +z when
+    /// looking straight up or down), `fov_deg` the vertical field of view,
+    /// for `width x height` pixels; refuses non-finite or coincident
+    /// points and a field of view outside (0.1, 179) degrees.
     pub fn new(
         position: Vec3,
         look_at: Vec3,
@@ -136,10 +141,12 @@ impl Camera {
         self.focal
     }
 
+    /// Image width, pixels.
     pub fn width(&self) -> u32 {
         self.width
     }
 
+    /// Image height, pixels.
     pub fn height(&self) -> u32 {
         self.height
     }

@@ -295,6 +295,8 @@ impl FarField {
         FarField { at }
     }
 
+    /// The scattering by lobe (R, TT, TRT, the rest) from `wi` to `wo`,
+    /// averaged across the fiber, per channel.
     pub fn lobes(&self, wo: Vec3, wi: Vec3) -> [Vec3; P_MAX + 1] {
         let mut out = [Vec3::ZERO; P_MAX + 1];
         for (c, w) in &self.at {
@@ -305,6 +307,8 @@ impl FarField {
         out
     }
 
+    /// The scattering function from `wi` to `wo` averaged across the
+    /// fiber: the sum of [`Self::lobes`].
     pub fn f(&self, wo: Vec3, wi: Vec3) -> Vec3 {
         self.lobes(wo, wi).iter().copied().sum()
     }

@@ -9,6 +9,8 @@
 //! ([`HairLayer`]) are composited together: each group's fragments are
 //! summed in floating point, the groups' sums in exact integers.
 
+#![warn(unreachable_pub, missing_docs)]
+
 mod camera;
 mod canvas;
 mod fiber;
@@ -36,20 +38,34 @@ pub const fn canvas_max_side() -> u32 {
 /// Errors of picture making.
 #[derive(Debug, thiserror::Error)]
 pub enum RasterError {
+    /// An image size out of range.
     #[error("image size {width}x{height}: must be 1..={max} pixels a side and at most {pixels} pixels", max = canvas::MAX_SIDE, pixels = MAX_PIXELS)]
-    Size { width: u32, height: u32 },
+    Size {
+        /// Asked width, pixels.
+        width: u32,
+        /// Asked height, pixels.
+        height: u32,
+    },
+    /// A partial picture that does not fit the canvas or is malformed.
     #[error("partial picture: {0}")]
     Layer(String),
+    /// A camera that cannot be made.
     #[error("camera: {0}")]
     Camera(String),
+    /// A file that cannot be written.
     #[error("cannot write {}: {cause}", path.display())]
     Write {
+        /// The file.
         path: std::path::PathBuf,
+        /// Why.
         cause: std::io::Error,
     },
+    /// A picture the encoder refused.
     #[error("cannot encode {path}: {message}")]
     Encode {
+        /// The file.
         path: std::path::PathBuf,
+        /// The encoder's reason.
         message: String,
     },
 }

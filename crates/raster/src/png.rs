@@ -80,6 +80,7 @@ pub struct AtomicFile {
 }
 
 impl AtomicFile {
+    /// Starts writing `path` (see the type's documentation).
     pub fn create(path: &Path) -> Result<AtomicFile, RasterError> {
         let write_err = |cause| RasterError::Write {
             path: path.to_owned(),
@@ -161,6 +162,7 @@ impl AtomicFile {
         Ok(self)
     }
 
+    /// Where the bytes go, until the commit.
     pub fn writer(&mut self) -> &mut BufWriter<std::fs::File> {
         self.out.as_mut().expect("not yet committed")
     }

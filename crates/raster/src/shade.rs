@@ -22,8 +22,11 @@ pub enum ShadingModel {
     /// its colour ([`crate::sigma_a_from_color`]) and `optics.sigma_a` is
     /// unused.
     Marschner {
+        /// The fiber's optical properties.
         optics: FiberOptics,
+        /// Whether each strand's colour sets its absorption.
         from_color: bool,
+        /// Irradiance of each light.
         irradiance: f32,
         /// Light scattered between fibers too (dual scattering from the
         /// transmittance, see [`crate::DualTable`]); else single

@@ -186,7 +186,7 @@ fn check_source(position: Vec3, intensity: f32) -> Result<(), ShadowError> {
 
 /// Where [`LightFrame::to_cells`] puts a point that is not in front of a
 /// fan's source: in front of the map, outside it.
-pub const BEHIND: Vec3 = Vec3::splat(-3.0);
+pub(crate) const BEHIND: Vec3 = Vec3::splat(-3.0);
 
 /// The widest a map from a source may open: hair at most `atan` of this
 /// (71.6 degrees) from its axis.

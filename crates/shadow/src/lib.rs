@@ -15,6 +15,8 @@
 //!
 //! The crate knows nothing of cameras, shading, files or networks.
 
+#![warn(unreachable_pub)]
+
 mod config;
 mod density;
 mod fiber;

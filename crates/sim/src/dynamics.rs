@@ -64,6 +64,7 @@ impl Default for SimParams {
 }
 
 impl SimParams {
+    /// Checks every setting, naming the first out of range.
     pub fn validate(&self) -> Result<(), SimError> {
         let bad = |what: &str, v: String| Err(SimError::Params(format!("{what} = {v}")));
         if !(self.dt.is_finite() && self.dt > 0.0 && self.dt <= 1.0) {
@@ -91,7 +92,9 @@ impl SimParams {
 /// A sphere hair collides with (head, neck, shoulders), in world space.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Body {
+    /// Centre, scene units.
     pub center: Vec3,
+    /// Radius, scene units.
     pub radius: f32,
 }
 
@@ -104,7 +107,9 @@ pub trait ForceField: Sync {
 /// The state of one wisp: its three guides' points, now and one step ago.
 #[derive(Debug, Clone, PartialEq)]
 pub struct WispState {
+    /// The three guides' points, guide after guide.
     pub pos: Vec<Vec3>,
+    /// The same points one step ago (Verlet).
     pub prev: Vec<Vec3>,
 }
 
@@ -159,10 +164,12 @@ impl HairSim {
         })
     }
 
+    /// The settings it steps with.
     pub fn params(&self) -> &SimParams {
         &self.params
     }
 
+    /// Wisps simulated.
     pub fn wisp_count(&self) -> usize {
         self.wisps.len()
     }
@@ -284,6 +291,7 @@ impl HairSim {
             });
     }
 
+    /// The state of wisp `w`.
     pub fn wisp(&self, w: usize) -> &WispState {
         &self.wisps[w]
     }

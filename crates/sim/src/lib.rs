@@ -7,6 +7,8 @@
 //! state and its inputs, so any split of wisps over threads or machines
 //! gives the same bytes. Knows nothing of light, pictures or files.
 
+#![warn(unreachable_pub, missing_docs)]
+
 mod dynamics;
 mod motion;
 
@@ -16,10 +18,13 @@ pub use motion::{Keyframe, Motion};
 /// Errors of the simulation's inputs.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum SimError {
+    /// A setting out of range.
     #[error("simulation settings: {0}")]
     Params(String),
+    /// Guide strands that cannot be simulated.
     #[error("guide strands: {0}")]
     Guides(String),
+    /// A head motion that cannot be played.
     #[error("head motion: {0}")]
     Motion(String),
 }

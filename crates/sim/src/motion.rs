@@ -9,8 +9,11 @@ use crate::SimError;
 /// moved by `translate` (scene units).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Keyframe {
+    /// When, seconds.
     pub time: f32,
+    /// Movement, scene units.
     pub translate: Vec3,
+    /// Rotation about x, then y, then z, degrees.
     pub rotate_deg: Vec3,
 }
 
@@ -26,7 +29,11 @@ pub enum Motion {
     /// to side (yaw 40 degrees at 0.5 Hz), nods (12 degrees at 1 Hz), rolls
     /// (6 degrees at 2/3 Hz) and sways sideways (3 units at 1/3 Hz), all
     /// scaled by `amplitude`; at time 0 the head is at rest.
-    Dance { amplitude: f32 },
+    /// The dance.
+    Dance {
+        /// 1 for the movement described, 0 for none.
+        amplitude: f32,
+    },
 }
 
 impl Motion {
@@ -66,6 +73,7 @@ impl Motion {
         }
     }
 
+    /// Whether the head never moves.
     pub fn is_still(&self) -> bool {
         match self {
             Motion::Still => true,

@@ -11,6 +11,8 @@
 //! It knows nothing of light, shadows, cameras or simulation, and does no I/O
 //! beyond reading the one file a loader is given.
 
+#![warn(unreachable_pub)]
+
 mod catmull_rom;
 mod files;
 mod follow;

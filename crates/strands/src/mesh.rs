@@ -175,7 +175,7 @@ impl Mesh {
 
 /// The share of a head mesh's height, from the top, that the first fit of
 /// [`Mesh::crown_sphere`] goes through.
-pub const CROWN_SHARE: f32 = 0.15;
+pub(crate) const CROWN_SHARE: f32 = 0.15;
 
 /// Kasa's least-squares sphere through `points` (see
 /// [`Mesh::crown_sphere`]): centre and radius, or `None` for fewer than 10

@@ -34,32 +34,53 @@ pub const EFFECTS: [&str; 7] = [
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum Control {
+    /// Play the animation.
     Play {},
+    /// Stop it.
     Pause {},
+    /// Render the next frame.
     Step {},
+    /// Turn the camera about its target.
     Orbit {
+        /// About the vertical, degrees.
         yaw_deg: f32,
+        /// Up or down, degrees.
         pitch_deg: f32,
     },
+    /// Move the camera towards its target or away.
     Zoom {
+        /// The distance is multiplied by this.
         factor: f32,
     },
+    /// The camera the first frame framed.
     ResetCamera {},
+    /// Place light `index`, seen from the hair's centre.
     Light {
+        /// Which light, in the scene's order.
         index: usize,
+        /// About +y from the front (+z) towards +x, degrees.
         azimuth_deg: f32,
+        /// Above the horizon, degrees.
         elevation_deg: f32,
+        /// A point or spot light's distance from the centre, scene units; kept when absent.
         #[serde(default)]
         distance: Option<f32>,
     },
+    /// Switch an effect of the scene's `[effects]`.
     Effect {
+        /// The effect's key.
         name: String,
+        /// On or off.
         on: bool,
     },
+    /// Choose the shadow method and its settings.
     Shadow {
+        /// The method's name.
         method: String,
+        /// Its main setting (slices, layers, clusters, tolerance, rays); kept when absent.
         #[serde(default)]
         setting: Option<f64>,
+        /// Cells (or light-view pixels) a side; kept when absent.
         #[serde(default)]
         cells: Option<u32>,
     },
@@ -151,7 +172,7 @@ impl Control {
 
 /// The main setting of each shadow method a page can set: its name in
 /// scene files, and its value in `method`.
-pub fn main_setting(method: &shadow::MethodConfig) -> Option<(&'static str, f64)> {
+pub(crate) fn main_setting(method: &shadow::MethodConfig) -> Option<(&'static str, f64)> {
     use shadow::MethodConfig as M;
     match *method {
         M::DensityMap { .. } => None,
@@ -165,7 +186,7 @@ pub fn main_setting(method: &shadow::MethodConfig) -> Option<(&'static str, f64)
 
 /// `method` with its main setting set to `value` (rounded for counts),
 /// checked by the method's own validation.
-pub fn with_main_setting(
+pub(crate) fn with_main_setting(
     mut method: shadow::MethodConfig,
     value: f64,
 ) -> Result<shadow::MethodConfig, ViewerError> {

@@ -13,6 +13,8 @@
 //! stalled page misses frames and slows nobody. This crate and the
 //! cluster crate are the only ones that know networking.
 
+#![warn(unreachable_pub, missing_docs)]
+
 mod control;
 mod server;
 mod session;
@@ -31,17 +33,24 @@ pub enum ViewerError {
     /// A camera control before the first frame framed the camera.
     #[error("the camera moves once the first frame is drawn")]
     NotYet,
+    /// A frame that failed.
     #[error(transparent)]
     Engine(#[from] engine::EngineError),
+    /// A picture that could not be encoded.
     #[error(transparent)]
     Raster(#[from] raster::RasterError),
+    /// The address cannot be listened on.
     #[error("cannot listen on {addr}: {error}")]
     Listen {
+        /// The address.
         addr: std::net::SocketAddr,
+        /// Why.
         error: std::io::Error,
     },
+    /// The server stopped with an error.
     #[error("the viewer's server failed: {0}")]
     Serve(std::io::Error),
+    /// No access token could be made.
     #[error("no randomness for the access token: {0}")]
     Token(String),
 }

@@ -46,7 +46,9 @@ pub struct Options {
 /// (listening beyond loopback).
 #[derive(Debug, Clone)]
 pub struct Bound {
+    /// The address listened on.
     pub addr: SocketAddr,
+    /// The token pages must give (listening beyond loopback).
     pub token: Option<String>,
 }
 

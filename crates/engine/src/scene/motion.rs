@@ -138,22 +138,22 @@ pub struct BodySettings {
     pub follows_head: bool,
 }
 
-pub const DEFAULT_FPS: f32 = 30.0;
+pub(super) const DEFAULT_FPS: f32 = 30.0;
 /// The most simulation steps one frame may take.
-pub const MAX_STEPS_PER_FRAME: u32 = 1000;
+pub(super) const MAX_STEPS_PER_FRAME: u32 = 1000;
 /// The most steps the settling before frame 0 may take.
-pub const MAX_SETTLE_STEPS: u32 = 100_000;
-pub const DEFAULT_SETTLE_S: f32 = 1.0;
-pub const DEFAULT_DANCE_AMPLITUDE: f32 = 1.0;
+pub(super) const MAX_SETTLE_STEPS: u32 = 100_000;
+pub(super) const DEFAULT_SETTLE_S: f32 = 1.0;
+pub(super) const DEFAULT_DANCE_AMPLITUDE: f32 = 1.0;
 /// Twice the density around a typical strand of the smooth style (half its
 /// hair lies in cells below 10 per cm^2 at 128^3 cells): only where wisps
 /// crowd together does hair push.
-pub const DEFAULT_COLLISION_DENSITY: f32 = 20.0;
+pub(super) const DEFAULT_COLLISION_DENSITY: f32 = 20.0;
 /// At twice the threshold density, about gravity.
-pub const DEFAULT_REPULSION: f32 = 1000.0;
+pub(super) const DEFAULT_REPULSION: f32 = 1000.0;
 /// Three times gravity: enough to part wisps, bounded so that a very dense
 /// cell cannot fling hair.
-pub const DEFAULT_MAX_ACCELERATION: f32 = 3000.0;
+pub(super) const DEFAULT_MAX_ACCELERATION: f32 = 3000.0;
 
 impl Validator<'_> {
     pub(super) fn effects(&self, e: RawEffects, from_file: bool) -> Result<Effects, SceneError> {

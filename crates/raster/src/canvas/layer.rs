@@ -96,10 +96,12 @@ impl HairLayer {
         self.append(other);
     }
 
+    /// Picture width, pixels.
     pub fn width(&self) -> u32 {
         self.width
     }
 
+    /// Picture height, pixels.
     pub fn height(&self) -> u32 {
         self.height
     }

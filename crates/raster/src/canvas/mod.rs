@@ -34,7 +34,7 @@ use crate::{Camera, RasterError};
 use line::{ScreenVertex, Steps, is_steep, line_steps};
 
 /// The largest image side, in pixels.
-pub const MAX_SIDE: u32 = 16_384;
+pub(crate) const MAX_SIDE: u32 = 16_384;
 /// The most pixels an image may have (about 200 MB of accumulators).
 pub const MAX_PIXELS: u64 = 40_000_000;
 
@@ -207,6 +207,7 @@ impl Scratch {
 }
 
 impl Canvas {
+    /// An empty canvas of `width x height` pixels (each side in 1..=`MAX_SIDE`).
     pub fn new(width: u32, height: u32) -> Result<Canvas, RasterError> {
         if !(1..=MAX_SIDE).contains(&width)
             || !(1..=MAX_SIDE).contains(&height)
@@ -253,10 +254,12 @@ impl Canvas {
         self.looks.clear();
     }
 
+    /// Canvas width, pixels.
     pub fn width(&self) -> u32 {
         self.width as u32
     }
 
+    /// Canvas height, pixels.
     pub fn height(&self) -> u32 {
         self.height as u32
     }

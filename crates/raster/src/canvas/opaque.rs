@@ -10,7 +10,9 @@ use crate::Camera;
 /// An opaque sphere: the default head.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sphere {
+    /// Centre, scene units.
     pub center: Vec3,
+    /// Radius, scene units.
     pub radius: f32,
 }
 

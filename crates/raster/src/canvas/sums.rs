@@ -34,11 +34,14 @@ const MAX_ABSORB: u64 = 126 << ABSORB_SHIFT;
 /// units of 2^-24; `absorb` the absorbance in units of 2^-16.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Sums {
+    /// Colour times alpha times weight (red, green, blue) and alpha times weight, units of 2^-24.
     pub rgbw: [i64; 4],
+    /// Absorbance `-log2 prod(1 - alpha)`, units of 2^-16.
     pub absorb: u64,
 }
 
 impl Sums {
+    /// No hair.
     pub const ZERO: Sums = Sums {
         rgbw: [0; 4],
         absorb: 0,
