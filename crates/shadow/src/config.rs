@@ -11,7 +11,10 @@ pub enum OpacityMode {
     /// `T = exp(-kappa Omega)`. With `Omega` an optical depth in physical
     /// units, `kappa = 1` estimates the same quantity as every other method
     /// (Koster's 5.56 made up for opacities in arbitrary units).
-    Exponential { kappa: f32 },
+    Exponential {
+        /// The extinction per unit of accumulated opacity.
+        kappa: f32,
+    },
 }
 
 /// What a deep opacity map does with hair past its last layer (Yuksel and
@@ -27,8 +30,10 @@ pub enum Beyond {
 }
 
 impl Beyond {
+    /// Every choice's name, as scenes and the command line spell it.
     pub const NAMES: &[&str] = &["ignore", "last-layer", "cover"];
 
+    /// The choice named `name`, if any.
     pub fn from_name(name: &str) -> Option<Beyond> {
         match name {
             "ignore" => Some(Beyond::Ignore),
@@ -38,6 +43,7 @@ impl Beyond {
         }
     }
 
+    /// The choice's name.
     pub fn name(self) -> &'static str {
         match self {
             Beyond::Ignore => "ignore",
@@ -52,51 +58,78 @@ impl Beyond {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum MethodConfig {
     /// Bertails, Ménier and Cani 2005: the light-oriented density map.
-    DensityMap { cells: u32, filter: bool },
+    DensityMap {
+        /// Cells a side.
+        cells: u32,
+        /// Trilinear lookups (else the cell's own value).
+        filter: bool,
+    },
     /// Kim and Neumann 2001, as Koster et al. 2004 describe it: `slices`
     /// uniform maps of accumulated opacity between the hair's nearest and
     /// farthest depth, interpolated linearly between maps; lookups shifted
     /// `offset` slice spacings towards the light.
     OpacityShadowMap {
+        /// Light-view pixels a side.
         resolution: u32,
+        /// Uniform slice planes, 2 to 4096.
         slices: u32,
+        /// How accumulated opacity becomes transmittance.
         mode: OpacityMode,
+        /// Lookup shift towards the light, in slice spacings.
         offset: f32,
+        /// Bilinear lookups between pixels (else the nearest pixel).
         filter: bool,
     },
     /// Yuksel and Keyser 2008: per pixel, `layers` layers of
     /// `layer_cells` cells each, starting at the pixel's first hair.
     DeepOpacityMap {
+        /// Light-view pixels a side.
         resolution: u32,
+        /// Layers per pixel, 1 to 64.
         layers: u32,
+        /// Layer thickness, cells (ignored with `Beyond::Cover`).
         layer_cells: f32,
+        /// What hair past the last layer does.
         beyond: Beyond,
+        /// Bilinear lookups between pixels (else the nearest pixel).
         filter: bool,
     },
     /// Mertens et al. 2004: per pixel, one k-means iteration over the
     /// fragments' depths, one histogram bin of `mu +- sqrt(3) sigma` per
     /// cluster.
     DensityClustering {
+        /// Light-view pixels a side.
         resolution: u32,
+        /// Depth clusters (bins) per pixel, 1 to 16.
         clusters: u32,
+        /// Bilinear lookups between pixels (else the nearest pixel).
         filter: bool,
     },
     /// Lokovic and Veach 2000: per pixel, the visibility function of all
     /// fragments, compressed to a piecewise linear function within
     /// `tolerance` (in transmittance).
     DeepShadowMap {
+        /// Light-view pixels a side.
         resolution: u32,
+        /// Largest error of the compressed visibility, in transmittance, [0, 1).
         tolerance: f32,
+        /// Bilinear lookups between pixels (else the nearest pixel).
         filter: bool,
     },
     /// Transmittance from the fiber geometry itself (see
     /// [`crate::Reference`]) over a square footprint of side
     /// `footprint` scene units (default: one cell of a 128^3 map fitted to
     /// the hair); `rays` samples of the footprint for opaque occluders.
-    Reference { footprint: Option<f32>, rays: u32 },
+    Reference {
+        /// Side of the square footprint, scene units (default: a cell of a 128^3 map).
+        footprint: Option<f32>,
+        /// Rays sampling the footprint for opaque occluders, 1 to 4096.
+        rays: u32,
+    },
 }
 
 impl MethodConfig {
+    /// Every method's name, as scenes and the command line spell it.
     pub const NAMES: &[&str] = &[
         "density-map",
         "opacity-shadow-map",
@@ -145,6 +178,7 @@ impl MethodConfig {
         })
     }
 
+    /// The method's name.
     pub fn name(&self) -> &'static str {
         match self {
             MethodConfig::DensityMap { .. } => "density-map",

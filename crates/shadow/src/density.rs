@@ -76,18 +76,23 @@ struct Scratch {
 /// a point in front of it has no hair between itself and the light.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ColumnMeta {
+    /// First occupied cell.
     pub lo: u16,
+    /// Last occupied cell.
     pub hi: u16,
+    /// Where the hair starts, slice coordinate in cells.
     pub front: f32,
 }
 
 impl ColumnMeta {
+    /// A column with no hair.
     pub const EMPTY: ColumnMeta = ColumnMeta {
         lo: EMPTY_LO,
         hi: 0,
         front: f32::INFINITY,
     };
 
+    /// Whether the column holds no hair.
     pub fn is_empty(&self) -> bool {
         self.lo > self.hi
     }
@@ -162,6 +167,7 @@ impl DensityMap {
         }
     }
 
+    /// The map's frame.
     pub fn frame(&self) -> &LightFrame {
         &self.frame
     }

@@ -24,6 +24,7 @@ pub struct Fiber {
 }
 
 impl Fiber {
+    /// A fiber of `width` scene units (finite, > 0) and `opacity` in [0, 1].
     pub fn new(width: f32, opacity: f32) -> Result<Fiber, ShadowError> {
         if !(width.is_finite() && width > 0.0) {
             return Err(ShadowError::FiberWidth(width));

@@ -14,25 +14,39 @@ pub const MAX_CELLS: u32 = 512;
 pub enum Light {
     /// Parallel rays travelling along `direction` (unit), as from the sun,
     /// of irradiance 1 (the shading's unit).
-    Directional { direction: Vec3 },
+    Directional {
+        /// Where the rays travel (unit).
+        direction: Vec3,
+    },
     /// Rays from `position` in every direction; the irradiance at distance
     /// `r` is `intensity / r^2` (`intensity` in irradiance units times
     /// scene units squared: 100 gives the directional light's irradiance
     /// at 10 units).
-    Point { position: Vec3, intensity: f32 },
+    Point {
+        /// The source, scene units.
+        position: Vec3,
+        /// Irradiance times distance squared.
+        intensity: f32,
+    },
     /// A point light whose rays are limited to a cone around `direction`
     /// (unit): full inside `cone_deg - falloff_deg` of it, none past
     /// `cone_deg`, a smooth step between ([`Light::falloff`]).
     Spot {
+        /// The source, scene units.
         position: Vec3,
+        /// The cone's axis (unit).
         direction: Vec3,
+        /// Half-angle of the cone, degrees.
         cone_deg: f32,
+        /// Width of the smooth edge inside the cone, degrees.
         falloff_deg: f32,
+        /// Irradiance times distance squared, on the axis.
         intensity: f32,
     },
 }
 
 impl Light {
+    /// A directional light whose rays travel along `direction` (any length but zero).
     pub fn directional(direction: Vec3) -> Result<Light, ShadowError> {
         Ok(Light::Directional {
             direction: unit(direction)?,
@@ -207,6 +221,7 @@ pub const MAX_FAN_TAN: f32 = 3.0;
 /// equal `x`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Fan {
+    /// The light's position, scene units.
     pub source: Vec3,
     /// `(x0, u0, v0)`: cell `(0, 0, 0)`'s corner.
     pub start: Vec3,
@@ -226,11 +241,13 @@ pub struct Fan {
 /// a false shadow).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LightFrame {
+    /// The corner of cell `(0, 0, 0)` (for a fan, the source), scene units.
     pub origin: Vec3,
     /// X_map (= light direction), Y_map, Z_map: orthonormal.
     pub axes: [Vec3; 3],
     /// Cell side, in scene units.
     pub ds: f32,
+    /// Cells a side.
     pub n_cells: u32,
     /// The partition from a point source, for point and spot lights.
     pub fan: Option<Fan>,
@@ -462,16 +479,20 @@ impl LightFrame {
 /// order, into the extent of all of it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Extent {
+    /// Smallest coordinate along each axis.
     pub lo: Vec3,
+    /// Largest coordinate along each axis.
     pub hi: Vec3,
 }
 
 impl Extent {
+    /// The extent of no points.
     pub const EMPTY: Extent = Extent {
         lo: Vec3::splat(f32::INFINITY),
         hi: Vec3::splat(f32::NEG_INFINITY),
     };
 
+    /// Whether no point is in it.
     pub fn is_empty(&self) -> bool {
         !(self.lo.cmple(self.hi).all())
     }

@@ -12,9 +12,13 @@ pub const OPAQUE_DEPTH: f32 = 30.0;
 /// What one light's shadow method works from in one frame.
 #[derive(Debug, Clone, Copy)]
 pub struct ShadowInput<'a> {
+    /// The light.
     pub light: &'a Light,
+    /// The drawn hair (empty when posed elsewhere, see `extent`).
     pub hair: &'a Hair,
+    /// Width and opacity of every fiber.
     pub fiber: &'a Fiber,
+    /// Opaque bodies (the head).
     pub occluders: &'a [Occluder],
     /// Where the map is fitted from: the hair's [`Extent`] along this
     /// light's axes from an anchor point near it, when the caller knows

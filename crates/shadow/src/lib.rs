@@ -15,7 +15,7 @@
 //!
 //! The crate knows nothing of cameras, shading, files or networks.
 
-#![warn(unreachable_pub)]
+#![warn(unreachable_pub, missing_docs)]
 
 mod config;
 mod density;
@@ -45,33 +45,58 @@ pub use transmittance::{
 /// Errors of the shadow stages.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum ShadowError {
+    /// A fiber width that is not a finite number > 0.
     #[error("fiber width {0} is not a finite number > 0")]
     FiberWidth(f32),
+    /// A fiber opacity outside [0, 1].
     #[error("fiber opacity {0} is not in [0, 1]")]
     FiberOpacity(f32),
+    /// A zero or non-finite light direction.
     #[error("light direction {0} is zero or not finite")]
     LightDirection(glam::Vec3),
+    /// A light setting out of range.
     #[error("light {what} = {value}: {why}")]
     LightSetting {
+        /// The setting.
         what: &'static str,
+        /// Its value.
         value: String,
+        /// The range it must be in.
         why: &'static str,
     },
     #[error(
         "the light at {position} is inside the hair or too close to it: all of it must lie \
          within {max_deg:.1} degrees of the direction from the light to the hair, in front of the light"
     )]
-    LightInside { position: glam::Vec3, max_deg: f32 },
+    /// A point or spot light inside the hair, or too close to fan over it.
+    LightInside {
+        /// The light's position.
+        position: glam::Vec3,
+        /// The widest angle a fan may open, degrees.
+        max_deg: f32,
+    },
+    /// A map side outside 1..=`MAX_CELLS`.
     #[error("map of {0} cells a side is outside 1..={MAX_CELLS}")]
     Cells(u32),
+    /// A map size that is not a finite number > 0.
     #[error("map size {0} is not a finite number > 0")]
     MapSize(f32),
+    /// A shadow method's setting out of range.
     #[error("shadow setting {name} = {value}: {why}")]
     Setting {
+        /// The setting.
         name: &'static str,
+        /// Its value.
         value: String,
+        /// The range it must be in.
         why: &'static str,
     },
+    /// Swept slabs that do not tile the map's columns.
     #[error("slabs do not tile the map's {expected} columns: {detail}")]
-    Slabs { expected: usize, detail: String },
+    Slabs {
+        /// The map's columns.
+        expected: usize,
+        /// What is missing or doubled.
+        detail: String,
+    },
 }

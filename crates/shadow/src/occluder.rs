@@ -10,8 +10,11 @@ use crate::LightFrame;
 /// An opaque body that blocks light (a head), in world coordinates.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Occluder {
+    /// A sphere.
     Sphere {
+        /// Centre, scene units.
         center: Vec3,
+        /// Radius, scene units.
         radius: f32,
     },
     /// A triangle mesh, as it stands in this frame. A closed mesh blocks
@@ -21,6 +24,7 @@ pub enum Occluder {
 }
 
 impl Occluder {
+    /// A sphere of `radius` at `center`.
     pub fn sphere(center: Vec3, radius: f32) -> Occluder {
         Occluder::Sphere { center, radius }
     }
@@ -221,6 +225,7 @@ pub struct OccluderView {
 }
 
 impl OccluderView {
+    /// `occluders` prepared for queries along the columns of `frame`.
     pub fn new(frame: LightFrame, occluders: &[Occluder]) -> OccluderView {
         let n = frame.n_cells as usize;
         let mut spheres = Vec::new();

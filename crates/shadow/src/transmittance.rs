@@ -13,13 +13,18 @@ use crate::{DEPTH_QUANTUM, DensityMap, LightFrame, ShadowError};
 /// column has `lo > hi`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Span {
+    /// First occupied cell.
     pub lo: u16,
+    /// Last occupied cell.
     pub hi: u16,
+    /// Where the span's depths start in the slab's `depth`.
     pub start: u32,
+    /// Where the hair starts, slice coordinate in cells.
     pub front: f32,
 }
 
 impl Span {
+    /// A column with no hair.
     pub const EMPTY: Span = Span {
         lo: 1,
         hi: 0,
@@ -30,10 +35,12 @@ impl Span {
     /// The latest front inside cell `lo` that keeps its depth ramp finite.
     const FRONT_GAP: f32 = 1.0 / 1024.0;
 
+    /// Whether the column holds no hair.
     pub fn is_empty(&self) -> bool {
         self.lo > self.hi
     }
 
+    /// Occupied cells.
     pub fn len(&self) -> usize {
         if self.is_empty() {
             0
@@ -73,8 +80,11 @@ fn steps_to_depth(steps: u32) -> f32 {
 /// column's total.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ColumnSlab {
+    /// The columns swept, `k * n + j`.
     pub columns: Range<u32>,
+    /// One span per column.
     pub spans: Vec<Span>,
+    /// The spans' back-face depths, in steps of `DEPTH_STEP`.
     pub depth: Vec<u32>,
 }
 
@@ -500,6 +510,7 @@ impl Transmittance {
         })
     }
 
+    /// The frame of the map swept.
     pub fn frame(&self) -> &LightFrame {
         &self.frame
     }

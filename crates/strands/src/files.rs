@@ -11,18 +11,31 @@ use crate::ply::{parse_ply_mesh, parse_ply_strands};
 /// A file that could not be loaded, with its path.
 #[derive(Debug, thiserror::Error)]
 pub enum LoadError {
+    /// The file cannot be read.
     #[error("cannot read {}: {cause}", path.display())]
     Io {
+        /// The file.
         path: PathBuf,
+        /// Why.
         cause: std::io::Error,
     },
+    /// What the file holds is malformed.
     #[error("{}: {cause}", path.display())]
-    Format { path: PathBuf, cause: FormatError },
+    Format {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong, and where in the file.
+        cause: FormatError,
+    },
     #[error(
         "{}: unknown hair file type (expected .hair, .tfx, USC-HairSalon .data, CT2Hair .bin or PLY strands; convert Alembic curves to one of them, e.g. with hairutil)",
         path.display()
     )]
-    UnknownExtension { path: PathBuf },
+    /// An extension no parser reads.
+    UnknownExtension {
+        /// The file.
+        path: PathBuf,
+    },
     /// Alembic archives are not read: the Rust readers of Ogawa archives
     /// (ogawa-rs 0.4) are unfinished and trust the sizes a file claims.
     #[error(
@@ -30,21 +43,37 @@ pub enum LoadError {
         path.display(),
         path.display()
     )]
-    Alembic { path: PathBuf },
+    Alembic {
+        /// The archive.
+        path: PathBuf,
+    },
 }
 
 /// Why an OBJ file cannot be loaded.
 #[derive(Debug, thiserror::Error)]
 pub enum MeshLoadError {
+    /// The file cannot be read.
     #[error("cannot read {}: {cause}", path.display())]
     Io {
+        /// The file.
         path: PathBuf,
+        /// Why.
         cause: std::io::Error,
     },
+    /// What the file holds is malformed.
     #[error("{}: {cause}", path.display())]
-    Format { path: PathBuf, cause: MeshError },
+    Format {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong, and where in the file.
+        cause: MeshError,
+    },
+    /// An extension no parser reads.
     #[error("{}: unknown mesh file type (expected .obj or .ply)", path.display())]
-    UnknownExtension { path: PathBuf },
+    UnknownExtension {
+        /// The file.
+        path: PathBuf,
+    },
 }
 
 /// Loads `.hair`, `.tfx`, `.data`, `.bin` or `.ply` by extension.

@@ -14,6 +14,7 @@ pub struct FollowParams {
     pub radius: f32,
     /// How much wider the wisp is at the tip than at the root (1 = a cylinder).
     pub tip_spread: f32,
+    /// Seed of the follow strands' offsets.
     pub seed: u64,
 }
 

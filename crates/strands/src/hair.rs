@@ -19,26 +19,39 @@ pub struct Hair {
 /// Errors building hair from points.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum HairError {
+    /// A point with a coordinate that is NaN or infinite.
     #[error("strand {strand}, point {point}: coordinate ({x}, {y}, {z}) is not finite")]
     NonFinite {
+        /// Its strand.
         strand: usize,
+        /// Its index in the strand.
         point: usize,
+        /// Its x.
         x: f32,
+        /// Its y.
         y: f32,
+        /// Its z.
         z: f32,
     },
+    /// More points than 32-bit offsets index.
     #[error("hair has {points} points, more than the 4294967295 one model can index")]
-    TooManyPoints { points: usize },
+    TooManyPoints {
+        /// The points asked for.
+        points: usize,
+    },
 }
 
 /// An axis-aligned box.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Bounds {
+    /// Smallest coordinates.
     pub min: Vec3,
+    /// Largest coordinates.
     pub max: Vec3,
 }
 
 impl Bounds {
+    /// The bounds of nothing: every union with it is the other.
     pub fn empty() -> Self {
         Bounds {
             min: Vec3::splat(f32::INFINITY),
@@ -52,22 +65,27 @@ impl Bounds {
             b
         })
     }
+    /// Whether nothing is inside.
     pub fn is_empty(&self) -> bool {
         self.min.x > self.max.x
     }
+    /// Grows the box to hold `p`.
     pub fn include(&mut self, p: Vec3) {
         self.min = self.min.min(p);
         self.max = self.max.max(p);
     }
+    /// The box holding both.
     pub fn union(self, o: Bounds) -> Bounds {
         Bounds {
             min: self.min.min(o.min),
             max: self.max.max(o.max),
         }
     }
+    /// The box's centre.
     pub fn center(&self) -> Vec3 {
         0.5 * (self.min + self.max)
     }
+    /// The box's side lengths.
     pub fn size(&self) -> Vec3 {
         self.max - self.min
     }
@@ -80,6 +98,7 @@ impl Default for Hair {
 }
 
 impl Hair {
+    /// No strands.
     pub fn new() -> Self {
         Hair {
             points: Vec::new(),
@@ -88,6 +107,7 @@ impl Hair {
         }
     }
 
+    /// No strands, with room for `strands` strands of `points` points in all.
     pub fn with_capacity(strands: usize, points: usize) -> Self {
         let mut offsets = Vec::with_capacity(strands + 1);
         offsets.push(0);
@@ -124,14 +144,17 @@ impl Hair {
         self.colors = Some(colors);
     }
 
+    /// Each strand's linear RGB colour, when the hair has them.
     pub fn colors(&self) -> Option<&[Vec3]> {
         self.colors.as_deref()
     }
 
+    /// Strands.
     pub fn strand_count(&self) -> usize {
         self.offsets.len() - 1
     }
 
+    /// Points, over all strands.
     pub fn point_count(&self) -> usize {
         self.points.len()
     }
@@ -144,10 +167,12 @@ impl Hair {
             .sum()
     }
 
+    /// Every point, strand after strand.
     pub fn points(&self) -> &[Vec3] {
         &self.points
     }
 
+    /// Every point, mutable (the strands keep their lengths).
     pub fn points_mut(&mut self) -> &mut [Vec3] {
         &mut self.points
     }
@@ -170,16 +195,19 @@ impl Hair {
         &self.offsets
     }
 
+    /// The points of strand `s`.
     pub fn strand(&self, s: usize) -> &[Vec3] {
         &self.points[self.offsets[s] as usize..self.offsets[s + 1] as usize]
     }
 
+    /// Every strand's points, in order.
     pub fn strands(&self) -> impl ExactSizeIterator<Item = &[Vec3]> + '_ {
         self.offsets
             .windows(2)
             .map(|w| &self.points[w[0] as usize..w[1] as usize])
     }
 
+    /// The box around every point.
     pub fn bounds(&self) -> Bounds {
         Bounds::of(&self.points)
     }

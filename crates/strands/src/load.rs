@@ -39,63 +39,117 @@ fn format_guess(b: &[u8; 4]) -> &'static str {
 /// What is wrong inside a hair file.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum FormatError {
+    /// The file ends inside its header.
     #[error("file is {len} bytes, shorter than the {need}-byte header")]
-    TruncatedHeader { len: usize, need: usize },
+    TruncatedHeader {
+        /// The file's bytes.
+        len: usize,
+        /// The header's bytes.
+        need: usize,
+    },
     #[error(
         "wrong magic \"{}\"{}, expected \"HAIR\"",
         magic_text(found),
         format_guess(found)
     )]
-    BadMagic { found: [u8; 4] },
+    /// The first bytes are not the format's magic.
+    BadMagic {
+        /// The bytes found.
+        found: [u8; 4],
+    },
     #[error(
         "header claims {count} {what}, needing {need} bytes, but only {have} bytes follow the header"
     )]
+    /// The header claims more than the file holds.
     Truncated {
+        /// What it counts.
         what: &'static str,
+        /// How many it claims.
         count: u64,
+        /// The bytes they need.
         need: u64,
+        /// The bytes present.
         have: u64,
     },
+    /// The strands' point counts do not add up to the header's.
     #[error("segment counts add up to {sum} points, but the header says {points}")]
-    CountMismatch { sum: u64, points: u64 },
+    CountMismatch {
+        /// Their sum.
+        sum: u64,
+        /// The header's count.
+        points: u64,
+    },
+    /// An array that starts outside the file.
     #[error("{what} array starts at byte {offset}, outside the {len}-byte file")]
     BadOffset {
+        /// Which array.
         what: &'static str,
+        /// Where it starts, bytes.
         offset: u64,
+        /// The file's bytes.
         len: u64,
     },
+    /// Points claimed but no point array flagged.
     #[error("header claims {points} points but sets no point array flag")]
-    NoPointArray { points: u64 },
+    NoPointArray {
+        /// The points claimed.
+        points: u64,
+    },
+    /// The points do not make hair (a non-finite coordinate).
     #[error(transparent)]
     Hair(#[from] HairError),
+    /// A colour that is NaN or infinite.
     #[error("colour of point {point} is not finite")]
-    NonFiniteColor { point: usize },
+    NonFiniteColor {
+        /// The point it belongs to.
+        point: usize,
+    },
+    /// A TressFX version other than 4.
     #[error("unsupported TressFX version {0} (expected 4)")]
     TfxVersion(f32),
+    /// Strands of no vertices.
     #[error("header claims {strands} strands of no vertices")]
-    EmptyStrands { strands: u64 },
+    EmptyStrands {
+        /// The strands claimed.
+        strands: u64,
+    },
+    /// A negative count.
     #[error("byte {offset}: a negative {what} count, {count}")]
     NegativeCount {
+        /// What it counts.
         what: &'static str,
+        /// The count.
         count: i64,
+        /// Where it is, bytes.
         offset: u64,
     },
     #[error(
         "byte {offset}: strand {strand} claims {count} vertices, needing {need} bytes, but only {have} remain"
     )]
+    /// A strand whose vertices run past the end of the file.
     StrandTruncated {
+        /// The strand.
         strand: u64,
+        /// Its vertices.
         count: u64,
+        /// Where it starts, bytes.
         offset: u64,
+        /// The bytes they need.
         need: u64,
+        /// The bytes left.
         have: u64,
     },
+    /// Bytes left over after the last strand.
     #[error("byte {offset}: {left} bytes left over after the last of {strands} strands")]
     TrailingBytes {
+        /// Where they start.
         offset: u64,
+        /// How many.
         left: u64,
+        /// The strands read.
         strands: u64,
     },
+    /// A malformed PLY file.
     #[error("PLY: {0}")]
     Ply(String),
 }

@@ -22,20 +22,42 @@ pub struct Mesh {
 /// Why a mesh cannot be made or read.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum MeshError {
+    /// A vertex with a coordinate that is NaN or infinite.
     #[error("vertex {index} is not finite: {point}")]
-    NonFinite { index: usize, point: Vec3 },
+    NonFinite {
+        /// The vertex.
+        index: usize,
+        /// Its coordinates.
+        point: Vec3,
+    },
+    /// A triangle naming a vertex that does not exist.
     #[error("triangle {triangle} names vertex {index}, but there are {vertices}")]
     BadIndex {
+        /// The triangle.
         triangle: usize,
+        /// The vertex it names.
         index: u64,
+        /// The vertices there are.
         vertices: usize,
     },
+    /// No triangles.
     #[error("no triangles")]
     Empty,
+    /// More vertices or faces than `MAX_MESH_ELEMENTS`.
     #[error("more than {MAX_MESH_ELEMENTS} {what}")]
-    TooLarge { what: &'static str },
+    TooLarge {
+        /// Which.
+        what: &'static str,
+    },
+    /// A malformed OBJ line.
     #[error("line {line}: {detail}")]
-    Obj { line: usize, detail: String },
+    Obj {
+        /// The line, from 1.
+        line: usize,
+        /// What is wrong with it.
+        detail: String,
+    },
+    /// A malformed PLY file.
     #[error("PLY: {0}")]
     Ply(String),
 }
@@ -73,6 +95,7 @@ impl Mesh {
         })
     }
 
+    /// The vertices, scene units.
     pub fn positions(&self) -> &[Vec3] {
         &self.positions
     }
@@ -82,6 +105,7 @@ impl Mesh {
         &self.normals
     }
 
+    /// The triangles, as vertex indices.
     pub fn triangles(&self) -> &[[u32; 3]] {
         &self.triangles
     }
@@ -92,6 +116,7 @@ impl Mesh {
         self.triangles[t].map(|i| self.positions[i as usize])
     }
 
+    /// The box around every vertex.
     pub fn bounds(&self) -> Bounds {
         Bounds::of(&self.positions)
     }

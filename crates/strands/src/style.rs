@@ -19,6 +19,7 @@ pub enum Style {
 }
 
 impl Style {
+    /// The style's name, as scenes spell it.
     pub fn name(self) -> &'static str {
         match self {
             Style::Smooth => "smooth",
@@ -26,6 +27,7 @@ impl Style {
         }
     }
 
+    /// The style named `name`, if any.
     pub fn from_name(name: &str) -> Option<Style> {
         match name {
             "smooth" => Some(Style::Smooth),
@@ -45,12 +47,17 @@ impl Style {
 /// Everything that determines a procedural hairstyle.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StyleParams {
+    /// Smooth or curly.
     pub style: Style,
+    /// Seed of everything random in the style.
     pub seed: u64,
+    /// Wisps (the paper's 134 by default).
     pub wisps: u32,
+    /// Drawn strands per wisp.
     pub strands_per_wisp: u32,
     /// Head sphere centre and radius, in scene units (centimetres by convention).
     pub head_center: Vec3,
+    /// See `head_center`.
     pub head_radius: f32,
     /// A middle parting: hair rooted in front of the crown sweeps to its
     /// side and back, off the face, and hair over the forehead is cut to
@@ -62,6 +69,7 @@ pub struct StyleParams {
 }
 
 impl StyleParams {
+    /// The paper's defaults for `style`: 134 wisps of 25 strands on a head of radius 10.
     pub fn new(style: Style) -> Self {
         StyleParams {
             style,
@@ -80,7 +88,9 @@ impl StyleParams {
 /// three guides.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Member {
+    /// Its wisp.
     pub wisp: u32,
+    /// Its barycentric weights on the wisp's three guides.
     pub weights: [f32; 3],
 }
 
@@ -89,15 +99,19 @@ pub struct Member {
 /// members are sorted by wisp.
 #[derive(Debug, Clone, PartialEq)]
 pub struct WispModel {
+    /// Three guide strands per wisp.
     pub guides: Hair,
+    /// Every drawn strand's place, sorted by wisp.
     pub members: Vec<Member>,
     /// Linear RGB colour of each member strand.
     pub colors: Vec<Vec3>,
 }
 
+/// Guide strands per wisp (the paper's three).
 pub const GUIDES_PER_WISP: usize = 3;
 
 impl WispModel {
+    /// Wisps.
     pub fn wisp_count(&self) -> usize {
         self.guides.strand_count() / GUIDES_PER_WISP
     }
