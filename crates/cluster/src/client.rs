@@ -42,14 +42,17 @@ pub struct Traffic {
     /// Compositing on the workers: the stripes they sent each other, and
     /// the finished bands received.
     pub stripes_between_workers: u64,
+    /// See `stripes_between_workers`.
     pub bands_received: u64,
     /// Summing and sweeping on the workers: the density they sent each
     /// other's columns, and the swept columns they sent each other.
     pub density_between_workers: u64,
+    /// See `density_between_workers`.
     pub swept_between_workers: u64,
 }
 
 impl Traffic {
+    /// Every byte counted.
     pub fn total(&self) -> u64 {
         self.assign_sent
             + self.step_sent
@@ -133,6 +136,7 @@ pub struct Timing {
     /// Compositing on the workers, per Draw the slowest worker's: waiting
     /// for the others' stripes, and resolving its band; summed.
     pub band_wait_ms: f64,
+    /// See `band_wait_ms`.
     pub band_composite_ms: f64,
     /// Draw rounds whose compositing on the workers failed and was done
     /// on the coordinator instead.

@@ -5,34 +5,66 @@ use std::net::SocketAddr;
 /// A failure of the cluster: of a worker, of the network, or of the setup.
 #[derive(Debug, Clone, thiserror::Error)]
 pub enum ClusterError {
+    /// An address the worker cannot listen on.
     #[error("cannot listen on {0}: {1}")]
     Bind(SocketAddr, std::sync::Arc<std::io::Error>),
+    /// The runtime or a server cannot be set up.
     #[error("{0}")]
     Setup(String),
+    /// Credentials that cannot be read or used.
     #[error("TLS: {0}")]
     Tls(String),
+    /// The worker's server stopped with an error.
     #[error("the worker server stopped: {0}")]
     Serve(String),
+    /// A worker that cannot be reached or is not a wisplight worker.
     #[error("cannot reach worker {addr}: {msg}")]
-    Connect { addr: String, msg: String },
+    Connect {
+        /// The worker.
+        addr: String,
+        /// Why.
+        msg: String,
+    },
+    /// A worker that refused this coordinator (another protocol version, the fiber, its limits).
     #[error("worker {addr} refused: {msg}")]
-    Version { addr: String, msg: String },
+    Version {
+        /// The worker.
+        addr: String,
+        /// Its reason.
+        msg: String,
+    },
+    /// A worker that refused or failed a stage's call.
     #[error("worker {addr} failed the {stage} stage: {error}")]
     Call {
+        /// The worker.
         addr: String,
+        /// The stage.
         stage: &'static str,
+        /// Its answer, by kind.
         error: WorkerError,
     },
+    /// A call past its deadline.
     #[error("worker {addr} did not finish the {stage} stage within {secs} s")]
     Deadline {
+        /// The worker.
         addr: String,
+        /// The stage.
         stage: &'static str,
+        /// The deadline, seconds.
         secs: f64,
     },
+    /// A reply that does not check.
     #[error("worker {addr} sent a malformed reply: {msg}")]
-    Malformed { addr: String, msg: String },
+    Malformed {
+        /// The worker.
+        addr: String,
+        /// What is wrong with it.
+        msg: String,
+    },
+    /// A round of compositing on the workers that failed as a whole.
     #[error("compositing on the workers failed: {0}")]
     Composite(String),
+    /// A round of summing and sweeping on the workers that failed as a whole.
     #[error("summing and sweeping on the workers failed: {0}")]
     Exchange(String),
 }
@@ -132,11 +164,14 @@ impl WorkerErrorKind {
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("{:?}: {message}", self.kind.code())]
 pub struct WorkerError {
+    /// What kind of failure, by status code.
     pub kind: WorkerErrorKind,
+    /// The worker's reason.
     pub message: String,
 }
 
 impl WorkerError {
+    /// A failure of `kind` for `message`.
     pub fn new(kind: WorkerErrorKind, message: impl Into<String>) -> WorkerError {
         WorkerError {
             kind,
@@ -144,30 +179,37 @@ impl WorkerError {
         }
     }
 
+    /// [`WorkerErrorKind::Invalid`].
     pub fn invalid(message: impl Into<String>) -> WorkerError {
         WorkerError::new(WorkerErrorKind::Invalid, message)
     }
 
+    /// [`WorkerErrorKind::Precondition`].
     pub fn precondition(message: impl Into<String>) -> WorkerError {
         WorkerError::new(WorkerErrorKind::Precondition, message)
     }
 
+    /// [`WorkerErrorKind::Aborted`].
     pub fn aborted(message: impl Into<String>) -> WorkerError {
         WorkerError::new(WorkerErrorKind::Aborted, message)
     }
 
+    /// [`WorkerErrorKind::Exhausted`].
     pub fn exhausted(message: impl Into<String>) -> WorkerError {
         WorkerError::new(WorkerErrorKind::Exhausted, message)
     }
 
+    /// [`WorkerErrorKind::Cancelled`].
     pub fn cancelled(message: impl Into<String>) -> WorkerError {
         WorkerError::new(WorkerErrorKind::Cancelled, message)
     }
 
+    /// [`WorkerErrorKind::Unavailable`].
     pub fn unavailable(message: impl Into<String>) -> WorkerError {
         WorkerError::new(WorkerErrorKind::Unavailable, message)
     }
 
+    /// [`WorkerErrorKind::Internal`].
     pub fn internal(message: impl Into<String>) -> WorkerError {
         WorkerError::new(WorkerErrorKind::Internal, message)
     }

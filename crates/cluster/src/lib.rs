@@ -5,11 +5,11 @@
 //! densities, hands out columns and slabs, and composites. The only crate
 //! that knows protobuf, tonic and tokio.
 
-#![warn(unreachable_pub)]
+#![warn(unreachable_pub, missing_docs)]
 
 pub mod pb {
     //! Code generated from `proto/wisplight/v1/worker.proto`.
-    #![allow(missing_debug_implementations, clippy::all)]
+    #![allow(missing_debug_implementations, missing_docs, clippy::all)]
     tonic::include_proto!("wisplight.v1");
 
     /// The encoded descriptor set, for server reflection.

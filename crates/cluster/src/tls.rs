@@ -166,11 +166,17 @@ fn check_pem(pem: &[u8], path: &Path, label: &str, what: &str) -> Result<(), Clu
 /// the coordinator (client authentication). All PEM.
 #[derive(Debug, Clone)]
 pub struct Pki {
+    /// The CA's certificate.
     pub ca_cert: String,
+    /// The CA's private key (keep it off the nodes).
     pub ca_key: String,
+    /// The workers' certificate.
     pub worker_cert: String,
+    /// The workers' private key.
     pub worker_key: String,
+    /// The coordinator's certificate.
     pub coordinator_cert: String,
+    /// The coordinator's private key.
     pub coordinator_key: String,
 }
 

@@ -63,6 +63,7 @@ pub struct Groups {
 }
 
 impl Groups {
+    /// Groups.
     pub fn count(&self) -> usize {
         self.strands.len() - 1
     }
@@ -214,14 +215,17 @@ impl Animator {
         matches!(self.source, Source::Wisps { .. })
     }
 
+    /// Seconds between frames.
     pub fn frame_dt(&self) -> f32 {
         self.frame_dt
     }
 
+    /// Simulation steps per frame.
     pub fn substeps(&self) -> u32 {
         self.substeps
     }
 
+    /// Frames' worth of steps simulated before frame 0.
     pub fn settle_frames(&self) -> u32 {
         self.settle_frames
     }

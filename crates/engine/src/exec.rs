@@ -51,6 +51,7 @@ pub struct PosePlan {
     pub version: u64,
     /// The lights whose map extents are measured, from `anchor`.
     pub lights: Vec<Light>,
+    /// The point extents are measured from.
     pub anchor: Vec3,
 }
 
@@ -59,7 +60,9 @@ pub struct PosePlan {
 /// (for fitting the maps). Reports of shares of the hair combine exactly.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PoseReport {
+    /// The posed hair's box.
     pub bounds: Bounds,
+    /// Its extent along each light's map axes, in the plan's order.
     pub extents: Vec<Extent>,
 }
 
@@ -96,7 +99,9 @@ impl PoseReport {
 pub struct DrawJob {
     /// The hair version to draw: the one posed last.
     pub version: u64,
+    /// The camera.
     pub camera: Camera,
+    /// How hair is drawn (colour, alpha, width).
     pub look: HairLook,
     /// Kajiya-Kay settings (the highlight off when the effect is).
     pub shading: Shading,
@@ -117,6 +122,7 @@ pub struct DrawJob {
 pub struct PendingPicture(Box<dyn FnOnce() -> Result<image::RgbImage, EngineError> + Send>);
 
 impl PendingPicture {
+    /// A picture `finish` completes.
     pub fn new(
         finish: impl FnOnce() -> Result<image::RgbImage, EngineError> + Send + 'static,
     ) -> PendingPicture {
@@ -140,18 +146,23 @@ impl std::fmt::Debug for PendingPicture {
 /// it), and the slowest share's milliseconds of each stage.
 #[derive(Debug, Default)]
 pub struct DrawReport {
+    /// Partial pictures, one per share, to composite.
     pub layers: Vec<HairLayer>,
     /// The finished picture, head and background included, when the
     /// executor composited it (see [`Executor::composites`]).
     pub picture: Option<image::RgbImage>,
     /// The finished picture still on its way (see [`Executor::draw_ahead`]).
     pub pending: Option<PendingPicture>,
+    /// The filter stage, ms.
     pub filter_ms: f64,
+    /// Shading, ms.
     pub shade_ms: f64,
+    /// Rasterization, ms.
     pub raster_ms: f64,
     /// Compositing where the hair is: waiting for the other shares'
     /// stripes, and resolving a band.
     pub wait_ms: f64,
+    /// Resolving the band, ms.
     pub composite_ms: f64,
 }
 

@@ -134,6 +134,7 @@ fn collision_map(scene: &Scene, anim: &Animator) -> Result<Option<DensityMapMeth
 static NO_HAIR: std::sync::LazyLock<Hair> = std::sync::LazyLock::new(Hair::new);
 
 impl Sequence {
+    /// The frames of `scene`, in this process until an executor is set.
     pub fn new(scene: &Scene) -> Result<Sequence, EngineError> {
         let anim = Animator::new(scene)?;
         let mut renderer = Renderer::new(scene)?;
@@ -254,6 +255,7 @@ impl Sequence {
         self.anim.hair()
     }
 
+    /// The hair over time.
     pub fn animator(&self) -> &Animator {
         &self.anim
     }

@@ -76,6 +76,7 @@ impl Head {
         self.pose
     }
 
+    /// The scene's settings of the head.
     pub fn settings(&self) -> &HeadSettings {
         &self.settings
     }

@@ -15,7 +15,7 @@
 //! The engine is synchronous and deterministic: it does no networking, and
 //! does not print; the binary decides what the user sees.
 
-#![warn(unreachable_pub)]
+#![warn(unreachable_pub, missing_docs)]
 
 mod animate;
 mod collide;
@@ -51,26 +51,37 @@ pub use stats::{FrameStats, Stage, StageRecord};
 /// Errors of the engine, each naming what is wrong and where.
 #[derive(Debug, thiserror::Error)]
 pub enum EngineError {
+    /// The scene cannot be read.
     #[error(transparent)]
     Scene(#[from] SceneError),
     /// The groom a scene's `hair.file` names does not load.
     #[error("{}: hair.file: {error}", scene.display())]
     Load {
+        /// The scene.
         scene: std::path::PathBuf,
+        /// Why the groom does not load.
         error: strands::LoadError,
     },
+    /// The head mesh does not load.
     #[error(transparent)]
     Mesh(#[from] strands::MeshLoadError),
+    /// The shadow stages refused their inputs.
     #[error(transparent)]
     Shadow(#[from] shadow::ShadowError),
+    /// The picture cannot be made or written.
     #[error(transparent)]
     Raster(#[from] raster::RasterError),
+    /// The simulation refused its inputs.
     #[error(transparent)]
     Sim(#[from] sim::SimError),
+    /// Something would take more memory than allowed.
     #[error("{what} would need {bytes} bytes, more than the {limit}-byte limit")]
     TooLarge {
+        /// What.
         what: String,
+        /// The bytes it would take.
         bytes: u64,
+        /// The bytes allowed.
         limit: u64,
     },
     /// A change a running sequence cannot take.

@@ -39,6 +39,7 @@ struct LightState {
 }
 
 impl ShadowPipeline {
+    /// One method per light of `scene`, nothing built yet.
     pub fn new(scene: &Scene) -> Result<ShadowPipeline, EngineError> {
         let lights = scene
             .lights
@@ -95,6 +96,7 @@ impl ShadowPipeline {
         self.lights.first().and_then(|l| l.method.density_map())
     }
 
+    /// Lights.
     pub fn light_count(&self) -> usize {
         self.lights.len()
     }

@@ -84,6 +84,7 @@ impl Renderer {
         self.view.as_ref().map(|v| &v.camera)
     }
 
+    /// The shadow stages.
     pub fn shadows(&self) -> &ShadowPipeline {
         &self.shadows
     }

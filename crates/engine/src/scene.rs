@@ -68,18 +68,32 @@ pub use motion::{Animation, BodySettings, Collision, Dynamics, Effects};
 /// A scene that could not be read, naming the file and the field.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
+    /// The scene file cannot be read.
     #[error("cannot read scene {}: {cause}", path.display())]
     Io {
+        /// The file.
         path: PathBuf,
+        /// Why.
         cause: std::io::Error,
     },
+    /// The text is not TOML, or has a key wisplight does not know.
     #[error("{}: {message}", path.display())]
-    Parse { path: PathBuf, message: String },
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// The parser's message, with the line.
+        message: String,
+    },
+    /// A value out of range.
     #[error("{}: {field} = {value}: {reason}", path.display())]
     Invalid {
+        /// The file.
         path: PathBuf,
+        /// The key, as `table.key`.
         field: &'static str,
+        /// Its value.
         value: String,
+        /// The range it must be in.
         reason: String,
     },
 }
@@ -87,9 +101,13 @@ pub enum SceneError {
 /// Where the hair comes from.
 #[derive(Debug, Clone, PartialEq)]
 pub enum HairSource {
+    /// A generated style.
     Style(StyleParams),
+    /// A groom file.
     File {
+        /// The file, relative to the scene's.
         path: PathBuf,
+        /// Follow strands grown around its strands, when asked.
         follow: Option<FollowParams>,
         /// Where the groom goes in the scene (`hair.scale`,
         /// `hair.rotate_deg`, `hair.translate`), before follow strands grow.
@@ -114,12 +132,16 @@ pub enum HairSource {
 /// [-90, 0, 0]` stands it up along +y.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Placement {
+    /// Uniform scale.
     pub scale: f32,
+    /// Rotation about x, then y, then z, degrees.
     pub rotate_deg: Vec3,
+    /// Movement after scaling and rotating, scene units.
     pub translate: Vec3,
 }
 
 impl Placement {
+    /// Where the file puts it.
     pub const IDENTITY: Placement = Placement {
         scale: 1.0,
         rotate_deg: Vec3::ZERO,
@@ -171,6 +193,7 @@ pub(crate) const MAX_KEYFRAMES: usize = 10_000;
 /// The shadow method and its settings (see [`MethodConfig`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ShadowSettings {
+    /// The method.
     pub method: MethodConfig,
 }
 
@@ -214,6 +237,7 @@ pub enum CameraView {
     /// (see [`crate::render::view_direction`]).
     #[default]
     Auto,
+    /// The front (+z).
     Front,
     /// 45 degrees to the left of the front (-x, +z).
     ThreeQuarterLeft,
@@ -226,6 +250,7 @@ pub enum CameraView {
 }
 
 impl CameraView {
+    /// Every view's name, as scenes spell it.
     pub const NAMES: [&str; 6] = [
         "auto",
         "front",
@@ -235,6 +260,7 @@ impl CameraView {
         "right",
     ];
 
+    /// The view named `name`, if any.
     pub fn from_name(name: &str) -> Option<CameraView> {
         Some(match name {
             "auto" => CameraView::Auto,
@@ -265,7 +291,9 @@ pub struct RenderSettings {
 /// motion, turning about its centre.
 #[derive(Debug, Clone, PartialEq)]
 pub struct HeadSettings {
+    /// The sphere's centre, scene units.
     pub center: Vec3,
+    /// The sphere's radius, scene units.
     pub radius: f32,
     /// Linear RGB.
     pub color: Vec3,
@@ -277,8 +305,11 @@ pub struct HeadSettings {
 /// (scene units) before the head moves.
 #[derive(Debug, Clone, PartialEq)]
 pub struct HeadMesh {
+    /// The OBJ or PLY file, relative to the scene's.
     pub path: PathBuf,
+    /// Scale of its vertices.
     pub scale: f32,
+    /// Where its origin goes, scene units.
     pub offset: Vec3,
 }
 
@@ -288,7 +319,9 @@ pub struct HeadMesh {
 /// everything another process needs to make the same scene.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SceneSource {
+    /// The TOML text.
     pub text: Arc<str>,
+    /// Where it was read from (empty for the built-in scene).
     pub path: PathBuf,
     /// Data files by the path the scene names them by.
     pub files: BTreeMap<PathBuf, Arc<[u8]>>,
@@ -299,19 +332,33 @@ pub struct SceneSource {
 pub struct Scene {
     /// What it was made from.
     pub source: SceneSource,
+    /// `[hair]`: where the hair comes from.
     pub hair: HairSource,
+    /// Drawn segments per control segment (Catmull-Rom).
     pub subdivide: u32,
+    /// Width and opacity of every fiber.
     pub fiber: Fiber,
+    /// `[light]` or `[[lights]]`.
     pub lights: Vec<Light>,
+    /// `[shadow]`: the method and its settings.
     pub shadow: ShadowSettings,
+    /// `[camera]`.
     pub camera: CameraSettings,
+    /// `[render]`: image size, background, hair look.
     pub render: RenderSettings,
+    /// `[head]`, when the scene has one.
     pub head: Option<HeadSettings>,
+    /// `[shading]`.
     pub shading: raster::Shading,
+    /// `[effects]`: which stages run.
     pub effects: Effects,
+    /// `[animation]`.
     pub animation: Animation,
+    /// `[dynamics]`.
     pub dynamics: Dynamics,
+    /// `[collision]`.
     pub collision: Collision,
+    /// `[[body]]`: spheres hair collides with.
     pub bodies: Vec<BodySettings>,
 }
 

@@ -67,6 +67,7 @@ impl BandPlan {
         self.cuts[b]..self.cuts[b + 1]
     }
 
+    /// Bands.
     pub fn bands(&self) -> usize {
         self.cuts.len().saturating_sub(1)
     }
@@ -163,12 +164,16 @@ impl BandWork {
 /// Milliseconds of the stages of one [`Share::draw`].
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct DrawTimes {
+    /// The filter stage, ms.
     pub filter_ms: f64,
+    /// Shading, ms.
     pub shade_ms: f64,
+    /// Rasterization, ms.
     pub raster_ms: f64,
     /// Compositing on the workers: waiting for the others' stripes of
     /// this share's band, then resolving it.
     pub wait_ms: f64,
+    /// Resolving the band, ms.
     pub composite_ms: f64,
 }
 

@@ -5,14 +5,23 @@ use std::time::Instant;
 /// A stage of a frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Stage {
+    /// The wisps' simulation.
     Simulate,
+    /// Sampling the self-collision field from the density map.
     SelfCollide,
+    /// Collisions with the body spheres.
     BodyCollide,
+    /// Drawn strands from the guides, or the rest hair moved.
     Pose,
+    /// Filling the density map (or any method's build).
     Density,
+    /// Sweeping it (or any method's prepare).
     Transmittance,
+    /// Transmittance at every drawn vertex.
     Filter,
+    /// Shading every vertex.
     Shade,
+    /// Drawing the picture.
     Draw,
 }
 
@@ -58,13 +67,16 @@ impl Stage {
 /// over the simulation steps of the frame).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct StageRecord {
+    /// Whether the stage ran.
     pub ran: bool,
+    /// Its milliseconds.
     pub ms: f64,
 }
 
 /// What one frame did.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FrameStats {
+    /// The frame's number, from 0.
     pub index: u64,
     /// Scene time of the frame, seconds.
     pub time_s: f32,
@@ -77,6 +89,7 @@ pub struct FrameStats {
 }
 
 impl FrameStats {
+    /// Frame `index` at `time_s`, no stage run yet.
     pub fn new(index: u64, time_s: f32) -> FrameStats {
         FrameStats {
             index,
@@ -87,6 +100,7 @@ impl FrameStats {
         }
     }
 
+    /// What stage `s` did.
     pub fn stage(&self, s: Stage) -> StageRecord {
         self.stages[s.index()]
     }

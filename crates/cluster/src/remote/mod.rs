@@ -57,6 +57,7 @@ pub enum DrawAt {
 }
 
 impl DrawAt {
+    /// The choice's name, as the command line spells it.
     pub fn name(self) -> &'static str {
         match self {
             DrawAt::Workers => "workers",
@@ -75,6 +76,7 @@ pub struct Options {
     pub connect_timeout: Duration,
     /// Mutual TLS on every connection, when given.
     pub tls: Option<Tls>,
+    /// Where the hair is drawn.
     pub draw: DrawAt,
 }
 
@@ -325,6 +327,7 @@ impl RemoteExecutor {
         self.timing.clone()
     }
 
+    /// Workers still in the run.
     pub fn worker_count(&self) -> usize {
         self.workers.len()
     }

@@ -114,6 +114,7 @@ fn lights_from_floats(f: &[f32]) -> Result<Vec<Light>, Malformed> {
         .collect()
 }
 
+/// A pose plan as sent.
 pub fn pose_plan_to_pb(p: &PosePlan) -> pb::PosePlan {
     let mut out = pb::PosePlan {
         version: p.version,
@@ -138,6 +139,7 @@ pub fn pose_plan_from_pb(p: &pb::PosePlan) -> Result<PosePlan, Malformed> {
     })
 }
 
+/// A pose report as sent.
 pub fn report_to_pb(r: &PoseReport) -> pb::PoseReport {
     let six = |lo: Vec3, hi: Vec3| [lo.to_array(), hi.to_array()].concat();
     pb::PoseReport {
@@ -212,6 +214,7 @@ pub fn columns_from_pb(bytes: &[u8], columns: usize) -> Result<Vec<u64>, Malform
     Ok(bits)
 }
 
+/// A draw job as sent.
 pub fn job_to_pb(j: &DrawJob) -> pb::DrawJob {
     let c = &j.camera;
     pb::DrawJob {
@@ -435,15 +438,20 @@ pub const MAX_WORKERS: usize = 256;
 /// plan, the round, and where each worker is.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Bands {
+    /// The round, counted by the coordinator.
     pub round: u64,
+    /// Which worker owns which rows.
     pub plan: engine::BandPlan,
     /// Each worker: its address and its session of this coordinator.
     pub peers: Vec<(String, String)>,
+    /// How long a worker waits for the others' stripes.
     pub wait: std::time::Duration,
+    /// The name workers check each other's certificates for, with TLS.
     pub tls_domain: Option<String>,
 }
 
 impl Bands {
+    /// The plan as sent.
     pub fn to_pb(&self) -> pb::BandPlan {
         pb::BandPlan {
             round: self.round,
@@ -528,6 +536,7 @@ impl ColumnsReader {
         cells * 8 + side * side * std::mem::size_of::<Span>() as u64
     }
 
+    /// Adds a chunk's columns, checked.
     pub fn add(&mut self, c: &pb::DrawChunk) -> Result<(), Malformed> {
         self.add_within(c, 0..usize::MAX)
     }

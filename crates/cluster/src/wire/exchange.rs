@@ -17,6 +17,7 @@ use crate::pb;
 /// each sweeping its own columns, then all-gather of the swept columns.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ColumnPlan {
+    /// The round, counted by the coordinator.
     pub round: u64,
     /// Worker `i` owns columns `cuts[i]..cuts[i + 1]`.
     pub cuts: Vec<u32>,
@@ -26,6 +27,7 @@ pub struct ColumnPlan {
     pub peers: Vec<(String, String)>,
     /// How long a worker waits for the others' columns.
     pub wait: Duration,
+    /// The name workers check each other's certificates for, with TLS.
     pub tls_domain: Option<String>,
     /// The head's transform, when the head casts shadow on the hair: each
     /// owner adds it to its columns before sweeping them.
@@ -48,10 +50,12 @@ impl ColumnPlan {
         self.cuts[i] as usize..self.cuts[i + 1] as usize
     }
 
+    /// Workers in the round.
     pub fn workers(&self) -> usize {
         self.peers.len()
     }
 
+    /// The plan as sent.
     pub fn to_pb(&self) -> pb::ColumnPlan {
         let mut head = Vec::new();
         if let Some(h) = &self.head {

@@ -78,6 +78,7 @@ pub(crate) fn bad(what: impl Into<String>) -> Malformed {
     Malformed(what.into())
 }
 
+/// A map frame as sent.
 pub fn frame_to_pb(f: &LightFrame) -> pb::MapFrame {
     pb::MapFrame {
         origin: f.origin.to_array().to_vec(),
@@ -409,6 +410,7 @@ impl SlabReader {
         SlabReader { slab: layout, next }
     }
 
+    /// Adds a chunk's columns, checked: in order, within the slab.
     pub fn add(&mut self, c: &pb::SlabChunk) -> Result<(), Malformed> {
         let cols = &self.slab.columns;
         if c.first_column != self.next || c.end_column < c.first_column || c.end_column > cols.end {
@@ -560,6 +562,7 @@ pub fn affines_from_floats(f: &[f32]) -> Result<Vec<Affine3A>, Malformed> {
     Ok(f.chunks_exact(12).map(Affine3A::from_cols_slice).collect())
 }
 
+/// Body spheres as four floats each (centre, radius), appended to `out`.
 pub fn bodies_to_floats(bodies: &[Body], out: &mut Vec<f32>) {
     for b in bodies {
         out.extend_from_slice(&[b.center.x, b.center.y, b.center.z, b.radius]);

@@ -17,7 +17,9 @@ pub struct Listen {
 /// ones): the worker's, and its plain health port's, if any.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Bound {
+    /// The worker's address.
     pub addr: SocketAddr,
+    /// Its plain health port, if any.
     pub health: Option<SocketAddr>,
 }
 

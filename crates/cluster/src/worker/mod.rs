@@ -67,7 +67,9 @@ pub const DEFAULT_MAX_MEMORY: u64 = 2 << 30;
 /// lives.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SessionLimits {
+    /// Sessions held at once.
     pub max_sessions: usize,
+    /// How long an unused session lives.
     pub idle: Duration,
     /// The memory budget of all sessions and calls, bytes.
     pub max_memory: u64,

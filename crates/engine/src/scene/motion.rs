@@ -92,6 +92,7 @@ pub struct Effects {
 /// How the scene moves in time.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Animation {
+    /// How the head moves.
     pub motion: Motion,
     /// Frames per second of a rendered sequence.
     pub fps: f32,
@@ -100,6 +101,7 @@ pub struct Animation {
 /// The wisp simulation's settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Dynamics {
+    /// Step, gravity, damping and stiffness.
     pub params: SimParams,
     /// Seconds simulated at the first pose before frame 0, so that the
     /// first frame shows hair at rest under gravity rather than falling.
@@ -132,7 +134,9 @@ pub struct Collision {
 /// A sphere hair collides with (neck, shoulders); the head is one too.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BodySettings {
+    /// Centre, scene units.
     pub center: Vec3,
+    /// Radius, scene units.
     pub radius: f32,
     /// Moves with the head's motion (else stays put in the world).
     pub follows_head: bool,

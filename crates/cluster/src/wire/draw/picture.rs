@@ -33,6 +33,7 @@ pub struct StripeEncoder {
 }
 
 impl StripeEncoder {
+    /// An encoder at the first stripe.
     pub fn new() -> StripeEncoder {
         StripeEncoder { prev: 0 }
     }
@@ -150,12 +151,14 @@ pub struct BandReader {
     /// The band being received.
     at: usize,
     background: Option<[u8; 3]>,
+    /// The worker's times, from the last chunk.
     pub times: engine::DrawTimes,
     /// Bytes of stripes the worker sent the others, from the last chunk.
     pub stripes_sent: u64,
 }
 
 impl BandReader {
+    /// A reader of the finished `bands` of a `width x height` picture.
     pub fn new(width: u32, height: u32, bands: Vec<std::ops::Range<u32>>) -> BandReader {
         BandReader {
             width,
@@ -174,6 +177,7 @@ impl BandReader {
         rows.start + (rgb.len() / (3 * self.width as usize).max(1)) as u32
     }
 
+    /// Adds a chunk, checked.
     pub fn add(&mut self, c: &pb::LayerChunk) -> Result<(), Malformed> {
         if (c.width, c.height) != (self.width, self.height) {
             return Err(bad(format!(
@@ -312,6 +316,7 @@ pub struct LayerReader {
 }
 
 impl LayerReader {
+    /// A reader of a `width x height` partial picture.
     pub fn new(width: u32, height: u32) -> LayerReader {
         LayerReader {
             width,
@@ -322,6 +327,7 @@ impl LayerReader {
         }
     }
 
+    /// Adds a chunk, checked.
     pub fn add(&mut self, c: &pb::LayerChunk) -> Result<(), Malformed> {
         if (c.width, c.height) != (self.width, self.height) {
             return Err(bad(format!(
@@ -370,6 +376,7 @@ impl LayerReader {
         Ok(())
     }
 
+    /// The partial picture, once every chunk is in.
     pub fn finish(self) -> Result<HairLayer, Malformed> {
         HairLayer::from_parts(self.width, self.height, self.pixels, self.sums)
             .map_err(|e| bad(e.to_string()))
