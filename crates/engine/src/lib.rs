@@ -42,8 +42,9 @@ pub use part::{HairPart, draw_head};
 pub use pipeline::ShadowPipeline;
 pub use render::{Composite, DEFAULT_HAIR_COLOR, Renderer, view_direction};
 pub use scene::{
-    Animation, BodySettings, CameraView, Collision, Dynamics, Effects, HairSource, HeadMesh,
-    HeadSettings, Placement, Scene, SceneError, SceneSource, ShadowSettings,
+    Animation, BodySettings, CameraSettings, CameraView, Collision, Dynamics, Effects, HairSource,
+    HeadMesh, HeadSettings, Placement, RenderSettings, Scene, SceneError, SceneSource,
+    ShadowSettings,
 };
 pub use share::{BandPlan, BandWork, DrawTimes, Share};
 pub use stats::{FrameStats, Stage, StageRecord};

@@ -64,6 +64,7 @@ use shadow::{Beyond, Fiber, Light, MethodConfig, OpacityMode};
 use strands::{FollowParams, Hair, Style, StyleParams};
 
 pub use motion::{Animation, BodySettings, Collision, Dynamics, Effects};
+pub use view::{CameraSettings, CameraView, RenderSettings};
 
 /// A scene that could not be read, naming the file and the field.
 #[derive(Debug, thiserror::Error)]
@@ -215,73 +216,6 @@ impl ShadowSettings {
         m.set_filter(self.method.filter());
         Some(ShadowSettings { method: m })
     }
-}
-
-/// Where the camera is; `None` fields are framed around the hair.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CameraSettings {
-    /// Where the default camera looks from (`camera.view`), when no
-    /// position is given.
-    pub view: CameraView,
-    pub position: Option<Vec3>,
-    pub look_at: Option<Vec3>,
-    pub fov_deg: f32,
-    /// The picture's up direction (`camera.up`); +y when not given.
-    pub up: Option<Vec3>,
-}
-
-/// Where the default camera looks from, towards the hair, slightly above.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum CameraView {
-    /// The front (+z), or three quarters for hair seen edge-on from there
-    /// (see [`crate::render::view_direction`]).
-    #[default]
-    Auto,
-    /// The front (+z).
-    Front,
-    /// 45 degrees to the left of the front (-x, +z).
-    ThreeQuarterLeft,
-    /// 45 degrees to the right of the front (+x, +z).
-    ThreeQuarterRight,
-    /// The left side (-x).
-    Left,
-    /// The right side (+x).
-    Right,
-}
-
-impl CameraView {
-    /// Every view's name, as scenes spell it.
-    pub const NAMES: [&str; 6] = [
-        "auto",
-        "front",
-        "three-quarter-left",
-        "three-quarter-right",
-        "left",
-        "right",
-    ];
-
-    /// The view named `name`, if any.
-    pub fn from_name(name: &str) -> Option<CameraView> {
-        Some(match name {
-            "auto" => CameraView::Auto,
-            "front" => CameraView::Front,
-            "three-quarter-left" => CameraView::ThreeQuarterLeft,
-            "three-quarter-right" => CameraView::ThreeQuarterRight,
-            "left" => CameraView::Left,
-            "right" => CameraView::Right,
-            _ => return None,
-        })
-    }
-}
-
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct RenderSettings {
-    pub width: u32,
-    pub height: u32,
-    /// Linear RGB.
-    pub background: Vec3,
-    /// Opacity of a drawn strand where it covers a whole pixel.
-    pub hair_alpha: f32,
 }
 
 /// The head: an opaque sphere, or a triangle mesh, that receives the

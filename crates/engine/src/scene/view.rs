@@ -2,6 +2,79 @@
 
 use super::*;
 
+/// Where the camera is; `None` fields are framed around the hair.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CameraSettings {
+    /// Where the default camera looks from (`camera.view`), when no
+    /// position is given.
+    pub view: CameraView,
+    /// The eye (`camera.position`), scene units.
+    pub position: Option<Vec3>,
+    /// What it looks at (`camera.look_at`), scene units.
+    pub look_at: Option<Vec3>,
+    /// Vertical field of view (`camera.fov_deg`), degrees.
+    pub fov_deg: f32,
+    /// The picture's up direction (`camera.up`); +y when not given.
+    pub up: Option<Vec3>,
+}
+
+/// Where the default camera looks from, towards the hair, slightly above.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum CameraView {
+    /// The front (+z), or three quarters for hair seen edge-on from there
+    /// (see [`crate::render::view_direction`]).
+    #[default]
+    Auto,
+    /// The front (+z).
+    Front,
+    /// 45 degrees to the left of the front (-x, +z).
+    ThreeQuarterLeft,
+    /// 45 degrees to the right of the front (+x, +z).
+    ThreeQuarterRight,
+    /// The left side (-x).
+    Left,
+    /// The right side (+x).
+    Right,
+}
+
+impl CameraView {
+    /// Every view's name, as scenes spell it.
+    pub const NAMES: [&str; 6] = [
+        "auto",
+        "front",
+        "three-quarter-left",
+        "three-quarter-right",
+        "left",
+        "right",
+    ];
+
+    /// The view named `name`, if any.
+    pub fn from_name(name: &str) -> Option<CameraView> {
+        Some(match name {
+            "auto" => CameraView::Auto,
+            "front" => CameraView::Front,
+            "three-quarter-left" => CameraView::ThreeQuarterLeft,
+            "three-quarter-right" => CameraView::ThreeQuarterRight,
+            "left" => CameraView::Left,
+            "right" => CameraView::Right,
+            _ => return None,
+        })
+    }
+}
+
+/// `[render]`: the picture's size and look.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RenderSettings {
+    /// Width, pixels.
+    pub width: u32,
+    /// Height, pixels.
+    pub height: u32,
+    /// Linear RGB.
+    pub background: Vec3,
+    /// Opacity of a drawn strand where it covers a whole pixel.
+    pub hair_alpha: f32,
+}
+
 impl Validator<'_> {
     /// An optional point or vector, finite.
     pub(super) fn vec3(
