@@ -166,14 +166,45 @@ pub fn scatter(
                 .map_err(err)?
                 .label(name.as_str())
                 .legend(move |(x, y)| Circle::new((x + 10, y), 5, color.filled()));
-            chart
-                .draw_series(points.iter().filter(|p| p.series == s).map(|p| {
-                    Text::new(
-                        p.label.clone(),
-                        (p.x_ms * 1.04, p.y),
-                        (FONT, 11).into_font().color(&color.mix(0.9)),
-                    )
-                }))
+        }
+        // Labels where they overlap no other label and no point: the
+        // front's first, then by time.
+        let at = |p: &Point| chart.backend_coord(&(p.x_ms, p.y));
+        let shown = |i: &usize| {
+            let p = &points[*i];
+            p.x_ms.is_finite() && p.x_ms > 0.0 && p.y.is_finite()
+        };
+        let mut order: Vec<usize> = front.iter().copied().filter(shown).collect();
+        let mut rest: Vec<usize> = (0..points.len())
+            .filter(|i| !front.contains(i) && shown(i))
+            .collect();
+        rest.sort_by(|&a, &b| points[a].x_ms.total_cmp(&points[b].x_ms));
+        order.extend(rest);
+        // A point's dot, or its ring on the front.
+        let dots: Vec<Rect> = order
+            .iter()
+            .map(|&i| {
+                let (x, y) = at(&points[i]);
+                Rect::around(x, y, if front.contains(&i) { 10 } else { 6 })
+            })
+            .collect();
+        let (x_range, y_range) = chart.plotting_area().get_pixel_range();
+        let bounds = Rect {
+            x0: x_range.start,
+            y0: y_range.start,
+            x1: x_range.end,
+            y1: y_range.end,
+        };
+        let mut placed: Vec<Rect> = Vec::new();
+        for (k, &i) in order.iter().enumerate() {
+            let p = &points[i];
+            let color = COLORS[p.series % COLORS.len()];
+            let style = (FONT, 11).into_font().color(&color.mix(0.9));
+            let (w, h) = root.estimate_text_size(&p.label, &style).map_err(err)?;
+            let (x, y) = at(p);
+            let rect = place_label(x, y, (w as i32, h as i32), bounds, (&dots, k), &placed);
+            placed.push(rect);
+            root.draw(&Text::new(p.label.clone(), (rect.x0, rect.y0), style))
                 .map_err(err)?;
         }
         chart
@@ -202,6 +233,90 @@ fn ticks(lo: f64, hi: f64) -> Vec<f64> {
         decade *= 10.0;
     }
     out
+}
+
+/// A rectangle of pixels, `x0..x1` by `y0..y1`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Rect {
+    x0: i32,
+    y0: i32,
+    x1: i32,
+    y1: i32,
+}
+
+impl Rect {
+    fn around(x: i32, y: i32, r: i32) -> Rect {
+        Rect {
+            x0: x - r,
+            y0: y - r,
+            x1: x + r,
+            y1: y + r,
+        }
+    }
+
+    /// Pixels shared with `o`.
+    fn overlap(&self, o: &Rect) -> i64 {
+        let w = (self.x1.min(o.x1) - self.x0.max(o.x0)).max(0);
+        let h = (self.y1.min(o.y1) - self.y0.max(o.y0)).max(0);
+        i64::from(w) * i64::from(h)
+    }
+}
+
+/// Where a label of `size` goes beside the point at `(x, y)`: the first of
+/// the spots around it (right, left, above, below, then further out) that
+/// stays inside `bounds` and covers no point of `dots` (but its own, the
+/// `own`th) and no label of `placed`; else the spot that covers least.
+fn place_label(
+    x: i32,
+    y: i32,
+    (w, h): (i32, i32),
+    bounds: Rect,
+    (dots, own): (&[Rect], usize),
+    placed: &[Rect],
+) -> Rect {
+    let d0 = dots.get(own).map_or(6, |d| (d.x1 - d.x0) / 2) + 2;
+    let mut spots = Vec::new();
+    for step in 0..4 {
+        let d = d0 + 14 * step;
+        spots.extend([
+            (x + d, y - h / 2),
+            (x - d - w, y - h / 2),
+            (x - w / 2, y - d - h),
+            (x - w / 2, y + d),
+            (x + d, y - h / 2 - d),
+            (x + d, y - h / 2 + d),
+            (x - d - w, y - h / 2 - d),
+            (x - d - w, y - h / 2 + d),
+        ]);
+    }
+    let cost = |r: &Rect| -> i64 {
+        let outside = i64::from(w) * i64::from(h) - r.overlap(&bounds);
+        let on_dots: i64 = dots
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| *k != own)
+            .map(|(_, d)| r.overlap(d))
+            .sum();
+        let on_labels: i64 = placed.iter().map(|l| r.overlap(l)).sum();
+        4 * outside + on_dots + on_labels
+    };
+    let mut best: Option<(i64, Rect)> = None;
+    for (x0, y0) in spots {
+        let r = Rect {
+            x0,
+            y0,
+            x1: x0 + w,
+            y1: y0 + h,
+        };
+        let c = cost(&r);
+        if c == 0 {
+            return r;
+        }
+        if best.is_none_or(|(b, _)| c < b) {
+            best = Some((c, r));
+        }
+    }
+    best.map_or(Rect::around(x, y, 0), |(_, r)| r)
 }
 
 /// A bar per label (named under it) with its value written above it,
@@ -283,6 +398,28 @@ mod tests {
             series,
             label: format!("{x_ms}"),
         }
+    }
+
+    #[test]
+    fn labels_go_where_they_cover_no_other_label_or_point() {
+        let bounds = Rect {
+            x0: 0,
+            y0: 0,
+            x1: 400,
+            y1: 300,
+        };
+        let size = (60, 12);
+        // Two points a few pixels apart: the second label does not cover
+        // the first, nor the first point.
+        let dots = [Rect::around(100, 100, 6), Rect::around(104, 102, 6)];
+        let a = place_label(100, 100, size, bounds, (&dots, 0), &[]);
+        let b = place_label(104, 102, size, bounds, (&dots, 1), &[a]);
+        assert_eq!(a.overlap(&b), 0, "{a:?} {b:?}");
+        assert_eq!(b.overlap(&dots[0]), 0, "{b:?}");
+        assert_eq!(a.overlap(&dots[1]), 0, "{a:?}");
+        // By the right edge, the label goes to the left of its point.
+        let c = place_label(390, 150, size, bounds, (&[], 0), &[]);
+        assert!(c.x1 <= 390 && c.x0 >= 0, "{c:?}");
     }
 
     #[test]
