@@ -179,41 +179,6 @@ impl WorkerError {
         }
     }
 
-    /// [`WorkerErrorKind::Invalid`].
-    pub fn invalid(message: impl Into<String>) -> WorkerError {
-        WorkerError::new(WorkerErrorKind::Invalid, message)
-    }
-
-    /// [`WorkerErrorKind::Precondition`].
-    pub fn precondition(message: impl Into<String>) -> WorkerError {
-        WorkerError::new(WorkerErrorKind::Precondition, message)
-    }
-
-    /// [`WorkerErrorKind::Aborted`].
-    pub fn aborted(message: impl Into<String>) -> WorkerError {
-        WorkerError::new(WorkerErrorKind::Aborted, message)
-    }
-
-    /// [`WorkerErrorKind::Exhausted`].
-    pub fn exhausted(message: impl Into<String>) -> WorkerError {
-        WorkerError::new(WorkerErrorKind::Exhausted, message)
-    }
-
-    /// [`WorkerErrorKind::Cancelled`].
-    pub fn cancelled(message: impl Into<String>) -> WorkerError {
-        WorkerError::new(WorkerErrorKind::Cancelled, message)
-    }
-
-    /// [`WorkerErrorKind::Unavailable`].
-    pub fn unavailable(message: impl Into<String>) -> WorkerError {
-        WorkerError::new(WorkerErrorKind::Unavailable, message)
-    }
-
-    /// [`WorkerErrorKind::Internal`].
-    pub fn internal(message: impl Into<String>) -> WorkerError {
-        WorkerError::new(WorkerErrorKind::Internal, message)
-    }
-
     /// The status code the worker answers with.
     pub fn code(&self) -> tonic::Code {
         self.kind.code()
@@ -251,19 +216,19 @@ mod tests {
         }
         // The codes a worker answers with, by name.
         assert_eq!(
-            tonic::Status::from(WorkerError::invalid("x")).code(),
+            tonic::Status::from(WorkerError::new(WorkerErrorKind::Invalid, "x")).code(),
             tonic::Code::InvalidArgument
         );
         assert_eq!(
-            tonic::Status::from(WorkerError::precondition("x")).code(),
+            tonic::Status::from(WorkerError::new(WorkerErrorKind::Precondition, "x")).code(),
             tonic::Code::FailedPrecondition
         );
         assert_eq!(
-            tonic::Status::from(WorkerError::exhausted("x")).code(),
+            tonic::Status::from(WorkerError::new(WorkerErrorKind::Exhausted, "x")).code(),
             tonic::Code::ResourceExhausted
         );
         assert_eq!(
-            tonic::Status::from(WorkerError::aborted("x")).code(),
+            tonic::Status::from(WorkerError::new(WorkerErrorKind::Aborted, "x")).code(),
             tonic::Code::Aborted
         );
     }

@@ -56,7 +56,7 @@ impl DeepOpacityMap {
     }
 
     pub(crate) fn prepare(&mut self) {
-        self.pixels.frame();
+        assert!(self.pixels.frame.is_some(), "build runs before prepare");
         let (layers, beyond) = (self.layers, self.beyond);
         let pixels = self.pixels.count();
         let frags = &self.pixels.frags;

@@ -38,7 +38,7 @@ impl DensityClustering {
     }
 
     pub(crate) fn prepare(&mut self) {
-        self.pixels.frame();
+        assert!(self.pixels.frame.is_some(), "build runs before prepare");
         let k = self.k;
         let frags = &self.pixels.frags;
         let mut bins = vec![Bin::EMPTY; self.pixels.count() * k];

@@ -57,7 +57,7 @@ impl OpacityShadowMap {
     }
 
     pub(crate) fn prepare(&mut self) {
-        self.pixels.frame();
+        assert!(self.pixels.frame.is_some(), "build runs before prepare");
         let slices = self.slices;
         let frags = &self.pixels.frags;
         // The hair's depth range (Koster et al.: the bounding box).
