@@ -9,7 +9,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
 use cluster::pb::worker_client::WorkerClient;
-use cluster::{SessionClient, SessionHeader, pb, wire};
+use cluster::{SessionClient, SessionHeader, pb, protocol};
 use glam::Vec3;
 use shadow::{Light, LightFrame};
 
@@ -65,7 +65,7 @@ async fn session(addr: &str) -> SessionClient {
         .unwrap();
     let id = WorkerClient::new(channel.clone())
         .hello(pb::HelloRequest {
-            protocol_version: wire::PROTOCOL_VERSION,
+            protocol_version: protocol::PROTOCOL_VERSION,
             fiber_width: 0.1,
             fiber_opacity: 0.5,
         })
@@ -74,12 +74,12 @@ async fn session(addr: &str) -> SessionClient {
         .into_inner()
         .session;
     WorkerClient::with_interceptor(channel, SessionHeader::new(&id).unwrap())
-        .max_encoding_message_size(wire::MAX_MESSAGE_BYTES)
+        .max_encoding_message_size(protocol::MAX_MESSAGE_BYTES)
 }
 
 fn frame(cells: u32) -> pb::MapFrame {
     let light = Light::directional(Vec3::X).unwrap();
-    wire::frame_to_pb(&LightFrame::centered(&light, Vec3::ZERO, 2.0, cells).unwrap())
+    protocol::frame_to_pb(&LightFrame::centered(&light, Vec3::ZERO, 2.0, cells).unwrap())
 }
 
 fn assign(text: &str) -> pb::AssignChunk {
@@ -128,8 +128,8 @@ fn a_worker_stays_under_its_memory_bound_whatever_it_is_sent() {
         exhausted(c.assign(tokio_stream(files)).await, "data files");
 
         // Scene text past its limit, in 1 MiB pieces.
-        let text = "#".repeat(wire::MAX_SCENE_TEXT + 1);
-        let pieces: Vec<_> = wire::text_pieces(&text, wire::TEXT_PIECE_BYTES)
+        let text = "#".repeat(protocol::MAX_SCENE_TEXT + 1);
+        let pieces: Vec<_> = protocol::text_pieces(&text, protocol::TEXT_PIECE_BYTES)
             .map(assign)
             .collect();
         let m = exhausted(c.assign(tokio_stream(pieces)).await, "scene text");
@@ -182,8 +182,8 @@ fn a_worker_stays_under_its_memory_bound_whatever_it_is_sent() {
     // a message for each call in flight (four here), and the idle program
     // with 32 MiB for the allocator's and threads' own.
     let bound = (BUDGET_MIB << 20)
-        + SESSIONS * cluster::worker::POOL_BYTES
-        + 4 * wire::MAX_MESSAGE_BYTES as u64
+        + SESSIONS * cluster::POOL_BYTES
+        + 4 * protocol::MAX_MESSAGE_BYTES as u64
         + idle
         + (32 << 20);
     eprintln!(

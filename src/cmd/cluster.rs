@@ -96,7 +96,7 @@ impl ClientTlsArgs {
 
 /// Serves until SIGTERM or Ctrl-C.
 pub fn worker(args: WorkerArgs) -> anyhow::Result<()> {
-    let service = cluster::worker::WorkerService::new(cluster::worker::SessionLimits {
+    let service = cluster::WorkerService::new(cluster::SessionLimits {
         max_sessions: args.max_sessions as usize,
         idle: std::time::Duration::from_secs(args.session_idle),
         max_memory: args.max_memory_mib << 20,
@@ -110,11 +110,11 @@ pub fn worker(args: WorkerArgs) -> anyhow::Result<()> {
              use --tls-ca/--tls-cert/--tls-key on untrusted networks"
         );
     }
-    let listen = cluster::worker::Listen {
+    let listen = cluster::Listen {
         tls,
         health: args.health_listen,
     };
-    cluster::worker::run(service, args.listen, &listen, |b| {
+    cluster::run_worker(service, args.listen, &listen, |b| {
         // Each line flushed at once, even into a pipe; a reader that has
         // gone (one that wanted the first line alone) stops nothing.
         use std::io::Write;

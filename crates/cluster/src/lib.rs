@@ -21,13 +21,30 @@ mod codec;
 mod error;
 mod remote;
 mod tls;
-pub mod wire;
-pub mod worker;
+mod wire;
+mod worker;
+
+pub mod protocol {
+    //! What a client that speaks to workers itself needs beside [`crate::pb`]:
+    //! the protocol's version, its limits, and the encoders of the messages
+    //! that carry engine values (a load generator, a fuzzer, a conformance
+    //! test). The coordinator ([`crate::RemoteExecutor`]) does all of this
+    //! for the renderer.
+    pub use crate::wire::{
+        MAX_FILE_BYTES, MAX_MESSAGE_BYTES, MAX_SCENE_TEXT, MAX_STEPS, Malformed, PROTOCOL_VERSION,
+        TEXT_PIECE_BYTES, deposit_chunks, frame_to_pb, pack, report_from_pb, text_pieces,
+        wisp_chunks,
+    };
+}
 
 pub use client::{SessionClient, SessionHeader, Timing, Traffic};
 pub use error::{ClusterError, WorkerError, WorkerErrorKind};
 pub use remote::{DrawAt, Options, RemoteExecutor};
 pub use tls::{Pki, Tls};
+pub use worker::{
+    Bound, DEFAULT_MAX_MEMORY, Listen, POOL_BYTES, SessionLimits, WorkerService, run_worker,
+    serve_worker,
+};
 
 /// What went wrong in cluster mode, naming the worker.
 /// Asks the worker at `addr` for its grpc.health.v1 status (the overall

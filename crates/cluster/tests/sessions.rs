@@ -9,8 +9,8 @@ use std::net::SocketAddr;
 use std::time::Duration;
 
 use cluster::pb::worker_client::WorkerClient;
-use cluster::worker::{Listen, SessionLimits, WorkerService};
-use cluster::{ClusterError, DrawAt, Options, RemoteExecutor, WorkerErrorKind, pb, wire};
+use cluster::{ClusterError, DrawAt, Options, RemoteExecutor, WorkerErrorKind, pb, protocol};
+use cluster::{Listen, SessionLimits, WorkerService};
 use engine::{Scene, Sequence};
 
 use common::{DANCE, local_frames};
@@ -58,7 +58,7 @@ fn on_workers(scene: &Scene, addrs: &[String]) -> Sequence {
 
 fn hello(fiber_width: f32) -> pb::HelloRequest {
     pb::HelloRequest {
-        protocol_version: wire::PROTOCOL_VERSION,
+        protocol_version: protocol::PROTOCOL_VERSION,
         fiber_width,
         fiber_opacity: 0.5,
     }
@@ -199,7 +199,7 @@ fn calls_naming_no_open_session_are_refused_and_change_nothing() {
                 round: 3,
                 from,
                 swept,
-                map: (!swept).then(|| wire::frame_to_pb(&frame())),
+                map: (!swept).then(|| protocol::frame_to_pb(&frame())),
                 density: density.then(pb::ColumnChunk::default),
                 ..Default::default()
             }])
@@ -341,7 +341,7 @@ fn a_session_past_its_own_memory_is_refused_and_the_others_are_served() {
                 hair.push_strand(&[glam::Vec3::new(-0.5, t, 0.0), glam::Vec3::new(0.5, t, 0.1)])
                     .unwrap();
             }
-            tokio_stream::iter(wire::deposit_chunks(1, 0, &frame, &hair, 0..strands))
+            tokio_stream::iter(protocol::deposit_chunks(1, 0, &frame, &hair, 0..strands))
         };
         // 60 MB: past this session's 32 MiB, far within the worker's.
         let e = a.deposit(deposit(1_000_000)).await.unwrap_err();

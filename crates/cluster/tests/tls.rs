@@ -11,8 +11,8 @@ use std::net::SocketAddr;
 use std::sync::OnceLock;
 use std::time::Duration;
 
+use cluster::Listen;
 use cluster::Pki;
-use cluster::worker::Listen;
 use cluster::{ClusterError, RemoteExecutor, Tls};
 use engine::{Executor, LocalExecutor};
 use glam::Vec3;
@@ -259,8 +259,8 @@ fn credentials_that_are_not_pem_are_named() {
     let tls = Tls::load(&ca, &cert, &bad_key).unwrap();
     let rt = tokio::runtime::Runtime::new().unwrap();
     let e = rt
-        .block_on(cluster::worker::serve(
-            cluster::worker::WorkerService::default(),
+        .block_on(cluster::serve_worker(
+            cluster::WorkerService::default(),
             "127.0.0.1:0".parse().unwrap(),
             &Listen {
                 tls: Some(tls),

@@ -12,7 +12,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use cluster::pb::worker_client::WorkerClient;
-use cluster::{DrawAt, Options, RemoteExecutor, pb, wire};
+use cluster::{DrawAt, Options, RemoteExecutor, pb, protocol};
 use engine::{EngineError, Executor, LocalExecutor, Scene, Sequence};
 use glam::Vec3;
 use shadow::{DensityMap, Fiber, Light, LightFrame};
@@ -25,7 +25,7 @@ fn start_worker() -> SocketAddr {
 
 /// A worker, and a switch that stops it.
 fn start_stoppable_worker() -> (SocketAddr, tokio::sync::oneshot::Sender<()>) {
-    common::start_worker_with(cluster::worker::Listen::default())
+    common::start_worker_with(cluster::Listen::default())
 }
 
 use common::{DANCE, greeted_client, local_frames};
@@ -83,100 +83,6 @@ fn three_workers_give_the_local_map_and_transmittance_bit_for_bit() {
 }
 
 #[test]
-fn columns_summed_and_swept_by_their_owners_give_the_local_transmittance_bit_for_bit() {
-    // Three workers' partial maps, as each deposits its third of the
-    // strands; each owner sums the others' density of its columns over
-    // the wire format, adds the head, sweeps, and every worker assembles
-    // all owners' swept columns.
-    let hair = hair();
-    let fiber = Fiber::new(0.1, 0.5).unwrap();
-    let light = Light::directional(Vec3::new(0.9, -0.35, -0.25)).unwrap();
-    let frame = LightFrame::fit(&light, hair.points(), 64).unwrap();
-    let head = shadow::Occluder::sphere(Vec3::new(0.0, 3.0, 0.0), 4.0);
-    let n = hair.strand_count();
-    let thirds = [0..n / 3, n / 3..2 * n / 3, 2 * n / 3..n];
-    let partial: Vec<DensityMap> = thirds
-        .iter()
-        .map(|r| {
-            let mut m = DensityMap::new(frame);
-            m.deposit(&hair, r.clone(), &fiber);
-            m
-        })
-        .collect();
-    let mut whole = DensityMap::new(frame);
-    whole.deposit(&hair, 0..n, &fiber);
-    assert!(
-        whole.deposit_body(&head, shadow::OPAQUE_DEPTH) > 100,
-        "the head is in the map"
-    );
-    let want = shadow::Transmittance::compute(&whole);
-    // Uneven cuts, one of them empty.
-    let cuts = vec![0, 700, 700, frame.columns() as u32];
-    let peers: Vec<(String, String)> = (0..3)
-        .map(|i| (format!("w{i}:1"), format!("s{i}")))
-        .collect();
-    let plan = |own| wire::ColumnPlan {
-        round: 1,
-        cuts: cuts.clone(),
-        own,
-        peers: peers.clone(),
-        wait: Duration::from_secs(1),
-        tls_domain: None,
-        head: None,
-    };
-    let owners: Vec<Vec<pb::DrawChunk>> = (0..3)
-        .map(|own| {
-            let p = plan(own);
-            let mine = p.range(own);
-            let mut m = partial[own].clone();
-            for (b, other) in partial.iter().enumerate() {
-                if b != own {
-                    for c in wire::column_chunks(other, mine.clone()) {
-                        let d = wire::decode_columns(&frame, &c).unwrap();
-                        assert!(d.within(mine.clone()));
-                        wire::add_columns(&mut m, &d);
-                    }
-                }
-            }
-            m.deposit_body(&head, shadow::OPAQUE_DEPTH);
-            let slab = shadow::sweep(&m, mine.start as u32..mine.end as u32);
-            wire::swept_chunks(&frame, &slab)
-        })
-        .collect();
-    let got = wire::assemble_swept(frame, &plan(0), &owners).unwrap();
-    let mut checked = 0;
-    for p in hair.points().iter().step_by(7) {
-        for filter in [false, true] {
-            assert_eq!(
-                want.optical_depth(*p, filter).to_bits(),
-                got.optical_depth(*p, filter).to_bits(),
-                "{p} filtered {filter}"
-            );
-            checked += 1;
-        }
-    }
-    assert!(checked > 100);
-    // An owner's columns handed in as another's are refused.
-    let mut swapped = owners.clone();
-    swapped.swap(0, 2);
-    assert!(wire::assemble_swept(frame, &plan(0), &swapped).is_err());
-    // A plan that does not cut the map whole is refused.
-    let mut bad = plan(0).to_pb();
-    bad.cuts[3] -= 1;
-    let e = wire::ColumnPlan::from_pb(&bad, frame.columns()).unwrap_err();
-    assert!(e.to_string().contains("cuts"), "{e}");
-    bad.cuts = vec![0, 900, 800, frame.columns() as u32];
-    assert!(wire::ColumnPlan::from_pb(&bad, frame.columns()).is_err());
-    let mut bad = plan(0).to_pb();
-    bad.own = 3;
-    assert!(wire::ColumnPlan::from_pb(&bad, frame.columns()).is_err());
-    assert_eq!(
-        wire::ColumnPlan::from_pb(&plan(1).to_pb(), frame.columns()).unwrap(),
-        plan(1)
-    );
-}
-
-#[test]
 fn a_worker_refuses_another_protocol_version_and_calls_before_hello() {
     let addr = start_worker();
     let rt = tokio::runtime::Runtime::new().unwrap();
@@ -194,7 +100,7 @@ fn a_worker_refuses_another_protocol_version_and_calls_before_hello() {
         assert!(e.message().contains("session"), "{}", e.message());
         let e = c
             .hello(pb::HelloRequest {
-                protocol_version: wire::PROTOCOL_VERSION + 1,
+                protocol_version: protocol::PROTOCOL_VERSION + 1,
                 fiber_width: 0.1,
                 fiber_opacity: 0.5,
             })
@@ -220,7 +126,7 @@ fn malformed_messages_get_an_error_and_the_worker_lives_on() {
     let frame = LightFrame::centered(&light, Vec3::ZERO, 2.0, 8).unwrap();
     rt.block_on(async {
         let mut c = greeted_client(addr).await;
-        let good = wire::frame_to_pb(&frame);
+        let good = protocol::frame_to_pb(&frame);
         let cases: Vec<pb::DepositChunk> = vec![
             // No frame.
             pb::DepositChunk::default(),
@@ -289,7 +195,7 @@ fn malformed_messages_get_an_error_and_the_worker_lives_on() {
                 lo: vec![1],
                 hi: vec![4],
                 front: vec![1.0],
-                cells: wire::pack(&[1, 2]),
+                cells: protocol::pack(&[1, 2]),
                 ..Default::default()
             },
             // A column outside the map.
@@ -300,7 +206,7 @@ fn malformed_messages_get_an_error_and_the_worker_lives_on() {
                 lo: vec![1],
                 hi: vec![1],
                 front: vec![1.0],
-                cells: wire::pack(&[1]),
+                cells: protocol::pack(&[1]),
                 ..Default::default()
             },
             pb::ColumnChunk {
@@ -310,7 +216,7 @@ fn malformed_messages_get_an_error_and_the_worker_lives_on() {
                 lo: vec![1],
                 hi: vec![9],
                 front: vec![1.0],
-                cells: wire::pack(&[1; 9]),
+                cells: protocol::pack(&[1; 9]),
                 ..Default::default()
             },
         ];
@@ -429,7 +335,7 @@ fn undecodable_bytes_and_unphysical_fibers_are_invalid_arguments() {
         ] {
             let e = c
                 .hello(pb::HelloRequest {
-                    protocol_version: wire::PROTOCOL_VERSION,
+                    protocol_version: protocol::PROTOCOL_VERSION,
                     fiber_width: width,
                     fiber_opacity: opacity,
                 })
@@ -441,7 +347,7 @@ fn undecodable_bytes_and_unphysical_fibers_are_invalid_arguments() {
         // The worker lives on: a physical Hello opens a session.
         let ok = c
             .hello(pb::HelloRequest {
-                protocol_version: wire::PROTOCOL_VERSION,
+                protocol_version: protocol::PROTOCOL_VERSION,
                 fiber_width: 0.1,
                 fiber_opacity: 0.0,
             })
@@ -647,7 +553,7 @@ fn malformed_assign_and_step_calls_get_an_error_and_the_worker_lives_on() {
         let scene = Scene::from_toml_str(DANCE, std::path::Path::new("d")).unwrap();
         let anim = engine::Animator::new(&scene).unwrap();
         let wisps = anim.groups().wisp_range(0..1);
-        let states = wire::wisp_chunks(0, wisps.clone().map(|w| anim.wisp_state(w).unwrap()));
+        let states = protocol::wisp_chunks(0, wisps.clone().map(|w| anim.wisp_state(w).unwrap()));
         let mut good = vec![assign(DANCE, 0, 1)];
         good.extend(states.into_iter().map(|s| pb::AssignChunk {
             state: Some(s),
@@ -734,12 +640,12 @@ fn malformed_assign_and_step_calls_get_an_error_and_the_worker_lives_on() {
             report = report.or(m.report);
         }
         assert_eq!(got, 3 * wisps.len() * anim.points_per_wisp());
-        let report = wire::report_from_pb(&report.unwrap(), 1).unwrap();
+        let report = protocol::report_from_pb(&report.unwrap(), 1).unwrap();
         assert!(!report.bounds.is_empty() && !report.extents[0].is_empty());
         let light = Light::directional(Vec3::NEG_Y).unwrap();
         let frame = LightFrame::centered(&light, Vec3::ZERO, 80.0, 8).unwrap();
         let posed = |version| pb::DepositChunk {
-            map: Some(wire::frame_to_pb(&frame)),
+            map: Some(protocol::frame_to_pb(&frame)),
             posed: true,
             version,
             ..Default::default()
@@ -842,7 +748,7 @@ fn a_step_past_its_deadline_stops_and_frees_the_worker_for_the_next_call() {
             end_group: 1,
             ..Default::default()
         }];
-        let states = wire::wisp_chunks(0, wisps.map(|w| anim.wisp_state(w).unwrap()));
+        let states = protocol::wisp_chunks(0, wisps.map(|w| anim.wisp_state(w).unwrap()));
         assign.extend(states.into_iter().map(|s| pb::AssignChunk {
             state: Some(s),
             ..Default::default()
@@ -858,7 +764,7 @@ fn a_step_past_its_deadline_stops_and_frees_the_worker_for_the_next_call() {
         };
         // The most steps a call may ask for: seconds of work, far past
         // this call's deadline.
-        let steps = wire::MAX_STEPS;
+        let steps = protocol::MAX_STEPS;
         let mut long = tonic::Request::new(pb::StepRequest {
             heads: head.repeat(steps),
             body_counts: vec![0; steps],
@@ -883,8 +789,8 @@ fn an_assign_past_the_limits_is_refused_saying_which() {
     rt.block_on(async {
         let mut c = greeted_client(addr).await;
         // Scene text in pieces of 1 MiB, one byte past the limit in all.
-        let text = "#".repeat(wire::MAX_SCENE_TEXT + 1);
-        let huge: Vec<pb::AssignChunk> = wire::text_pieces(&text, wire::TEXT_PIECE_BYTES)
+        let text = "#".repeat(protocol::MAX_SCENE_TEXT + 1);
+        let huge: Vec<pb::AssignChunk> = protocol::text_pieces(&text, protocol::TEXT_PIECE_BYTES)
             .map(|t| pb::AssignChunk {
                 scene_toml: t.to_string(),
                 scene_path: "big.toml".into(),
@@ -909,7 +815,7 @@ fn an_assign_past_the_limits_is_refused_saying_which() {
             file_data: vec![7; 8 << 20],
             ..Default::default()
         };
-        let n = wire::MAX_FILE_BYTES / (8 << 20) + 1;
+        let n = protocol::MAX_FILE_BYTES / (8 << 20) + 1;
         let chunks = std::iter::once(first).chain(std::iter::repeat_n(piece, n));
         let e = c.assign(tokio_stream::iter(chunks)).await.unwrap_err();
         assert_eq!(e.code(), tonic::Code::ResourceExhausted, "{}", e.message());
@@ -937,19 +843,19 @@ fn crossing_deposit(cells: u32, strands: usize) -> Vec<pb::DepositChunk> {
         hair.push_strand(&[Vec3::new(-4.0, t, -0.9), Vec3::new(4.0, -t, 0.9)])
             .unwrap();
     }
-    wire::deposit_chunks(1, 0, &frame, &hair, 0..strands)
+    protocol::deposit_chunks(1, 0, &frame, &hair, 0..strands)
 }
 
 #[test]
 fn a_deposit_past_its_deadline_stops_and_gives_its_memory_back() {
     // Room for one map of 256^3 cells (64 MiB) and the strands below.
     let map = shadow::DensityMap::bytes_for(256);
-    let limits = cluster::worker::SessionLimits {
+    let limits = cluster::SessionLimits {
         max_memory: map + (40 << 20),
         ..Default::default()
     };
-    let service = cluster::worker::WorkerService::new(limits);
-    let (addr, _stop) = common::start_service(service, cluster::worker::Listen::default());
+    let service = cluster::WorkerService::new(limits);
+    let (addr, _stop) = common::start_service(service, cluster::Listen::default());
     let rt = tokio::runtime::Runtime::new().unwrap();
     rt.block_on(async {
         let mut c = greeted_client(addr).await;

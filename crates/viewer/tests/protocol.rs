@@ -272,10 +272,10 @@ fn start_worker() -> std::net::SocketAddr {
             .enable_all()
             .build()
             .unwrap();
-        rt.block_on(cluster::worker::serve(
-            cluster::worker::WorkerService::default(),
+        rt.block_on(cluster::serve_worker(
+            cluster::WorkerService::default(),
             "127.0.0.1:0".parse().unwrap(),
-            &cluster::worker::Listen::default(),
+            &cluster::Listen::default(),
             move |b| tx.send(b.addr).unwrap(),
             std::future::pending::<()>(),
         ))

@@ -17,14 +17,14 @@ use crate::pb;
 
 mod picture;
 
-pub use picture::*;
+pub(crate) use picture::*;
 
 /// The most lights one scene may have on the wire.
-pub const MAX_LIGHTS: usize = 64;
+pub(crate) const MAX_LIGHTS: usize = 64;
 
 /// Pixels per partial-picture chunk: about 300 KB, so that a picture
 /// streams (and is decoded) while the rest of it is encoded and sent.
-pub const PIXELS_PER_CHUNK: usize = 16 * 1024;
+pub(crate) const PIXELS_PER_CHUNK: usize = 16 * 1024;
 
 /// A vector of `n` floats, each finite.
 fn floats<const N: usize>(what: &str, f: &[f32]) -> Result<[f32; N], Malformed> {
@@ -115,7 +115,7 @@ fn lights_from_floats(f: &[f32]) -> Result<Vec<Light>, Malformed> {
 }
 
 /// A pose plan as sent.
-pub fn pose_plan_to_pb(p: &PosePlan) -> pb::PosePlan {
+pub(crate) fn pose_plan_to_pb(p: &PosePlan) -> pb::PosePlan {
     let mut out = pb::PosePlan {
         version: p.version,
         head: p.head.to_cols_array().to_vec(),
@@ -129,7 +129,7 @@ pub fn pose_plan_to_pb(p: &PosePlan) -> pb::PosePlan {
 
 /// A pose plan as sent: one finite head transform, bodies, at most
 /// [`MAX_LIGHTS`] valid light directions, a finite anchor.
-pub fn pose_plan_from_pb(p: &pb::PosePlan) -> Result<PosePlan, Malformed> {
+pub(crate) fn pose_plan_from_pb(p: &pb::PosePlan) -> Result<PosePlan, Malformed> {
     Ok(PosePlan {
         version: p.version,
         head: one_affine("pose head", &p.head)?,
@@ -140,7 +140,7 @@ pub fn pose_plan_from_pb(p: &pb::PosePlan) -> Result<PosePlan, Malformed> {
 }
 
 /// A pose report as sent.
-pub fn report_to_pb(r: &PoseReport) -> pb::PoseReport {
+pub(crate) fn report_to_pb(r: &PoseReport) -> pb::PoseReport {
     let six = |lo: Vec3, hi: Vec3| [lo.to_array(), hi.to_array()].concat();
     pb::PoseReport {
         bounds: if r.bounds.is_empty() {
@@ -190,7 +190,7 @@ pub fn report_from_pb(r: &pb::PoseReport, lights: usize) -> Result<PoseReport, M
 
 /// A bitmap of a map's columns (as [`shadow::columns_read`] makes) in
 /// 32-bit words, zero-run packed.
-pub fn columns_to_pb(bits: &[u64]) -> Vec<u8> {
+pub(crate) fn columns_to_pb(bits: &[u64]) -> Vec<u8> {
     let words: Vec<u32> = bits
         .iter()
         .flat_map(|w| [*w as u32, (*w >> 32) as u32])
@@ -199,7 +199,7 @@ pub fn columns_to_pb(bits: &[u64]) -> Vec<u8> {
 }
 
 /// [`columns_to_pb`] undone for a map of `columns` columns; no bit beyond.
-pub fn columns_from_pb(bytes: &[u8], columns: usize) -> Result<Vec<u64>, Malformed> {
+pub(crate) fn columns_from_pb(bytes: &[u8], columns: usize) -> Result<Vec<u64>, Malformed> {
     let words = columns.div_ceil(64);
     let mut w32 = Vec::new();
     unpack_runs(bytes, 2 * words, &mut w32)?;
@@ -215,7 +215,7 @@ pub fn columns_from_pb(bytes: &[u8], columns: usize) -> Result<Vec<u64>, Malform
 }
 
 /// A draw job as sent.
-pub fn job_to_pb(j: &DrawJob) -> pb::DrawJob {
+pub(crate) fn job_to_pb(j: &DrawJob) -> pb::DrawJob {
     let c = &j.camera;
     pb::DrawJob {
         version: j.version,
@@ -322,7 +322,7 @@ fn model_from_pb(j: &pb::DrawJob) -> Result<ShadingModel, Malformed> {
 
 /// A draw job as sent: a camera [`Camera::new`] takes (within the
 /// renderer's picture limits), finite settings, unit light directions.
-pub fn job_from_pb(j: &pb::DrawJob) -> Result<DrawJob, Malformed> {
+pub(crate) fn job_from_pb(j: &pb::DrawJob) -> Result<DrawJob, Malformed> {
     let c = floats::<10>("draw camera", &j.camera)?;
     if u64::from(j.width) * u64::from(j.height) > raster::MAX_PIXELS
         || j.width == 0
@@ -379,7 +379,7 @@ pub fn job_from_pb(j: &pb::DrawJob) -> Result<DrawJob, Malformed> {
 /// The columns of `slabs` (contiguous, swept in `frame`) whose bits are
 /// set in `keep` (all when `None`), as Draw chunks of light `light`, the
 /// first carrying the frame.
-pub fn draw_columns(
+pub(crate) fn draw_columns(
     light: u32,
     frame: &LightFrame,
     slabs: &[ColumnSlab],
@@ -432,12 +432,12 @@ pub fn draw_columns(
 }
 
 /// The most workers one Draw round composites among.
-pub const MAX_WORKERS: usize = 256;
+pub(crate) const MAX_WORKERS: usize = 256;
 
 /// How one Draw round's picture is composited on the workers: the band
 /// plan, the round, and where each worker is.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Bands {
+pub(crate) struct Bands {
     /// The round, counted by the coordinator.
     pub round: u64,
     /// Which worker owns which rows.
@@ -452,7 +452,7 @@ pub struct Bands {
 
 impl Bands {
     /// The plan as sent.
-    pub fn to_pb(&self) -> pb::BandPlan {
+    pub(crate) fn to_pb(&self) -> pb::BandPlan {
         pb::BandPlan {
             round: self.round,
             cuts: self.plan.cuts.clone(),
@@ -467,7 +467,7 @@ impl Bands {
     /// A band plan as sent, for a picture of `height` rows: whole bands,
     /// 2 to [`MAX_WORKERS`] workers each with an address and a session, a
     /// wait of at most ten minutes.
-    pub fn from_pb(b: &pb::BandPlan, height: u32) -> Result<Bands, Malformed> {
+    pub(crate) fn from_pb(b: &pb::BandPlan, height: u32) -> Result<Bands, Malformed> {
         let n = b.peers.len();
         if !(2..=MAX_WORKERS).contains(&n) || b.sessions.len() != n {
             return Err(bad(format!(
@@ -506,7 +506,7 @@ impl Bands {
 /// Receives the swept columns of a Draw call, light by light, into slabs
 /// of every column (those not sent empty).
 #[derive(Debug)]
-pub struct ColumnsReader {
+pub(crate) struct ColumnsReader {
     lights: Vec<Option<(LightFrame, ColumnSlab)>>,
     /// The last column received of the current light.
     next: Option<u32>,
@@ -515,7 +515,7 @@ pub struct ColumnsReader {
 
 impl ColumnsReader {
     /// For a job of `lights` lights.
-    pub fn new(lights: usize) -> ColumnsReader {
+    pub(crate) fn new(lights: usize) -> ColumnsReader {
         ColumnsReader {
             lights: vec![None; lights],
             next: None,
@@ -526,7 +526,7 @@ impl ColumnsReader {
     /// The most bytes [`add`](Self::add)ing `c` allocates, for a budget
     /// to admit before: 8 a depth (the depth and its step, unpacked), and
     /// for a light's frame a span per column.
-    pub fn bytes_to_add(c: &pb::DrawChunk) -> u64 {
+    pub(crate) fn bytes_to_add(c: &pb::DrawChunk) -> u64 {
         let cells: u64 =
             c.lo.iter()
                 .zip(&c.hi)
@@ -537,12 +537,12 @@ impl ColumnsReader {
     }
 
     /// Adds a chunk's columns, checked.
-    pub fn add(&mut self, c: &pb::DrawChunk) -> Result<(), Malformed> {
+    pub(crate) fn add(&mut self, c: &pb::DrawChunk) -> Result<(), Malformed> {
         self.add_within(c, 0..usize::MAX)
     }
 
     /// [`add`](Self::add), refusing a column outside `allowed`.
-    pub fn add_within(
+    pub(crate) fn add_within(
         &mut self,
         c: &pb::DrawChunk,
         allowed: std::ops::Range<usize>,
@@ -633,7 +633,7 @@ impl ColumnsReader {
 
     /// The transmittance of every light, once each light's frame came (the
     /// spans are checked as the map's own are).
-    pub fn finish(self) -> Result<Vec<shadow::Transmittance>, Malformed> {
+    pub(crate) fn finish(self) -> Result<Vec<shadow::Transmittance>, Malformed> {
         self.lights
             .into_iter()
             .enumerate()

@@ -16,7 +16,7 @@ use crate::pb;
 /// among themselves: reduce-scatter of the density to the columns' owners,
 /// each sweeping its own columns, then all-gather of the swept columns.
 #[derive(Debug, Clone, PartialEq)]
-pub struct ColumnPlan {
+pub(crate) struct ColumnPlan {
     /// The round, counted by the coordinator.
     pub round: u64,
     /// Worker `i` owns columns `cuts[i]..cuts[i + 1]`.
@@ -38,7 +38,7 @@ impl ColumnPlan {
     /// Columns `0..columns` cut in contiguous ranges, worker `i` getting
     /// about `weights` of them summed over its range (each column at
     /// least 1).
-    pub fn cuts(columns: usize, workers: usize, weight: impl Fn(usize) -> u64) -> Vec<u32> {
+    pub(crate) fn cuts(columns: usize, workers: usize, weight: impl Fn(usize) -> u64) -> Vec<u32> {
         let shares = engine::split_by(columns, workers, weight);
         let mut cuts: Vec<u32> = shares.iter().map(|r| r.start as u32).collect();
         cuts.push(columns as u32);
@@ -46,17 +46,17 @@ impl ColumnPlan {
     }
 
     /// Worker `i`'s columns.
-    pub fn range(&self, i: usize) -> Range<usize> {
+    pub(crate) fn range(&self, i: usize) -> Range<usize> {
         self.cuts[i] as usize..self.cuts[i + 1] as usize
     }
 
     /// Workers in the round.
-    pub fn workers(&self) -> usize {
+    pub(crate) fn workers(&self) -> usize {
         self.peers.len()
     }
 
     /// The plan as sent.
-    pub fn to_pb(&self) -> pb::ColumnPlan {
+    pub(crate) fn to_pb(&self) -> pb::ColumnPlan {
         let mut head = Vec::new();
         if let Some(h) = &self.head {
             super::affine_to_floats(h, &mut head);
@@ -77,7 +77,7 @@ impl ColumnPlan {
     /// [`super::MAX_WORKERS`] workers, each with an address and a session,
     /// cuts from 0 to `columns` that never fall, a wait of at most ten
     /// minutes, and no head or one finite transform.
-    pub fn from_pb(p: &pb::ColumnPlan, columns: usize) -> Result<ColumnPlan, Malformed> {
+    pub(crate) fn from_pb(p: &pb::ColumnPlan, columns: usize) -> Result<ColumnPlan, Malformed> {
         let n = p.peers.len();
         if !(2..=super::MAX_WORKERS).contains(&n) || p.sessions.len() != n {
             return Err(bad(format!(
@@ -133,7 +133,7 @@ impl ColumnPlan {
 
 /// A worker's swept columns `slab` as Exchange chunks (light 0, no
 /// frame: the receiver knows it), after the first chunk `first`.
-pub fn swept_chunks(frame: &LightFrame, slab: &ColumnSlab) -> Vec<pb::DrawChunk> {
+pub(crate) fn swept_chunks(frame: &LightFrame, slab: &ColumnSlab) -> Vec<pb::DrawChunk> {
     let mut chunks = draw_columns(0, frame, std::slice::from_ref(slab), None);
     for c in &mut chunks {
         c.map = None;
@@ -145,7 +145,7 @@ pub fn swept_chunks(frame: &LightFrame, slab: &ColumnSlab) -> Vec<pb::DrawChunk>
 /// (each its chunks, as [`swept_chunks`] made them), as one light's
 /// transmittance in `frame`: each owner's columns checked to lie in its
 /// range of `plan`.
-pub fn assemble_swept(
+pub(crate) fn assemble_swept(
     frame: LightFrame,
     plan: &ColumnPlan,
     owners: &[Vec<pb::DrawChunk>],

@@ -16,18 +16,19 @@ use crate::pb;
 
 mod draw;
 mod exchange;
-pub use draw::*;
-pub use exchange::*;
+pub use draw::report_from_pb;
+pub(crate) use draw::*;
+pub(crate) use exchange::*;
 
 /// The protocol version this build speaks. A coordinator and a worker of
 /// different versions refuse each other.
 pub const PROTOCOL_VERSION: u32 = 12;
 
 /// Points per Deposit chunk: 3 floats each, 1.5 MB.
-pub const POINTS_PER_CHUNK: usize = 128 * 1024;
+pub(crate) const POINTS_PER_CHUNK: usize = 128 * 1024;
 
 /// Density cells or depths per column or slab chunk: at most about 1.3 MB.
-pub const CELLS_PER_CHUNK: usize = 256 * 1024;
+pub(crate) const CELLS_PER_CHUNK: usize = 256 * 1024;
 
 /// The largest message either side decodes (16 MiB): each call in flight
 /// buffers at most one. Chunks stay far below it; a Step's head motions
@@ -56,7 +57,7 @@ pub fn text_pieces(text: &str, max: usize) -> impl Iterator<Item = &str> {
 
 /// The most points (and the most strands) one worker takes in one
 /// Deposit call: 32 M, about 400 MB of points and 128 MB of offsets.
-pub const MAX_POINTS: usize = 32_000_000;
+pub(crate) const MAX_POINTS: usize = 32_000_000;
 
 /// The longest scene text an Assign may carry (16 MiB).
 pub const MAX_SCENE_TEXT: usize = 16 << 20;
@@ -67,7 +68,7 @@ pub const MAX_FILE_BYTES: usize = 256 << 20;
 
 /// The most wisp-state values (3 per guide point now and 3 a step ago)
 /// one Assign may carry: 64 M values, 256 MB.
-pub const MAX_STATE_FLOATS: usize = 64 << 20;
+pub(crate) const MAX_STATE_FLOATS: usize = 64 << 20;
 
 /// A message that does not hold what the protocol says.
 #[derive(Debug, thiserror::Error)]
@@ -96,7 +97,7 @@ pub fn frame_to_pb(f: &LightFrame) -> pb::MapFrame {
 }
 
 /// A frame as sent: finite, `1..=MAX_CELLS` cells, `ds > 0`, unit axes.
-pub fn frame_from_pb(m: Option<&pb::MapFrame>) -> Result<LightFrame, Malformed> {
+pub(crate) fn frame_from_pb(m: Option<&pb::MapFrame>) -> Result<LightFrame, Malformed> {
     let m = m.ok_or_else(|| bad("no map frame in the first chunk"))?;
     if m.origin.len() != 3 || m.axes.len() != 9 {
         return Err(bad(format!(
@@ -184,7 +185,7 @@ pub fn deposit_chunks(
 }
 
 /// Adds the strands of one Deposit chunk to `hair`.
-pub fn add_strands(hair: &mut Hair, c: &pb::DepositChunk) -> Result<(), Malformed> {
+pub(crate) fn add_strands(hair: &mut Hair, c: &pb::DepositChunk) -> Result<(), Malformed> {
     let total: u64 = c.strand_lengths.iter().map(|&l| u64::from(l)).sum();
     if total * 3 != c.points.len() as u64 {
         return Err(bad(format!(
@@ -216,7 +217,7 @@ pub fn add_strands(hair: &mut Hair, c: &pb::DepositChunk) -> Result<(), Malforme
 }
 
 /// The occupied columns of `map` among `columns`, as chunks.
-pub fn column_chunks(map: &DensityMap, columns: Range<usize>) -> Vec<pb::ColumnChunk> {
+pub(crate) fn column_chunks(map: &DensityMap, columns: Range<usize>) -> Vec<pb::ColumnChunk> {
     let mut out = Vec::new();
     let mut chunk = pb::ColumnChunk::default();
     let (mut cells, mut last) = (0usize, 0u32);
@@ -255,7 +256,7 @@ pub fn column_chunks(map: &DensityMap, columns: Range<usize>) -> Vec<pb::ColumnC
 /// The columns of one [`pb::ColumnChunk`], decoded and checked against a
 /// map frame: what [`add_columns`] adds.
 #[derive(Debug, Clone, Default)]
-pub struct Columns {
+pub(crate) struct Columns {
     columns: Vec<u32>,
     metas: Vec<ColumnMeta>,
     cells: Vec<u32>,
@@ -263,21 +264,21 @@ pub struct Columns {
 
 impl Columns {
     /// Whether every column lies in `range`.
-    pub fn within(&self, range: Range<usize>) -> bool {
+    pub(crate) fn within(&self, range: Range<usize>) -> bool {
         self.columns.iter().all(|&c| range.contains(&(c as usize)))
     }
 }
 
 /// Adds the columns of one chunk to `map`, after decoding and checking
 /// them all ([`decode_columns`]): a bad chunk changes nothing.
-pub fn merge_columns(map: &mut DensityMap, c: &pb::ColumnChunk) -> Result<(), Malformed> {
+pub(crate) fn merge_columns(map: &mut DensityMap, c: &pb::ColumnChunk) -> Result<(), Malformed> {
     let d = decode_columns(map.frame(), c)?;
     add_columns(map, &d);
     Ok(())
 }
 
 /// Adds decoded columns to a map of the frame they were checked against.
-pub fn add_columns(map: &mut DensityMap, d: &Columns) {
+pub(crate) fn add_columns(map: &mut DensityMap, d: &Columns) {
     let mut at = 0;
     for (&col, &meta) in d.columns.iter().zip(&d.metas) {
         let len = usize::from(meta.hi - meta.lo) + 1;
@@ -309,7 +310,10 @@ pub(crate) fn column_count(
 /// Decodes the columns of one chunk and checks that they fit a map in
 /// `frame`: ascending indices in range, spans, fronts, and exactly the
 /// cells the spans hold.
-pub fn decode_columns(frame: &LightFrame, c: &pb::ColumnChunk) -> Result<Columns, Malformed> {
+pub(crate) fn decode_columns(
+    frame: &LightFrame,
+    c: &pb::ColumnChunk,
+) -> Result<Columns, Malformed> {
     let n = frame.n_cells as usize;
     let count = column_count(&c.column_steps, &c.lo, &c.hi, &c.front)?;
     let mut out = Columns {
@@ -350,7 +354,7 @@ pub fn decode_columns(frame: &LightFrame, c: &pb::ColumnChunk) -> Result<Columns
 /// column's depth (in steps) since the cell before, from 0 at the column's
 /// first cell. The spans do not travel: the receiver knows them, as it
 /// sent the density they were swept from.
-pub fn slab_chunks(slab: &ColumnSlab) -> Vec<pb::SlabChunk> {
+pub(crate) fn slab_chunks(slab: &ColumnSlab) -> Vec<pb::SlabChunk> {
     let mut out = Vec::new();
     let start = slab.columns.start;
     let mut chunk = pb::SlabChunk {
@@ -396,7 +400,7 @@ pub fn slab_chunks(slab: &ColumnSlab) -> Vec<pb::SlabChunk> {
 /// continue where the last ended, carry exactly the depths of its
 /// columns' spans, and keep every depth within 32 bits.
 #[derive(Debug)]
-pub struct SlabReader {
+pub(crate) struct SlabReader {
     slab: ColumnSlab,
     next: u32,
 }
@@ -404,14 +408,14 @@ pub struct SlabReader {
 impl SlabReader {
     /// Expects the depths of `layout`'s spans (any depths it holds are
     /// dropped).
-    pub fn new(mut layout: ColumnSlab) -> SlabReader {
+    pub(crate) fn new(mut layout: ColumnSlab) -> SlabReader {
         layout.depth.clear();
         let next = layout.columns.start;
         SlabReader { slab: layout, next }
     }
 
     /// Adds a chunk's columns, checked: in order, within the slab.
-    pub fn add(&mut self, c: &pb::SlabChunk) -> Result<(), Malformed> {
+    pub(crate) fn add(&mut self, c: &pb::SlabChunk) -> Result<(), Malformed> {
         let cols = &self.slab.columns;
         if c.first_column != self.next || c.end_column < c.first_column || c.end_column > cols.end {
             return Err(bad(format!(
@@ -444,7 +448,7 @@ impl SlabReader {
     }
 
     /// The slab, once every column came.
-    pub fn finish(self) -> Result<ColumnSlab, Malformed> {
+    pub(crate) fn finish(self) -> Result<ColumnSlab, Malformed> {
         if self.next != self.slab.columns.end {
             return Err(bad(format!(
                 "slab ends at column {}, expected {}",
@@ -535,21 +539,21 @@ pub(crate) fn unpack_runs(bytes: &[u8], count: usize, out: &mut Vec<u32>) -> Res
 
 /// Guide points per wisp-state chunk: 6 floats each (now and one step
 /// ago), 1.5 MB.
-pub const GUIDE_POINTS_PER_CHUNK: usize = 64 * 1024;
+pub(crate) const GUIDE_POINTS_PER_CHUNK: usize = 64 * 1024;
 
 /// The most time steps one Step call may ask for.
 pub const MAX_STEPS: usize = 100_000;
 
 /// The most bodies one time step may hold.
-pub const MAX_BODIES: usize = 1024;
+pub(crate) const MAX_BODIES: usize = 1024;
 
 /// A transform as 12 floats: the matrix's columns, then the translation.
-pub fn affine_to_floats(a: &Affine3A, out: &mut Vec<f32>) {
+pub(crate) fn affine_to_floats(a: &Affine3A, out: &mut Vec<f32>) {
     out.extend_from_slice(&a.to_cols_array());
 }
 
 /// The transforms of `f` (12 floats each), every one finite.
-pub fn affines_from_floats(f: &[f32]) -> Result<Vec<Affine3A>, Malformed> {
+pub(crate) fn affines_from_floats(f: &[f32]) -> Result<Vec<Affine3A>, Malformed> {
     if !f.len().is_multiple_of(12) || f.len() / 12 > MAX_STEPS {
         return Err(bad(format!(
             "{} head transform values: not a whole number of 12-float transforms, or more than {MAX_STEPS} steps",
@@ -563,14 +567,14 @@ pub fn affines_from_floats(f: &[f32]) -> Result<Vec<Affine3A>, Malformed> {
 }
 
 /// Body spheres as four floats each (centre, radius), appended to `out`.
-pub fn bodies_to_floats(bodies: &[Body], out: &mut Vec<f32>) {
+pub(crate) fn bodies_to_floats(bodies: &[Body], out: &mut Vec<f32>) {
     for b in bodies {
         out.extend_from_slice(&[b.center.x, b.center.y, b.center.z, b.radius]);
     }
 }
 
 /// Bodies as x, y, z, radius: finite, radius not negative.
-pub fn bodies_from_floats(f: &[f32]) -> Result<Vec<Body>, Malformed> {
+pub(crate) fn bodies_from_floats(f: &[f32]) -> Result<Vec<Body>, Malformed> {
     if !f.len().is_multiple_of(4) || f.len() / 4 > MAX_BODIES * MAX_STEPS {
         return Err(bad(format!(
             "{} body values: not x, y, z, radius quadruples",
@@ -597,7 +601,7 @@ pub fn bodies_from_floats(f: &[f32]) -> Result<Vec<Body>, Malformed> {
 
 /// Sparse accelerations: for each non-zero one, the count of zero ones
 /// skipped before it, then its x, y, z.
-pub fn accel_to_pb(accel: &[Vec3]) -> (Vec<u32>, Vec<f32>) {
+pub(crate) fn accel_to_pb(accel: &[Vec3]) -> (Vec<u32>, Vec<f32>) {
     let (mut skip, mut xyz) = (Vec::new(), Vec::new());
     let mut zeros = 0u32;
     for a in accel {
@@ -613,7 +617,7 @@ pub fn accel_to_pb(accel: &[Vec3]) -> (Vec<u32>, Vec<f32>) {
 }
 
 /// [`accel_to_pb`] undone, for `len` points; every value finite.
-pub fn accel_from_pb(skip: &[u32], xyz: &[f32], len: usize) -> Result<Vec<Vec3>, Malformed> {
+pub(crate) fn accel_from_pb(skip: &[u32], xyz: &[f32], len: usize) -> Result<Vec<Vec3>, Malformed> {
     if xyz.len() != 3 * skip.len() {
         return Err(bad(format!(
             "{} accelerations with {} components",
@@ -665,7 +669,7 @@ pub fn wisp_chunks<'a>(
 /// The wisps of one chunk, each of `per` guide points, all inside
 /// `wisps`: `(wisp, state)` pairs. Finiteness is checked where the state
 /// is set.
-pub fn wisps_from_chunk(
+pub(crate) fn wisps_from_chunk(
     c: &pb::WispChunk,
     per: usize,
     wisps: &Range<usize>,
@@ -703,5 +707,7 @@ pub fn wisps_from_chunk(
         .collect())
 }
 
+#[cfg(test)]
+mod fuzz;
 #[cfg(test)]
 mod tests;

@@ -1,5 +1,17 @@
 use super::*;
 
+use std::time::Duration;
+
+use glam::Vec3;
+use shadow::{Fiber, Light};
+use strands::{Style, StyleParams, WispModel};
+
+fn hair() -> strands::Hair {
+    let mut p = StyleParams::new(Style::Curly);
+    p.strands_per_wisp = 3;
+    WispModel::generate(&p).interpolate()
+}
+
 #[test]
 fn text_pieces_cut_at_characters_and_join_to_the_text() {
     let text = "aé€😀".repeat(50);
@@ -132,4 +144,98 @@ fn slab_chunks_out_of_place_or_overflowing_are_refused() {
     };
     let e = read(layout(), &[big]).unwrap_err().to_string();
     assert!(e.contains("past 2^32"), "{e}");
+}
+
+#[test]
+fn columns_summed_and_swept_by_their_owners_give_the_local_transmittance_bit_for_bit() {
+    // Three workers' partial maps, as each deposits its third of the
+    // strands; each owner sums the others' density of its columns over
+    // the wire format, adds the head, sweeps, and every worker assembles
+    // all owners' swept columns.
+    let hair = hair();
+    let fiber = Fiber::new(0.1, 0.5).unwrap();
+    let light = Light::directional(Vec3::new(0.9, -0.35, -0.25)).unwrap();
+    let frame = LightFrame::fit(&light, hair.points(), 64).unwrap();
+    let head = shadow::Occluder::sphere(Vec3::new(0.0, 3.0, 0.0), 4.0);
+    let n = hair.strand_count();
+    let thirds = [0..n / 3, n / 3..2 * n / 3, 2 * n / 3..n];
+    let partial: Vec<DensityMap> = thirds
+        .iter()
+        .map(|r| {
+            let mut m = DensityMap::new(frame);
+            m.deposit(&hair, r.clone(), &fiber);
+            m
+        })
+        .collect();
+    let mut whole = DensityMap::new(frame);
+    whole.deposit(&hair, 0..n, &fiber);
+    assert!(
+        whole.deposit_body(&head, shadow::OPAQUE_DEPTH) > 100,
+        "the head is in the map"
+    );
+    let want = shadow::Transmittance::compute(&whole);
+    // Uneven cuts, one of them empty.
+    let cuts = vec![0, 700, 700, frame.columns() as u32];
+    let peers: Vec<(String, String)> = (0..3)
+        .map(|i| (format!("w{i}:1"), format!("s{i}")))
+        .collect();
+    let plan = |own| ColumnPlan {
+        round: 1,
+        cuts: cuts.clone(),
+        own,
+        peers: peers.clone(),
+        wait: Duration::from_secs(1),
+        tls_domain: None,
+        head: None,
+    };
+    let owners: Vec<Vec<pb::DrawChunk>> = (0..3)
+        .map(|own| {
+            let p = plan(own);
+            let mine = p.range(own);
+            let mut m = partial[own].clone();
+            for (b, other) in partial.iter().enumerate() {
+                if b != own {
+                    for c in column_chunks(other, mine.clone()) {
+                        let d = decode_columns(&frame, &c).unwrap();
+                        assert!(d.within(mine.clone()));
+                        add_columns(&mut m, &d);
+                    }
+                }
+            }
+            m.deposit_body(&head, shadow::OPAQUE_DEPTH);
+            let slab = shadow::sweep(&m, mine.start as u32..mine.end as u32);
+            swept_chunks(&frame, &slab)
+        })
+        .collect();
+    let got = assemble_swept(frame, &plan(0), &owners).unwrap();
+    let mut checked = 0;
+    for p in hair.points().iter().step_by(7) {
+        for filter in [false, true] {
+            assert_eq!(
+                want.optical_depth(*p, filter).to_bits(),
+                got.optical_depth(*p, filter).to_bits(),
+                "{p} filtered {filter}"
+            );
+            checked += 1;
+        }
+    }
+    assert!(checked > 100);
+    // An owner's columns handed in as another's are refused.
+    let mut swapped = owners.clone();
+    swapped.swap(0, 2);
+    assert!(assemble_swept(frame, &plan(0), &swapped).is_err());
+    // A plan that does not cut the map whole is refused.
+    let mut bad = plan(0).to_pb();
+    bad.cuts[3] -= 1;
+    let e = ColumnPlan::from_pb(&bad, frame.columns()).unwrap_err();
+    assert!(e.to_string().contains("cuts"), "{e}");
+    bad.cuts = vec![0, 900, 800, frame.columns() as u32];
+    assert!(ColumnPlan::from_pb(&bad, frame.columns()).is_err());
+    let mut bad = plan(0).to_pb();
+    bad.own = 3;
+    assert!(ColumnPlan::from_pb(&bad, frame.columns()).is_err());
+    assert_eq!(
+        ColumnPlan::from_pb(&plan(1).to_pb(), frame.columns()).unwrap(),
+        plan(1)
+    );
 }

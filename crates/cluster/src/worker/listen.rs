@@ -26,7 +26,7 @@ pub struct Bound {
 /// Serves a worker on `addr` (port 0 picks a free port) until `shutdown`
 /// completes; `bound` is called with the address actually bound, before
 /// the first request is served.
-pub async fn serve(
+pub async fn serve_worker(
     service: WorkerService,
     addr: SocketAddr,
     listen: &Listen,
@@ -131,7 +131,7 @@ pub async fn serve(
 
 /// Runs a worker on `addr` until SIGTERM or SIGINT (Ctrl-C), then finishes
 /// the calls in flight and returns. `bound` gets the bound address.
-pub fn run(
+pub fn run_worker(
     service: WorkerService,
     addr: SocketAddr,
     listen: &Listen,
@@ -141,7 +141,13 @@ pub fn run(
         .enable_all()
         .build()
         .map_err(|e| ClusterError::Setup(format!("cannot start the network runtime: {e}")))?;
-    rt.block_on(serve(service, addr, listen, bound, shutdown_signal()))
+    rt.block_on(serve_worker(
+        service,
+        addr,
+        listen,
+        bound,
+        shutdown_signal(),
+    ))
 }
 
 /// Completes on SIGTERM or SIGINT.

@@ -17,7 +17,7 @@ mod status;
 
 use exchange::*;
 use inbox::*;
-pub use listen::{Bound, Listen, run, serve};
+pub use listen::{Bound, Listen, run_worker, serve_worker};
 use memory::*;
 use session::*;
 use share::*;

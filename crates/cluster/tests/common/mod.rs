@@ -3,7 +3,7 @@
 use std::net::SocketAddr;
 use std::time::Duration;
 
-use cluster::worker::Listen;
+use cluster::Listen;
 use engine::{Scene, Sequence};
 
 /// A small simulated scene: the smooth style, thinned, on a dancing head.
@@ -41,13 +41,13 @@ pub fn local_frames(scene: &Scene, frames: usize) -> Vec<image::RgbImage> {
 /// flight finish, new ones find no server). A dropped switch never stops
 /// the worker.
 pub fn start_worker_with(listen: Listen) -> (SocketAddr, tokio::sync::oneshot::Sender<()>) {
-    start_service(cluster::worker::WorkerService::default(), listen)
+    start_service(cluster::WorkerService::default(), listen)
 }
 
 /// [`start_worker_with`] for `service`.
 #[allow(dead_code)]
 pub fn start_service(
-    service: cluster::worker::WorkerService,
+    service: cluster::WorkerService,
     listen: Listen,
 ) -> (SocketAddr, tokio::sync::oneshot::Sender<()>) {
     let (tx, rx) = std::sync::mpsc::channel();
@@ -58,7 +58,7 @@ pub fn start_service(
             .enable_all()
             .build()
             .unwrap();
-        rt.block_on(cluster::worker::serve(
+        rt.block_on(cluster::serve_worker(
             service,
             "127.0.0.1:0".parse().unwrap(),
             &listen,
@@ -85,7 +85,7 @@ pub async fn greeted_client(addr: SocketAddr) -> cluster::SessionClient {
         .unwrap();
     let id = cluster::pb::worker_client::WorkerClient::new(channel.clone())
         .hello(cluster::pb::HelloRequest {
-            protocol_version: cluster::wire::PROTOCOL_VERSION,
+            protocol_version: cluster::protocol::PROTOCOL_VERSION,
             fiber_width: 0.1,
             fiber_opacity: 0.5,
         })

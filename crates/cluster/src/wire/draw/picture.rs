@@ -10,8 +10,11 @@ use super::PIXELS_PER_CHUNK;
 use crate::pb;
 
 /// A partial picture as chunks; the last carries the worker's times (an
-/// empty picture is one empty chunk).
-pub fn layer_chunks(layer: &HairLayer, times: &engine::DrawTimes) -> Vec<pb::LayerChunk> {
+/// empty picture is one empty chunk). Workers stream stripes instead
+/// ([`StripeEncoder`]); this whole-picture form is what the tests hold
+/// them to.
+#[cfg(test)]
+pub(crate) fn layer_chunks(layer: &HairLayer, times: &engine::DrawTimes) -> Vec<pb::LayerChunk> {
     let n = layer.pixels().len();
     let mut prev = 0;
     let mut chunks: Vec<pb::LayerChunk> = (0..n.max(1))
@@ -27,20 +30,20 @@ pub fn layer_chunks(layer: &HairLayer, times: &engine::DrawTimes) -> Vec<pb::Lay
 /// as it comes, then [`Self::last`]. The chunks are those of the whole
 /// picture to a [`LayerReader`].
 #[derive(Debug)]
-pub struct StripeEncoder {
+pub(crate) struct StripeEncoder {
     /// The pixel before the next one encoded.
     prev: u32,
 }
 
 impl StripeEncoder {
     /// An encoder at the first stripe.
-    pub fn new() -> StripeEncoder {
+    pub(crate) fn new() -> StripeEncoder {
         StripeEncoder { prev: 0 }
     }
 
     /// The chunks of `stripe` (none for an empty stripe), whose pixels
     /// follow every earlier stripe's.
-    pub fn chunks(&mut self, stripe: &HairLayer) -> Vec<pb::LayerChunk> {
+    pub(crate) fn chunks(&mut self, stripe: &HairLayer) -> Vec<pb::LayerChunk> {
         let n = stripe.pixels().len();
         (0..n)
             .step_by(PIXELS_PER_CHUNK)
@@ -49,7 +52,12 @@ impl StripeEncoder {
     }
 
     /// The last chunk, with no pixels: the worker's times.
-    pub fn last(&self, width: u32, height: u32, times: &engine::DrawTimes) -> pb::LayerChunk {
+    pub(crate) fn last(
+        &self,
+        width: u32,
+        height: u32,
+        times: &engine::DrawTimes,
+    ) -> pb::LayerChunk {
         let mut c = pb::LayerChunk {
             width,
             height,
@@ -96,11 +104,11 @@ fn times_of(c: &pb::LayerChunk) -> Option<engine::DrawTimes> {
 
 /// Rows of finished pixels a band chunk holds at most (about 250 KB of a
 /// 1280-pixel-wide picture).
-pub const ROWS_PER_CHUNK: u32 = 64;
+pub(crate) const ROWS_PER_CHUNK: u32 = 64;
 
 /// A band's finished rows (8-bit sRGB, row after row, from `first_row`)
 /// as Draw reply chunks: runs of the pixels that are not `background`.
-pub fn band_chunks(
+pub(crate) fn band_chunks(
     width: u32,
     height: u32,
     first_row: u32,
@@ -144,7 +152,7 @@ pub fn band_chunks(
 /// Receives one worker's bands of finished rows (`bands`, top to bottom,
 /// each rows of a picture `width` x `height`), in order.
 #[derive(Debug)]
-pub struct BandReader {
+pub(crate) struct BandReader {
     width: u32,
     height: u32,
     bands: Vec<(std::ops::Range<u32>, Vec<u8>)>,
@@ -159,7 +167,7 @@ pub struct BandReader {
 
 impl BandReader {
     /// A reader of the finished `bands` of a `width x height` picture.
-    pub fn new(width: u32, height: u32, bands: Vec<std::ops::Range<u32>>) -> BandReader {
+    pub(crate) fn new(width: u32, height: u32, bands: Vec<std::ops::Range<u32>>) -> BandReader {
         BandReader {
             width,
             height,
@@ -178,7 +186,7 @@ impl BandReader {
     }
 
     /// Adds a chunk, checked.
-    pub fn add(&mut self, c: &pb::LayerChunk) -> Result<(), Malformed> {
+    pub(crate) fn add(&mut self, c: &pb::LayerChunk) -> Result<(), Malformed> {
         if (c.width, c.height) != (self.width, self.height) {
             return Err(bad(format!(
                 "a band of a {}x{} picture for a frame of {}x{}",
@@ -261,7 +269,7 @@ impl BandReader {
 
     /// Each band's rows and their pixels, once every row came.
     #[allow(clippy::type_complexity)]
-    pub fn finish(self) -> Result<Vec<(std::ops::Range<u32>, Vec<u8>)>, Malformed> {
+    pub(crate) fn finish(self) -> Result<Vec<(std::ops::Range<u32>, Vec<u8>)>, Malformed> {
         for b in 0..self.bands.len() {
             if self.next_row(b) != self.bands[b].0.end {
                 return Err(bad(format!(
@@ -306,7 +314,7 @@ fn encode_pixels(
 
 /// Receives a partial picture's chunks for a frame of `width` x `height`.
 #[derive(Debug)]
-pub struct LayerReader {
+pub(crate) struct LayerReader {
     width: u32,
     height: u32,
     pixels: Vec<u32>,
@@ -317,7 +325,7 @@ pub struct LayerReader {
 
 impl LayerReader {
     /// A reader of a `width x height` partial picture.
-    pub fn new(width: u32, height: u32) -> LayerReader {
+    pub(crate) fn new(width: u32, height: u32) -> LayerReader {
         LayerReader {
             width,
             height,
@@ -328,7 +336,7 @@ impl LayerReader {
     }
 
     /// Adds a chunk, checked.
-    pub fn add(&mut self, c: &pb::LayerChunk) -> Result<(), Malformed> {
+    pub(crate) fn add(&mut self, c: &pb::LayerChunk) -> Result<(), Malformed> {
         if (c.width, c.height) != (self.width, self.height) {
             return Err(bad(format!(
                 "a partial picture of {}x{} for a frame of {}x{}",
@@ -377,7 +385,7 @@ impl LayerReader {
     }
 
     /// The partial picture, once every chunk is in.
-    pub fn finish(self) -> Result<HairLayer, Malformed> {
+    pub(crate) fn finish(self) -> Result<HairLayer, Malformed> {
         HairLayer::from_parts(self.width, self.height, self.pixels, self.sums)
             .map_err(|e| bad(e.to_string()))
     }

@@ -3,7 +3,8 @@
 //! validation a worker or coordinator applies. Nothing panics; whatever
 //! passes is within bounds.
 
-use cluster::{pb, wire};
+use super::*;
+use crate::pb;
 use glam::Vec3;
 use proptest::prelude::*;
 use prost::Message;
@@ -28,22 +29,22 @@ fn occupied_map(f: &LightFrame) -> DensityMap {
 fn check_all(bytes: &[u8]) {
     let f = frame();
     if let Ok(m) = pb::DepositChunk::decode(bytes) {
-        if let Ok(fr) = wire::frame_from_pb(m.map.as_ref()) {
+        if let Ok(fr) = frame_from_pb(m.map.as_ref()) {
             assert!(fr.n_cells >= 1 && fr.ds > 0.0);
         }
         let mut hair = strands::Hair::new();
-        if wire::add_strands(&mut hair, &m).is_ok() {
+        if add_strands(&mut hair, &m).is_ok() {
             assert!(hair.points().iter().all(|p| p.is_finite()));
         }
     }
     if let Ok(m) = pb::ColumnChunk::decode(bytes) {
         let mut map = DensityMap::new(f);
-        let _ = wire::merge_columns(&mut map, &m);
+        let _ = merge_columns(&mut map, &m);
     }
     if let Ok(m) = pb::SlabChunk::decode(bytes) {
         let map = occupied_map(&f);
         let layout = ColumnSlab::layout(&map, 0..f.columns() as u32);
-        let mut reader = wire::SlabReader::new(layout);
+        let mut reader = SlabReader::new(layout);
         if reader.add(&m).is_ok()
             && let Ok(slab) = reader.finish()
         {
@@ -55,7 +56,7 @@ fn check_all(bytes: &[u8]) {
     }
     if let Ok(m) = pb::WispChunk::decode(bytes) {
         for per in [1, 3, 96] {
-            if let Ok(states) = wire::wisps_from_chunk(&m, per, &(0..134)) {
+            if let Ok(states) = wisps_from_chunk(&m, per, &(0..134)) {
                 assert!(states.iter().all(|(w, s)| *w < 134 && s.pos.len() == per));
             }
         }
@@ -64,26 +65,26 @@ fn check_all(bytes: &[u8]) {
         }
     }
     if let Ok(m) = pb::PosePlan::decode(bytes)
-        && let Ok(p) = wire::pose_plan_from_pb(&m)
+        && let Ok(p) = pose_plan_from_pb(&m)
     {
         assert!(p.head.is_finite() && p.anchor.is_finite());
-        assert!(p.lights.len() <= wire::MAX_LIGHTS);
+        assert!(p.lights.len() <= MAX_LIGHTS);
     }
     if let Ok(m) = pb::PoseReport::decode(bytes) {
         check_report(&m);
     }
     if let Ok(m) = pb::ColumnChunk::decode(bytes)
-        && let Ok(bits) = wire::columns_from_pb(&m.columns_read, f.columns())
+        && let Ok(bits) = columns_from_pb(&m.columns_read, f.columns())
     {
         assert_eq!(bits.len(), f.columns().div_ceil(64));
     }
     if let Ok(m) = pb::DrawChunk::decode(bytes) {
         if let Some(j) = &m.job
-            && let Ok(job) = wire::job_from_pb(j)
+            && let Ok(job) = job_from_pb(j)
         {
-            assert!(job.camera.width() >= 1 && job.lights.len() <= wire::MAX_LIGHTS);
+            assert!(job.camera.width() >= 1 && job.lights.len() <= MAX_LIGHTS);
         }
-        let mut reader = wire::ColumnsReader::new(1);
+        let mut reader = ColumnsReader::new(1);
         if reader.add(&m).is_ok()
             && let Ok(maps) = reader.finish()
         {
@@ -93,14 +94,14 @@ fn check_all(bytes: &[u8]) {
         }
     }
     if let Ok(m) = pb::LayerChunk::decode(bytes) {
-        let mut reader = wire::LayerReader::new(m.width.min(64), m.height.min(64));
+        let mut reader = LayerReader::new(m.width.min(64), m.height.min(64));
         if reader.add(&m).is_ok() {
             let layer = reader.finish().unwrap();
             assert!(layer.pixels().len() <= 64 * 64);
         }
         // As a band of finished rows: whatever is accepted fills its rows.
         let (w, h) = (m.width.min(64), m.height.min(64));
-        let mut bands = wire::BandReader::new(w, h, vec![0..h.min(16), h.min(16)..h]);
+        let mut bands = BandReader::new(w, h, vec![0..h.min(16), h.min(16)..h]);
         if bands.add(&m).is_ok() {
             for (rows, rgb) in bands.finish().into_iter().flatten() {
                 assert_eq!(rgb.len(), (rows.end - rows.start) as usize * 3 * w as usize);
@@ -112,9 +113,9 @@ fn check_all(bytes: &[u8]) {
     }
     if let Ok(m) = pb::DrawChunk::decode(bytes)
         && let Some(b) = &m.bands
-        && let Ok(bands) = wire::Bands::from_pb(b, 720)
+        && let Ok(bands) = Bands::from_pb(b, 720)
     {
-        assert!(bands.plan.own < bands.peers.len() && bands.peers.len() <= wire::MAX_WORKERS);
+        assert!(bands.plan.own < bands.peers.len() && bands.peers.len() <= MAX_WORKERS);
         assert!(
             bands
                 .plan
@@ -131,10 +132,10 @@ fn check_all(bytes: &[u8]) {
 fn check_column_plan(m: &pb::DepositChunk) {
     let f = frame();
     let Some(p) = &m.columns else { return };
-    let Ok(plan) = wire::ColumnPlan::from_pb(p, f.columns()) else {
+    let Ok(plan) = ColumnPlan::from_pb(p, f.columns()) else {
         return;
     };
-    assert!(plan.own < plan.workers() && plan.workers() <= wire::MAX_WORKERS);
+    assert!(plan.own < plan.workers() && plan.workers() <= MAX_WORKERS);
     let ranges: Vec<_> = (0..plan.workers()).map(|i| plan.range(i)).collect();
     assert_eq!(ranges.first().map(|r| r.start), Some(0));
     assert_eq!(ranges.last().map(|r| r.end), Some(f.columns()));
@@ -143,9 +144,9 @@ fn check_column_plan(m: &pb::DepositChunk) {
     let map = occupied_map(&f);
     let owners: Vec<Vec<pb::DrawChunk>> = ranges
         .iter()
-        .map(|r| wire::swept_chunks(&f, &shadow::sweep(&map, r.start as u32..r.end as u32)))
+        .map(|r| swept_chunks(&f, &shadow::sweep(&map, r.start as u32..r.end as u32)))
         .collect();
-    let t = wire::assemble_swept(f, &plan, &owners).unwrap();
+    let t = assemble_swept(f, &plan, &owners).unwrap();
     assert_eq!(t.frame(), &f);
     // The first worker's columns given as the last's are refused, unless
     // both hold the same columns (or none).
@@ -154,14 +155,14 @@ fn check_column_plan(m: &pb::DepositChunk) {
         swapped.swap(0, plan.workers() - 1);
         let occupied = |r: &std::ops::Range<usize>| r.clone().any(|c| !map.meta(c).is_empty());
         if occupied(&ranges[0]) || occupied(&ranges[plan.workers() - 1]) {
-            assert!(wire::assemble_swept(f, &plan, &swapped).is_err());
+            assert!(assemble_swept(f, &plan, &swapped).is_err());
         }
     }
 }
 
 fn check_report(r: &pb::PoseReport) {
     for lights in [0, 1, 2] {
-        if let Ok(rep) = wire::report_from_pb(r, lights) {
+        if let Ok(rep) = report_from_pb(r, lights) {
             assert_eq!(rep.extents.len(), lights);
             assert!(rep.bounds.is_empty() || rep.bounds.min.cmple(rep.bounds.max).all());
         }
@@ -169,14 +170,14 @@ fn check_report(r: &pb::PoseReport) {
 }
 
 fn check_step(m: &pb::StepRequest) {
-    if let Ok(heads) = wire::affines_from_floats(&m.heads) {
+    if let Ok(heads) = affines_from_floats(&m.heads) {
         assert!(heads.iter().all(|h| h.is_finite()));
     }
-    if let Ok(bodies) = wire::bodies_from_floats(&m.bodies) {
+    if let Ok(bodies) = bodies_from_floats(&m.bodies) {
         assert!(bodies.iter().all(|b| b.radius >= 0.0));
     }
     for len in [0, 1, 100] {
-        if let Ok(a) = wire::accel_from_pb(&m.accel_skip, &m.accel, len) {
+        if let Ok(a) = accel_from_pb(&m.accel_skip, &m.accel, len) {
             assert_eq!(a.len(), len);
             assert!(a.iter().all(|v| v.is_finite()));
         }
@@ -211,23 +212,23 @@ proptest! {
         let f = frame();
         let mut hair = strands::Hair::new();
         hair.push_strand(&[Vec3::ZERO, Vec3::new(0.1, 0.2, 0.0), Vec3::new(0.2, 0.5, 0.1)]).unwrap();
-        let deposit = wire::deposit_chunks(1, 0, &f, &hair, 0..1).remove(0);
+        let deposit = deposit_chunks(1, 0, &f, &hair, 0..1).remove(0);
         let mut map = DensityMap::new(f);
         map.deposit(&hair, 0..1, &shadow::Fiber::new(0.1, 0.5).unwrap());
-        let columns = wire::column_chunks(&map, 0..f.columns()).remove(0);
+        let columns = column_chunks(&map, 0..f.columns()).remove(0);
         let full = 0..f.columns() as u32;
         let swept = shadow::sweep(&occupied_map(&f), full);
-        let slab = wire::slab_chunks(&swept).remove(0);
-        let draw = wire::draw_columns(0, &f, &[swept], None).remove(0);
+        let slab = slab_chunks(&swept).remove(0);
+        let draw = draw_columns(0, &f, &[swept], None).remove(0);
         let mut layer_canvas = raster::Canvas::new(8, 8).unwrap();
         let cam = raster::Camera::new(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, 40.0, 8, 8).unwrap();
         let look = raster::HairLook { fiber_width: 0.1, opacity: 0.8, depth_ref: 5.0 };
         let pts = [Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 0.0)];
         layer_canvas.draw_hair(&cam, &pts, &[0, 2], &[Vec3::ONE; 2], &look, &[]);
-        let layer = wire::layer_chunks(&layer_canvas.layer(), &engine::DrawTimes::default()).remove(0);
+        let layer = layer_chunks(&layer_canvas.layer(), &engine::DrawTimes::default()).remove(0);
         let rows = layer_canvas.resolve(Vec3::ZERO);
-        let band = wire::band_chunks(8, 8, 0, &rows, [0, 0, 0]).remove(0);
-        let plan = wire::Bands {
+        let band = band_chunks(8, 8, 0, &rows, [0, 0, 0]).remove(0);
+        let plan = Bands {
             round: 3,
             plan: engine::BandPlan::dealt(720, 48, 2, 1),
             peers: vec![("10.0.0.1:1".into(), "ab".into()), ("10.0.0.2:1".into(), "cd".into())],
@@ -235,9 +236,9 @@ proptest! {
             tls_domain: None,
         };
         let banded = pb::DrawChunk { bands: Some(plan.to_pb()), ..Default::default() };
-        let column_plan = wire::ColumnPlan {
+        let column_plan = ColumnPlan {
             round: 4,
-            cuts: wire::ColumnPlan::cuts(f.columns(), 3, |c| c as u64 % 5),
+            cuts: ColumnPlan::cuts(f.columns(), 3, |c| c as u64 % 5),
             own: 2,
             peers: vec![
                 ("10.0.0.1:1".into(), "ab".into()),
