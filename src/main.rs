@@ -5,6 +5,7 @@
 
 mod cmd;
 mod csv;
+mod output;
 mod plot;
 
 use std::process::ExitCode;
@@ -72,7 +73,7 @@ fn exit_cleanly_on_signals() {
                 _ = int.recv() => ("SIGINT", 130),
             }
         });
-        raster::remove_temporaries();
+        output::remove_temporaries();
         eprintln!("error: stopped by {name}; outputs not finished were removed");
         std::process::exit(code);
     });

@@ -1008,7 +1008,7 @@ fn a_render_stopped_by_a_signal_leaves_no_file_and_a_killed_ones_leftover_goes()
         let dir = scratch(&format!("signal-{signal}"));
         // What a render killed outright (SIGKILL) left behind: a process
         // that is gone (pids stay below 2^22 on Linux).
-        std::fs::write(dir.join(".out.gif.4999999.tmp"), b"half a gif").unwrap();
+        std::fs::write(dir.join(".out.gif.4999999.x7Kq2Z.tmp"), b"half a gif").unwrap();
         let child = Command::new(env!("CARGO_BIN_EXE_wisplight"))
             .args(["render", "--frames", "1000", "-o"])
             .arg(dir.join("out.gif"))
@@ -1016,10 +1016,11 @@ fn a_render_stopped_by_a_signal_leaves_no_file_and_a_killed_ones_leftover_goes()
             .spawn()
             .unwrap();
         // Until this render's own temporary file is there (and the old one gone).
-        let own = format!(".out.gif.{}.tmp", child.id());
+        let own = format!(".out.gif.{}.", child.id());
         let mut seen = false;
         for _ in 0..600 {
-            if names_in(&dir) == vec![own.clone()] {
+            let names = names_in(&dir);
+            if names.len() == 1 && names[0].starts_with(&own) && names[0].ends_with(".tmp") {
                 seen = true;
                 break;
             }

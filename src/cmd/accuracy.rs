@@ -186,12 +186,12 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
             ])?;
         }
         let bytes = w.into_inner().context("cannot write the table")?;
-        raster::write_bytes_atomic(path, &bytes).context("cannot save the table")?;
+        crate::output::write_bytes(path, &bytes).context("cannot save the table")?;
         eprintln!("wrote {}", path.display());
     }
     if let Some(path) = &a.plot {
         let img = plot_rows(&rows[1..], &name, cores)?;
-        raster::write_png_atomic(&img, path).context("cannot save the plot")?;
+        crate::output::write_png(path, &img).context("cannot save the plot")?;
         eprintln!("wrote {}", path.display());
     }
     Ok(())

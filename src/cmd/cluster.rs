@@ -6,6 +6,8 @@ use std::time::Duration;
 
 use anyhow::Context;
 
+use crate::output::AtomicFile;
+
 #[derive(Debug, clap::Args)]
 pub struct WorkerArgs {
     /// Address to listen on; port 0 picks a free port. The first line on
@@ -279,12 +281,12 @@ pub fn certs(args: CertsArgs) -> anyhow::Result<()> {
     // keys readable by their owner alone from the start.
     for (name, pem, secret) in files {
         let path = args.dir.join(name);
-        let mut file = raster::AtomicFile::create(&path)?;
-        if secret {
-            file = file.private()?;
-        }
-        file.writer()
-            .write_all(pem.as_bytes())
+        let mut file = if secret {
+            AtomicFile::private(&path)?
+        } else {
+            AtomicFile::create(&path)?
+        };
+        file.write_all(pem.as_bytes())
             .with_context(|| format!("cannot write {}", path.display()))?;
         file.commit()?;
     }

@@ -7,6 +7,8 @@ use std::time::Instant;
 use anyhow::Context;
 use engine::{FrameStats, Sequence};
 
+use crate::output::AtomicFile;
+
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Scene file (TOML); the built-in scene (the smooth style, parted, on a
@@ -40,7 +42,7 @@ pub struct Args {
 enum Output {
     /// One PNG per frame, named by the pattern.
     Pngs(Pattern),
-    Gif(raster::GifWriter, PathBuf),
+    Gif(raster::GifWriter<AtomicFile>, PathBuf),
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -71,8 +73,8 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
         })
     });
     let mut output = if is_gif(&out_path) {
-        let w = raster::GifWriter::create(
-            &out_path,
+        let w = raster::GifWriter::new(
+            AtomicFile::create(&out_path)?,
             scene.render.width,
             scene.render.height,
             scene.animation.fps,
@@ -153,7 +155,7 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
                     Some(b) if !stats.stage(engine::Stage::Draw).ran => b,
                     _ => raster::encode_png(img).context("cannot encode the picture")?,
                 };
-                raster::write_bytes_atomic(&path, &bytes).context("cannot save the picture")?;
+                crate::output::write_bytes(&path, &bytes).context("cannot save the picture")?;
                 png = Some(bytes);
             }
             Output::Gif(w, _) => w.add(img).context("cannot add a frame to the GIF")?,
@@ -173,7 +175,10 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
     bar.finish_and_clear();
     let written = match output {
         Output::Gif(w, path) => {
-            w.finish().context("cannot save the GIF")?;
+            w.finish()
+                .context("cannot save the GIF")?
+                .commit()
+                .context("cannot save the GIF")?;
             path.display().to_string()
         }
         Output::Pngs(p) if n == 1 => p.path(0).display().to_string(),
@@ -303,7 +308,7 @@ fn is_gif(p: &Path) -> bool {
 fn write_stats(path: &Path, frames: &[FrameStats]) -> anyhow::Result<()> {
     let doc = serde_json::json!({ "frames": frames });
     let bytes = serde_json::to_vec_pretty(&doc).context("cannot encode the stats")?;
-    raster::write_bytes_atomic(path, &bytes).context("cannot save the stats")
+    crate::output::write_bytes(path, &bytes).context("cannot save the stats")
 }
 
 /// An output name with an optional printf-style frame number: `%d`, or

@@ -414,7 +414,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
         &labels,
         &values,
     )?;
-    raster::write_png_atomic(&img, &a.plot).context("cannot save the plot")?;
+    crate::output::write_png(&a.plot, &img).context("cannot save the plot")?;
     eprintln!("bench scaling: wrote {}", a.plot.display());
     if rows.iter().any(|r| !r.identical) {
         bail!("a cluster configuration drew different pictures from one process");

@@ -1,6 +1,7 @@
 //! Pictures: a perspective camera, Kajiya-Kay hair shading, a software
 //! renderer for anti-aliased, semi-transparent line strips over a
-//! depth-tested sphere, and PNG output.
+//! depth-tested sphere, and PNG and GIF encoding (into memory or any
+//! writer: the caller decides how a file is written).
 //!
 //! This crate knows nothing of density maps or scenes: it is handed shaded
 //! vertices (colour per vertex) and a head, and turns them into pixels. Its
@@ -25,9 +26,7 @@ pub use fiber::{
     P_MAX, color_from_sigma_a, optical_depth, sigma_a_from_color, sigma_a_from_melanin,
 };
 pub use gif::GifWriter;
-pub use png::{
-    AtomicFile, encode_png, remove_temporaries, write_atomic, write_bytes_atomic, write_png_atomic,
-};
+pub use png::encode_png;
 pub use shade::{Shading, ShadingModel, kajiya_kay};
 
 /// The largest image side, in pixels.
@@ -52,19 +51,12 @@ pub enum RasterError {
     /// A camera that cannot be made.
     #[error("camera: {0}")]
     Camera(String),
-    /// A file that cannot be written.
-    #[error("cannot write {}: {cause}", path.display())]
-    Write {
-        /// The file.
-        path: std::path::PathBuf,
-        /// Why.
-        cause: std::io::Error,
-    },
-    /// A picture the encoder refused.
-    #[error("cannot encode {path}: {message}")]
+    /// A picture the encoder refused, or the writer it encodes into
+    /// failed.
+    #[error("cannot encode the {format}: {message}")]
     Encode {
-        /// The file.
-        path: std::path::PathBuf,
+        /// The image format ("PNG", "GIF").
+        format: &'static str,
         /// The encoder's reason.
         message: String,
     },
