@@ -99,7 +99,12 @@ impl AtomicFile {
         }
         #[cfg(not(unix))]
         let _ = mode;
-        let tmp = builder.tempfile_in(dir).with_context(cannot)?;
+        // tempfile names its random temporary in the error; the user's
+        // path, in the context, is the one that means something.
+        let tmp = builder
+            .tempfile_in(dir)
+            .map_err(os_error)
+            .with_context(cannot)?;
         if let Ok(mut t) = TEMPORARIES.lock() {
             t.push(tmp.path().to_owned());
         }
@@ -159,6 +164,16 @@ impl Drop for AtomicFile {
         if let Some(Out::Temporary(w)) = &self.out {
             forget(w.get_ref().path());
         }
+    }
+}
+
+/// tempfile's error without the path of the temporary it appends
+/// (`... at path "..."`), which it keeps private with the OS's error code.
+fn os_error(e: std::io::Error) -> std::io::Error {
+    let text = e.to_string();
+    match text.rsplit_once(" at path \"") {
+        Some((reason, _)) => std::io::Error::new(e.kind(), reason.to_owned()),
+        None => e,
     }
 }
 
@@ -273,7 +288,10 @@ mod tests {
         drop(f);
         assert_eq!(std::fs::read(&path).unwrap(), b"new and longer");
         assert_eq!(names(&dir), ["a.json"]);
-        assert!(write_bytes(&dir.join("missing-dir/b.png"), b"x").is_err());
+        let e = write_bytes(&dir.join("missing-dir/b.png"), b"x").unwrap_err();
+        let e = format!("{e:#}");
+        assert!(e.contains("missing-dir/b.png: No such file"), "{e}");
+        assert!(!e.contains(".tmp"), "{e}");
         let listed = TEMPORARIES.lock().unwrap().clone();
         assert!(!listed.iter().any(|p| p.starts_with(&dir)), "{listed:?}");
         let _ = std::fs::remove_dir_all(&dir);
