@@ -1,4 +1,5 @@
-//! Charts for the benchmarks, drawn with plotters into a picture: error
+//! Charts for the benchmarks, drawn with plotters as a picture and as
+//! SVG from the same drawing code ([`Chart::png`], [`Chart::svg`]): error
 //! against time for `bench accuracy` (a log time axis fitted to the data,
 //! each point labelled with its setting, the Pareto front marked, a legend
 //! of methods) and frame times for `bench scaling` (bars with their
@@ -9,6 +10,8 @@ use std::sync::Once;
 
 use anyhow::anyhow;
 use image::RgbImage;
+use plotters::coord::Shift;
+use plotters::drawing::DrawingAreaErrorKind;
 use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
 
@@ -70,19 +73,63 @@ pub fn pareto_front(points: &[Point]) -> Vec<usize> {
     front
 }
 
-/// Draws `draw` on a white picture of `W x H`.
-fn picture(
-    draw: impl FnOnce(&DrawingArea<BitMapBackend, plotters::coord::Shift>) -> anyhow::Result<()>,
-) -> anyhow::Result<RgbImage> {
-    font();
-    let mut buf = vec![0u8; (W * H * 3) as usize];
-    {
-        let root = BitMapBackend::with_buffer(&mut buf, (W, H)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| anyhow!("plot: {e}"))?;
-        draw(&root)?;
-        root.present().map_err(|e| anyhow!("plot: {e}"))?;
+/// A chart, drawn as a picture or as SVG.
+#[derive(Debug, Clone)]
+pub enum Chart {
+    /// See [`scatter`].
+    Scatter {
+        title: String,
+        x_label: String,
+        y_label: String,
+        series: Vec<String>,
+        points: Vec<Point>,
+    },
+    /// See [`bars`].
+    Bars {
+        title: String,
+        y_label: String,
+        labels: Vec<String>,
+        values: Vec<f64>,
+    },
+}
+
+impl Chart {
+    /// The chart as a `W x H` picture.
+    pub fn png(&self) -> anyhow::Result<RgbImage> {
+        font();
+        let mut buf = vec![0u8; (W * H * 3) as usize];
+        self.draw(BitMapBackend::with_buffer(&mut buf, (W, H)).into_drawing_area())?;
+        RgbImage::from_raw(W, H, buf).ok_or_else(|| anyhow!("plot: picture of the wrong size"))
     }
-    RgbImage::from_raw(W, H, buf).ok_or_else(|| anyhow!("plot: picture of the wrong size"))
+
+    /// The chart as an SVG document of the picture's size (text as text,
+    /// in the viewer's sans-serif font).
+    pub fn svg(&self) -> anyhow::Result<String> {
+        font();
+        let mut out = String::new();
+        self.draw(SVGBackend::with_string(&mut out, (W, H)).into_drawing_area())?;
+        Ok(out)
+    }
+
+    fn draw<DB: DrawingBackend>(&self, root: DrawingArea<DB, Shift>) -> anyhow::Result<()> {
+        root.fill(&WHITE).map_err(|e| anyhow!("plot: {e}"))?;
+        match self {
+            Chart::Scatter {
+                title,
+                x_label,
+                y_label,
+                series,
+                points,
+            } => draw_scatter(&root, title, x_label, y_label, series, points)?,
+            Chart::Bars {
+                title,
+                y_label,
+                labels,
+                values,
+            } => draw_bars(&root, title, y_label, labels, values)?,
+        }
+        root.present().map_err(|e| anyhow!("plot: {e}"))
+    }
 }
 
 /// Error against time: one colour per series (`series` names them in the
@@ -94,7 +141,24 @@ pub fn scatter(
     y_label: &str,
     series: &[String],
     points: &[Point],
-) -> anyhow::Result<RgbImage> {
+) -> Chart {
+    Chart::Scatter {
+        title: title.to_owned(),
+        x_label: x_label.to_owned(),
+        y_label: y_label.to_owned(),
+        series: series.to_vec(),
+        points: points.to_vec(),
+    }
+}
+
+fn draw_scatter<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[String],
+    points: &[Point],
+) -> anyhow::Result<()> {
     let finite: Vec<&Point> = points
         .iter()
         .filter(|p| p.x_ms.is_finite() && p.x_ms > 0.0 && p.y.is_finite())
@@ -109,8 +173,8 @@ pub fn scatter(
     };
     let y_top = finite.iter().map(|p| p.y).fold(0.0f64, f64::max).max(1e-3) * 1.12;
     let front = pareto_front(points);
-    picture(|root| {
-        let err = |e: plotters::drawing::DrawingAreaErrorKind<_>| anyhow!("plot: {e}");
+    {
+        let err = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow!("plot: {e}");
         let mut chart = ChartBuilder::on(root)
             .caption(title, (FONT, 24))
             .margin(16)
@@ -216,7 +280,7 @@ pub fn scatter(
             .draw()
             .map_err(err)?;
         Ok(())
-    })
+    }
 }
 
 /// Ticks of a log axis over `lo..hi`: 1, 2 and 5 times each power of ten.
@@ -321,12 +385,22 @@ fn place_label(
 
 /// A bar per label (named under it) with its value written above it,
 /// under `title`.
-pub fn bars(
+pub fn bars(title: &str, y_label: &str, labels: &[String], values: &[f64]) -> Chart {
+    Chart::Bars {
+        title: title.to_owned(),
+        y_label: y_label.to_owned(),
+        labels: labels.to_vec(),
+        values: values.to_vec(),
+    }
+}
+
+fn draw_bars<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
     title: &str,
     y_label: &str,
     labels: &[String],
     values: &[f64],
-) -> anyhow::Result<RgbImage> {
+) -> anyhow::Result<()> {
     let n = labels.len().min(values.len());
     let top = values
         .iter()
@@ -335,8 +409,8 @@ pub fn bars(
         .fold(0.0f64, f64::max)
         .max(1e-3)
         * 1.15;
-    picture(|root| {
-        let err = |e: plotters::drawing::DrawingAreaErrorKind<_>| anyhow!("plot: {e}");
+    {
+        let err = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow!("plot: {e}");
         let mut chart = ChartBuilder::on(root)
             .caption(title, (FONT, 24))
             .margin(16)
@@ -384,7 +458,7 @@ pub fn bars(
                 .map_err(err)?;
         }
         Ok(())
-    })
+    }
 }
 
 #[cfg(test)]
@@ -437,7 +511,9 @@ mod tests {
     #[test]
     fn charts_draw_their_points_and_bars_in_colour_with_text() {
         let series = vec!["a".to_string(), "b".to_string()];
-        let img = scatter("T", "x", "y", &series, &[p(6.0, 0.1, 0), p(130.0, 0.05, 1)]).unwrap();
+        let img = scatter("T", "x", "y", &series, &[p(6.0, 0.1, 0), p(130.0, 0.05, 1)])
+            .png()
+            .unwrap();
         let colored =
             |img: &RgbImage, c: RGBColor| img.pixels().filter(|q| q.0 == [c.0, c.1, c.2]).count();
         assert!(colored(&img, COLORS[0]) > 20 && colored(&img, COLORS[1]) > 20);
@@ -450,7 +526,35 @@ mod tests {
             &["1 process".into(), "3 workers, workers drawing".into()],
             &[120.0, 80.0],
         )
+        .png()
         .unwrap();
         assert!(colored(&img, COLORS[0]) > 1000 && colored(&img, COLORS[1]) > 1000);
+    }
+
+    #[test]
+    fn the_svg_is_the_same_chart_as_the_picture() {
+        let series = vec!["density map".to_string(), "reference".to_string()];
+        let chart = scatter(
+            "error vs time",
+            "ms",
+            "RMS",
+            &series,
+            &[p(6.0, 0.1, 0), p(130.0, 0.05, 1)],
+        );
+        let svg = chart.svg().unwrap();
+        assert!(
+            svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"),
+            "{svg}"
+        );
+        assert!(svg.contains(r#"width="1100" height="680""#), "{svg}");
+        // The title, the legend and each point's label, as text.
+        for text in ["error vs time", "density map", "reference", "6", "130"] {
+            assert!(svg.lines().any(|l| l.trim() == text), "{text} missing");
+        }
+        // A dot in each series' colour.
+        for c in &COLORS[..2] {
+            let hex = format!("#{:02X}{:02X}{:02X}", c.0, c.1, c.2);
+            assert!(svg.to_uppercase().contains(&hex), "{hex} missing");
+        }
     }
 }

@@ -494,6 +494,15 @@ fn bench_accuracy_writes_a_table_a_csv_and_a_plot() {
     let scene = write(&dir, "scene.toml", SMALL);
     let csv = dir.join("acc.csv");
     let plot = dir.join("acc.png");
+    // A plot that is not a .png is refused before anything runs (its SVG
+    // would take the same name).
+    let o = wisplight(&["bench", "accuracy", &scene, "--plot", "acc.svg"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("acc.svg: the plot is a .png"),
+        "{}",
+        stderr(&o)
+    );
     let o = wisplight(&[
         "bench",
         "accuracy",
@@ -537,6 +546,9 @@ fn bench_accuracy_writes_a_table_a_csv_and_a_plot() {
     }
     let img = image::open(&plot).unwrap();
     assert!(img.width() > 400 && img.height() > 300);
+    // The same chart as SVG beside it, naming the methods.
+    let svg = std::fs::read_to_string(plot.with_extension("svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains("deep-shadow-map"));
     assert!(stdout(&o).contains("deep-shadow-map"));
 }
 

@@ -388,6 +388,8 @@ fn bench_scaling_reports_every_configuration_and_writes_its_plot() {
     );
     let img = image::open(&plot).unwrap();
     assert_eq!((img.width(), img.height()), (1100, 680));
+    let svg = std::fs::read_to_string(plot.with_extension("svg")).unwrap();
+    assert!(svg.contains(r#"width="1100" height="680""#), "{svg}");
 }
 
 #[test]

@@ -18,8 +18,8 @@ pub struct AccuracyArgs {
     /// parameters, ms, mean_abs, rms, max, image_error.
     #[arg(long, value_name = "FILE")]
     csv: Option<PathBuf>,
-    /// Also write a plot of the RMS error against time (PNG), with the
-    /// Pareto front marked.
+    /// Also write a plot of the RMS error against time (PNG, and the same
+    /// chart as SVG beside it), with the Pareto front marked.
     #[arg(long, value_name = "FILE.png")]
     plot: Option<PathBuf>,
     /// Timed frames per setting, after one untimed frame; the median counts.
@@ -98,6 +98,9 @@ struct Row {
 
 pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
     let scene = super::load_scene(a.scene.as_deref())?;
+    if let Some(p) = &a.plot {
+        super::check_plot_path(p)?;
+    }
     let hair = super::build_hair(&scene)?;
     let (name, threads, cores) = super::machine(a.scene.as_deref());
     let configs: Vec<MethodConfig> = sweep()
@@ -190,9 +193,7 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
         eprintln!("wrote {}", path.display());
     }
     if let Some(path) = &a.plot {
-        let img = plot_rows(&rows[1..], &name, cores)?;
-        crate::output::write_png(path, &img).context("cannot save the plot")?;
-        eprintln!("wrote {}", path.display());
+        super::write_chart(path, &plot_rows(&rows[1..], &name, cores))?;
     }
     Ok(())
 }
@@ -268,7 +269,7 @@ fn image_error(a: &RgbImage, b: &RgbImage, background: glam::Vec3) -> f64 {
     }
 }
 
-fn plot_rows(rows: &[Row], scene: &str, cores: usize) -> anyhow::Result<RgbImage> {
+fn plot_rows(rows: &[Row], scene: &str, cores: usize) -> plot::Chart {
     let series: Vec<String> = MethodConfig::NAMES
         .iter()
         .filter(|n| **n != "reference" && rows.iter().any(|r| r.config.name() == **n))

@@ -64,6 +64,32 @@ pub fn usage(message: impl Into<String>) -> anyhow::Error {
     Usage(message.into()).into()
 }
 
+/// Checks a `--plot` path: a `.png`, which gets the same chart as SVG
+/// beside it (`.svg`).
+pub fn check_plot_path(path: &Path) -> anyhow::Result<()> {
+    if path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"))
+    {
+        Ok(())
+    } else {
+        Err(usage(format!(
+            "--plot {}: the plot is a .png (the SVG goes beside it)",
+            path.display()
+        )))
+    }
+}
+
+/// Writes `chart` to `path` (a PNG) and as SVG beside it, each whole or
+/// not at all; says where on stderr.
+pub fn write_chart(path: &Path, chart: &crate::plot::Chart) -> anyhow::Result<()> {
+    crate::output::write_png(path, &chart.png()?).context("cannot save the plot")?;
+    let svg = path.with_extension("svg");
+    crate::output::write_bytes(&svg, chart.svg()?.as_bytes()).context("cannot save the plot")?;
+    eprintln!("wrote {} and {}", path.display(), svg.display());
+    Ok(())
+}
+
 /// Loads a scene file, or the built-in scene when none is given.
 pub fn load_scene(path: Option<&Path>) -> anyhow::Result<Scene> {
     match path {

@@ -36,7 +36,8 @@ pub struct ScalingArgs {
         value_name = "WHERE,..."
     )]
     draw: Vec<super::cluster::Draw>,
-    /// The plot of median frame times.
+    /// The plot of median frame times (PNG, and the same chart as SVG
+    /// beside it).
     #[arg(long, default_value = "scaling.png", value_name = "FILE.png")]
     plot: PathBuf,
     /// Also print the result as one JSON object on the last stdout line.
@@ -160,16 +161,7 @@ impl Row {
 
 pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
     let scene = super::load_scene(a.scene.as_deref())?;
-    if !a
-        .plot
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("png"))
-    {
-        return Err(super::usage(format!(
-            "--plot {}: the plot is a .png",
-            a.plot.display()
-        )));
-    }
+    super::check_plot_path(&a.plot)?;
     let (name, threads, cores) = super::machine(a.scene.as_deref());
     if let Some(c) = a.node_cpus
         && !(c.is_finite() && c >= 0.01 && c <= cores as f64)
@@ -408,14 +400,13 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
         (false, true) => format!(", {} Mbit/s links", a.link_mbit.unwrap_or(0)),
         (false, false) => String::new(),
     };
-    let img = crate::plot::bars(
+    let chart = crate::plot::bars(
         &format!("frame ms, {short}{limits}"),
         "ms",
         &labels,
         &values,
-    )?;
-    crate::output::write_png(&a.plot, &img).context("cannot save the plot")?;
-    eprintln!("bench scaling: wrote {}", a.plot.display());
+    );
+    super::write_chart(&a.plot, &chart)?;
     if rows.iter().any(|r| !r.identical) {
         bail!("a cluster configuration drew different pictures from one process");
     }
