@@ -119,42 +119,43 @@ impl AtomicFile {
     pub fn commit(mut self) -> anyhow::Result<()> {
         let cannot = || format!("cannot write {}", self.path.display());
         match self.out.take().expect("committed once") {
-            Out::Direct(out) => {
-                out.into_inner()
-                    .map_err(|e| e.into_error())
-                    .with_context(cannot)?;
-                Ok(())
-            }
+            Out::Direct(out) => out
+                .into_inner()
+                .map(drop)
+                .map_err(|e| e.into_error())
+                .with_context(cannot),
             Out::Temporary(out) => {
-                let tmp = out
+                let at = out.get_ref().path().to_owned();
+                let done = out
                     .into_inner()
                     .map_err(|e| e.into_error())
-                    .with_context(cannot)?;
-                let at = tmp.path().to_owned();
-                let done = tmp
-                    .as_file()
-                    .sync_all()
-                    .and_then(|()| tmp.persist(&self.target).map(drop).map_err(|e| e.error));
+                    .and_then(|tmp| {
+                        tmp.as_file().sync_all()?;
+                        tmp.persist(&self.target).map(drop).map_err(|e| e.error)
+                    });
+                // In place, or removed by tempfile on the way out.
                 forget(&at);
                 done.with_context(cannot)
             }
+        }
+    }
+
+    /// Where the bytes go, until the commit.
+    fn writer(&mut self) -> &mut dyn Write {
+        match self.out.as_mut().expect("not yet committed") {
+            Out::Temporary(w) => w,
+            Out::Direct(w) => w,
         }
     }
 }
 
 impl Write for AtomicFile {
     fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
-        match self.out.as_mut().expect("not yet committed") {
-            Out::Temporary(w) => w.write(buf),
-            Out::Direct(w) => w.write(buf),
-        }
+        self.writer().write(buf)
     }
 
     fn flush(&mut self) -> std::io::Result<()> {
-        match self.out.as_mut().expect("not yet committed") {
-            Out::Temporary(w) => w.flush(),
-            Out::Direct(w) => w.flush(),
-        }
+        self.writer().flush()
     }
 }
 
