@@ -5,6 +5,7 @@
 
 mod cmd;
 mod csv;
+mod cycles;
 mod output;
 mod plot;
 
@@ -40,6 +41,8 @@ enum Command {
     Health(cmd::cluster::HealthArgs),
     /// Makes a certificate authority and certificates for mutual TLS between a coordinator and its workers.
     Certs(cmd::cluster::CertsArgs),
+    /// Writes a frame of a scene for Blender Cycles: the strands as posed, head, camera, lights, fiber, and a script that renders it.
+    Export(cmd::export::Args),
     /// Serves a page that shows the animation as it renders and steers it: camera, lights, effects, shadow method.
     View(cmd::view::Args),
     /// Measures the speed of pipeline stages.
@@ -120,6 +123,7 @@ fn main() -> ExitCode {
         Command::Coordinator(a) => a.threads(),
         Command::Bench(b) => b.threads(),
         Command::View(a) => a.threads.threads,
+        Command::Export(a) => a.threads.threads,
         Command::Health(_) | Command::Certs(_) => None,
     };
     let result = init_threads(threads).and_then(|()| match cli.command {
@@ -131,6 +135,7 @@ fn main() -> ExitCode {
         Command::Certs(args) => cmd::cluster::certs(args),
         Command::Bench(b) => cmd::bench::run(b),
         Command::View(args) => cmd::view::run(args),
+        Command::Export(args) => cmd::export::run(args),
     });
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -3,6 +3,7 @@
 pub mod accuracy;
 pub mod bench;
 pub mod cluster;
+pub mod export;
 pub mod nodes;
 pub mod probe;
 pub mod render;

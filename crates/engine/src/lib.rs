@@ -20,6 +20,7 @@
 mod animate;
 mod collide;
 mod exec;
+mod export;
 mod frames;
 mod hair;
 mod head;
@@ -35,6 +36,7 @@ pub use exec::{
     DrawJob, DrawReport, Executor, LocalExecutor, PendingPicture, PosePlan, PoseReport, StepPlan,
     step_wisps, step_wisps_while,
 };
+pub use export::{CYCLES_FORMAT, CYCLES_SCRIPT, CyclesExport, cycles_export};
 pub use frames::Sequence;
 pub use hair::{MAX_SEGMENTS, build_hair, drawn_segments};
 pub use head::Head;

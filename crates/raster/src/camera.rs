@@ -141,6 +141,12 @@ impl Camera {
         self.focal
     }
 
+    /// The view's unit axes: right, up (in the picture) and forward
+    /// (into it), a right-handed frame `right x up = -forward`.
+    pub fn axes(&self) -> (Vec3, Vec3, Vec3) {
+        (self.right, self.up, self.forward)
+    }
+
     /// Image width, pixels.
     pub fn width(&self) -> u32 {
         self.width
