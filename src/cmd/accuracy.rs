@@ -31,9 +31,24 @@ pub struct AccuracyArgs {
     #[arg(long, value_delimiter = ',', value_name = "NAME,...",
           value_parser = clap::builder::PossibleValuesParser::new(MethodConfig::NAMES))]
     methods: Vec<String>,
+    /// Also compare every setting's picture with Blender Cycles' (the
+    /// same strands, camera, light and fiber, direct light only): the
+    /// frame, its script and Cycles' pictures with and without shadows go
+    /// into DIR and are reused while the frame is the same. Needs
+    /// `blender` on PATH (or `$WISPLIGHT_BLENDER`).
+    #[arg(long, value_name = "DIR")]
+    cycles: Option<PathBuf>,
+    /// Cycles samples per pixel.
+    #[arg(long, default_value_t = 128, value_name = "N",
+          value_parser = clap::value_parser!(u32).range(1..=65_536))]
+    cycles_samples: u32,
     #[command(flatten)]
     pub threads: super::Threads,
 }
+
+/// Pixels a side of the blocks whose shadow ratio is compared with
+/// Cycles'.
+const BLOCK: usize = 8;
 
 /// The settings swept for each method, coarse to fine.
 pub fn sweep() -> Vec<MethodConfig> {
@@ -94,13 +109,23 @@ struct Row {
     rms: f64,
     max: f64,
     image: f64,
+    /// Against Cycles: mean block ratio error and mean ratio.
+    cycles: Option<raster::RatioComparison>,
 }
 
 pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
-    let scene = super::load_scene(a.scene.as_deref())?;
+    let scene = direct_light(&super::load_scene(a.scene.as_deref())?);
     if let Some(p) = &a.plot {
         super::check_plot_path(p)?;
     }
+    let blender = match &a.cycles {
+        Some(_) => Some(crate::cycles::blender().ok_or_else(|| {
+            anyhow::anyhow!(
+                "--cycles: blender not found on PATH (apt-get install blender, or set WISPLIGHT_BLENDER)"
+            )
+        })?),
+        None => None,
+    };
     let hair = super::build_hair(&scene)?;
     let (name, threads, cores) = super::machine(a.scene.as_deref());
     let configs: Vec<MethodConfig> = sweep()
@@ -116,6 +141,37 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
         configs.len(),
         a.runs
     );
+    // The path-traced truth first: it is the slow part, and a failure
+    // there should come before the sweep.
+    let truth = match (&a.cycles, &blender) {
+        (Some(dir), Some(b)) => Some(cycles_truth(&scene, b, dir, a.cycles_samples)?),
+        _ => None,
+    };
+    let unshadowed = match &truth {
+        Some(_) => {
+            let mut s = scene.clone();
+            s.effects.self_shadow = false;
+            s.animation.motion = sim::Motion::Still;
+            let mut seq = Sequence::new(&s)?;
+            Some(linear(
+                seq.again().context("cannot render without shadows")?.0,
+            ))
+        }
+        None => None,
+    };
+    let against_cycles = |img: &RgbImage| match (&truth, &unshadowed) {
+        (Some(t), Some(u)) => Some(raster::RatioComparison::new(
+            &raster::ShadowRatios::new(
+                &linear(img),
+                u,
+                img.width() as usize,
+                img.height() as usize,
+                BLOCK,
+            ),
+            &t.ratios,
+        )),
+        _ => None,
+    };
     let bar = super::progress_bar(
         configs.len() as u64 + 1,
         "{bar:30} {pos}/{len} {msg} [{elapsed}]",
@@ -132,6 +188,7 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
         rms: 0.0,
         max: 0.0,
         image: 0.0,
+        cycles: against_cycles(&ref_img),
     }];
     for c in configs {
         bar.set_message(format!("{} {}", c.name(), c.parameters()));
@@ -144,25 +201,53 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
             rms,
             max,
             image: image_error(&img, &ref_img, bg),
+            cycles: against_cycles(&img),
         });
         bar.inc(1);
     }
     bar.finish_and_clear();
+    if let Some(t) = &truth {
+        eprintln!(
+            "Cycles ({} samples, direct light): {:.1} s shadowed, {:.1} s unshadowed; mean shadow ratio {:.3} over {} blocks of {BLOCK}x{BLOCK} pixels",
+            a.cycles_samples,
+            t.seconds.0,
+            t.seconds.1,
+            t.ratios.mean(),
+            t.ratios.ratio.iter().flatten().count()
+        );
+    }
 
     println!(
-        "{:<19} {:<78} {:>9} {:>8} {:>8} {:>8} {:>8}",
-        "method", "parameters", "ms", "mean_abs", "rms", "max", "image"
+        "{:<19} {:<78} {:>9} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}",
+        "method", "parameters", "ms", "mean_abs", "rms", "max", "image", "cycles", "ratio"
     );
+    let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.4}"));
     for r in &rows {
         println!(
-            "{:<19} {:<78} {:>9.2} {:>8.4} {:>8.4} {:>8.4} {:>8.4}",
+            "{:<19} {:<78} {:>9.2} {:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>8} {:>8}",
             r.config.name(),
             r.config.parameters(),
             r.ms,
             r.mean_abs,
             r.rms,
             r.max,
-            r.image
+            r.image,
+            opt(r.cycles.map(|c| c.mean_abs)),
+            opt(r.cycles.map(|c| c.mean)),
+        );
+    }
+    if let Some(t) = &truth {
+        println!(
+            "{:<19} {:<78} {:>9.0} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8.4}",
+            "cycles",
+            format!("samples={} bounces=0", a.cycles_samples),
+            1e3 * t.seconds.0,
+            "-",
+            "-",
+            "-",
+            "-",
+            "0",
+            t.ratios.mean()
         );
     }
     if let Some(path) = &a.csv {
@@ -176,6 +261,8 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
             "rms",
             "max",
             "image_error",
+            "cycles_error",
+            "mean_ratio",
         ])?;
         for r in &rows {
             w.write_record([
@@ -186,6 +273,22 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
                 format!("{:.6}", r.rms),
                 format!("{:.6}", r.max),
                 format!("{:.6}", r.image),
+                r.cycles
+                    .map_or(String::new(), |c| format!("{:.6}", c.mean_abs)),
+                r.cycles.map_or(String::new(), |c| format!("{:.6}", c.mean)),
+            ])?;
+        }
+        if let Some(t) = &truth {
+            w.write_record([
+                "cycles".to_string(),
+                format!("samples={} bounces=0", a.cycles_samples),
+                format!("{:.1}", 1e3 * t.seconds.0),
+                String::new(),
+                String::new(),
+                String::new(),
+                String::new(),
+                "0".to_string(),
+                format!("{:.6}", t.ratios.mean()),
             ])?;
         }
         let bytes = w.into_inner().context("cannot write the table")?;
@@ -232,6 +335,112 @@ fn measure(
     let img = img.expect("at least one frame");
     let t = seq.renderer().transmittance().concat();
     Ok((super::median(&mut times), t, img))
+}
+
+/// The scene as both renderers are compared: direct light only (no
+/// ambient term, no multiple scattering) over a black background.
+fn direct_light(scene: &Scene) -> Scene {
+    let mut s = scene.clone();
+    s.shading.ambient = 0.0;
+    s.effects.multiple_scattering = false;
+    s.render.background = glam::Vec3::ZERO;
+    s
+}
+
+/// An 8-bit sRGB picture in linear RGB.
+fn linear(img: &RgbImage) -> Vec<glam::Vec3> {
+    let lut: Vec<f32> = (0..=255u8).map(raster::srgb8_to_linear).collect();
+    img.pixels()
+        .map(|p| {
+            glam::Vec3::new(
+                lut[p.0[0] as usize],
+                lut[p.0[1] as usize],
+                lut[p.0[2] as usize],
+            )
+        })
+        .collect()
+}
+
+/// Cycles' shadow ratios of the scene's first frame, and the seconds its
+/// two renders took.
+struct Truth {
+    ratios: raster::ShadowRatios,
+    seconds: (f64, f64),
+}
+
+/// Exports the scene's first frame at rest into `dir`, renders it in
+/// Cycles with and without shadows (unless `dir` holds those pictures of
+/// the same frame at the same samples already) and reads them back.
+fn cycles_truth(scene: &Scene, blender: &Path, dir: &Path, samples: u32) -> anyhow::Result<Truth> {
+    let mut s = scene.clone();
+    s.animation.motion = sim::Motion::Still;
+    s.effects.self_shadow = true;
+    let mut seq = Sequence::new(&s)?;
+    seq.again().context("cannot render the frame to export")?;
+    let export = engine::cycles_export(&seq, samples)?;
+    let json = &export
+        .files
+        .iter()
+        .find(|f| f.0 == "scene.json")
+        .expect("an export has scene.json")
+        .1;
+    let shadowed = dir.join("cycles.exr");
+    let unshadowed = dir.join("cycles-unshadowed.exr");
+    let stamp = dir.join("cycles-times.json");
+    let same = std::fs::read(dir.join("scene.json")).is_ok_and(|old| &old == json)
+        && std::fs::read(dir.join("scene.py")).is_ok_and(|p| p == engine::CYCLES_SCRIPT.as_bytes());
+    let kept: Option<(f64, f64)> = same
+        .then(|| std::fs::read(&stamp).ok())
+        .flatten()
+        .and_then(|b| serde_json::from_slice::<Vec<f64>>(&b).ok())
+        .filter(|t| t.len() == 2 && shadowed.is_file() && unshadowed.is_file())
+        .map(|t| (t[0], t[1]));
+    let seconds = match kept {
+        Some(t) => {
+            eprintln!(
+                "reusing Cycles' pictures of this frame in {}",
+                dir.display()
+            );
+            t
+        }
+        None => {
+            crate::cycles::write_export(dir, &export)?;
+            let run = |unshadowed: bool, out: &Path| {
+                eprintln!(
+                    "rendering {} in Cycles ({samples} samples{})...",
+                    out.display(),
+                    if unshadowed { ", no shadows" } else { "" }
+                );
+                crate::cycles::render(
+                    blender,
+                    dir,
+                    out,
+                    crate::cycles::CyclesRun {
+                        unshadowed,
+                        samples,
+                        bounces: 0,
+                        threads: rayon::current_num_threads(),
+                    },
+                )
+            };
+            let t = (run(false, &shadowed)?, run(true, &unshadowed)?);
+            crate::output::write_bytes(&stamp, format!("[{}, {}]\n", t.0, t.1).as_bytes())?;
+            t
+        }
+    };
+    let (w, h, lit) = crate::cycles::read_exr(&shadowed)?;
+    let (w2, h2, unlit) = crate::cycles::read_exr(&unshadowed)?;
+    let (cw, ch) = (s.render.width, s.render.height);
+    if (w, h) != (cw, ch) || (w2, h2) != (cw, ch) {
+        anyhow::bail!(
+            "Cycles' pictures in {} are {w}x{h} and {w2}x{h2}, not the scene's {cw}x{ch}",
+            dir.display()
+        );
+    }
+    Ok(Truth {
+        ratios: raster::ShadowRatios::new(&lit, &unlit, w as usize, h as usize, BLOCK),
+        seconds,
+    })
 }
 
 /// Mean absolute, RMS and largest difference between `t` and `reference`.

@@ -17,6 +17,7 @@ mod canvas;
 mod fiber;
 mod gif;
 mod png;
+mod ratio;
 mod shade;
 
 pub use camera::Camera;
@@ -27,6 +28,7 @@ pub use fiber::{
 };
 pub use gif::GifWriter;
 pub use png::encode_png;
+pub use ratio::{LIT_FRACTION, RatioComparison, ShadowRatios, srgb8_to_linear};
 pub use shade::{Shading, ShadingModel, kajiya_kay};
 
 /// The largest image side, in pixels.

@@ -116,11 +116,18 @@ pub enum MethodConfig {
         /// Bilinear lookups between pixels (else the nearest pixel).
         filter: bool,
     },
-    /// Transmittance from the fiber geometry itself (see
-    /// [`crate::Reference`]) over a square footprint of side
+    /// The exact reference (see [`crate::Reference`]): `rays` rays across
+    /// each fiber's width to the light, each tested against the other
+    /// fibers as capsules.
+    Reference {
+        /// Rays across the fiber's width, 1 to 64.
+        rays: u32,
+    },
+    /// Transmittance from the fiber geometry averaged over a footprint (see
+    /// [`crate::FootprintReference`]) over a square footprint of side
     /// `footprint` scene units (default: one cell of a 128^3 map fitted to
     /// the hair); `rays` samples of the footprint for opaque occluders.
-    Reference {
+    FootprintReference {
         /// Side of the square footprint, scene units (default: a cell of a 128^3 map).
         footprint: Option<f32>,
         /// Rays sampling the footprint for opaque occluders, 1 to 4096.
@@ -137,6 +144,7 @@ impl MethodConfig {
         "density-clustering",
         "deep-shadow-map",
         "reference",
+        "footprint-reference",
     ];
 
     /// The method `name` with its default settings at `cells` a side.
@@ -170,7 +178,8 @@ impl MethodConfig {
                 tolerance: 0.01,
                 filter: true,
             },
-            "reference" => MethodConfig::Reference {
+            "reference" => MethodConfig::Reference { rays: 4 },
+            "footprint-reference" => MethodConfig::FootprintReference {
                 footprint: None,
                 rays: 64,
             },
@@ -187,6 +196,7 @@ impl MethodConfig {
             MethodConfig::DensityClustering { .. } => "density-clustering",
             MethodConfig::DeepShadowMap { .. } => "deep-shadow-map",
             MethodConfig::Reference { .. } => "reference",
+            MethodConfig::FootprintReference { .. } => "footprint-reference",
         }
     }
 
@@ -199,7 +209,8 @@ impl MethodConfig {
             | MethodConfig::DeepOpacityMap { resolution, .. }
             | MethodConfig::DensityClustering { resolution, .. }
             | MethodConfig::DeepShadowMap { resolution, .. } => resolution,
-            MethodConfig::Reference { .. } => 128,
+            MethodConfig::Reference { .. } => crate::reference::GRID,
+            MethodConfig::FootprintReference { .. } => 128,
         }
     }
 
@@ -211,7 +222,7 @@ impl MethodConfig {
             | MethodConfig::DeepOpacityMap { resolution: r, .. }
             | MethodConfig::DensityClustering { resolution: r, .. }
             | MethodConfig::DeepShadowMap { resolution: r, .. } => *r = n,
-            MethodConfig::Reference { .. } => {}
+            MethodConfig::Reference { .. } | MethodConfig::FootprintReference { .. } => {}
         }
     }
 
@@ -224,7 +235,7 @@ impl MethodConfig {
             | MethodConfig::DeepOpacityMap { filter, .. }
             | MethodConfig::DensityClustering { filter, .. }
             | MethodConfig::DeepShadowMap { filter, .. } => filter,
-            MethodConfig::Reference { .. } => true,
+            MethodConfig::Reference { .. } | MethodConfig::FootprintReference { .. } => true,
         }
     }
 
@@ -236,7 +247,7 @@ impl MethodConfig {
             | MethodConfig::DeepOpacityMap { filter, .. }
             | MethodConfig::DensityClustering { filter, .. }
             | MethodConfig::DeepShadowMap { filter, .. } => *filter = on,
-            MethodConfig::Reference { .. } => {}
+            MethodConfig::Reference { .. } | MethodConfig::FootprintReference { .. } => {}
         }
     }
 
@@ -316,7 +327,13 @@ impl MethodConfig {
                 }
                 Ok(())
             }
-            MethodConfig::Reference { footprint, rays } => {
+            MethodConfig::Reference { rays } => {
+                if !(1..=64).contains(&rays) {
+                    return bad("rays", rays.to_string(), "must be in 1..=64");
+                }
+                Ok(())
+            }
+            MethodConfig::FootprintReference { footprint, rays } => {
                 if let Some(f) = footprint
                     && !(f.is_finite() && f > 0.0)
                 {
@@ -371,7 +388,8 @@ impl MethodConfig {
                 tolerance,
                 filter,
             } => format!("resolution={resolution} tolerance={tolerance} filter={filter}"),
-            MethodConfig::Reference { footprint, rays } => match footprint {
+            MethodConfig::Reference { rays } => format!("rays={rays}"),
+            MethodConfig::FootprintReference { footprint, rays } => match footprint {
                 Some(f) => format!("footprint={f} rays={rays}"),
                 None => format!("footprint=auto rays={rays}"),
             },

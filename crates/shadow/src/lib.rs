@@ -17,9 +17,11 @@
 
 #![warn(unreachable_pub, missing_docs)]
 
+mod bins;
 mod config;
 mod density;
 mod fiber;
+mod footprint_reference;
 mod frame;
 mod input;
 mod method;
@@ -31,6 +33,7 @@ mod transmittance;
 pub use config::{Beyond, MethodConfig, OpacityMode};
 pub use density::{ColumnMeta, DEPOSIT_RUN_WORK, DEPTH_QUANTUM, DensityMap, FillStats};
 pub use fiber::Fiber;
+pub use footprint_reference::FootprintReference;
 pub use frame::{Extent, Fan, Light, LightFrame, MAX_CELLS, MAX_FAN_TAN};
 pub use input::{OPAQUE_DEPTH, ShadowInput};
 pub use method::{DensityMapMethod, ShadowMethod};

@@ -20,6 +20,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::config::MethodConfig;
+use crate::footprint_reference::FootprintReference;
 use crate::input::{OPAQUE_DEPTH, ShadowInput};
 use crate::peers::{DeepOpacityMap, DeepShadowMap, DensityClustering, OpacityShadowMap};
 use crate::reference::Reference;
@@ -38,8 +39,11 @@ pub enum ShadowMethod {
     DensityClustering(DensityClustering),
     /// Lokovic and Veach 2000.
     DeepShadowMap(DeepShadowMap),
-    /// Transmittance from the fiber geometry itself.
+    /// The exact reference: rays from each fiber to the light, tested
+    /// against the other fibers.
     Reference(Reference),
+    /// Transmittance from the fiber geometry, averaged over a footprint.
+    FootprintReference(FootprintReference),
 }
 
 /// Calls `$call` on whichever method `$self` holds.
@@ -52,6 +56,7 @@ macro_rules! each {
             ShadowMethod::DensityClustering($m) => $call,
             ShadowMethod::DeepShadowMap($m) => $call,
             ShadowMethod::Reference($m) => $call,
+            ShadowMethod::FootprintReference($m) => $call,
         }
     };
 }
@@ -98,8 +103,9 @@ impl ShadowMethod {
                 tolerance,
                 filter,
             } => ShadowMethod::DeepShadowMap(DeepShadowMap::new(resolution, tolerance, filter)),
-            MethodConfig::Reference { footprint, rays } => {
-                ShadowMethod::Reference(Reference::new(footprint, rays))
+            MethodConfig::Reference { rays } => ShadowMethod::Reference(Reference::new(rays)),
+            MethodConfig::FootprintReference { footprint, rays } => {
+                ShadowMethod::FootprintReference(FootprintReference::new(footprint, rays))
             }
         })
     }

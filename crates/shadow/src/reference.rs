@@ -1,192 +1,175 @@
-//! The exact reference: transmittance from the fiber geometry itself.
+//! The exact reference: the light a fiber receives, from the rays that
+//! leave it for the light, each tested against the other fibers.
 //!
-//! Definition. Every drawn segment is a fiber of width `w` and opacity
-//! `alpha`. Light reaching `p` crosses a square footprint of side `a`
-//! centred on `p` across the light. A fiber that passes through the
-//! footprint more than one fiber width in front of `p` along the light (so
-//! that a point on a fiber is not shadowed by that fiber itself) covers the
-//! fraction `c_i = w * l_i / a^2` of it, `l_i` the length of its shadow
-//! inside the square, and lets through `1 - alpha c_i` of the light. An
-//! occluder lets through the fraction `1 - c_o` of the footprint it does not
-//! cover (sampled by `R` stratified rays):
+//! Definition. Every drawn segment is a capsule of radius `w / 2` (the
+//! fiber's width `w`) and opacity `alpha`. A drawn point `p` on a fiber
+//! with unit tangent `t` sends `K` rays to the light from
 //!
 //! ```text
-//! T(p) = prod_i (1 - alpha min(c_i, 1)) * prod_o (1 - c_o)
+//! o_k = p + w ((k + 1/2) / K - 1/2) b,    b = unit(l x t),  k = 0..K
 //! ```
 //!
-//! The segments of one strand inside the footprint are one fiber (so a
-//! strand's zero-length segments and repeated points change nothing). No density, no grid of values, no interpolation: for fibers much
-//! thinner than the footprint, `-ln T` is `alpha` times the number of
-//! fibers a ray crosses, and a slab of parallel fibers gives Beer-Lambert,
-//! `exp(-n w alpha sin(theta) x)`.
+//! evenly across the fiber's width as the light sees it (`l` the unit
+//! direction to the light at `p`). Each ray counts `n_k`, the fibers it
+//! crosses on its way: one strand's consecutive capsules that the ray
+//! passes through without leaving them are one crossing, and the capsules
+//! of its own fiber that the ray starts inside (and those joined to them
+//! along the ray) are the fiber itself, not a shadow. An opaque body (the
+//! head) stops the ray or not. Then
 //!
-//! Acceleration: segments are binned by the light-view columns of a 128^3
-//! map fitted to the hair that their capsule's shadow overlaps; each ray
-//! tests the segments of the columns its footprint overlaps.
+//! ```text
+//! T(p) = (1 / K) sum_k (1 - alpha)^{n_k} [o_k not behind a body]
+//! ```
+//!
+//! No footprint wider than the fiber, no grid of values, no interpolation:
+//! what a path tracer's shadow rays from the fiber's surface see. A point
+//! that is not a drawn point (a probe) is a point: one ray, from it.
+//!
+//! Acceleration: segments are binned by the light-view columns of a
+//! [`GRID`]^2 map fitted to the hair ([`crate::bins`]); a ray towards the
+//! light stays in the column of its origin (for a point or spot light, a
+//! column is a bundle of rays from the source), so it tests only that
+//! column's segments.
 
-use glam::Vec3;
+use std::collections::HashMap;
 
+use glam::{DVec3, Vec3};
+
+use crate::bins::SegmentBins;
 use crate::input::ShadowInput;
 use crate::occluder::OccluderView;
-use crate::{FillStats, LightFrame, ShadowError};
+use crate::{FillStats, Light, LightFrame, ShadowError};
 
-/// Columns of the acceleration grid per side.
-const GRID: u32 = 128;
+/// Columns of the grid per side: finer than the footprint reference's, as
+/// a ray is as thin as a line.
+pub(crate) const GRID: u32 = 512;
 
-/// The reference method (see the module documentation).
+/// The per-fiber reference (see the module documentation).
 #[derive(Debug)]
 pub struct Reference {
-    footprint: Option<f32>,
     rays: u32,
     built: Option<Built>,
 }
 
 #[derive(Debug)]
 struct Built {
-    frame: LightFrame,
-    /// Drawn points in map cells.
-    cells: Vec<Vec3>,
-    /// The strand of each point.
-    strand: Vec<u32>,
-    /// Per column, the starts of the segments (`cells[s]` to `cells[s + 1]`)
-    /// whose capsule's shadow reaches it, ascending.
-    start: Vec<u32>,
-    segs: Vec<u32>,
-    /// Fiber radius, in cells.
+    bins: SegmentBins,
+    light: Light,
+    /// A drawn point's index by its coordinates' bits.
+    index: HashMap<[u32; 3], u32>,
+    /// The drawn points' strand offsets (the first point of each strand
+    /// and the end), to find a point's neighbours.
+    offsets: Vec<u32>,
+    points: Vec<Vec3>,
+    /// Fiber radius, scene units.
     radius: f32,
-    /// Fiber width, scene units.
-    width: f32,
     transmit: f32,
-    /// Footprint side, in cells.
-    side: f32,
-    /// Sample offsets across the light for occluders, in cells.
-    offsets: Vec<(f32, f32)>,
-    /// The opaque bodies, if any, prepared for queries along the light.
     occluders: Option<OccluderView>,
 }
 
+/// Where a ray meets a capsule: the interval `[s0, s1]` of the ray
+/// `o + s d` (`d` unit) within distance `r` of segment `a e`, if any.
+/// The capsule is convex, so the ray meets it in one interval: the hull
+/// of the intervals of its pieces (the two end spheres and the cylinder
+/// between them). In double precision: the differences of points far from
+/// the origin are exact there, and a ray nearly along the capsule's axis
+/// keeps its digits.
+fn ray_capsule(o: Vec3, d: Vec3, a: Vec3, e: Vec3, r: f32) -> Option<(f64, f64)> {
+    let (o, d, a, e, r) = (
+        o.as_dvec3(),
+        d.as_dvec3(),
+        a.as_dvec3(),
+        e.as_dvec3(),
+        f64::from(r),
+    );
+    let r2 = r * r;
+    let mut lo = f64::INFINITY;
+    let mut hi = f64::NEG_INFINITY;
+    let mut take = |iv: Option<(f64, f64)>| {
+        if let Some((s0, s1)) = iv {
+            lo = lo.min(s0);
+            hi = hi.max(s1);
+        }
+    };
+    // |m + s d|^2 = r^2 with |d| = 1.
+    let sphere = |c: DVec3| {
+        let m = o - c;
+        let b = m.dot(d);
+        let disc = b * b - (m.length_squared() - r2);
+        (disc >= 0.0).then(|| {
+            let q = disc.sqrt();
+            (-b - q, -b + q)
+        })
+    };
+    take(sphere(a));
+    take(sphere(e));
+    let ab = e - a;
+    let len = ab.length();
+    if len > 1e-9 * r {
+        let u = ab / len;
+        let m = o - a;
+        let (mu, du) = (m.dot(u), d.dot(u));
+        let mp = m - mu * u;
+        let dp = d - du * u;
+        // The infinite cylinder: A s^2 + 2 B s + C <= 0.
+        let (qa, qb, qc) = (dp.length_squared(), mp.dot(dp), mp.length_squared() - r2);
+        let cyl = if qa < 1e-18 {
+            (qc <= 0.0).then_some((f64::NEG_INFINITY, f64::INFINITY))
+        } else {
+            let disc = qb * qb - qa * qc;
+            (disc >= 0.0).then(|| {
+                let q = disc.sqrt();
+                ((-qb - q) / qa, (-qb + q) / qa)
+            })
+        };
+        // Between the end caps' planes: 0 <= mu + s du <= len.
+        let slab = if du.abs() < 1e-18 {
+            (0.0..=len)
+                .contains(&mu)
+                .then_some((f64::NEG_INFINITY, f64::INFINITY))
+        } else {
+            let (s0, s1) = (-mu / du, (len - mu) / du);
+            Some((s0.min(s1), s0.max(s1)))
+        };
+        if let (Some(c), Some(s)) = (cyl, slab) {
+            let (s0, s1) = (c.0.max(s.0), c.1.min(s.1));
+            if s0 <= s1 {
+                take(Some((s0, s1)));
+            }
+        }
+    }
+    (lo <= hi).then_some((lo, hi))
+}
+
 impl Reference {
-    pub(crate) fn new(footprint: Option<f32>, rays: u32) -> Reference {
+    pub(crate) fn new(rays: u32) -> Reference {
         Reference {
-            footprint,
             rays: rays.max(1),
             built: None,
         }
     }
 
     pub(crate) fn build(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
-        let frame = input.fit(GRID)?;
-        let n = GRID as i32;
-        // In a fan's cells a long straight fiber is not straight (its depth
-        // varies projectively along it): cut it, evenly in the world, into
-        // segments no longer than a cell, as the density map does.
-        let fine = frame.fan.map(|_| {
-            let max_pieces = (4 * GRID) as f32;
-            let mut fine =
-                strands::Hair::with_capacity(input.hair.strand_count(), input.hair.point_count());
-            let mut pts = Vec::new();
-            for st in input.hair.strands() {
-                pts.clear();
-                pts.extend(st.first());
-                for w in st.windows(2) {
-                    let d = frame.to_cells(w[1]) - frame.to_cells(w[0]);
-                    let m = crate::density::piece_count(d, max_pieces);
-                    pts.extend((1..=m).map(|k| w[0] + (w[1] - w[0]) * (k as f32 / m as f32)));
-                }
-                fine.push_strand(&pts)
-                    .expect("points between finite points are finite");
-            }
-            fine
-        });
-        let hair = fine.as_ref().unwrap_or(input.hair);
-        let cells: Vec<Vec3> = hair.points().iter().map(|&p| frame.to_cells(p)).collect();
-        let mut strand = Vec::with_capacity(cells.len());
-        for (s, st) in hair.strands().enumerate() {
-            strand.extend(std::iter::repeat_n(s as u32, st.len()));
+        let bins = SegmentBins::new(input, GRID)?;
+        let stats = bins.stats;
+        let points = input.hair.points().to_vec();
+        let mut index = HashMap::with_capacity(points.len());
+        for (i, p) in points.iter().enumerate() {
+            index
+                .entry([p.x.to_bits(), p.y.to_bits(), p.z.to_bits()])
+                .or_insert(i as u32);
         }
-        let radius = 0.5 * input.fiber.width() / frame.ds;
-        let offsets_of_strands = hair.offsets();
-        // Segment starts: every point but the last of each strand.
-        let seg_starts = || {
-            (0..hair.strand_count()).flat_map(move |s| {
-                offsets_of_strands[s]..offsets_of_strands[s + 1].saturating_sub(1)
-            })
-        };
-        // Across the rays a fan's fiber is wider in cells nearer the source.
-        let radius_at = |a: Vec3, b: Vec3| match &frame.fan {
-            None => radius,
-            Some(f) => {
-                let x = f.start.x + a.x.min(b.x).max(0.0) * frame.ds;
-                0.5 * input.fiber.width() / (x.max(1e-30) * f.du)
-            }
-        };
-        let columns = |s: u32| {
-            let (a, b) = (cells[s as usize], cells[s as usize + 1]);
-            let r = radius_at(a, b);
-            let lo = a.min(b) - r;
-            let hi = a.max(b) + r;
-            let j = (lo.y.max(0.0) as i32).min(n - 1)..=(hi.y.max(0.0) as i32).min(n - 1);
-            let k = (lo.z.max(0.0) as i32).min(n - 1)..=(hi.z.max(0.0) as i32).min(n - 1);
-            let outside = hi.y < 0.0 || hi.z < 0.0 || lo.y >= n as f32 || lo.z >= n as f32;
-            (j, k, outside)
-        };
-        let mut start = vec![0u32; (n * n) as usize + 1];
-        let mut stats = FillStats::default();
-        for s in seg_starts() {
-            let (js, ks, outside) = columns(s);
-            if outside {
-                stats.out_of_map += 1;
-                continue;
-            }
-            stats.samples += 1;
-            for k in ks {
-                for j in js.clone() {
-                    start[(k * n + j) as usize + 1] += 1;
-                }
-            }
-        }
-        for i in 0..(n * n) as usize {
-            start[i + 1] += start[i];
-        }
-        let mut fill = start.clone();
-        let mut segs = vec![0u32; start[(n * n) as usize] as usize];
-        for s in seg_starts() {
-            let (js, ks, outside) = columns(s);
-            if outside {
-                continue;
-            }
-            for k in ks {
-                for j in js.clone() {
-                    let at = &mut fill[(k * n + j) as usize];
-                    segs[*at as usize] = s;
-                    *at += 1;
-                }
-            }
-        }
-        let a = self.footprint.map_or(1.0, |f| f / frame.ds);
-        let g = (self.rays as f32).sqrt().ceil() as u32;
-        let offsets = (0..self.rays)
-            .map(|r| {
-                let (u, v) = (r % g, r / g);
-                (
-                    a * ((u as f32 + 0.5) / g as f32 - 0.5),
-                    a * ((v as f32 + 0.5) / g as f32 - 0.5),
-                )
-            })
-            .collect();
+        let occluders =
+            (!input.occluders.is_empty()).then(|| OccluderView::new(bins.frame, input.occluders));
         self.built = Some(Built {
-            frame,
-            cells,
-            strand,
-            start,
-            segs,
-            radius,
-            width: input.fiber.width(),
-            side: a,
+            bins,
+            light: *input.light,
+            index,
+            offsets: input.hair.offsets().to_vec(),
+            points,
+            radius: 0.5 * input.fiber.width(),
             transmit: 1.0 - input.fiber.opacity(),
-            offsets,
-            occluders: (!input.occluders.is_empty())
-                .then(|| OccluderView::new(frame, input.occluders)),
+            occluders,
         });
         Ok(stats)
     }
@@ -197,120 +180,205 @@ impl Reference {
 
     pub(crate) fn transmittance(&self, p: Vec3) -> f32 {
         let b = self.built.as_ref().expect("build runs before lookups");
-        let n = GRID as i32;
-        let c = b.frame.to_cells(p);
-        // More than one fiber width in front of p.
-        let before = c.x - 2.0 * b.radius;
-        let h = 0.5 * b.side;
-        let (y0, y1, z0, z1) = (c.y - h, c.y + h, c.z - h, c.z + h);
-        let mut t = 1.0f64;
-        if y1 >= 0.0 && z1 >= 0.0 && y0 < n as f32 && z0 < n as f32 {
-            let cols = |lo: f32, hi: f32| (lo.max(0.0) as i32)..=(hi.max(0.0) as i32).min(n - 1);
-            // One candidate buffer per thread, not one allocation per lookup.
-            thread_local! {
-                static CANDIDATES: std::cell::RefCell<Vec<u32>> = const {
-                    std::cell::RefCell::new(Vec::new())
-                };
-            }
-            CANDIDATES.with_borrow_mut(|cand| {
-                cand.clear();
-                for k in cols(z0, z1) {
-                    for j in cols(y0, y1) {
-                        let col = (k * n + j) as usize;
-                        cand.extend_from_slice(
-                            &b.segs[b.start[col] as usize..b.start[col + 1] as usize],
-                        );
-                    }
-                }
-                cand.sort_unstable();
-                cand.dedup();
-                // Coverage of the footprint by one fiber: its shadow strip, w
-                // wide, over the length of its projection inside the square.
-                let per_length = 2.0 * b.radius / (b.side * b.side);
-                let alpha = f64::from(1.0 - b.transmit);
-                let (mut cover, mut last) = (0.0f64, u32::MAX);
-                for &s in cand.iter() {
-                    let (a, e) = (b.cells[s as usize], b.cells[s as usize + 1]);
-                    let Some((t0, t1)) = clip(a, e, [y0, y1, z0, z1], before) else {
-                        continue;
-                    };
-                    // The area of the fiber's shadow inside the square, in
-                    // cells: its width times its length across the rays
-                    // (for a fan, w sqrt(Q) / (x du), see the density map).
-                    let d = e - a;
-                    let area = match &b.frame.fan {
-                        None => per_length * ((t1 - t0) * (d.y * d.y + d.z * d.z).sqrt()),
-                        Some(f) => {
-                            let mid = a + d * (0.5 * (t0 + t1));
-                            let x = f.start.x + mid.x * b.frame.ds;
-                            let (u, v) = (f.start.y + mid.y * f.du, f.start.z + mid.z * f.du);
-                            let q = 1.0 + u * u + v * v;
-                            let cross = u * d.y + v * d.z;
-                            let across = (q * (d.y * d.y + d.z * d.z) - cross * cross).max(0.0);
-                            b.width * across.sqrt() * (t1 - t0)
-                                / (x.max(1e-30) * f.du * b.side * b.side)
-                        }
-                    };
-                    if area.is_nan() || area <= 0.0 {
-                        continue;
-                    }
-                    // The segments of one strand are one fiber (candidates
-                    // are in ascending order, so a strand's come together).
-                    let strand = b.strand[s as usize];
-                    if strand != last && cover > 0.0 {
-                        t *= 1.0 - alpha * cover.min(1.0);
-                        cover = 0.0;
-                    }
-                    cover += f64::from(area);
-                    last = strand;
-                }
-                t *= 1.0 - alpha * cover.min(1.0);
+        let to_light = -b.light.direction_at(p);
+        // The drawn point's fiber: its strand and tangent.
+        let own = b
+            .index
+            .get(&[p.x.to_bits(), p.y.to_bits(), p.z.to_bits()])
+            .map(|&i| {
+                let i = i as usize;
+                let s = b.offsets.partition_point(|&o| o as usize <= i) - 1;
+                let (first, last) = (b.offsets[s] as usize, b.offsets[s + 1] as usize - 1);
+                let t = b.points[(i + 1).min(last)] - b.points[i.saturating_sub(1).max(first)];
+                (s as u32, t)
             });
+        // A probe is a point: one ray from it.
+        let Some((strand, t)) = own else {
+            return self.ray(b, p, None) as f32;
+        };
+        // A fiber along the light is round to it: across any axis.
+        let across = to_light
+            .cross(t)
+            .try_normalize()
+            .unwrap_or(b.bins.frame.axes[1]);
+        let k = self.rays;
+        let mut sum = 0.0f64;
+        for r in 0..k {
+            let o = p + across * (2.0 * b.radius * ((r as f32 + 0.5) / k as f32 - 0.5));
+            sum += self.ray(b, o, Some(strand));
         }
-        if let Some(view) = &b.occluders {
-            let blocked = b
-                .offsets
-                .iter()
-                .filter(|&&(oy, oz)| {
-                    let q = b.frame.to_world(Vec3::new(c.x, c.y + oy, c.z + oz));
-                    view.blocks(q)
-                })
-                .count();
-            t *= 1.0 - blocked as f64 / b.offsets.len() as f64;
+        (sum / f64::from(k)).clamp(0.0, 1.0) as f32
+    }
+
+    /// The light one ray from `o` to the light lets through, its own fiber
+    /// (strand `own`) not counted.
+    fn ray(&self, b: &Built, o: Vec3, own: Option<u32>) -> f64 {
+        if let Some(view) = &b.occluders
+            && view.blocks(o)
+        {
+            return 0.0;
         }
-        t.clamp(0.0, 1.0) as f32
+        let frame = &b.bins.frame;
+        let c = frame.to_cells(o);
+        // A ray beside the grid can still graze a fiber at its edge: the
+        // edge columns list every capsule that reaches past them.
+        let n = frame.n_cells as i32;
+        let col = |v: f32| {
+            if v.is_nan() {
+                0
+            } else {
+                (v.max(0.0) as i32).min(n - 1)
+            }
+        };
+        let (j, k) = (col(c.y), col(c.z));
+        let (d, reach) = match b.light.source() {
+            None => (-b.light.direction(), f64::INFINITY),
+            Some(src) => {
+                let v = src - o;
+                (v.normalize_or_zero(), f64::from(v.length()))
+            }
+        };
+        thread_local! {
+            static HITS: std::cell::RefCell<Vec<(u32, f64, f64)>> = const {
+                std::cell::RefCell::new(Vec::new())
+            };
+        }
+        HITS.with_borrow_mut(|hits| {
+            hits.clear();
+            for &s in b.bins.column(j, k) {
+                let (a, e) = (b.bins.world[s as usize], b.bins.world[s as usize + 1]);
+                if let Some((s0, s1)) = ray_capsule(o, d, a, e, b.radius)
+                    && s1 > 0.0
+                    && s0 < reach
+                {
+                    hits.push((b.bins.strand[s as usize], s0, s1));
+                }
+            }
+            hits.sort_unstable_by(|x, y| x.0.cmp(&y.0).then(x.1.total_cmp(&y.1)));
+            // Crossings: each strand's intervals merged where they touch.
+            let slack = 1e-4 * f64::from(b.radius);
+            let mut crossings = 0u32;
+            let mut i = 0;
+            while i < hits.len() {
+                let strand = hits[i].0;
+                let (mut start, mut end) = (hits[i].1, hits[i].2);
+                i += 1;
+                loop {
+                    while i < hits.len() && hits[i].0 == strand && hits[i].1 <= end + slack {
+                        end = end.max(hits[i].2);
+                        i += 1;
+                    }
+                    // The ray's own fiber, from where it starts.
+                    let itself = own == Some(strand) && start <= 0.0;
+                    if !itself {
+                        crossings += 1;
+                    }
+                    if i < hits.len() && hits[i].0 == strand {
+                        (start, end) = (hits[i].1, hits[i].2);
+                        i += 1;
+                    } else {
+                        break;
+                    }
+                }
+            }
+            f64::from(b.transmit).powi(crossings as i32)
+        })
     }
 
     pub(crate) fn frame(&self) -> Option<&LightFrame> {
-        self.built.as_ref().map(|b| &b.frame)
+        self.built.as_ref().map(|b| &b.bins.frame)
     }
 }
 
-/// The part `t0..t1` of segment `a e` (`a + t (e - a)`) inside the square
-/// `y0..y1 x z0..z1` and in front of depth `before` (Liang-Barsky
-/// clipping), if any.
-fn clip(a: Vec3, e: Vec3, [y0, y1, z0, z1]: [f32; 4], before: f32) -> Option<(f32, f32)> {
-    let d = e - a;
-    let (mut t0, mut t1) = (0.0f32, 1.0f32);
-    for (p, q) in [
-        (-d.y, a.y - y0),
-        (d.y, y1 - a.y),
-        (-d.z, a.z - z0),
-        (d.z, z1 - a.z),
-        (d.x, before - a.x),
-    ] {
-        if p == 0.0 {
-            if q < 0.0 {
-                return None;
-            }
-        } else {
-            let r = q / p;
-            if p < 0.0 {
-                t0 = t0.max(r);
-            } else {
-                t1 = t1.min(r);
-            }
-        }
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_ray_through_a_capsule_across_it() {
+        // Along x through a capsule along z of radius 0.5 at x = 3.
+        let iv = ray_capsule(
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::new(3.0, 0.0, -1.0),
+            Vec3::new(3.0, 0.0, 1.0),
+            0.5,
+        )
+        .unwrap();
+        assert!(
+            (iv.0 - 2.5).abs() < 1e-5 && (iv.1 - 3.5).abs() < 1e-5,
+            "{iv:?}"
+        );
+        // Off by 0.3 in y: the chord of a circle of radius 0.5.
+        let iv = ray_capsule(
+            Vec3::new(0.0, 0.3, 0.0),
+            Vec3::X,
+            Vec3::new(3.0, 0.0, -1.0),
+            Vec3::new(3.0, 0.0, 1.0),
+            0.5,
+        )
+        .unwrap();
+        assert!((iv.1 - iv.0 - 0.8).abs() < 1e-5, "{iv:?}");
+        // Missed: past the end cap, and beside it.
+        assert!(
+            ray_capsule(
+                Vec3::new(0.0, 0.0, 1.6),
+                Vec3::X,
+                Vec3::new(3.0, 0.0, -1.0),
+                Vec3::new(3.0, 0.0, 1.0),
+                0.5
+            )
+            .is_none()
+        );
+        assert!(
+            ray_capsule(
+                Vec3::new(0.0, 0.6, 0.0),
+                Vec3::X,
+                Vec3::new(3.0, 0.0, -1.0),
+                Vec3::new(3.0, 0.0, 1.0),
+                0.5
+            )
+            .is_none()
+        );
     }
-    (t1 > t0).then_some((t0, t1))
+
+    #[test]
+    fn a_ray_along_a_capsule_and_into_its_cap() {
+        // Along the axis: from one cap's far side to the other's.
+        let iv = ray_capsule(
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(4.0, 0.0, 0.0),
+            0.5,
+        )
+        .unwrap();
+        assert!(
+            (iv.0 - 1.5).abs() < 1e-5 && (iv.1 - 4.5).abs() < 1e-5,
+            "{iv:?}"
+        );
+        // Starting inside: the interval holds 0.
+        let iv = ray_capsule(
+            Vec3::new(3.0, 0.2, 0.0),
+            Vec3::Y,
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(4.0, 0.0, 0.0),
+            0.5,
+        )
+        .unwrap();
+        assert!(iv.0 < 0.0 && (iv.1 - 0.3).abs() < 1e-5, "{iv:?}");
+        // A degenerate segment is a sphere.
+        let iv = ray_capsule(
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(2.0, 0.0, 0.0),
+            0.5,
+        )
+        .unwrap();
+        assert!(
+            (iv.0 - 1.5).abs() < 1e-5 && (iv.1 - 2.5).abs() < 1e-5,
+            "{iv:?}"
+        );
+    }
 }

@@ -254,7 +254,7 @@ fn the_reference_matches_the_slab_within_sampling_noise() {
     let (hair, kappa) = slab();
     let light = Light::directional(Vec3::NEG_Y).unwrap();
     let m = run(
-        &MethodConfig::Reference {
+        &MethodConfig::FootprintReference {
             footprint: None,
             rays: 64,
         },
@@ -422,7 +422,7 @@ fn every_method_and_the_reference_follow_a_close_point_light_along_every_ray() {
             .fold(0.0, f32::max)
     };
     let mut configs: Vec<MethodConfig> = ladders().into_iter().map(|l| l[2]).collect();
-    configs.push(MethodConfig::Reference {
+    configs.push(MethodConfig::FootprintReference {
         footprint: None,
         rays: 64,
     });

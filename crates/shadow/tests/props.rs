@@ -102,8 +102,8 @@ proptest! {
         // length in proportion; its head is sampled by `rays` rays, one of
         // which may flip where it grazes the sphere's silhouette.
         let slack = match (config, occluders.is_empty()) {
-            (MethodConfig::Reference { rays, .. }, false) => 1e-3 + 1.0 / rays as f32,
-            (MethodConfig::Reference { .. }, true) => 1e-3,
+            (MethodConfig::FootprintReference { rays, .. }, false) => 1e-3 + 1.0 / rays as f32,
+            (MethodConfig::FootprintReference { .. }, true) => 1e-3,
             (_, false) => 5e-4,
             (_, true) => 1e-4,
         };

@@ -180,7 +180,9 @@ pub(crate) fn main_setting(method: &shadow::MethodConfig) -> Option<(&'static st
         M::DeepOpacityMap { layers, .. } => Some(("layers", f64::from(layers))),
         M::DensityClustering { clusters, .. } => Some(("clusters", f64::from(clusters))),
         M::DeepShadowMap { tolerance, .. } => Some(("tolerance", f64::from(tolerance))),
-        M::Reference { rays, .. } => Some(("rays", f64::from(rays))),
+        M::Reference { rays } | M::FootprintReference { rays, .. } => {
+            Some(("rays", f64::from(rays)))
+        }
     }
 }
 
@@ -211,7 +213,7 @@ pub(crate) fn with_main_setting(
         M::DeepOpacityMap { layers, .. } => *layers = count()?,
         M::DensityClustering { clusters, .. } => *clusters = count()?,
         M::DeepShadowMap { tolerance, .. } => *tolerance = value as f32,
-        M::Reference { rays, .. } => *rays = count()?,
+        M::Reference { rays } | M::FootprintReference { rays, .. } => *rays = count()?,
     }
     method
         .validate()

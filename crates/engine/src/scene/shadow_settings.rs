@@ -20,17 +20,24 @@ impl Validator<'_> {
                 format!("known methods: {}", MethodConfig::NAMES.join(", ")),
             )
         })?;
+        let reference = matches!(
+            m,
+            MethodConfig::Reference { .. } | MethodConfig::FootprintReference { .. }
+        );
         if let Some(f) = s.filter {
-            if matches!(m, MethodConfig::Reference { .. }) {
+            if reference {
                 return Err(self.invalid("shadow.filter", f, "the reference does not filter"));
             }
             m.set_filter(f);
         }
-        if s.cells.is_some() && matches!(m, MethodConfig::Reference { .. }) {
+        if s.cells.is_some() && reference {
             return Err(self.invalid(
                 "shadow.cells",
                 cells,
-                "the reference has no cells; set shadow.footprint",
+                match m {
+                    MethodConfig::Reference { .. } => "the reference has no cells",
+                    _ => "the footprint reference has no cells; set shadow.footprint",
+                },
             ));
         }
         let not_for = |field: &'static str, value: String, owner: &str| {
@@ -86,10 +93,10 @@ impl Validator<'_> {
             MethodConfig::DensityClustering { clusters, .. } => |v| count("shadow.clusters", v).map(|v| *clusters = v));
         set!("shadow.tolerance", s.tolerance, "deep-shadow-map",
             MethodConfig::DeepShadowMap { tolerance, .. } => |v| { *tolerance = v; Ok::<(), SceneError>(()) });
-        set!("shadow.footprint", s.footprint, "reference",
-            MethodConfig::Reference { footprint, .. } => |v| { *footprint = Some(v); Ok::<(), SceneError>(()) });
-        set!("shadow.rays", s.rays, "reference",
-            MethodConfig::Reference { rays, .. } => |v| count("shadow.rays", v).map(|v| *rays = v));
+        set!("shadow.footprint", s.footprint, "footprint-reference",
+            MethodConfig::FootprintReference { footprint, .. } => |v| { *footprint = Some(v); Ok::<(), SceneError>(()) });
+        set!("shadow.rays", s.rays, "reference or footprint-reference",
+            MethodConfig::Reference { rays } | MethodConfig::FootprintReference { rays, .. } => |v| count("shadow.rays", v).map(|v| *rays = v));
         m.validate().map_err(|e| match e {
             shadow::ShadowError::Setting { name, value, why } => {
                 self.invalid(setting_field(name), value, why)

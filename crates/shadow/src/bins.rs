@@ -1,0 +1,144 @@
+//! Segments binned by light-view column: what both references test a ray
+//! against.
+//!
+//! Every drawn segment is a capsule of the fiber's radius. It is listed in
+//! every column of a `GRID x GRID` map fitted to the hair that its shadow
+//! (the capsule seen from the light) overlaps, so a ray towards the light
+//! along a column meets only segments listed in that column. For a light
+//! with a source the columns are bundles of rays from it; a long straight
+//! fiber is not straight in those cells, so segments are first cut,
+//! evenly in the world, into pieces no longer than a cell, as the density
+//! map does.
+
+use glam::Vec3;
+
+use crate::input::ShadowInput;
+use crate::{FillStats, LightFrame, ShadowError};
+
+/// Columns of the footprint reference's grid per side.
+pub(crate) const GRID: u32 = 128;
+
+#[derive(Debug)]
+pub(crate) struct SegmentBins {
+    pub(crate) frame: LightFrame,
+    /// The (cut) hair's points, in map cells and in the world.
+    pub(crate) cells: Vec<Vec3>,
+    pub(crate) world: Vec<Vec3>,
+    /// The strand of each point.
+    pub(crate) strand: Vec<u32>,
+    /// Per column, the starts of the segments (`cells[s]` to
+    /// `cells[s + 1]`) whose capsule's shadow reaches it, ascending.
+    start: Vec<u32>,
+    segs: Vec<u32>,
+    /// Fiber radius across the rays, in cells (for a directional light).
+    pub(crate) radius: f32,
+    pub(crate) stats: FillStats,
+}
+
+impl SegmentBins {
+    /// The input's hair binned on a grid of `grid` columns a side.
+    pub(crate) fn new(input: &ShadowInput, grid: u32) -> Result<SegmentBins, ShadowError> {
+        let frame = input.fit(grid)?;
+        let n = grid as i32;
+        let fine = frame.fan.map(|_| {
+            let max_pieces = (4 * grid) as f32;
+            let mut fine =
+                strands::Hair::with_capacity(input.hair.strand_count(), input.hair.point_count());
+            let mut pts = Vec::new();
+            for st in input.hair.strands() {
+                pts.clear();
+                pts.extend(st.first());
+                for w in st.windows(2) {
+                    let d = frame.to_cells(w[1]) - frame.to_cells(w[0]);
+                    let m = crate::density::piece_count(d, max_pieces);
+                    pts.extend((1..=m).map(|k| w[0] + (w[1] - w[0]) * (k as f32 / m as f32)));
+                }
+                fine.push_strand(&pts)
+                    .expect("points between finite points are finite");
+            }
+            fine
+        });
+        let hair = fine.as_ref().unwrap_or(input.hair);
+        let world = hair.points().to_vec();
+        let cells: Vec<Vec3> = world.iter().map(|&p| frame.to_cells(p)).collect();
+        let mut strand = Vec::with_capacity(cells.len());
+        for (s, st) in hair.strands().enumerate() {
+            strand.extend(std::iter::repeat_n(s as u32, st.len()));
+        }
+        let radius = 0.5 * input.fiber.width() / frame.ds;
+        let offsets_of_strands = hair.offsets();
+        // Segment starts: every point but the last of each strand.
+        let seg_starts = || {
+            (0..hair.strand_count()).flat_map(move |s| {
+                offsets_of_strands[s]..offsets_of_strands[s + 1].saturating_sub(1)
+            })
+        };
+        // Across the rays a fan's fiber is wider in cells nearer the source.
+        let radius_at = |a: Vec3, b: Vec3| match &frame.fan {
+            None => radius,
+            Some(f) => {
+                let x = f.start.x + a.x.min(b.x).max(0.0) * frame.ds;
+                0.5 * input.fiber.width() / (x.max(1e-30) * f.du)
+            }
+        };
+        let columns = |s: u32| {
+            let (a, b) = (cells[s as usize], cells[s as usize + 1]);
+            let r = radius_at(a, b);
+            let lo = a.min(b) - r;
+            let hi = a.max(b) + r;
+            let j = (lo.y.max(0.0) as i32).min(n - 1)..=(hi.y.max(0.0) as i32).min(n - 1);
+            let k = (lo.z.max(0.0) as i32).min(n - 1)..=(hi.z.max(0.0) as i32).min(n - 1);
+            let outside = hi.y < 0.0 || hi.z < 0.0 || lo.y >= n as f32 || lo.z >= n as f32;
+            (j, k, outside)
+        };
+        let mut start = vec![0u32; (n * n) as usize + 1];
+        let mut stats = FillStats::default();
+        for s in seg_starts() {
+            let (js, ks, outside) = columns(s);
+            if outside {
+                stats.out_of_map += 1;
+                continue;
+            }
+            stats.samples += 1;
+            for k in ks {
+                for j in js.clone() {
+                    start[(k * n + j) as usize + 1] += 1;
+                }
+            }
+        }
+        for i in 0..(n * n) as usize {
+            start[i + 1] += start[i];
+        }
+        let mut fill = start.clone();
+        let mut segs = vec![0u32; start[(n * n) as usize] as usize];
+        for s in seg_starts() {
+            let (js, ks, outside) = columns(s);
+            if outside {
+                continue;
+            }
+            for k in ks {
+                for j in js.clone() {
+                    let at = &mut fill[(k * n + j) as usize];
+                    segs[*at as usize] = s;
+                    *at += 1;
+                }
+            }
+        }
+        Ok(SegmentBins {
+            frame,
+            cells,
+            world,
+            strand,
+            start,
+            segs,
+            radius,
+            stats,
+        })
+    }
+
+    /// The segments listed in column `(j, k)` (inside the grid), ascending.
+    pub(crate) fn column(&self, j: i32, k: i32) -> &[u32] {
+        let col = (k * self.frame.n_cells as i32 + j) as usize;
+        &self.segs[self.start[col] as usize..self.start[col + 1] as usize]
+    }
+}

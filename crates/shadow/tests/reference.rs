@@ -1,0 +1,164 @@
+//! The exact reference, fiber by fiber, on arrangements whose shadow is
+//! known by hand: what a fiber sees of the fibers in front of it, and that
+//! neither the fiber itself nor its neighbours beside it darken it.
+
+use glam::Vec3;
+use shadow::{Fiber, Light, MethodConfig, ShadowInput, ShadowMethod};
+use strands::Hair;
+
+const W: f32 = 0.1;
+const ALPHA: f32 = 0.6;
+
+fn reference(hair: &Hair, light: &Light, rays: u32) -> ShadowMethod {
+    let fiber = Fiber::new(W, ALPHA).unwrap();
+    let mut m = ShadowMethod::new(&MethodConfig::Reference { rays }).unwrap();
+    m.build(&ShadowInput {
+        light,
+        hair,
+        fiber: &fiber,
+        occluders: &[],
+        extent: None,
+    })
+    .unwrap();
+    m.prepare();
+    m
+}
+
+/// A straight strand along z at `(x, y)`, 9 points over 2 units.
+fn along_z(hair: &mut Hair, x: f32, y: f32) {
+    let pts: Vec<Vec3> = (0..9)
+        .map(|i| Vec3::new(x, y, -1.0 + 0.25 * i as f32))
+        .collect();
+    hair.push_strand(&pts).unwrap();
+}
+
+fn close(a: f32, b: f32) -> bool {
+    (a - b).abs() < 1e-5
+}
+
+#[test]
+fn a_fiber_sees_what_covers_it_and_nothing_beside_it() {
+    // Light from +y. A at the front; B right behind A; C behind A2, half
+    // across its shadow; D beside A at its depth, 3 widths away.
+    let light = Light::directional(Vec3::NEG_Y).unwrap();
+    let mut hair = Hair::new();
+    along_z(&mut hair, 0.0, 0.0); // A
+    along_z(&mut hair, 0.0, -1.0); // B
+    along_z(&mut hair, 2.0 + 0.5 * W, -1.0); // C
+    along_z(&mut hair, 3.0 * W, 0.0); // D
+    along_z(&mut hair, 2.0, 0.0); // A2
+    along_z(&mut hair, 4.0, 1.0); // F, in front
+    along_z(&mut hair, 4.0 + 3.0 * W, 0.0); // G, behind and beside F
+    let m = reference(&hair, &light, 4);
+    let t = |s: usize, i: usize| m.transmittance(hair.strand(s)[i]);
+    for i in 0..9 {
+        // A and A2 are lit: a fiber is not its own shadow.
+        assert_eq!(t(0, i), 1.0, "A point {i}");
+        assert_eq!(t(4, i), 1.0, "A2 point {i}");
+        // B lies wholly in A's shadow: every ray loses alpha.
+        assert!(close(t(1, i), 1.0 - ALPHA), "B point {i}: {}", t(1, i));
+        // C: its four rays at 1/8, 3/8, 5/8 and 7/8 of its width from
+        // A2's axis on one side; the first two meet A2.
+        assert!(
+            close(t(2, i), 1.0 - 0.5 * ALPHA),
+            "C point {i}: {}",
+            t(2, i)
+        );
+        // D: nothing in front of it, however near A is; G: F passes in
+        // front of it 3 widths to the side.
+        assert_eq!(t(3, i), 1.0, "D point {i}");
+        assert_eq!(t(6, i), 1.0, "G point {i}");
+    }
+    // The footprint reference spreads F over its footprint: G comes out
+    // shadowed there; the exact one does not.
+    let fiber = Fiber::new(W, ALPHA).unwrap();
+    let mut f = ShadowMethod::new(&MethodConfig::FootprintReference {
+        footprint: Some(10.0 * W),
+        rays: 16,
+    })
+    .unwrap();
+    f.build(&ShadowInput {
+        light: &light,
+        hair: &hair,
+        fiber: &fiber,
+        occluders: &[],
+        extent: None,
+    })
+    .unwrap();
+    f.prepare();
+    assert!(f.transmittance(hair.strand(6)[4]) < 0.95);
+}
+
+#[test]
+fn a_fiber_along_the_light_is_not_its_own_shadow() {
+    // A strand pointing straight at a light from above: every ray from it
+    // runs inside it; nothing else is there.
+    let light = Light::directional(Vec3::NEG_Y).unwrap();
+    let mut hair = Hair::new();
+    let pts: Vec<Vec3> = (0..12)
+        .map(|i| Vec3::new(0.0, -0.2 * i as f32, 0.0))
+        .collect();
+    hair.push_strand(&pts).unwrap();
+    // And one at a grazing 5 degrees.
+    let g = Vec3::new(5f32.to_radians().sin(), -5f32.to_radians().cos(), 0.0);
+    let pts: Vec<Vec3> = (0..12)
+        .map(|i| Vec3::new(3.0, 0.0, 0.0) + g * (0.2 * i as f32))
+        .collect();
+    hair.push_strand(&pts).unwrap();
+    let m = reference(&hair, &light, 4);
+    for &p in hair.points() {
+        assert_eq!(m.transmittance(p), 1.0, "at {p}");
+    }
+}
+
+#[test]
+fn a_strand_that_turns_back_shadows_itself() {
+    // A hairpin: out along x at y = 0, back along x at y = -1 (behind,
+    // from a light above). The lower leg is in the upper leg's shadow; the
+    // bend is its own fiber.
+    let light = Light::directional(Vec3::NEG_Y).unwrap();
+    let mut pts: Vec<Vec3> = (0..=10)
+        .map(|i| Vec3::new(0.2 * i as f32, 0.0, 0.0))
+        .collect();
+    pts.extend((1..=9).map(|i| {
+        let a = std::f32::consts::PI * i as f32 / 10.0;
+        Vec3::new(2.0 + 0.5 * a.sin(), -0.5 + 0.5 * a.cos(), 0.0)
+    }));
+    pts.extend((0..=10).map(|i| Vec3::new(2.0 - 0.2 * i as f32, -1.0, 0.0)));
+    let mut hair = Hair::new();
+    hair.push_strand(&pts).unwrap();
+    let m = reference(&hair, &light, 4);
+    for (i, &p) in pts[..=10].iter().enumerate() {
+        assert_eq!(m.transmittance(p), 1.0, "upper leg point {i}");
+    }
+    // The lower leg away from the bend.
+    for p in &pts[pts.len() - 8..] {
+        assert!(close(m.transmittance(*p), 1.0 - ALPHA), "lower leg at {p}");
+    }
+}
+
+#[test]
+fn a_probe_is_one_ray_and_a_point_light_sends_rays_to_its_source() {
+    // A point light above two fibers along z, one above the other.
+    let light = Light::point(Vec3::new(0.0, 5.0, 0.0), 100.0).unwrap();
+    let mut hair = Hair::new();
+    along_z(&mut hair, 0.0, 1.0);
+    along_z(&mut hair, 0.0, 3.0);
+    let m = reference(&hair, &light, 4);
+    // Straight below the light, under both fibers.
+    assert!(close(
+        m.transmittance(Vec3::new(0.0, 0.0, 0.0)),
+        (1.0 - ALPHA) * (1.0 - ALPHA)
+    ));
+    // Off to the side: the ray to the light passes both fibers by.
+    assert_eq!(m.transmittance(Vec3::new(1.0, 0.0, 0.0)), 1.0);
+    // The upper fiber is lit; the lower one is in its shadow all along
+    // (its rays converge on the light, across the upper fiber).
+    for i in 0..9 {
+        assert_eq!(m.transmittance(hair.strand(1)[i]), 1.0);
+        assert!(
+            close(m.transmittance(hair.strand(0)[i]), 1.0 - ALPHA),
+            "point {i}"
+        );
+    }
+}
