@@ -519,30 +519,36 @@ fn bench_accuracy_writes_a_table_a_csv_and_a_plot() {
     assert!(o.status.success(), "{}", stderr(&o));
     let text = std::fs::read_to_string(&csv).unwrap();
     let rows: Vec<&str> = text.lines().collect();
-    assert_eq!(rows[0], "method,parameters,ms,mean_abs,rms,max,image_error");
+    assert_eq!(
+        rows[0],
+        "method,parameters,ms,mean_abs,rms,max,image_error,seen_bias,seen_abs,cycles_error,mean_ratio"
+    );
     // The reference, 8 density-map settings and 4 deep-shadow-map settings.
     assert_eq!(rows.len(), 1 + 1 + 8 + 4, "{text}");
     assert!(rows[1].starts_with("reference,"));
-    // As a CSV reader sees it: seven fields a row, the parameters whole.
+    // As a CSV reader sees it: eleven fields a row, the parameters whole,
+    // no Cycles columns without --cycles.
     let mut reader = csv::Reader::from_path(&csv).unwrap();
-    for r in reader.records() {
+    for (i, r) in reader.records().enumerate() {
         let r = r.unwrap();
-        assert_eq!(r.len(), 7, "{r:?}");
+        assert_eq!(r.len(), 11, "{r:?}");
         assert!(r[1].contains('=') && !r[1].starts_with('"'), "{r:?}");
-    }
-    for r in &rows[2..] {
-        let f: Vec<f64> = r
-            .rsplitn(6, ',')
-            .take(5)
-            .map(|x| x.parse().unwrap())
-            .collect::<Vec<_>>();
-        // image_error, max, rms, mean_abs, ms (reversed); errors in [0, 1].
-        assert!(f[..4].iter().all(|&e| (0.0..=1.0).contains(&e)), "{r}");
+        assert!(r[9].is_empty() && r[10].is_empty(), "{r:?}");
+        if i == 0 {
+            continue;
+        }
+        let f: Vec<f64> = (2..9).map(|k| r[k].parse().unwrap()).collect();
+        // ms, mean_abs, rms, max, image, seen_bias, seen_abs.
+        assert!(f[0] > 0.0, "{r:?}");
+        assert!(f[1..5].iter().all(|&e| (0.0..=1.0).contains(&e)), "{r:?}");
         assert!(
-            f[3] <= f[2] + 1e-9 && f[2] <= f[1] + 1e-9,
-            "mean <= rms <= max: {r}"
+            f[1] <= f[2] + 1e-9 && f[2] <= f[3] + 1e-9,
+            "mean <= rms <= max: {r:?}"
         );
-        assert!(f[4] > 0.0, "{r}");
+        assert!(
+            f[5].abs() <= f[6] + 1e-9 && f[6] <= 1.0,
+            "|bias| <= mean abs: {r:?}"
+        );
     }
     let img = image::open(&plot).unwrap();
     assert!(img.width() > 400 && img.height() > 300);

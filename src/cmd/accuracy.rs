@@ -109,6 +109,9 @@ struct Row {
     rms: f64,
     max: f64,
     image: f64,
+    /// At the drawn points the picture shows: mean signed and mean
+    /// absolute error of T.
+    seen: (f64, f64),
     /// Against Cycles: mean block ratio error and mean ratio.
     cycles: Option<raster::RatioComparison>,
 }
@@ -178,8 +181,27 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
     );
     bar.set_message("reference");
     let reference = MethodConfig::with_defaults("reference", 128).expect("a known method");
-    let (ref_ms, ref_t, ref_img) = measure(&scene, reference, 1, false)?;
+    let (ref_ms, ref_t, ref_img, visible) = measure(&scene, reference, 1, false)?;
+    let n_points = hair.point_count();
     bar.inc(1);
+    // Where the two disagree, block by block: Cycles' shadow ratio beside
+    // the exact reference's, for a look.
+    if let (Some(dir), Some(t), Some(u)) = (&a.cycles, &truth, &unshadowed) {
+        let mine = raster::ShadowRatios::new(
+            &linear(&ref_img),
+            u,
+            ref_img.width() as usize,
+            ref_img.height() as usize,
+            BLOCK,
+        );
+        let side = ratio_picture(&[&t.ratios, &mine]);
+        let path = dir.join("ratios.png");
+        crate::output::write_png(&path, &side)?;
+        eprintln!(
+            "wrote {}: shadow ratio per block, Cycles (left) and the reference (right); red where a block does not count",
+            path.display()
+        );
+    }
     let bg = scene.render.background;
     let mut rows = vec![Row {
         config: reference,
@@ -188,12 +210,14 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
         rms: 0.0,
         max: 0.0,
         image: 0.0,
+        seen: (0.0, 0.0),
         cycles: against_cycles(&ref_img),
     }];
     for c in configs {
         bar.set_message(format!("{} {}", c.name(), c.parameters()));
-        let (ms, t, img) = measure(&scene, c, a.runs as usize, true)?;
+        let (ms, t, img, _) = measure(&scene, c, a.runs as usize, true)?;
         let (mean_abs, rms, max) = errors(&t, &ref_t);
+        let seen = visible_errors(&t, &ref_t, &visible, n_points);
         rows.push(Row {
             config: c,
             ms,
@@ -201,6 +225,7 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
             rms,
             max,
             image: image_error(&img, &ref_img, bg),
+            seen,
             cycles: against_cycles(&img),
         });
         bar.inc(1);
@@ -218,13 +243,23 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
     }
 
     println!(
-        "{:<19} {:<78} {:>9} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}",
-        "method", "parameters", "ms", "mean_abs", "rms", "max", "image", "cycles", "ratio"
+        "{:<19} {:<78} {:>9} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}",
+        "method",
+        "parameters",
+        "ms",
+        "mean_abs",
+        "rms",
+        "max",
+        "image",
+        "seen_bias",
+        "seen_abs",
+        "cycles",
+        "ratio"
     );
     let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.4}"));
     for r in &rows {
         println!(
-            "{:<19} {:<78} {:>9.2} {:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>8} {:>8}",
+            "{:<19} {:<78} {:>9.2} {:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>9.4} {:>8.4} {:>8} {:>8}",
             r.config.name(),
             r.config.parameters(),
             r.ms,
@@ -232,16 +267,20 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
             r.rms,
             r.max,
             r.image,
+            r.seen.0,
+            r.seen.1,
             opt(r.cycles.map(|c| c.mean_abs)),
             opt(r.cycles.map(|c| c.mean)),
         );
     }
     if let Some(t) = &truth {
         println!(
-            "{:<19} {:<78} {:>9.0} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8.4}",
+            "{:<19} {:<78} {:>9.0} {:>8} {:>8} {:>8} {:>8} {:>9} {:>8} {:>8} {:>8.4}",
             "cycles",
             format!("samples={} bounces=0", a.cycles_samples),
             1e3 * t.seconds.0,
+            "-",
+            "-",
             "-",
             "-",
             "-",
@@ -261,6 +300,8 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
             "rms",
             "max",
             "image_error",
+            "seen_bias",
+            "seen_abs",
             "cycles_error",
             "mean_ratio",
         ])?;
@@ -273,6 +314,8 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
                 format!("{:.6}", r.rms),
                 format!("{:.6}", r.max),
                 format!("{:.6}", r.image),
+                format!("{:.6}", r.seen.0),
+                format!("{:.6}", r.seen.1),
                 r.cycles
                     .map_or(String::new(), |c| format!("{:.6}", c.mean_abs)),
                 r.cycles.map_or(String::new(), |c| format!("{:.6}", c.mean)),
@@ -283,6 +326,8 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
                 "cycles".to_string(),
                 format!("samples={} bounces=0", a.cycles_samples),
                 format!("{:.1}", 1e3 * t.seconds.0),
+                String::new(),
+                String::new(),
                 String::new(),
                 String::new(),
                 String::new(),
@@ -310,7 +355,7 @@ fn measure(
     config: MethodConfig,
     runs: usize,
     warmup: bool,
-) -> anyhow::Result<(f64, Vec<f32>, RgbImage)> {
+) -> anyhow::Result<(f64, Vec<f32>, RgbImage, Vec<usize>)> {
     let mut s = scene.clone();
     s.shadow.method = config;
     s.effects.self_shadow = true;
@@ -334,7 +379,55 @@ fn measure(
     }
     let img = img.expect("at least one frame");
     let t = seq.renderer().transmittance().concat();
-    Ok((super::median(&mut times), t, img))
+    let visible = match seq.renderer().camera() {
+        Some(c) => visible_points(c, seq.hair().points()),
+        None => Vec::new(),
+    };
+    Ok((super::median(&mut times), t, img, visible))
+}
+
+/// The drawn points the picture shows: at each pixel, the point nearest
+/// the camera of those that project into it (the head not counted).
+fn visible_points(camera: &raster::Camera, points: &[glam::Vec3]) -> Vec<usize> {
+    let (w, h) = (camera.width() as usize, camera.height() as usize);
+    let mut nearest = vec![(f32::INFINITY, usize::MAX); w * h];
+    for (i, &p) in points.iter().enumerate() {
+        if let Some(s) = camera.project(p)
+            && s.x >= 0.0
+            && s.y >= 0.0
+            && (s.x as usize) < w
+            && (s.y as usize) < h
+        {
+            let px = &mut nearest[s.y as usize * w + s.x as usize];
+            if s.z < px.0 {
+                *px = (s.z, i);
+            }
+        }
+    }
+    let mut v: Vec<usize> = nearest
+        .into_iter()
+        .filter(|n| n.1 != usize::MAX)
+        .map(|n| n.1)
+        .collect();
+    v.sort_unstable();
+    v
+}
+
+/// Mean signed and mean absolute difference of `t` from `reference` at
+/// the points `at` (of each light's `n` points).
+fn visible_errors(t: &[f32], reference: &[f32], at: &[usize], n: usize) -> (f64, f64) {
+    let lights = t.len() / n.max(1);
+    let (mut sum, mut abs, mut count) = (0.0f64, 0.0f64, 0usize);
+    for l in 0..lights {
+        for &i in at {
+            let d = f64::from(t[l * n + i] - reference[l * n + i]);
+            sum += d;
+            abs += d.abs();
+            count += 1;
+        }
+    }
+    let c = count.max(1) as f64;
+    (sum / c, abs / c)
 }
 
 /// The scene as both renderers are compared: direct light only (no
@@ -359,6 +452,35 @@ fn linear(img: &RgbImage) -> Vec<glam::Vec3> {
             )
         })
         .collect()
+}
+
+/// Shadow ratios side by side, a block a 4x4 square, grey from black (0)
+/// to white (1); red where a block does not count.
+fn ratio_picture(all: &[&raster::ShadowRatios]) -> RgbImage {
+    const PX: u32 = 4;
+    let (cols, rows) = (all[0].cols as u32, all[0].rows as u32);
+    let gap = 2;
+    let w = all.len() as u32 * (cols * PX + gap);
+    let mut img = RgbImage::new(w, rows * PX);
+    for (i, r) in all.iter().enumerate() {
+        for (b, v) in r.ratio.iter().enumerate() {
+            let (bx, by) = (b as u32 % cols, b as u32 / cols);
+            let px = match v {
+                Some(v) => {
+                    let g = raster::to_srgb8(glam::Vec3::splat(v.clamp(0.0, 1.0)))[0];
+                    image::Rgb([g, g, g])
+                }
+                None => image::Rgb([60, 0, 0]),
+            };
+            for dy in 0..PX {
+                for dx in 0..PX {
+                    let x = i as u32 * (cols * PX + gap) + bx * PX + dx;
+                    img.put_pixel(x, by * PX + dy, px);
+                }
+            }
+        }
+    }
+    img
 }
 
 /// Cycles' shadow ratios of the scene's first frame, and the seconds its

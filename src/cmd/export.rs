@@ -33,6 +33,9 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let mut scene = super::load_scene(args.scene.as_deref())?;
     args.method.apply(&mut scene);
+    // The directory first: a render that cannot be saved does not start.
+    std::fs::create_dir_all(&args.blender)
+        .with_context(|| format!("cannot create {}", args.blender.display()))?;
     let mut seq = Sequence::new(&scene).context("cannot set up the scene")?;
     let bar = super::progress_bar(args.frame + 1, "{bar:30} frame {pos}/{len} [{elapsed}]");
     for i in 0..=args.frame {

@@ -115,6 +115,9 @@ pub struct DrawJob {
     pub filter: bool,
     /// The head transform: hair behind the head is hidden.
     pub head: Affine3A,
+    /// Fragments of a pixel composited front to back
+    /// ([`raster::Canvas::set_nearest`]).
+    pub nearest: u32,
 }
 
 /// The rest of a picture being finished elsewhere: see

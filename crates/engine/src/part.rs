@@ -168,7 +168,15 @@ impl HairPart {
                             .fold(Vec3::ZERO, |c, x| c + x),
                         Some((tables, irradiance)) => {
                             let uo = tangent.dot(to_eye).clamp(-1.0, 1.0);
-                            let mut c = shading.ambient * color;
+                            // Light from no source (the sky) is shadowed by
+                            // the same maps: their mean transmittance, so
+                            // no light reaches the hair unshadowed.
+                            let sky = if lights.is_empty() {
+                                1.0
+                            } else {
+                                (0..lights.len()).map(tr).sum::<f32>() / lights.len() as f32
+                            };
+                            let mut c = shading.ambient * sky * color;
                             for (l, light) in lights.iter().enumerate() {
                                 let (to_light, scale) = at(light);
                                 let ui = tangent.dot(to_light).clamp(-1.0, 1.0);

@@ -256,6 +256,7 @@ impl Renderer {
             shadows,
             filter: s.shadow.method.filter(),
             head: self.shadows.head_pose(),
+            nearest: s.render.nearest,
         })
     }
 
@@ -280,6 +281,7 @@ impl Renderer {
         }
         let canvas = self.canvas.as_mut().expect("made above");
         canvas.clear();
+        canvas.set_nearest(s.render.nearest as usize);
         if let Some(head) = self.shadows.head() {
             let head_shadow = shadows && s.effects.head_shadow;
             let pipeline = &self.shadows;

@@ -312,6 +312,8 @@ pub(crate) const DEFAULT_HEIGHT: u32 = 720;
 pub(crate) const DEFAULT_FOV_DEG: f32 = 30.0;
 pub(crate) const DEFAULT_BACKGROUND: [f32; 3] = [0.02, 0.025, 0.035];
 pub(crate) const DEFAULT_HAIR_ALPHA: f32 = 0.85;
+/// Fragments a pixel composites front to back (see `raster::Canvas::set_nearest`).
+pub(crate) const DEFAULT_NEAREST: u32 = 4;
 pub(crate) const DEFAULT_HEAD_COLOR: [f32; 3] = [0.55, 0.38, 0.3];
 
 /// The built-in scene: the smooth style with a middle parting and a fringe

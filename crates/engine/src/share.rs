@@ -487,6 +487,7 @@ impl Share {
         }
         let canvas = self.canvas.as_mut().expect("made above");
         canvas.clear();
+        canvas.set_nearest(job.nearest as usize);
         // The head's depth hides the hair behind it; its colour matters
         // only in the rows `shaded` (a band this share resolves).
         if let Some(head) = &mut self.head {

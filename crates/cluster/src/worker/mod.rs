@@ -563,7 +563,8 @@ impl Worker for WorkerService {
             let mut reader = wire::LayerReader::new(w, h);
             let mut grant = Grant::default();
             let mut add = |c: &pb::LayerChunk| -> Result<(), Status> {
-                let bytes = u64::from(c.count) * STRIPE_PIXEL_BYTES;
+                // The fragments take their own bytes again once read.
+                let bytes = u64::from(c.count) * STRIPE_PIXEL_BYTES + 2 * c.fronts.len() as u64;
                 memory.take(&mut grant, bytes, "a Composite call's stripes")?;
                 reader.add(c).map_err(invalid)
             };

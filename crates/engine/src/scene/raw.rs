@@ -55,6 +55,7 @@ pub(super) struct RawRender {
     pub(super) height: Option<i64>,
     pub(super) background: Option<[f32; 3]>,
     pub(super) hair_alpha: Option<f32>,
+    pub(super) nearest: Option<i64>,
 }
 
 #[derive(Debug, Default, Deserialize)]

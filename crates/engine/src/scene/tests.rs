@@ -539,9 +539,19 @@ fn method_settings_parse_and_settings_of_other_methods_are_refused() {
             "2..=4096",
         ),
         (
-            "[shadow]\nmethod = \"reference\"\ncells = 64\n",
+            "[shadow]\nmethod = \"footprint-reference\"\ncells = 64\n",
             "shadow.cells",
             "footprint",
+        ),
+        (
+            "[shadow]\nmethod = \"reference\"\ncells = 64\n",
+            "shadow.cells",
+            "has no cells",
+        ),
+        (
+            "[shadow]\nmethod = \"reference\"\nfootprint = 0.5\n",
+            "shadow.footprint",
+            "footprint-reference",
         ),
         (
             "[shadow]\nmethod = \"deep-shadow-map\"\ntolerance = -1.0\n",

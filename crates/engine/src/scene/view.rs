@@ -73,6 +73,9 @@ pub struct RenderSettings {
     pub background: Vec3,
     /// Opacity of a drawn strand where it covers a whole pixel.
     pub hair_alpha: f32,
+    /// Fragments of each pixel composited front to back, the rest blended
+    /// order-independently (0: all blended).
+    pub nearest: u32,
 }
 
 impl Validator<'_> {
@@ -165,11 +168,18 @@ impl Validator<'_> {
         if !(0.0..=1.0).contains(&hair_alpha) {
             return Err(self.invalid("render.hair_alpha", hair_alpha, "must be in [0, 1]"));
         }
+        let nearest = self.int(
+            "render.nearest",
+            r.nearest,
+            DEFAULT_NEAREST,
+            0..=raster::MAX_NEAREST as u32,
+        )?;
         let render = RenderSettings {
             width,
             height,
             background,
             hair_alpha,
+            nearest,
         };
         Ok(render)
     }

@@ -2,13 +2,15 @@
 //! the pixels they touch, for compositing elsewhere (sort-last, as IceT
 //! composites the partial images of a cluster).
 
-use super::Sums;
+use super::{Fragment, MAX_NEAREST, Sums};
 use crate::RasterError;
 
 /// The exact hair sums of the strands one canvas drew, at the pixels they
-/// touched: sparse, in ascending pixel order (row-major). Layers of
-/// disjoint sets of strand groups add up, in any order, to the sums of
-/// all of them; [`super::Canvas::resolve_layers`] composites them.
+/// touched, with each pixel's nearest fragments (none unless the canvas
+/// keeps some, see [`super::Canvas::set_nearest`]): sparse, in ascending
+/// pixel order (row-major). Layers of disjoint sets of strand groups add
+/// up, in any order, to the sums of all of them;
+/// [`super::Canvas::resolve_layers`] composites them.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct HairLayer {
     width: u32,
@@ -16,6 +18,10 @@ pub struct HairLayer {
     /// Row-major pixel indices, strictly ascending.
     pixels: Vec<u32>,
     sums: Vec<Sums>,
+    /// Where each pixel's nearest fragments start in `fronts` (one more
+    /// than the pixels; empty when no pixel has any).
+    front_start: Vec<u32>,
+    fronts: Vec<Fragment>,
 }
 
 impl HairLayer {
@@ -52,7 +58,64 @@ impl HairLayer {
             height,
             pixels,
             sums,
+            front_start: Vec::new(),
+            fronts: Vec::new(),
         })
+    }
+
+    /// [`Self::from_parts`] with each pixel's nearest fragments: `counts`
+    /// per pixel (at most [`MAX_NEAREST`]), `fronts` all of them in pixel
+    /// order, each pixel's nearest first; refuses a fragment out of range
+    /// or out of order.
+    pub fn from_parts_with_fronts(
+        width: u32,
+        height: u32,
+        pixels: Vec<u32>,
+        sums: Vec<Sums>,
+        counts: &[u8],
+        fronts: Vec<Fragment>,
+    ) -> Result<HairLayer, RasterError> {
+        let mut layer = HairLayer::from_parts(width, height, pixels, sums)?;
+        let bad = |why: String| RasterError::Layer(why);
+        if counts.len() != layer.pixels.len() {
+            return Err(bad(format!(
+                "{} pixels with {} fragment counts",
+                layer.pixels.len(),
+                counts.len()
+            )));
+        }
+        let mut start = Vec::with_capacity(counts.len() + 1);
+        let mut at = 0usize;
+        start.push(0);
+        for &n in counts {
+            if n as usize > MAX_NEAREST {
+                return Err(bad(format!(
+                    "{n} nearest fragments at a pixel, at most {MAX_NEAREST}"
+                )));
+            }
+            at += n as usize;
+            start.push(at as u32);
+        }
+        if at != fronts.len() {
+            return Err(bad(format!(
+                "{at} fragments counted, {} given",
+                fronts.len()
+            )));
+        }
+        for w in start.windows(2) {
+            let list = &fronts[w[0] as usize..w[1] as usize];
+            if let Some(f) = list.iter().find(|f| !f.is_valid()) {
+                return Err(bad(format!("a fragment out of range: {f:?}")));
+            }
+            if list.windows(2).any(|p| p[1].precedes(&p[0])) {
+                return Err(bad("a pixel's fragments out of depth order".into()));
+            }
+        }
+        if at > 0 {
+            layer.front_start = start;
+            layer.fronts = fronts;
+        }
+        Ok(layer)
     }
 
     pub(super) fn new(width: u32, height: u32) -> HairLayer {
@@ -61,13 +124,22 @@ impl HairLayer {
             height,
             pixels: Vec::new(),
             sums: Vec::new(),
+            front_start: Vec::new(),
+            fronts: Vec::new(),
         }
     }
 
-    pub(super) fn push(&mut self, pixel: u32, sums: Sums) {
+    pub(super) fn push(&mut self, pixel: u32, sums: Sums, front: &[Fragment]) {
         debug_assert!(self.pixels.last().is_none_or(|&p| p < pixel));
+        if !front.is_empty() && self.front_start.is_empty() {
+            self.front_start = vec![0; self.pixels.len() + 1];
+        }
         self.pixels.push(pixel);
         self.sums.push(sums);
+        if !self.front_start.is_empty() {
+            self.fronts.extend_from_slice(front);
+            self.front_start.push(self.fronts.len() as u32);
+        }
     }
 
     /// Appends `other`, whose pixels all follow this layer's.
@@ -78,8 +150,15 @@ impl HairLayer {
                 .zip(other.pixels.first())
                 .is_none_or(|(a, b)| a < b)
         );
-        self.pixels.extend(other.pixels);
-        self.sums.extend(other.sums);
+        if other.front_start.is_empty() && self.front_start.is_empty() {
+            self.pixels.extend(other.pixels);
+            self.sums.extend(other.sums);
+            return;
+        }
+        for i in 0..other.pixels.len() {
+            let front = other.front(i).to_vec();
+            self.push(other.pixels[i], other.sums[i], &front);
+        }
     }
 
     /// Appends `other`, a layer of the same picture whose pixels all
@@ -116,10 +195,25 @@ impl HairLayer {
         &self.sums
     }
 
-    /// The entries whose pixels lie in `first..end` (row-major indices).
-    pub(super) fn range(&self, first: u32, end: u32) -> (&[u32], &[Sums]) {
+    /// The nearest fragments of entry `i` (of [`Self::pixels`]), nearest
+    /// first.
+    pub fn front(&self, i: usize) -> &[Fragment] {
+        if self.front_start.is_empty() {
+            return &[];
+        }
+        &self.fronts[self.front_start[i] as usize..self.front_start[i + 1] as usize]
+    }
+
+    /// Every nearest fragment of the layer.
+    pub fn fragments(&self) -> usize {
+        self.fronts.len()
+    }
+
+    /// The entries `a..b` whose pixels lie in `first..end` (row-major
+    /// indices).
+    pub(super) fn range(&self, first: u32, end: u32) -> (usize, usize) {
         let a = self.pixels.partition_point(|&p| p < first);
         let b = a + self.pixels[a..].partition_point(|&p| p < end);
-        (&self.pixels[a..b], &self.sums[a..b])
+        (a, b)
     }
 }

@@ -16,12 +16,15 @@
 //! several whose [`HairLayer`]s are composited together; drawing the
 //! strands of a group in another order changes only rounding.
 
+mod front;
 mod layer;
 mod line;
 mod opaque;
+mod scratch;
 mod srgb;
 mod sums;
 
+pub use front::{Fragment, MAX_NEAREST};
 pub use layer::HairLayer;
 pub use opaque::Sphere;
 pub use srgb::to_srgb8;
@@ -32,6 +35,7 @@ use rayon::prelude::*;
 
 use crate::{Camera, RasterError};
 use line::{ScreenVertex, Steps, is_steep, line_steps};
+use scratch::{NO_SLOT, Scratch};
 
 /// The largest image side, in pixels.
 pub(crate) const MAX_SIDE: u32 = 16_384;
@@ -107,6 +111,8 @@ pub struct Canvas {
     groups: u32,
     /// The look of each call to [`Canvas::draw_hair`] since the last clear.
     looks: Vec<HairLook>,
+    /// Fragments of a pixel composited front to back (the rest blended).
+    nearest: usize,
 }
 
 /// A segment binned for drawing: the index in `verts` of its first end
@@ -120,91 +126,6 @@ const STRANDS_PER_CHUNK: usize = 256;
 
 /// No pixel columns.
 const NO_REACH: [u32; 2] = [u32::MAX, 0];
-
-/// What one thread keeps between the bands it draws: the float sums of
-/// the group being rasterized (`acc`), and exact sums of the groups before
-/// it, kept only at the pixels some group reached: `slot` names a pixel's
-/// place in `sums`, `marked` has a bit for each (a word per 64 pixels of a
-/// row). A band's few thousand exact sums stay in cache where a full band
-/// of them would not.
-#[derive(Debug, Default)]
-struct Scratch {
-    acc: Vec<Acc>,
-    slot: Vec<u32>,
-    sums: Vec<Sums>,
-    marked: Vec<u64>,
-    /// Words of `marked` per row.
-    words: usize,
-}
-
-/// No exact sums at a pixel yet.
-const NO_SLOT: u32 = u32::MAX;
-
-impl Scratch {
-    /// Sized for `rows` rows of `w` pixels, everything empty.
-    fn ready(&mut self, rows: usize, w: usize) {
-        let pixels = rows * w;
-        if self.acc.len() < pixels {
-            self.acc.resize(pixels, Acc::EMPTY);
-            self.slot.resize(pixels, NO_SLOT);
-        }
-        self.words = w.div_ceil(64);
-        if self.marked.len() < rows * self.words {
-            self.marked.resize(rows * self.words, 0);
-        }
-        self.sums.clear();
-    }
-
-    /// The exact sums' slot of pixel `x` of row `r` (band pixel `px`),
-    /// made empty if it had none.
-    #[inline]
-    fn slot_of(&mut self, px: usize, r: usize, x: usize) -> usize {
-        let s = self.slot[px];
-        if s != NO_SLOT {
-            return s as usize;
-        }
-        self.slot[px] = self.sums.len() as u32;
-        self.sums.push(Sums::ZERO);
-        self.marked[r * self.words + x / 64] |= 1 << (x % 64);
-        self.sums.len() - 1
-    }
-
-    /// Rounds the float sums of columns `x0..x1` of rows `0..rows` (a band
-    /// `w` wide) into the exact ones, and empties them.
-    fn fold(&mut self, rows: usize, w: usize, [x0, x1]: [u32; 2]) {
-        let (x0, x1) = (x0 as usize, (x1 as usize).min(w));
-        for r in 0..rows {
-            for x in x0..x1 {
-                let px = r * w + x;
-                // w > 0 wherever a fragment landed (alpha > 0, weight >= 1e-3).
-                if self.acc[px].rgbw.w != 0.0 {
-                    let a = std::mem::replace(&mut self.acc[px], Acc::EMPTY);
-                    let s = self.slot_of(px, r, x);
-                    self.sums[s].fold(a.rgbw, a.reveal);
-                }
-            }
-        }
-    }
-
-    /// Adds exact sums at pixel `x` of row `r` (band pixel `px`).
-    fn add(&mut self, px: usize, r: usize, x: usize, sums: &Sums) {
-        let s = self.slot_of(px, r, x);
-        self.sums[s].add(sums);
-    }
-
-    /// Takes the hair sums at band pixel `px`, exact and float together,
-    /// leaving it empty; `None` where no hair reached it.
-    #[inline]
-    fn take(&mut self, px: usize) -> Option<Sums> {
-        let s = std::mem::replace(&mut self.slot[px], NO_SLOT);
-        let mut sums = (s != NO_SLOT).then(|| self.sums[s as usize]);
-        if self.acc[px].rgbw.w != 0.0 {
-            let a = std::mem::replace(&mut self.acc[px], Acc::EMPTY);
-            sums.get_or_insert(Sums::ZERO).fold(a.rgbw, a.reveal);
-        }
-        sums
-    }
-}
 
 impl Canvas {
     /// An empty canvas of `width x height` pixels (each side in 1..=`MAX_SIDE`).
@@ -228,7 +149,20 @@ impl Canvas {
             chunk_group: Vec::new(),
             groups: 0,
             looks: Vec::new(),
+            nearest: 0,
         })
+    }
+
+    /// Composites the `k` nearest fragments of each pixel front to back
+    /// (at most [`MAX_NEAREST`]), blending only those behind them; 0 (the
+    /// default) blends every fragment order-independently.
+    pub fn set_nearest(&mut self, k: usize) {
+        self.nearest = k.min(MAX_NEAREST);
+    }
+
+    /// The fragments of a pixel composited front to back.
+    pub fn nearest(&self) -> usize {
+        self.nearest
     }
 
     /// Empties the canvas for the next frame, keeping its memory.
@@ -432,15 +366,15 @@ impl Canvas {
                 let last = if own_hair {
                     self.band_sums(band, rows, scratch, false)
                 } else {
-                    scratch.ready(rows, w);
+                    scratch.ready(rows, w, self.nearest);
                     NO_REACH
                 };
                 let first = (y0 * w) as u32;
                 for l in &layers {
-                    let (pixels, sums) = l.range(first, first + (rows * w) as u32);
-                    for (&p, s) in pixels.iter().zip(sums) {
-                        let px = (p - first) as usize;
-                        scratch.add(px, px / w, px % w, s);
+                    let (a, b) = l.range(first, first + (rows * w) as u32);
+                    for i in a..b {
+                        let px = (l.pixels()[i] - first) as usize;
+                        scratch.add(px, px / w, px % w, &l.sums()[i], l.front(i));
                     }
                 }
                 let depth = &self.depth[y0 * w..(y0 + rows) * w];
@@ -467,7 +401,9 @@ impl Canvas {
                                 continue;
                             }
                             let base = if covered { opaque[p] } else { background };
-                            let c = hair.map_or(base, |s| s.over(base));
+                            let c = hair.map_or(base, |s| {
+                                front::composite(scratch.front(s), Some(&scratch.sums[s]), base)
+                            });
                             px.copy_from_slice(&srgb::encode(lut, c));
                         }
                     }
@@ -511,7 +447,11 @@ impl Canvas {
                             let x = k * 64 + bits.trailing_zeros() as usize;
                             *bits &= *bits - 1;
                             let s = std::mem::replace(&mut scratch.slot[r * w + x], NO_SLOT);
-                            part.push(((y0 + r) * w + x) as u32, scratch.sums[s as usize]);
+                            let s = s as usize;
+                            let k = scratch.k;
+                            let front =
+                                &scratch.fronts[s * k..s * k + scratch.front_len[s] as usize];
+                            part.push(((y0 + r) * w + x) as u32, scratch.sums[s], front);
                         }
                     }
                 }
@@ -537,7 +477,7 @@ impl Canvas {
         fold_last: bool,
     ) -> [u32; 2] {
         let (w, y0) = (self.width, band * BAND);
-        scratch.ready(rows, w);
+        scratch.ready(rows, w, self.nearest);
         let mut group = None;
         let mut reach = NO_REACH;
         for ((chunk, r), &g) in self.bins.iter().zip(&self.reach).zip(&self.chunk_group) {
@@ -551,7 +491,7 @@ impl Canvas {
                 let i = i as usize;
                 // Binned segments have both ends on screen.
                 if let (Some(a), Some(b)) = (self.verts[i], self.verts[i + 1]) {
-                    self.rasterize(a, b, &self.looks[look as usize], y0, rows, &mut scratch.acc);
+                    self.rasterize(a, b, &self.looks[look as usize], y0, rows, scratch);
                 }
             }
         }
@@ -563,7 +503,7 @@ impl Canvas {
     }
 
     /// Adds the fragments of the segment from `a` to `b` that fall in rows
-    /// `y0..y0 + rows` to `acc` (that band's float sums).
+    /// `y0..y0 + rows` to that band's float sums, or its nearest fragments.
     fn rasterize(
         &self,
         a: ScreenVertex,
@@ -571,7 +511,7 @@ impl Canvas {
         look: &HairLook,
         y0: usize,
         rows: usize,
-        acc: &mut [Acc],
+        scratch: &mut Scratch,
     ) {
         let w = self.width;
         let opacity = look.opacity.clamp(0.0, 1.0);
@@ -588,13 +528,41 @@ impl Canvas {
         };
         // One copy of the loop per major axis, with no per-fragment test of
         // which axis is which.
-        if is_steep(a, b) {
-            line_steps::<true>(a, b, clip, |s| band.add::<true>(a, b, s, acc));
+        let k = scratch.k;
+        if k == 0 {
+            let acc = &mut scratch.acc;
+            if is_steep(a, b) {
+                line_steps::<true>(a, b, clip, |s| band.add::<true, false>(a, b, s, acc, None));
+            } else {
+                line_steps::<false>(a, b, clip, |s| band.add::<false, false>(a, b, s, acc, None));
+            }
         } else {
-            line_steps::<false>(a, b, clip, |s| band.add::<false>(a, b, s, acc));
+            let (acc, near) = (
+                &mut scratch.acc,
+                (
+                    &mut scratch.near[..],
+                    &mut scratch.near_len[..],
+                    &mut scratch.near_far[..],
+                    k,
+                ),
+            );
+            let mut near = Some(near);
+            if is_steep(a, b) {
+                line_steps::<true>(a, b, clip, |s| {
+                    band.add::<true, true>(a, b, s, acc, near.as_mut())
+                });
+            } else {
+                line_steps::<false>(a, b, clip, |s| {
+                    band.add::<false, true>(a, b, s, acc, near.as_mut())
+                });
+            }
         }
     }
 }
+
+/// A band's nearest fragments while a group is rasterized: the lists, their
+/// lengths, each full list's farthest depth, and `k`.
+type Near<'a> = (&'a mut [Fragment], &'a mut [u8], &'a mut [f32], usize);
 
 /// What every step of one segment in one band shares.
 struct Band<'a> {
@@ -613,8 +581,17 @@ impl Band<'_> {
     /// step the nearer row first; `STEEP`: y is the major axis. What a
     /// step's two pixels share (depth, colour, weight, alpha) is computed
     /// for the four steps at once, each lane as one step would compute it.
+    /// `NEAR`: each fragment goes to the pixel's nearest ones in `near`
+    /// (list, lengths, `k`), and what they leave out to `acc`.
     #[inline(always)]
-    fn add<const STEEP: bool>(&self, a: ScreenVertex, b: ScreenVertex, s: &Steps, acc: &mut [Acc]) {
+    fn add<const STEEP: bool, const NEAR: bool>(
+        &self,
+        a: ScreenVertex,
+        b: ScreenVertex,
+        s: &Steps,
+        acc: &mut [Acc],
+        mut near: Option<&mut Near<'_>>,
+    ) {
         let t = s.t;
         let z = (Vec4::splat(a.p.z) + t * (b.p.z - a.p.z)).to_array();
         // Colours with w = 1, so that colour times weight carries the
@@ -645,8 +622,35 @@ impl Band<'_> {
                 if z[l] >= self.depth[px] {
                     continue;
                 }
-                let aw = alpha * wt[l];
                 let cell = &mut acc[px];
+                if NEAR && let Some((list, len, far, k)) = near.as_deref_mut() {
+                    let k = *k;
+                    // Behind a full list's farthest: blended at once, the
+                    // list untouched (most fragments of a deep pixel).
+                    if z[l] > far[px] {
+                        let aw = alpha * wt[l];
+                        cell.rgbw += c * aw;
+                        cell.reveal *= 1.0 - alpha;
+                        continue;
+                    }
+                    let f = Fragment {
+                        z: z[l],
+                        color: c.truncate(),
+                        alpha,
+                        weight: wt[l],
+                    };
+                    let mine = &mut list[px * k..(px + 1) * k];
+                    if let Some(out) = front::insert(mine, &mut len[px], k, f) {
+                        let (rgbw, reveal) = out.blended();
+                        cell.rgbw += rgbw;
+                        cell.reveal *= reveal;
+                    }
+                    if len[px] as usize == k {
+                        far[px] = mine[k - 1].z;
+                    }
+                    continue;
+                }
+                let aw = alpha * wt[l];
                 cell.rgbw += c * aw;
                 cell.reveal *= 1.0 - alpha;
             }

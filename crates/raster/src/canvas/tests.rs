@@ -1,4 +1,5 @@
 use super::*;
+use crate::srgb8_to_linear;
 
 #[test]
 fn refuses_absurd_sizes() {
@@ -60,6 +61,14 @@ fn thread_count_does_not_change_a_single_byte_and_draw_order_only_rounding() {
 /// any split and thread count, over a head that hides some of them.
 #[test]
 fn groups_split_across_canvases_composite_to_the_same_bytes() {
+    // Blended alone, and with the 2 and the 8 nearest fragments of each
+    // pixel composited front to back.
+    for nearest in [0, 2, 8] {
+        split_groups_composite_to_the_same_bytes(nearest);
+    }
+}
+
+fn split_groups_composite_to_the_same_bytes(nearest: usize) {
     let cam = Camera::new(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, 40.0, 80, 56).unwrap();
     let (mut pts, mut cols, mut offsets) = (Vec::new(), Vec::new(), vec![0u32]);
     for s in 0..60 {
@@ -83,6 +92,7 @@ fn groups_split_across_canvases_composite_to_the_same_bytes() {
     let groups = [0, 7, 20, 21, 33, 60];
     let canvas = |strands: std::ops::Range<usize>| {
         let mut c = Canvas::new(80, 56).unwrap();
+        c.set_nearest(nearest);
         c.draw_sphere(&cam, &head, |_, _| Vec3::new(0.6, 0.4, 0.3));
         // Group boundaries within `strands`, as strand indices from its start.
         let g: Vec<u32> = groups
@@ -117,6 +127,7 @@ fn groups_split_across_canvases_composite_to_the_same_bytes() {
             .collect();
         // The compositor has the head alone, and the layers, in any order.
         let mut head_only = Canvas::new(80, 56).unwrap();
+        head_only.set_nearest(nearest);
         head_only.draw_sphere(&cam, &head, |_, _| Vec3::new(0.6, 0.4, 0.3));
         let mut rev = layers.clone();
         rev.reverse();
@@ -126,27 +137,17 @@ fn groups_split_across_canvases_composite_to_the_same_bytes() {
                 .build()
                 .unwrap()
                 .install(|| head_only.resolve_layers(bg, ls));
-            assert!(img == whole, "split at {cuts:?}");
+            assert!(img == whole, "split at {cuts:?}, {nearest} nearest");
         }
     }
-    // The integers themselves add up: split layers sum to the whole's.
     let all = canvas(0..60).layer();
     assert!(!all.pixels().is_empty());
-    assert!(all.sums().iter().all(|s| !s.is_zero()));
-    let mut added = std::collections::BTreeMap::new();
-    for c in [0, 7, 20, 21, 33, 60].windows(2) {
-        let l = canvas(c[0]..c[1]).layer();
-        for (&p, s) in l.pixels().iter().zip(l.sums()) {
-            added.entry(p).or_insert(Sums::ZERO).add(s);
-        }
+    assert_eq!(all.fragments() > 0, nearest > 0);
+    // The integers themselves add up: split layers sum to the whole's
+    // (with nearest fragments kept, a merge moves some into the sums).
+    if nearest == 0 {
+        split_sums_add_up(&all, &canvas);
     }
-    let whole_sums: std::collections::BTreeMap<u32, Sums> = all
-        .pixels()
-        .iter()
-        .copied()
-        .zip(all.sums().iter().copied())
-        .collect();
-    assert_eq!(added, whole_sums);
     // Stripes of whole bands (the last one short: 56 rows), appended
     // in order, are the whole layer, for any stripe height.
     let whole_canvas = canvas(0..60);
@@ -164,7 +165,7 @@ fn groups_split_across_canvases_composite_to_the_same_bytes() {
             stripes > 1 || step > 16,
             "hair in several stripes of {step}"
         );
-        assert_eq!(striped, all, "stripes of {step} rows");
+        assert_eq!(striped, all, "stripes of {step} rows, {nearest} nearest");
     }
     // A band of rows resolved where part of the hair was drawn, with
     // the rest's layers (a cluster worker's band): the whole picture's
@@ -181,6 +182,67 @@ fn groups_split_across_canvases_composite_to_the_same_bytes() {
         let got = mine.resolve_layer_rows(bg, &all_layers, rows.clone());
         assert_eq!(got, want, "{rows:?}, own hair as a layer");
     }
+}
+
+fn split_sums_add_up(all: &HairLayer, canvas: &dyn Fn(std::ops::Range<usize>) -> Canvas) {
+    assert!(all.sums().iter().all(|s| !s.is_zero()));
+    let mut added = std::collections::BTreeMap::new();
+    for c in [0, 7, 20, 21, 33, 60].windows(2) {
+        let l = canvas(c[0]..c[1]).layer();
+        for (&p, s) in l.pixels().iter().zip(l.sums()) {
+            added.entry(p).or_insert(Sums::ZERO).add(s);
+        }
+    }
+    let whole_sums: std::collections::BTreeMap<u32, Sums> = all
+        .pixels()
+        .iter()
+        .copied()
+        .zip(all.sums().iter().copied())
+        .collect();
+    assert_eq!(added, whole_sums);
+}
+
+/// A red strand in front of a green one over black. Drawn alone, each
+/// covers the centre pixel with opacity `A_r` (red `A_r`) or `A_g`.
+/// Together, composited front to back, the pixel is `A_r` red and
+/// `A_g (1 - A_r)` green (the over operator); blended
+/// order-independently, the green behind shows through far more.
+#[test]
+fn the_nearest_fragments_hide_what_is_behind_them() {
+    let cam = Camera::new(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, 40.0, 32, 32).unwrap();
+    let red = [Vec3::new(-2.0, 0.0, 0.1), Vec3::new(2.0, 0.0, 0.1)];
+    let green = [Vec3::new(-2.0, 0.0, -0.1), Vec3::new(2.0, 0.0, -0.1)];
+    let look = HairLook {
+        fiber_width: 0.6,
+        opacity: 0.5,
+        depth_ref: 10.0,
+    };
+    let centre = |nearest: usize, strands: &[([Vec3; 2], Vec3)]| {
+        let mut c = Canvas::new(32, 32).unwrap();
+        c.set_nearest(nearest);
+        let pts: Vec<Vec3> = strands.iter().flat_map(|s| s.0).collect();
+        let cols: Vec<Vec3> = strands.iter().flat_map(|s| [s.1, s.1]).collect();
+        let offsets: Vec<u32> = (0..=strands.len() as u32).map(|i| 2 * i).collect();
+        c.draw_hair(&cam, &pts, &offsets, &cols, &look, &[]);
+        let p = c.resolve(Vec3::ZERO).get_pixel(16, 16).0;
+        (srgb8_to_linear(p[0]), srgb8_to_linear(p[1]))
+    };
+    let a_r = centre(4, &[(red, Vec3::X)]).0;
+    let a_g = centre(4, &[(green, Vec3::Y)]).1;
+    assert!(a_r > 0.3 && a_g > 0.3, "{a_r} {a_g}");
+    let both = [(red, Vec3::X), (green, Vec3::Y)];
+    let (r, g) = centre(4, &both);
+    assert!((r - a_r).abs() < 0.01, "red {r}, alone {a_r}");
+    assert!(
+        (g - a_g * (1.0 - a_r)).abs() < 0.01,
+        "green {g}, want {}",
+        a_g * (1.0 - a_r)
+    );
+    // The same strands the other way round in strand order: the same.
+    let (r2, g2) = centre(4, &[(green, Vec3::Y), (red, Vec3::X)]);
+    assert!((r2 - r).abs() < 1e-6 && (g2 - g).abs() < 1e-6);
+    let (_, g) = centre(0, &both);
+    assert!(g > a_g * (1.0 - a_r) + 0.05, "blended green {g}");
 }
 
 #[test]

@@ -3,7 +3,7 @@
 //! among themselves, each read back with every count checked.
 
 use prost::encoding::{decode_varint, encode_varint};
-use raster::{HairLayer, Sums};
+use raster::{Fragment, HairLayer, Sums};
 
 use super::super::{Malformed, bad};
 use super::PIXELS_PER_CHUNK;
@@ -300,7 +300,7 @@ fn encode_pixels(
     c.sums.reserve(16 * range.len());
     for (&p, s) in layer.pixels()[range.clone()]
         .iter()
-        .zip(&layer.sums()[range])
+        .zip(&layer.sums()[range.clone()])
     {
         encode_varint(u64::from(p - *prev), &mut c.pixels);
         *prev = p;
@@ -308,6 +308,19 @@ fn encode_pixels(
             encode_varint(v as u64, &mut c.sums);
         }
         encode_varint(s.absorb, &mut c.sums);
+    }
+    if layer.fragments() > 0 {
+        c.fronts
+            .reserve(range.len() + 24 * layer.fragments().min(16 * range.len()));
+        for i in range {
+            let front = layer.front(i);
+            c.fronts.push(front.len() as u8);
+            for f in front {
+                for v in [f.z, f.color.x, f.color.y, f.color.z, f.alpha, f.weight] {
+                    c.fronts.extend_from_slice(&v.to_le_bytes());
+                }
+            }
+        }
     }
     c
 }
@@ -319,6 +332,9 @@ pub(crate) struct LayerReader {
     height: u32,
     pixels: Vec<u32>,
     sums: Vec<Sums>,
+    /// Each pixel's count of nearest fragments, and the fragments.
+    counts: Vec<u8>,
+    fronts: Vec<Fragment>,
     /// The worker's times, from the last chunk.
     pub times: engine::DrawTimes,
 }
@@ -331,6 +347,8 @@ impl LayerReader {
             height,
             pixels: Vec::new(),
             sums: Vec::new(),
+            counts: Vec::new(),
+            fronts: Vec::new(),
             times: engine::DrawTimes::default(),
         }
     }
@@ -378,15 +396,69 @@ impl LayerReader {
         if !px.is_empty() || !sums.is_empty() {
             return Err(bad("bytes left over in a partial picture chunk"));
         }
+        self.read_fronts(count, &c.fronts)?;
         if let Some(t) = times_of(c) {
             self.times = t;
         }
         Ok(())
     }
 
+    /// The nearest fragments of a chunk's `count` pixels (none at all, or
+    /// a count byte for each); checked when the layer is finished.
+    fn read_fronts(&mut self, count: usize, mut bytes: &[u8]) -> Result<(), Malformed> {
+        if bytes.is_empty() {
+            self.counts.resize(self.pixels.len(), 0);
+            return Ok(());
+        }
+        for _ in 0..count {
+            let (&n, rest) = bytes
+                .split_first()
+                .ok_or_else(|| bad("a partial picture's fragments end early"))?;
+            if n as usize > raster::MAX_NEAREST {
+                return Err(bad(format!(
+                    "{n} nearest fragments at a pixel, at most {}",
+                    raster::MAX_NEAREST
+                )));
+            }
+            let need = 24 * n as usize;
+            if rest.len() < need {
+                return Err(bad("a partial picture's fragments end early"));
+            }
+            for f in rest[..need].chunks_exact(24) {
+                let v: Vec<f32> = f
+                    .chunks_exact(4)
+                    .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                    .collect();
+                self.fronts.push(Fragment {
+                    z: v[0],
+                    color: glam::Vec3::new(v[1], v[2], v[3]),
+                    alpha: v[4],
+                    weight: v[5],
+                });
+            }
+            self.counts.push(n);
+            bytes = &rest[need..];
+        }
+        if !bytes.is_empty() {
+            return Err(bad("bytes left over in a partial picture's fragments"));
+        }
+        Ok(())
+    }
+
     /// The partial picture, once every chunk is in.
     pub(crate) fn finish(self) -> Result<HairLayer, Malformed> {
-        HairLayer::from_parts(self.width, self.height, self.pixels, self.sums)
-            .map_err(|e| bad(e.to_string()))
+        if self.fronts.is_empty() {
+            return HairLayer::from_parts(self.width, self.height, self.pixels, self.sums)
+                .map_err(|e| bad(e.to_string()));
+        }
+        HairLayer::from_parts_with_fronts(
+            self.width,
+            self.height,
+            self.pixels,
+            self.sums,
+            &self.counts,
+            self.fronts,
+        )
+        .map_err(|e| bad(e.to_string()))
     }
 }

@@ -48,8 +48,15 @@ fn pose_plans_reports_and_jobs_round_trip_exactly() {
         shadows: true,
         filter: false,
         head: plan.head,
+        nearest: 8,
     };
     assert_eq!(job_from_pb(&job_to_pb(&job)).unwrap(), job);
+    let mut bad = job_to_pb(&job);
+    bad.nearest = raster::MAX_NEAREST as u32 + 1;
+    assert!(
+        job_from_pb(&bad).is_err(),
+        "more nearest fragments than a pixel keeps"
+    );
     // A camera with its own up comes back the same.
     let tilted = DrawJob {
         camera: camera.with_up(Vec3::new(0.3, 0.2, 1.0)).unwrap(),
@@ -159,6 +166,59 @@ fn partial_pictures_round_trip_across_chunks_and_malformed_ones_are_refused() {
     let mut wide = c.clone();
     wide.pixels = vec![16];
     assert!(LayerReader::new(4, 4).add(&wide).is_err());
+}
+
+#[test]
+fn nearest_fragments_round_trip_and_bad_ones_are_refused() {
+    use raster::Fragment;
+    let n = PIXELS_PER_CHUNK + 10;
+    let pixels: Vec<u32> = (0..n as u32).map(|i| 2 * i).collect();
+    let sums = vec![Sums::ZERO; n];
+    // 0 to 3 fragments a pixel, nearest first.
+    let counts: Vec<u8> = (0..n).map(|i| (i % 4) as u8).collect();
+    let fronts: Vec<Fragment> = counts
+        .iter()
+        .enumerate()
+        .flat_map(|(i, &c)| {
+            (0..c).map(move |k| Fragment {
+                z: 10.0 + k as f32 + i as f32 * 1e-3,
+                color: Vec3::new(0.1, 0.2, 0.3 * k as f32),
+                alpha: 0.25,
+                weight: 2.0,
+            })
+        })
+        .collect();
+    let layer =
+        HairLayer::from_parts_with_fronts(1000, 1000, pixels, sums, &counts, fronts).unwrap();
+    let chunks = layer_chunks(&layer, &engine::DrawTimes::default());
+    assert_eq!(chunks.len(), 2);
+    let mut r = LayerReader::new(1000, 1000);
+    for c in &chunks {
+        r.add(c).unwrap();
+    }
+    let back = r.finish().unwrap();
+    assert_eq!(back, layer);
+    assert_eq!(back.front(3).len(), 3);
+    // Malformed: too many at a pixel, cut short, out of order, NaN.
+    let read = |c: &pb::LayerChunk| {
+        let mut r = LayerReader::new(1000, 1000);
+        r.add(c).and_then(|()| r.finish().map(|_| ()))
+    };
+    let mut c = chunks[0].clone();
+    c.fronts[0] = 17;
+    assert!(read(&c).is_err());
+    let mut c = chunks[0].clone();
+    c.fronts.pop();
+    assert!(read(&c).is_err());
+    // Pixel 3's first two fragments swapped: depths 10.003 and 11.003.
+    let mut c = chunks[0].clone();
+    let at = 1 + (1 + 24) + (1 + 2 * 24) + 1;
+    let (a, b) = c.fronts[at..at + 48].split_at_mut(24);
+    a.swap_with_slice(b);
+    assert!(read(&c).is_err(), "fragments out of order");
+    let mut c = chunks[0].clone();
+    c.fronts[at..at + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+    assert!(read(&c).is_err(), "a NaN depth");
 }
 
 #[test]
