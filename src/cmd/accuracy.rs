@@ -341,9 +341,23 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
         eprintln!("wrote {}", path.display());
     }
     if let Some(path) = &a.plot {
-        super::write_chart(path, &plot_rows(&rows[1..], &name, cores))?;
+        super::write_chart(path, &plot_rows(&rows[1..], &name, cores, Metric::Rms))?;
+        if truth.is_some() {
+            let stem = path.file_stem().unwrap_or_default().to_string_lossy();
+            let cycles = path.with_file_name(format!("{stem}-cycles.png"));
+            super::write_chart(&cycles, &plot_rows(&rows, &name, cores, Metric::Cycles))?;
+        }
     }
     Ok(())
+}
+
+/// What a plot's vertical axis shows.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Metric {
+    /// RMS error of T against the exact reference at the drawn points.
+    Rms,
+    /// Mean block shadow ratio error against Cycles' picture.
+    Cycles,
 }
 
 /// The scene's first frame with `config`, rendered `runs` times (after one
@@ -600,10 +614,17 @@ fn image_error(a: &RgbImage, b: &RgbImage, background: glam::Vec3) -> f64 {
     }
 }
 
-fn plot_rows(rows: &[Row], scene: &str, cores: usize) -> plot::Chart {
+fn plot_rows(rows: &[Row], scene: &str, cores: usize, metric: Metric) -> plot::Chart {
+    let rows: Vec<&Row> = rows
+        .iter()
+        .filter(|r| metric == Metric::Rms || r.cycles.is_some())
+        .collect();
     let series: Vec<String> = MethodConfig::NAMES
         .iter()
-        .filter(|n| **n != "reference" && rows.iter().any(|r| r.config.name() == **n))
+        .filter(|n| {
+            (metric == Metric::Cycles || **n != "reference")
+                && rows.iter().any(|r| r.config.name() == **n)
+        })
         .map(|n| n.to_string())
         .collect();
     // Each point labelled with the settings that differ between its
@@ -631,7 +652,10 @@ fn plot_rows(rows: &[Row], scene: &str, cores: usize) -> plot::Chart {
         .iter()
         .map(|r| plot::Point {
             x_ms: r.ms,
-            y: r.rms,
+            y: match metric {
+                Metric::Rms => r.rms,
+                Metric::Cycles => r.cycles.map_or(0.0, |c| c.mean_abs),
+            },
             series: series
                 .iter()
                 .position(|s| s == r.config.name())
@@ -642,10 +666,20 @@ fn plot_rows(rows: &[Row], scene: &str, cores: usize) -> plot::Chart {
     let scene = Path::new(scene)
         .file_stem()
         .map_or(scene.to_string(), |s| s.to_string_lossy().into_owned());
+    let (title, y) = match metric {
+        Metric::Rms => (
+            format!("shadow error vs time: {scene}, {cores} cores"),
+            "RMS error of T at the drawn points",
+        ),
+        Metric::Cycles => (
+            format!("error against Cycles vs time: {scene}, {cores} cores"),
+            "mean error of the 8x8 block shadow ratio",
+        ),
+    };
     plot::scatter(
-        &format!("shadow error vs time: {scene}, {cores} cores"),
+        &title,
         "three shadow stages, ms (log scale)",
-        "RMS error of T at the drawn points",
+        y,
         &series,
         &points,
     )

@@ -1,7 +1,7 @@
 # Renders a frame exported by `wisplight export --blender DIR` in Blender Cycles.
 #
 #   blender -b -noaudio --python DIR/scene.py -- [--output FILE.exr] [--unshadowed]
-#       [--samples N] [--bounces N] [--threads N] [--save FILE.blend]
+#       [--samples N] [--bounces N] [--threads N] [--seed N] [--save FILE.blend]
 #
 # The strands (as posed for the frame), the head, the camera, the lights, the
 # fiber's width and optics are those of wisplight's frame (scene.json and the
@@ -35,6 +35,7 @@ def parse_args():
     p.add_argument("--bounces", type=int, default=0,
                    help="light bounces; 0 (the default) is direct light only")
     p.add_argument("--threads", type=int, default=0, help="render threads; 0: all")
+    p.add_argument("--seed", type=int, default=0, help="Cycles' sampling seed")
     p.add_argument("--save", help="also save the scene as this .blend file")
     p.add_argument("--no-render", action="store_true", help="build the scene only")
     return p.parse_args(argv)
@@ -233,7 +234,7 @@ def main():
     scene.cycles.samples = args.samples or s["samples"]
     scene.cycles.use_adaptive_sampling = False
     scene.cycles.use_denoising = False
-    scene.cycles.seed = 0
+    scene.cycles.seed = args.seed
     b = args.bounces
     scene.cycles.max_bounces = b
     scene.cycles.diffuse_bounces = b

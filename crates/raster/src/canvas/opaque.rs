@@ -229,6 +229,17 @@ impl Canvas {
                     let p = wt[0] * positions[i] + wt[1] * positions[j] + wt[2] * positions[k];
                     let n = (wt[0] * normals[i] + wt[1] * normals[j] + wt[2] * normals[k])
                         .normalize_or_zero();
+                    // Two-sided: the shading normal on the side the camera
+                    // sees (the triangle's own normal turned to the eye),
+                    // so a part wound the other way round is not shaded as
+                    // its inside.
+                    let g = (positions[j] - positions[i]).cross(positions[k] - positions[i]);
+                    let g = if g.dot(camera.position - p) < 0.0 {
+                        -g
+                    } else {
+                        g
+                    };
+                    let n = if n.dot(g) < 0.0 { -n } else { n };
                     depth[x] = z;
                     color[x] = shade(p, n);
                 }

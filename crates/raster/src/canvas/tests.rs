@@ -306,3 +306,30 @@ fn a_mesh_covers_its_projected_area_without_cracks_and_the_nearer_face_wins() {
         .install(draw);
     assert!(one == img, "thread counts");
 }
+
+/// A quad facing the camera shades the same whichever way it is wound
+/// (its vertex normals pointing at the camera or away): the shading
+/// normal is on the side the camera sees. (The head mesh's neck was wound
+/// inwards and came out unlit where Blender Cycles lit it.)
+#[test]
+fn a_mesh_part_wound_inwards_is_shaded_from_the_side_the_camera_sees() {
+    let cam = Camera::new(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, 40.0, 16, 16).unwrap();
+    let p = vec![
+        Vec3::new(-2.0, -2.0, 0.0),
+        Vec3::new(2.0, -2.0, 0.0),
+        Vec3::new(2.0, 2.0, 0.0),
+        Vec3::new(-2.0, 2.0, 0.0),
+    ];
+    let to_light = Vec3::new(0.3, 0.2, 1.0).normalize();
+    let lit = |normal: Vec3, tris: &[[u32; 3]]| {
+        let mut c = Canvas::new(16, 16).unwrap();
+        c.draw_mesh(&cam, &p, &[normal; 4], tris, |_, n| {
+            Vec3::splat(n.dot(to_light).max(0.0))
+        });
+        c.resolve(Vec3::ZERO).get_pixel(8, 8).0
+    };
+    let outwards = lit(Vec3::Z, &[[0, 1, 2], [0, 2, 3]]);
+    let inwards = lit(Vec3::NEG_Z, &[[0, 2, 1], [0, 3, 2]]);
+    assert!(outwards[0] > 200, "{outwards:?}");
+    assert_eq!(outwards, inwards);
+}
