@@ -19,10 +19,11 @@ pub fn write_export(dir: &Path, export: &engine::CyclesExport) -> anyhow::Result
     Ok(dir.join("scene.py"))
 }
 
-/// The `blender` program: `$WISPLIGHT_BLENDER`, else `blender` on PATH.
+/// The `blender` program: `$WISPLIGHT_BLENDER` (when it names a file),
+/// else `blender` on PATH.
 pub fn blender() -> Option<PathBuf> {
     if let Some(p) = std::env::var_os("WISPLIGHT_BLENDER") {
-        return Some(PathBuf::from(p));
+        return Some(PathBuf::from(p)).filter(|p| p.is_file());
     }
     let path = std::env::var_os("PATH")?;
     std::env::split_paths(&path)

@@ -184,3 +184,19 @@ fn cycles_and_the_exact_reference_see_the_same_shadow() {
         stderr(&o)
     );
 }
+
+#[test]
+fn bench_accuracy_without_blender_says_so_before_anything_runs() {
+    let dir = scratch("noblender");
+    let scene = write(&dir, "scene.toml", SCENE);
+    let o = Command::new(env!("CARGO_BIN_EXE_wisplight"))
+        .args(["bench", "accuracy", &scene, "--cycles"])
+        .arg(dir.join("cycles"))
+        .env("PATH", "")
+        .env("WISPLIGHT_BLENDER", dir.join("no-such-blender"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("blender not found"), "{}", stderr(&o));
+    assert!(!dir.join("cycles").exists(), "nothing exported");
+}

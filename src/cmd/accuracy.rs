@@ -124,7 +124,7 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
     let blender = match &a.cycles {
         Some(_) => Some(crate::cycles::blender().ok_or_else(|| {
             anyhow::anyhow!(
-                "--cycles: blender not found on PATH (apt-get install blender, or set WISPLIGHT_BLENDER)"
+                "--cycles: blender not found on PATH, nor at $WISPLIGHT_BLENDER (apt-get install blender)"
             )
         })?),
         None => None,
@@ -243,7 +243,7 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
     }
 
     println!(
-        "{:<19} {:<78} {:>9} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}",
+        "{:<19} {:<78} {:>9} {:>8} {:>8} {:>8} {:>8} {:>9} {:>8} {:>8} {:>8}",
         "method",
         "parameters",
         "ms",
