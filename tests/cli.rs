@@ -433,18 +433,122 @@ fn render_without_a_scene_writes_the_built_in_picture() {
 }
 
 #[test]
-fn render_into_a_missing_directory_fails_cleanly() {
+fn render_makes_a_missing_output_folder_for_every_kind_of_output_and_checks_it_first() {
     let dir = scratch("render-missing");
     let scene = write(
         &dir,
         "scene.toml",
-        &format!("{SMALL}\n[render]\nwidth = 64\nheight = 48\n"),
+        &format!("{SMALL}\n[render]\nwidth = 64\nheight = 48\n\n[animation]\nmotion = \"dance\"\n"),
     );
-    let out = dir.join("no/such/dir/x.png");
-    let o = wisplight(&["render", &scene, "-o", out.to_str().unwrap()]);
-    assert_eq!(o.status.code(), Some(1));
-    let e = stderr(&o);
-    assert!(e.contains("x.png") && !e.contains("panicked"), "{e}");
+    for (out, frames, made) in [
+        ("png/a/x.png", "1", vec!["png/a/x.png"]),
+        ("gif/a/x.gif", "2", vec!["gif/a/x.gif"]),
+        (
+            "seq/a/f_%02d.png",
+            "2",
+            vec!["seq/a/f_00.png", "seq/a/f_01.png"],
+        ),
+    ] {
+        let o = wisplight(&[
+            "render",
+            &scene,
+            "--frames",
+            frames,
+            "-o",
+            dir.join(out).to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{out}: {}", stderr(&o));
+        for m in made {
+            assert!(dir.join(m).is_file(), "{out}: {m} missing");
+        }
+    }
+    // A folder that cannot be made (a file stands in its way) is named
+    // before anything renders, the same way for each kind.
+    std::fs::write(dir.join("file"), b"x").unwrap();
+    for out in ["file/x.png", "file/x.gif", "file/f_%02d.png"] {
+        let o = wisplight(&["render", &scene, "-o", dir.join(out).to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(1), "{out}");
+        let e = stderr(&o);
+        assert!(
+            e.contains("cannot create the folder") && e.contains("file"),
+            "{out}: {e}"
+        );
+        assert!(
+            !e.contains("wrote") && !e.contains("panicked"),
+            "{out}: {e}"
+        );
+    }
+}
+
+#[test]
+fn a_scene_that_never_ends_or_is_too_big_or_not_text_is_refused_by_name() {
+    let dir = scratch("render-caps");
+    let out = dir.join("x.png");
+    let big = dir.join("big.toml");
+    let f = std::fs::File::create(&big).unwrap();
+    f.set_len(17 << 20).unwrap();
+    let binary = dir.join("binary.toml");
+    std::fs::write(&binary, b"\x00\xff\xfe").unwrap();
+    for (scene, said) in [
+        (Path::new("/dev/zero"), "a device or a FIFO"),
+        (big.as_path(), "more than the limit"),
+        (binary.as_path(), "not text"),
+    ] {
+        let o = wisplight(&[
+            "render",
+            scene.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert_eq!(o.status.code(), Some(1), "{}", scene.display());
+        let e = stderr(&o);
+        assert!(
+            e.contains(scene.to_str().unwrap()) && e.contains(said),
+            "{e}"
+        );
+        assert!(!out.exists());
+    }
+}
+
+#[test]
+fn render_takes_a_groom_file_alone() {
+    let dir = scratch("render-groom");
+    // Two strands of four points in the .hair format (Yuksel): the header,
+    // then the points as f32 triples.
+    let mut bytes = Vec::new();
+    bytes.extend_from_slice(b"HAIR");
+    bytes.extend_from_slice(&2u32.to_le_bytes()); // strands
+    bytes.extend_from_slice(&8u32.to_le_bytes()); // points
+    bytes.extend_from_slice(&2u32.to_le_bytes()); // fields: points
+    bytes.extend_from_slice(&3u32.to_le_bytes()); // default segments
+    bytes.extend_from_slice(&1f32.to_le_bytes()); // thickness
+    bytes.extend_from_slice(&1f32.to_le_bytes()); // transparency
+    for c in [0.5f32, 0.4, 0.3] {
+        bytes.extend_from_slice(&c.to_le_bytes());
+    }
+    bytes.resize(128, 0);
+    for s in 0..2 {
+        for i in 0..4 {
+            for c in [s as f32, -(i as f32), 0.0] {
+                bytes.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+    }
+    let groom = dir.join("two.hair");
+    std::fs::write(&groom, &bytes).unwrap();
+    let out = dir.join("two.png");
+    let o = wisplight(&[
+        "render",
+        groom.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("segments"), "{}", stderr(&o));
+    // Something was drawn over the background.
+    let img = image::open(&out).unwrap().to_rgb8();
+    let bg = img.get_pixel(0, 0);
+    assert!(img.pixels().any(|p| p != bg));
 }
 
 #[test]

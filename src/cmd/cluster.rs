@@ -16,6 +16,8 @@ pub struct WorkerArgs {
     listen: SocketAddr,
     #[command(flatten)]
     tls: TlsArgs,
+    #[command(flatten)]
+    token: TokenArg,
     /// Also serve grpc.health.v1 alone, in plain gRPC, on this address: for
     /// probes that cannot present a certificate when TLS is on.
     #[arg(long, value_name = "ADDR")]
@@ -46,6 +48,33 @@ pub struct WorkerArgs {
     max_session_memory_mib: Option<u64>,
     #[command(flatten)]
     pub threads: super::Threads,
+}
+
+/// `--token`: the cluster's shared secret.
+#[derive(Debug, clap::Args)]
+pub struct TokenArg {
+    /// The cluster's token (at least 16 printable characters, e.g. from
+    /// `openssl rand -hex 16`): a worker given one serves only calls that
+    /// carry it, and shows it to its peers; a coordinator shows it to its
+    /// workers. Best given in the environment, where `ps` does not show it.
+    #[arg(
+        long,
+        env = "WISPLIGHT_TOKEN",
+        hide_env_values = true,
+        value_name = "TOKEN"
+    )]
+    token: Option<String>,
+}
+
+impl TokenArg {
+    /// The token, checked, when given.
+    pub fn load(&self) -> anyhow::Result<Option<cluster::Token>> {
+        self.token
+            .as_deref()
+            .map(cluster::Token::new)
+            .transpose()
+            .context("--token")
+    }
 }
 
 /// Mutual TLS (all three files, or none: plain gRPC, for loopback and
@@ -105,16 +134,32 @@ pub fn worker(args: WorkerArgs) -> anyhow::Result<()> {
         max_session_memory: args.max_session_memory_mib.unwrap_or(args.max_memory_mib) << 20,
     });
     let tls = args.tls.load()?;
-    if tls.is_none() && !args.listen.ip().is_loopback() {
-        tracing::warn!(
-            listen = %args.listen,
-            "serving plain gRPC beyond loopback: anyone who reaches this port can send work; \
-             use --tls-ca/--tls-cert/--tls-key on untrusted networks"
-        );
+    let token = args.token.load()?;
+    if !args.listen.ip().is_loopback() {
+        match (&tls, &token) {
+            (None, None) => tracing::warn!(
+                listen = %args.listen,
+                "serving plain gRPC beyond loopback without a token: anyone who reaches this \
+                 port can open sessions and send work; give --token (or WISPLIGHT_TOKEN), and \
+                 use --tls-ca/--tls-cert/--tls-key on untrusted networks"
+            ),
+            (Some(_), None) => tracing::warn!(
+                listen = %args.listen,
+                "no --token: any holder of a certificate from this CA (a worker's included) \
+                 can open sessions; give --token (or WISPLIGHT_TOKEN)"
+            ),
+            (None, Some(_)) => tracing::warn!(
+                listen = %args.listen,
+                "plain gRPC beyond loopback: the token and the work travel unencrypted; use \
+                 --tls-ca/--tls-cert/--tls-key on untrusted networks"
+            ),
+            (Some(_), Some(_)) => {}
+        }
     }
     let listen = cluster::Listen {
         tls,
         health: args.health_listen,
+        token,
     };
     cluster::run_worker(service, args.listen, &listen, |b| {
         // Each line flushed at once, even into a pipe; a reader that has
@@ -182,6 +227,8 @@ pub struct CoordinatorArgs {
     #[command(flatten)]
     tls: ClientTlsArgs,
     #[command(flatten)]
+    token: TokenArg,
+    #[command(flatten)]
     render: super::render::Args,
 }
 
@@ -204,6 +251,7 @@ pub fn coordinator(args: CoordinatorArgs) -> anyhow::Result<()> {
             deadline: Duration::from_secs_f64(args.deadline),
             connect_timeout: Duration::from_secs_f64(args.connect_timeout),
             tls: args.tls.load()?,
+            token: args.token.load()?,
             draw: args.draw.into(),
         },
     };

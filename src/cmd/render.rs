@@ -11,8 +11,10 @@ use crate::output::AtomicFile;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Scene file (TOML); the built-in scene (the smooth style, parted, on a
-    /// dancing head with a face, seen from three quarters) when omitted.
+    /// Scene file (TOML), or a groom file (.hair, .tfx, .data, .bin, .ply)
+    /// to render at the defaults; the built-in scene (the smooth style,
+    /// parted, on a dancing head with a face, seen from three quarters)
+    /// when omitted.
     scene: Option<PathBuf>,
     /// Output: a PNG (default `wisplight.png`); for several frames a
     /// pattern with `%d` or `%04d` for the frame number (default
@@ -72,7 +74,11 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
             "wisplight_%04d.png"
         })
     });
+    // The output's folder before the render, the same way for every kind
+    // of output: made when missing and tried for writing, so that a
+    // render does not fail at its end.
     let mut output = if is_gif(&out_path) {
+        ready_folder(&out_path)?;
         let w = raster::GifWriter::new(
             AtomicFile::create(&out_path)?,
             scene.render.width,
@@ -98,12 +104,7 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
                 out_path.display()
             )));
         }
-        if pattern.numbered()
-            && let Some(dir) = out_path.parent().filter(|d| !d.as_os_str().is_empty())
-        {
-            std::fs::create_dir_all(dir)
-                .with_context(|| format!("cannot create the directory {}", dir.display()))?;
-        }
+        ready_folder(&out_path)?;
         Output::Pngs(pattern)
     };
 
@@ -385,6 +386,33 @@ impl Pattern {
             None => format!("{}{}", self.before, self.after).into(),
         }
     }
+}
+
+/// Makes the folder `out` goes in when it is missing, and checks that a
+/// file can be written there (a temporary one, removed at once).
+fn ready_folder(out: &Path) -> anyhow::Result<()> {
+    let dir = out
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    std::fs::create_dir_all(dir).with_context(|| {
+        format!(
+            "-o {}: cannot create the folder {}",
+            out.display(),
+            dir.display()
+        )
+    })?;
+    tempfile::Builder::new()
+        .prefix(".wisplight-check.")
+        .tempfile_in(dir)
+        .with_context(|| {
+            format!(
+                "-o {}: cannot write in the folder {}",
+                out.display(),
+                dir.display()
+            )
+        })?;
+    Ok(())
 }
 
 #[cfg(test)]

@@ -229,6 +229,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
                 deadline: Duration::from_secs(120),
                 connect_timeout: Duration::from_secs(10),
                 tls: None,
+                token: None,
                 draw,
             };
             let ex = cluster::RemoteExecutor::connect(&addrs, &scene, &options)

@@ -30,6 +30,8 @@ pub struct Args {
     #[command(flatten)]
     tls: super::cluster::ClientTlsArgs,
     #[command(flatten)]
+    token: super::cluster::TokenArg,
+    #[command(flatten)]
     pub threads: super::Threads,
 }
 
@@ -53,6 +55,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             deadline: Duration::from_secs_f64(args.deadline),
             connect_timeout: Duration::from_secs_f64(args.connect_timeout),
             tls: args.tls.load()?,
+            token: args.token.load()?,
             draw: cluster::DrawAt::Workers,
         };
         let workers = args.workers.clone();

@@ -9,6 +9,7 @@ use tonic::transport::{Channel, Endpoint};
 
 use crate::error::{WorkerError, WorkerErrorKind, root_cause};
 use crate::pb::worker_client::WorkerClient;
+use crate::token::Token;
 use crate::{ClusterError, Tls, pb, tls, wire};
 
 /// The gRPC metadata key that names a call's session.
@@ -149,20 +150,46 @@ pub struct Timing {
 }
 
 /// Names a session in the metadata of every call (see
-/// [`SESSION_KEY`]).
+/// [`SESSION_KEY`]), and carries the cluster's token when there is one.
 #[derive(Debug, Clone)]
-pub struct SessionHeader(tonic::metadata::AsciiMetadataValue);
+pub struct SessionHeader {
+    session: Option<tonic::metadata::AsciiMetadataValue>,
+    token: Option<Token>,
+}
 
 impl SessionHeader {
     /// The header of session `id`, as a worker's Hello reply named it.
     pub fn new(id: &str) -> Option<SessionHeader> {
-        id.parse().ok().map(SessionHeader)
+        id.parse().ok().map(|v| SessionHeader {
+            session: Some(v),
+            token: None,
+        })
+    }
+
+    /// The header of a Hello: no session yet, the token alone.
+    pub(crate) fn hello(token: Option<&Token>) -> SessionHeader {
+        SessionHeader {
+            session: None,
+            token: token.cloned(),
+        }
+    }
+
+    /// The same header, carrying `token` too.
+    pub fn with_token(mut self, token: Option<&Token>) -> SessionHeader {
+        self.token = token.cloned();
+        self
     }
 }
 
 impl tonic::service::Interceptor for SessionHeader {
     fn call(&mut self, mut req: tonic::Request<()>) -> Result<tonic::Request<()>, tonic::Status> {
-        req.metadata_mut().insert(SESSION_KEY, self.0.clone());
+        if let Some(s) = &self.session {
+            req.metadata_mut().insert(SESSION_KEY, s.clone());
+        }
+        if let Some(t) = &self.token {
+            req.metadata_mut()
+                .insert(crate::token::TOKEN_KEY, t.value().clone());
+        }
         Ok(req)
     }
 }
@@ -208,6 +235,7 @@ pub(crate) async fn hello(
     fiber: &Fiber,
     deadline: Duration,
     tls: Option<&Tls>,
+    token: Option<&Token>,
 ) -> Result<Remote, ClusterError> {
     let err = |msg: String| ClusterError::Connect {
         addr: addr.to_string(),
@@ -217,7 +245,7 @@ pub(crate) async fn hello(
         .connect()
         .await
         .map_err(|e| err(root_cause(&e)))?;
-    let mut client = WorkerClient::new(channel.clone())
+    let mut client = WorkerClient::with_interceptor(channel.clone(), SessionHeader::hello(token))
         .max_decoding_message_size(wire::MAX_MESSAGE_BYTES)
         .max_encoding_message_size(wire::MAX_MESSAGE_BYTES);
     let reply = client
@@ -230,12 +258,16 @@ pub(crate) async fn hello(
         .map_err(|s| {
             let e = WorkerError::from(s);
             match e.kind {
-                WorkerErrorKind::Precondition | WorkerErrorKind::Exhausted => {
-                    ClusterError::Version {
-                        addr: addr.to_string(),
-                        msg: e.message,
-                    }
-                }
+                // Full: left out, as a worker that does not answer is.
+                WorkerErrorKind::Exhausted => ClusterError::Connect {
+                    addr: addr.to_string(),
+                    msg: format!("full: {}", e.message),
+                },
+                WorkerErrorKind::Precondition
+                | WorkerErrorKind::Other(tonic::Code::Unauthenticated) => ClusterError::Version {
+                    addr: addr.to_string(),
+                    msg: e.message,
+                },
                 WorkerErrorKind::Other(tonic::Code::Unimplemented) => ClusterError::Connect {
                     addr: addr.to_string(),
                     msg: "this address serves no wisplight worker (unimplemented: a health port?)"
@@ -266,7 +298,7 @@ pub(crate) async fn hello(
     Ok(Remote {
         addr: addr.to_string(),
         session: reply.session.clone(),
-        client: WorkerClient::with_interceptor(channel, header)
+        client: WorkerClient::with_interceptor(channel, header.with_token(token))
             .max_decoding_message_size(wire::MAX_MESSAGE_BYTES)
             .max_encoding_message_size(wire::MAX_MESSAGE_BYTES),
     })

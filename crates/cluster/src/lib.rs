@@ -21,6 +21,7 @@ mod codec;
 mod error;
 mod remote;
 mod tls;
+mod token;
 mod wire;
 mod worker;
 
@@ -41,6 +42,7 @@ pub use client::{SessionClient, SessionHeader, Timing, Traffic};
 pub use error::{ClusterError, WorkerError, WorkerErrorKind};
 pub use remote::{DrawAt, Options, RemoteExecutor};
 pub use tls::{Pki, Tls};
+pub use token::{MIN_TOKEN_LEN, Token};
 pub use worker::{
     Bound, DEFAULT_MAX_MEMORY, Listen, POOL_BYTES, SessionLimits, WorkerService, run_worker,
     serve_worker,

@@ -48,6 +48,7 @@ fn on_workers(scene: &Scene, addrs: &[String]) -> Sequence {
         deadline: Duration::from_secs(20),
         connect_timeout: Duration::from_secs(5),
         tls: None,
+        token: None,
         draw: DrawAt::Workers,
     };
     let remote = RemoteExecutor::connect(addrs, scene, &options).unwrap();
@@ -273,6 +274,7 @@ fn a_worker_holds_at_most_its_sessions_and_ends_idle_ones() {
                     deadline: Duration::from_secs(5),
                     connect_timeout: Duration::from_secs(5),
                     tls: None,
+                    token: None,
                     draw: DrawAt::Workers,
                 },
             )
@@ -282,6 +284,24 @@ fn a_worker_holds_at_most_its_sessions_and_ends_idle_ones() {
         .await
         .unwrap();
         assert!(refused.contains("--max-sessions"), "{refused}");
+        // Beside a worker with room, a full one is left out and the run
+        // goes on over the other, as for a worker that does not answer.
+        let (free, _stop_free) = common::start_worker_with(Listen::default());
+        let pictures = tokio::task::spawn_blocking(move || {
+            let s = scene(DANCE);
+            let mut seq = on_workers(&s, &[addr.to_string(), free.to_string()]);
+            seq.expect_frames(2);
+            let mine: Vec<_> = (0..2)
+                .map(|_| seq.next_frame().unwrap().0.clone())
+                .collect();
+            (mine, local_frames(&s, 2))
+        })
+        .await
+        .unwrap();
+        assert!(
+            pictures.0 == pictures.1,
+            "the pictures differ from one process's"
+        );
         // Unused, both end; new ones open.
         tokio::time::sleep(Duration::from_millis(900)).await;
         let named = WorkerClient::with_interceptor(
@@ -378,6 +398,7 @@ fn a_workers_refusal_reaches_the_frame_as_its_own_type() {
         deadline: Duration::from_secs(20),
         connect_timeout: Duration::from_secs(5),
         tls: None,
+        token: None,
         draw: DrawAt::Workers,
     };
     let err = match RemoteExecutor::connect(&[addr.to_string()], &scene, &options) {
@@ -406,4 +427,64 @@ fn a_workers_refusal_reaches_the_frame_as_its_own_type() {
         }
         other => panic!("not a worker's refusal: {other}"),
     }
+}
+
+#[test]
+fn a_worker_with_a_token_serves_only_coordinators_that_show_it() {
+    const TOKEN: &str = "s3cret-cluster-token-0123";
+    let listen = || Listen {
+        token: Some(cluster::Token::new(TOKEN).unwrap()),
+        ..Listen::default()
+    };
+    // Two workers, so that they also call each other (with the token).
+    let (a, _stop_a) = common::start_worker_with(listen());
+    let (b, _stop_b) = common::start_worker_with(listen());
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        // A bare Hello opens nothing.
+        let e = client(a).await.hello(hello(0.1)).await.unwrap_err();
+        assert_eq!(e.code(), tonic::Code::Unauthenticated);
+        assert!(e.message().contains("token"), "{}", e.message());
+    });
+    let addrs = [a.to_string(), b.to_string()];
+    let connect = |token: Option<&str>| {
+        RemoteExecutor::connect(
+            &addrs,
+            &scene(DANCE),
+            &Options {
+                deadline: Duration::from_secs(20),
+                connect_timeout: Duration::from_secs(5),
+                tls: None,
+                token: token.map(|t| cluster::Token::new(t).unwrap()),
+                draw: DrawAt::Workers,
+            },
+        )
+    };
+    // No token, or another: the coordinator stops at once, saying why.
+    for token in [None, Some("another-token-of-16chars")] {
+        let e = connect(token).unwrap_err().to_string();
+        assert!(e.contains("token"), "{token:?}: {e}");
+    }
+    // The right one: the same pictures as one process.
+    let s = scene(DANCE);
+    let mut seq = Sequence::new(&s).unwrap();
+    let remote = connect(Some(TOKEN)).unwrap();
+    let timing = remote.timing();
+    seq.set_executor(Box::new(remote)).unwrap();
+    seq.expect_frames(3);
+    let mine: Vec<_> = (0..3)
+        .map(|_| seq.next_frame().unwrap().0.clone())
+        .collect();
+    assert!(
+        mine == local_frames(&s, 3),
+        "the pictures differ from one process's"
+    );
+    // The workers reached each other with the token: they summed, swept
+    // and composited among themselves, nothing fell back.
+    let t = *timing.lock().unwrap();
+    assert_eq!(
+        (t.composite_fallbacks, t.exchange_fallbacks),
+        (0, 0),
+        "{t:?}"
+    );
 }

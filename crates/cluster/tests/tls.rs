@@ -36,6 +36,7 @@ fn start_worker(tls: Tls) -> SocketAddr {
     common::start_worker_with(Listen {
         tls: Some(tls),
         health: None,
+        token: None,
     })
     .0
 }
@@ -49,6 +50,7 @@ fn options(tls: Option<&Tls>, secs: u64) -> cluster::Options {
         deadline: Duration::from_secs(secs),
         connect_timeout: Duration::from_secs(5),
         tls: tls.cloned(),
+        token: None,
         // The strands are sent for any hair.
         draw: cluster::DrawAt::Coordinator,
     }
@@ -265,6 +267,7 @@ fn credentials_that_are_not_pem_are_named() {
             &Listen {
                 tls: Some(tls),
                 health: None,
+                token: None,
             },
             |_| {},
             std::future::pending(),
@@ -285,6 +288,7 @@ fn the_plain_health_port_answers_probes_and_nothing_else() {
     let (addr, _keep) = common::start_worker_with(Listen {
         tls: Some(pki().worker()),
         health: Some(health),
+        token: None,
     });
     let deadline = Duration::from_secs(5);
     assert!(cluster::check_health(&health.to_string(), deadline, None).unwrap());

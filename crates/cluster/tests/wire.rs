@@ -36,6 +36,7 @@ fn options(draw: DrawAt, secs: u64) -> Options {
         deadline: Duration::from_secs(secs),
         connect_timeout: Duration::from_secs(5),
         tls: None,
+        token: None,
         draw,
     }
 }

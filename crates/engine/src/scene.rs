@@ -50,10 +50,12 @@ mod motion;
 mod raw;
 mod shading;
 mod shadow_settings;
+mod toml_error;
 mod view;
 
 use hair::Grown;
 use raw::*;
+use toml_error::{field_at, one_line};
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -343,22 +345,49 @@ impl Scene {
     /// Reads and validates a scene file; relative paths inside it are
     /// relative to the file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        let io = |cause| SceneError::Io {
-            path: path.to_owned(),
-            cause,
-        };
-        // The size first: a huge file is refused before it is read.
-        let size = std::fs::metadata(path).map_err(io)?.len();
-        if size > MAX_SCENE_BYTES as u64 {
-            return Err(SceneError::Parse {
-                path: path.to_owned(),
-                message: format!(
-                    "a scene file of {size} bytes: at most {MAX_SCENE_BYTES} (put strands in a \
-                     groom file, hair.file)"
-                ),
-            });
+        if strands::is_groom_path(path) {
+            return Scene::for_groom(path);
         }
-        let text = std::fs::read_to_string(path).map_err(io)?;
+        let bytes = strands::read_capped(path, MAX_SCENE_BYTES as u64).map_err(|cause| {
+            if cause.kind() == std::io::ErrorKind::FileTooLarge {
+                SceneError::Parse {
+                    path: path.to_owned(),
+                    message: format!(
+                        "{cause}: a scene file is text of at most 16 MiB (strands go in a groom \
+                         file, hair.file)"
+                    ),
+                }
+            } else {
+                SceneError::Io {
+                    path: path.to_owned(),
+                    cause,
+                }
+            }
+        })?;
+        let text = String::from_utf8(bytes).map_err(|e| SceneError::Parse {
+            path: path.to_owned(),
+            message: format!(
+                "not text (byte {} is not UTF-8): a scene is a TOML file; a groom file is \
+                 rendered by its extension (.hair, .tfx, .data, .bin or .ply)",
+                e.utf8_error().valid_up_to()
+            ),
+        })?;
+        Scene::from_toml_str(&text, path)
+    }
+
+    /// The scene of one groom file at its defaults: `[hair] file = PATH`
+    /// and nothing else (the camera framed on the hair, the file's own
+    /// defaults for followers and width; no head unless the scene gives
+    /// one). A scene file is needed only for more.
+    pub fn for_groom(path: &Path) -> Result<Scene, SceneError> {
+        let name = path.file_name().ok_or_else(|| SceneError::Parse {
+            path: path.to_owned(),
+            message: "not a file name".into(),
+        })?;
+        let text = format!(
+            "[hair]\nfile = {}\n",
+            toml::Value::String(name.to_string_lossy().into_owned())
+        );
         Scene::from_toml_str(&text, path)
     }
 
@@ -383,7 +412,14 @@ impl Scene {
         }
         let raw: RawScene = toml::from_str(text).map_err(|e| SceneError::Parse {
             path: path.to_owned(),
-            message: one_line(&e.to_string()),
+            message: match e.span().and_then(|s| field_at(text, s.start)) {
+                Some(field) => format!(
+                    "{field}: {} ({})",
+                    e.message().trim(),
+                    one_line(&e.to_string())
+                ),
+                None => one_line(&e.to_string()),
+            },
         })?;
         let mut scene = Validator {
             path,
@@ -420,9 +456,11 @@ impl Scene {
             if self.source.files.contains_key(&p) {
                 continue;
             }
-            let bytes = std::fs::read(&p).map_err(|cause| SceneError::Io {
-                path: p.clone(),
-                cause,
+            let bytes = strands::read_capped(&p, strands::MAX_FILE_BYTES).map_err(|cause| {
+                SceneError::Io {
+                    path: p.clone(),
+                    cause,
+                }
             })?;
             self.source.files.insert(p, bytes.into());
         }
@@ -434,33 +472,15 @@ impl Scene {
     pub fn data_file(&self, path: &Path) -> std::io::Result<std::borrow::Cow<'_, [u8]>> {
         match self.source.files.get(path) {
             Some(b) => Ok(std::borrow::Cow::Borrowed(b)),
-            None => std::fs::read(path).map(std::borrow::Cow::Owned),
+            None => {
+                strands::read_capped(path, strands::MAX_FILE_BYTES).map(std::borrow::Cow::Owned)
+            }
         }
     }
 
     /// The scene `source` describes, with its data files as read there.
     pub fn from_source(source: &SceneSource) -> Result<Scene, SceneError> {
         Scene::parse(&source.text, &source.path, source.files.clone())
-    }
-}
-
-/// toml's messages span several lines with a source excerpt; keep them to one.
-fn one_line(message: &str) -> String {
-    let mut parts = message.lines().map(str::trim).filter(|l| {
-        !l.is_empty()
-            && !l.starts_with('|')
-            && !l.chars().next().is_some_and(|c| c.is_ascii_digit())
-    });
-    let head = parts
-        .next()
-        .unwrap_or("invalid TOML")
-        .trim_end_matches(':')
-        .to_string();
-    let rest: Vec<&str> = parts.collect();
-    if rest.is_empty() {
-        head
-    } else {
-        format!("{head}: {}", rest.join("; "))
     }
 }
 
@@ -479,7 +499,8 @@ impl Validator<'_> {
         let bytes = match self.files.get(&m.path) {
             Some(b) => std::borrow::Cow::Borrowed(&b[..]),
             None => std::borrow::Cow::Owned(
-                std::fs::read(&m.path).map_err(|e| fail(format!("cannot read it: {e}")))?,
+                strands::read_capped(&m.path, strands::MAX_FILE_BYTES)
+                    .map_err(|e| fail(format!("cannot read it: {e}")))?,
             ),
         };
         let mesh = parse(&bytes).map_err(|e| fail(e.to_string()))?;

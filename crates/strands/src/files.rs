@@ -76,9 +76,62 @@ pub enum MeshLoadError {
     },
 }
 
-/// Loads `.hair`, `.tfx`, `.data`, `.bin` or `.ply` by extension.
+/// The largest data file (groom or mesh) read whole: 256 MiB, about 22
+/// million points of a binary groom. A longer file, or one that never
+/// ends (`/dev/zero`, a FIFO that keeps writing), is refused at the limit.
+pub const MAX_FILE_BYTES: u64 = 256 << 20;
+
+/// Reads `path` whole if it holds at most `cap` bytes. More is an error
+/// of kind [`std::io::ErrorKind::FileTooLarge`] once `cap + 1` bytes have
+/// been read, so that memory stays bounded whatever the file is (a device
+/// or a FIFO has no size to check first).
+pub fn read_capped(path: &Path, cap: u64) -> std::io::Result<Vec<u8>> {
+    use std::io::Read;
+    let file = std::fs::File::open(path)?;
+    let meta = file.metadata()?;
+    if meta.is_dir() {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::IsADirectory,
+            "a directory, not a file",
+        ));
+    }
+    if meta.is_file() && meta.len() > cap {
+        return Err(too_large(meta.len(), cap));
+    }
+    let mut bytes = Vec::with_capacity(if meta.is_file() {
+        meta.len() as usize
+    } else {
+        0
+    });
+    file.take(cap + 1).read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > cap {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::FileTooLarge,
+            format!("more than {cap} bytes, the limit, and still going (a device or a FIFO?)"),
+        ));
+    }
+    Ok(bytes)
+}
+
+fn too_large(len: u64, cap: u64) -> std::io::Error {
+    std::io::Error::new(
+        std::io::ErrorKind::FileTooLarge,
+        format!("{len} bytes, more than the limit of {cap}"),
+    )
+}
+
+/// Loads `.hair`, `.tfx`, `.data`, `.bin` or `.ply` by extension (at
+/// most [`MAX_FILE_BYTES`]).
 pub fn load(path: &Path) -> Result<Hair, LoadError> {
-    load_with(path, |p| std::fs::read(p).map(std::borrow::Cow::Owned))
+    load_with(path, |p| {
+        read_capped(p, MAX_FILE_BYTES).map(std::borrow::Cow::Owned)
+    })
+}
+
+/// Whether `path` names a groom file by its extension (one [`load`]
+/// reads).
+pub fn is_groom_path(path: &Path) -> bool {
+    parser(path).is_ok()
 }
 
 /// Loads `.hair`, `.tfx`, `.data`, `.bin` or `.ply` by extension, its bytes from `read` (called
@@ -130,7 +183,7 @@ fn parser(path: &Path) -> Result<Parser, LoadError> {
 /// Reads a mesh from Wavefront OBJ or PLY, by the file's extension.
 pub fn load_mesh(path: &Path) -> Result<Mesh, MeshLoadError> {
     mesh_parser(path)?;
-    let bytes = std::fs::read(path).map_err(|cause| MeshLoadError::Io {
+    let bytes = read_capped(path, MAX_FILE_BYTES).map_err(|cause| MeshLoadError::Io {
         path: path.to_owned(),
         cause,
     })?;
@@ -168,7 +221,7 @@ pub fn mesh_parser(path: &Path) -> Result<MeshParser, MeshLoadError> {
 /// polygons are split into fans). Normals, texture coordinates, groups and
 /// materials are ignored: normals are recomputed from the faces.
 pub fn load_obj(path: &Path) -> Result<Mesh, MeshLoadError> {
-    let bytes = std::fs::read(path).map_err(|cause| MeshLoadError::Io {
+    let bytes = read_capped(path, MAX_FILE_BYTES).map_err(|cause| MeshLoadError::Io {
         path: path.to_owned(),
         cause,
     })?;

@@ -25,8 +25,8 @@ mod style;
 
 pub use catmull_rom::{resample, resample_into};
 pub use files::{
-    LoadError, MeshLoadError, load, load_bytes, load_mesh, load_mesh_bytes, load_obj,
-    load_obj_bytes, load_with, mesh_parser,
+    LoadError, MAX_FILE_BYTES, MeshLoadError, is_groom_path, load, load_bytes, load_mesh,
+    load_mesh_bytes, load_obj, load_obj_bytes, load_with, mesh_parser, read_capped,
 };
 pub use follow::{FollowParams, grow_followers};
 pub use hair::{Bounds, Hair, HairError};

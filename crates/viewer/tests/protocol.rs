@@ -291,6 +291,7 @@ fn connect_to(workers: Vec<String>) -> viewer::Connect {
         deadline: Duration::from_secs(60),
         connect_timeout: Duration::from_secs(10),
         tls: None,
+        token: None,
         draw: cluster::DrawAt::Workers,
     };
     Box::new(move |scene: &engine::Scene| {

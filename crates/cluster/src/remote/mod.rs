@@ -76,6 +76,9 @@ pub struct Options {
     pub connect_timeout: Duration,
     /// Mutual TLS on every connection, when given.
     pub tls: Option<Tls>,
+    /// The cluster's token, shown in every call, when the workers
+    /// require one.
+    pub token: Option<crate::Token>,
     /// Where the hair is drawn.
     pub draw: DrawAt,
 }
@@ -239,8 +242,9 @@ impl RemoteExecutor {
                 .iter()
                 .map(|addr| {
                     let (addr, tls) = (addr.clone(), options.tls.clone());
+                    let token = options.token.clone();
                     tokio::spawn(async move {
-                        let greet = hello(&addr, &fiber, connect, tls.as_ref());
+                        let greet = hello(&addr, &fiber, connect, tls.as_ref(), token.as_ref());
                         match tokio::time::timeout(connect, greet).await {
                             Ok(r) => r,
                             Err(_) => Err(ClusterError::Connect {
@@ -257,10 +261,10 @@ impl RemoteExecutor {
             }
             Ok::<_, ClusterError>(out)
         })?;
-        // A worker that cannot be reached or does not answer is left out,
-        // as one lost mid-run would be; one that refuses (another protocol
-        // version, no room for another session) stops the run: it is set
-        // up wrong.
+        // A worker that cannot be reached, does not answer or has no room
+        // for another session is left out, as one lost mid-run would be;
+        // one that refuses (another protocol version, another token)
+        // stops the run: it is set up wrong.
         let mut workers = Vec::with_capacity(addrs.len());
         let mut missing = Vec::new();
         for a in answers {

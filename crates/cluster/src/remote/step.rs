@@ -21,6 +21,8 @@ impl RemoteExecutor {
             .collect();
         let mut requests = Vec::with_capacity(shares.len());
         let mut sent = 0u64;
+        // The only workers this session's workers may call.
+        let peers: Vec<String> = self.workers.iter().map(|w| w.addr.clone()).collect();
         for (w, share) in self.workers.iter().zip(&shares) {
             let wisps = wisp_range(share);
             let mut text = wire::text_pieces(&self.source.text, wire::TEXT_PIECE_BYTES);
@@ -29,6 +31,7 @@ impl RemoteExecutor {
                 scene_path: self.source.path.to_string_lossy().into_owned(),
                 first_group: share.start as u32,
                 end_group: share.end as u32,
+                peers: peers.clone(),
                 ..Default::default()
             }];
             chunks.extend(text.map(|t| pb::AssignChunk {

@@ -444,6 +444,9 @@ pub(crate) fn draw_columns(
 /// The most workers one Draw round composites among.
 pub(crate) const MAX_WORKERS: usize = 256;
 
+/// The longest worker address or session a plan may name, bytes.
+pub(crate) const MAX_ADDR_BYTES: usize = 256;
+
 /// How one Draw round's picture is composited on the workers: the band
 /// plan, the round, and where each worker is.
 #[derive(Debug, Clone, PartialEq)]
@@ -491,7 +494,7 @@ impl Bands {
             own: b.own as usize,
         };
         plan.check(height).map_err(|e| bad(e.to_string()))?;
-        let long = |v: &String| v.is_empty() || v.len() > 256;
+        let long = |v: &String| v.is_empty() || v.len() > MAX_ADDR_BYTES;
         if b.peers.iter().chain(&b.sessions).any(long) || b.tls_domain.len() > 256 {
             return Err(bad("a worker's address or session is empty or too long"));
         }

@@ -27,6 +27,7 @@ impl WorkerService {
                 continue;
             }
             let (addr, sid) = &bands.peers[b];
+            session.allows(b, addr)?;
             let mut client = self.peer(addr, sid, bands.tls_domain.as_deref(), bands.wait)?;
             let (tx, rx) = tokio::sync::mpsc::channel(STRIPES_IN_FLIGHT);
             let header = pb::LayerChunk {

@@ -34,6 +34,7 @@ impl WorkerService {
         };
         for b in (0..n).filter(|&b| b != plan.own) {
             let (addr, sid) = &plan.peers[b];
+            session.allows(b, addr)?;
             let client = self.peer(addr, sid, plan.tls_domain.as_deref(), plan.wait)?;
             for swept in [false, true] {
                 let (tx, rx) = tokio::sync::mpsc::channel(STRIPES_IN_FLIGHT);

@@ -11,6 +11,9 @@ pub struct Listen {
     /// A second address serving grpc.health.v1 alone, without TLS, for
     /// probes that cannot present a certificate (Kubernetes, Docker).
     pub health: Option<SocketAddr>,
+    /// The cluster's token: every call must carry it (and this worker
+    /// shows it to its peers). `None`: calls need none.
+    pub token: Option<crate::Token>,
 }
 
 /// The addresses a worker serves on, once bound (port 0 picked free
@@ -58,6 +61,7 @@ pub async fn serve_worker(
     // credentials they serve with.
     let mut service = service;
     service.peer_tls = listen.tls.clone();
+    service.peer_token = listen.token.clone();
     // Idle sessions end even when no Hello comes to notice them.
     let service = Arc::new(service);
     let sweeper = {
@@ -71,9 +75,12 @@ pub async fn serve_worker(
             }
         })
     };
-    let worker = WorkerServer::from_arc(service)
-        .max_decoding_message_size(wire::MAX_MESSAGE_BYTES)
-        .max_encoding_message_size(wire::MAX_MESSAGE_BYTES);
+    let worker = tonic::service::interceptor::InterceptedService::new(
+        WorkerServer::from_arc(service)
+            .max_decoding_message_size(wire::MAX_MESSAGE_BYTES)
+            .max_encoding_message_size(wire::MAX_MESSAGE_BYTES),
+        crate::token::RequireToken(listen.token.clone()),
+    );
     let mut server = tonic::transport::Server::builder();
     if let Some(t) = &listen.tls {
         server = server

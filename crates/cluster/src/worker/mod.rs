@@ -100,6 +100,8 @@ pub struct WorkerService {
     /// The credentials this worker serves with, to call other workers
     /// with when they composite a picture together.
     peer_tls: Option<Tls>,
+    /// The token this worker shows its peers.
+    peer_token: Option<crate::Token>,
     /// Connections to other workers, by address and expected name.
     peers: Mutex<HashMap<(String, Option<String>), tonic::transport::Channel>>,
 }
@@ -161,6 +163,7 @@ impl Worker for WorkerService {
                         inbox: Arc::default(),
                         exchange: Arc::default(),
                         swept: Arc::default(),
+                        peers: Mutex::default(),
                     }),
                 );
                 tracing::info!(session = %&id[..8], sessions = sessions.len(), "session opened");
@@ -206,6 +209,19 @@ impl Worker for WorkerService {
             let first = first_message(&mut stream, "Assign").await?;
             let groups = first.first_group as usize..first.end_group as usize;
             let path = first.scene_path.clone();
+            if first.peers.len() > wire::MAX_WORKERS
+                || first.peers.iter().any(|p| p.len() > wire::MAX_ADDR_BYTES)
+            {
+                return Err(status(
+                    Kind::Invalid,
+                    format!(
+                        "at most {} peers of at most {} bytes each (wire::MAX_WORKERS)",
+                        wire::MAX_WORKERS,
+                        wire::MAX_ADDR_BYTES
+                    ),
+                ));
+            }
+            *session.peers.lock().map_err(poisoned)? = first.peers.clone();
             let mut text = String::new();
             let mut states: Vec<pb::WispChunk> = Vec::new();
             let mut files: Vec<(String, Vec<u8>)> = Vec::new();

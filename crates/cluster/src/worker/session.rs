@@ -30,6 +30,31 @@ pub(super) struct Session {
     pub(super) exchange: Arc<Inbox<Exchanged>>,
     /// What the last Deposit rounds with a column plan swept.
     pub(super) swept: Arc<SweptStore>,
+    /// The workers this session's last Assign named: the only peers its
+    /// plans may make this worker call.
+    pub(super) peers: Mutex<Vec<String>>,
+}
+
+impl Session {
+    /// Refuses a peer the session's Assign did not name (not dialled, and
+    /// the error says nothing of it beyond its index).
+    pub(super) fn allows(&self, index: usize, addr: &str) -> Result<(), Status> {
+        named_peer(&self.peers.lock().map_err(poisoned)?, index, addr)
+    }
+}
+
+/// Whether `addr`, peer `index` of a plan, is one of `peers`.
+fn named_peer(peers: &[String], index: usize, addr: &str) -> Result<(), Status> {
+    if peers.iter().any(|p| p == addr) {
+        Ok(())
+    } else {
+        Err(status(
+            Kind::Invalid,
+            format!(
+                "peer {index} of the plan is not one of the workers this session's Assign named"
+            ),
+        ))
+    }
 }
 
 /// What another worker sent in an Exchange call: its density of this
@@ -71,6 +96,7 @@ impl WorkerService {
             memory: Memory::new(limits.max_memory, "this worker's", "--max-memory-mib"),
             limits,
             peer_tls: None,
+            peer_token: None,
             peers: Mutex::default(),
         }
     }
@@ -105,11 +131,12 @@ impl WorkerService {
                 c
             }
         };
-        Ok(
-            crate::pb::worker_client::WorkerClient::with_interceptor(channel, header)
-                .max_decoding_message_size(wire::MAX_MESSAGE_BYTES)
-                .max_encoding_message_size(wire::MAX_MESSAGE_BYTES),
+        Ok(crate::pb::worker_client::WorkerClient::with_interceptor(
+            channel,
+            header.with_token(self.peer_token.as_ref()),
         )
+        .max_decoding_message_size(wire::MAX_MESSAGE_BYTES)
+        .max_encoding_message_size(wire::MAX_MESSAGE_BYTES))
     }
 
     /// What a call of `session` may take: from its budget and the worker's.
@@ -206,4 +233,26 @@ pub(super) async fn with_share<T: Send + 'static>(
     })
     .await
     .map_err(|e| status(Kind::Internal, format!("worker task failed: {e}")))?
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_plan_may_name_only_the_peers_the_assign_named_and_the_error_does_not_echo_them() {
+        let peers = vec!["10.0.0.1:7000".to_string(), "10.0.0.2:7000".to_string()];
+        assert!(named_peer(&peers, 1, "10.0.0.2:7000").is_ok());
+        for stray in ["10.0.0.3:7000", "10.0.0.2:22", "", "10.0.0.1:7000 "] {
+            let e = named_peer(&peers, 1, stray).unwrap_err();
+            assert_eq!(e.code(), tonic::Code::InvalidArgument);
+            assert!(
+                !e.message().contains(stray) || stray.is_empty(),
+                "{}",
+                e.message()
+            );
+        }
+        // Before any Assign, nobody.
+        assert!(named_peer(&[], 0, "10.0.0.1:7000").is_err());
+    }
 }

@@ -563,3 +563,16 @@ fn method_settings_parse_and_settings_of_other_methods_are_refused() {
         assert!(e.contains(field) && e.contains(says), "{text:?}: {e}");
     }
 }
+
+#[test]
+fn a_value_of_the_wrong_shape_is_named_by_its_field() {
+    for (text, field) in [
+        ("[light]\ndirection = [1, 0]\n", "light.direction"),
+        ("[render]\nwidth = \"wide\"\n", "render.width"),
+        ("[[body]]\ncenter = [0, 1]\nradius = 2\n", "body.center"),
+    ] {
+        let e = parse(text).unwrap_err().to_string();
+        assert!(e.starts_with(&format!("dir/scene.toml: {field}: ")), "{e}");
+        assert!(e.contains("line"), "{e}");
+    }
+}

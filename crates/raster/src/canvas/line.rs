@@ -133,12 +133,17 @@ pub(super) fn line_steps<const STEEP: bool>(
     // Pixel centres k + 0.5 in [u0, u1), within the clip.
     let mut first = ceil_i32(u0 - 0.5).max(u_lo);
     let mut last = ceil_i32(u1 - 0.5).min(u_hi);
+    // A line wider than a pixel across its steps covers more than two
+    // rows: its footprint is a box of its width (see `wide_steps`).
+    let half = 0.5 * (a.width.max(b.width) * stretch).max(1.0);
+    let wide = half > 0.5;
     // Minor rows r0 = floor(v - 0.5) and r0 + 1 reach the clip only where
-    // v lies in [v_lo - 0.5, v_hi + 0.5): the steps k where that holds, a
-    // step wider on each side (v is clamped at the ends).
+    // v lies in [v_lo - 0.5, v_hi + 0.5) (a wide line's rows: `half`
+    // instead of 0.5): the steps k where that holds, a step wider on each
+    // side (v is clamped at the ends).
     if m != 0.0 {
         let k_at = |v: f32| ua + (v - va) / m - 0.5;
-        let (ka, kb) = (k_at(v_lo as f32 - 0.5), k_at(v_hi as f32 + 0.5));
+        let (ka, kb) = (k_at(v_lo as f32 - half), k_at(v_hi as f32 + half));
         let (lo, hi) = (ka.min(kb), ka.max(kb));
         if lo.is_finite() {
             first = first.max(ceil_i32(lo).saturating_sub(1));
@@ -161,6 +166,12 @@ pub(super) fn line_steps<const STEEP: bool>(
         let t = ((ks + 0.5 - ua) * inv_du).clamp(Vec4::ZERO, Vec4::ONE);
         let v = Vec4::splat(va) + t * dv;
         let cov = (Vec4::splat(a.width) + t * dw) * stretch;
+        if wide {
+            let lane = ks.cmplt(end);
+            wide_steps(k, t, v, cov, half, lane, (v_lo, v_hi), &mut emit);
+            k = k.saturating_add(4);
+            continue;
+        }
         let vc = v - 0.5;
         let r0 = vc.floor();
         let f = vc - r0;
@@ -180,6 +191,49 @@ pub(super) fn line_steps<const STEEP: bool>(
             });
         }
         k = k.saturating_add(4);
+    }
+}
+
+/// The rows of four steps of a line wider than a pixel: the box of width
+/// `max(cov, 1)` centred on the line at `v` covers row `r` by its overlap
+/// with `[r, r + 1)`, and the row's share of `cov` is that overlap over the
+/// box's width (for a box of width 1 this is Wu's split, which thinner
+/// lines use). Emitted two rows at a time, from the first row the box
+/// reaches; `half` is the largest half-width along the line.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn wide_steps(
+    major: i32,
+    t: Vec4,
+    v: Vec4,
+    cov: Vec4,
+    half: f32,
+    lane: glam::BVec4A,
+    (v_lo, v_hi): (Vec4, Vec4),
+    emit: &mut impl FnMut(&Steps),
+) {
+    let h = cov.max(Vec4::ONE) * 0.5;
+    let inv_width = (2.0 * h).recip();
+    let (lo, hi) = (v - h, v + h);
+    let first = lo.floor();
+    let pairs = ((2.0 * half).ceil() as i32 + 2) / 2;
+    for p in 0..pairs {
+        let r0 = first + Vec4::splat(2.0 * p as f32);
+        let r1 = r0 + 1.0;
+        let share = |r: Vec4| {
+            let over = ((r + 1.0).min(hi) - r.max(lo)).max(Vec4::ZERO) * inv_width;
+            Vec4::select(lane & r.cmpge(v_lo) & r.cmplt(v_hi), over, Vec4::ZERO)
+        };
+        let shares = [share(r0), share(r1)];
+        if (shares[0].cmpgt(Vec4::ZERO) | shares[1].cmpgt(Vec4::ZERO)).any() {
+            emit(&Steps {
+                major,
+                t,
+                cov,
+                minor: r0.as_ivec4().to_array(),
+                shares,
+            });
+        }
     }
 }
 
@@ -224,6 +278,45 @@ mod tests {
                 0.8 * len
             );
         }
+    }
+
+    #[test]
+    fn a_line_wider_than_a_pixel_covers_every_row_its_width_reaches() {
+        // Along x at y = 10.3, 4 pixels wide: rows 8 to 12 covered by the
+        // box [8.3, 12.3), whatever the column.
+        let mut by_row = std::collections::BTreeMap::new();
+        line_fragments(
+            vertex(2.0, 10.3, 4.0),
+            vertex(22.0, 10.3, 4.0),
+            |x, y, _, c| {
+                assert!((2..22).contains(&x));
+                *by_row.entry(y).or_insert(0.0f32) += c / 20.0;
+            },
+        );
+        let want = [(8, 0.7), (9, 1.0), (10, 1.0), (11, 1.0), (12, 0.3)];
+        assert_eq!(by_row.len(), want.len(), "{by_row:?}");
+        for (row, c) in want {
+            assert!((by_row[&row] - c).abs() < 1e-4, "row {row}: {by_row:?}");
+        }
+        // Slanted and thick: the area still adds up, and no pixel is
+        // covered more than once.
+        let mut sum = 0.0;
+        let mut px = std::collections::HashMap::new();
+        line_fragments(
+            vertex(3.0, 4.0, 3.0),
+            vertex(40.0, 21.0, 3.0),
+            |x, y, _, c| {
+                sum += c;
+                *px.entry((x, y)).or_insert(0.0f32) += c;
+            },
+        );
+        let len = (37.0f32 * 37.0 + 17.0 * 17.0).sqrt();
+        assert!(
+            (sum - 3.0 * len).abs() < 3.0 * 1.2,
+            "{sum} against {}",
+            3.0 * len
+        );
+        assert!(px.values().all(|&c| c <= 1.0 + 1e-5), "{px:?}");
     }
 
     #[test]
