@@ -563,3 +563,76 @@ fn with_mutual_tls_only_the_clusters_coordinator_gets_work_done() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(w.stop().success());
 }
+
+#[test]
+fn a_stopped_worker_is_the_one_dropped_whichever_it_is() {
+    let dir = scratch("sigstop");
+    let scene = dir.join("scene.toml");
+    // Rigid hair: no Step calls, so the stop lands in a stage where the
+    // workers wait on each other (summing the maps, compositing).
+    // A map and a picture large enough that a stopped peer's calls fill up
+    // and block the others' sends.
+    std::fs::write(
+        &scene,
+        "[hair]\nstyle = \"smooth\"\nstrands_per_wisp = 4\n\n[render]\nwidth = 640\nheight = 360\n\n\
+         [shadow]\ncells = 128\n\n[animation]\nmotion = \"dance\"\n\n[effects]\ndynamics = false\n",
+    )
+    .unwrap();
+    let (frames, n) = ("8", 8);
+    let local = dir.join("local_%d.png");
+    let o = run(&["render", s(&scene), "--frames", frames, "-o", s(&local)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for stopped in 0..3 {
+        // The workers compose and sum among themselves, so the healthy
+        // ones wait on the stopped one: they must not be blamed for it.
+        let workers = [Worker::start(), Worker::start(), Worker::start()];
+        let list = workers
+            .iter()
+            .map(|w| w.addr.as_str())
+            .collect::<Vec<_>>()
+            .join(",");
+        let remote = dir.join(format!("remote{stopped}_%d.png"));
+        let coordinator = Command::new(bin())
+            .args([
+                "coordinator",
+                s(&scene),
+                "--workers",
+                &list,
+                "--deadline",
+                "3",
+            ])
+            .args(["--frames", frames, "-o"])
+            .arg(&remote)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let second = dir.join(format!("remote{stopped}_1.png"));
+        for _ in 0..3000 {
+            if second.exists() {
+                break;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+        assert!(second.exists(), "the coordinator wrote its second frame");
+        let pid = workers[stopped].child.id().to_string();
+        Command::new("kill").args(["-STOP", &pid]).status().unwrap();
+        let o = coordinator.wait_with_output().unwrap();
+        Command::new("kill").args(["-CONT", &pid]).status().unwrap();
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{e}");
+        let lost: Vec<&str> = e.lines().filter(|l| l.contains("worker lost")).collect();
+        assert_eq!(lost.len(), 1, "worker {stopped} stopped; lost: {lost:#?}");
+        let blamed = &workers[stopped].addr;
+        assert!(
+            lost[0].contains(&format!("worker {blamed} ")),
+            "worker {stopped} ({blamed}) stopped, another dropped: {}",
+            lost[0]
+        );
+        for i in 0..n {
+            let a = std::fs::read(local.to_str().unwrap().replace("%d", &i.to_string())).unwrap();
+            let b = std::fs::read(remote.to_str().unwrap().replace("%d", &i.to_string())).unwrap();
+            assert!(a == b, "frame {i} differs after worker {stopped} stopped");
+        }
+    }
+}

@@ -28,7 +28,8 @@ pub struct WorkerArgs {
           value_parser = clap::value_parser!(u32).range(1..=256))]
     max_sessions: u32,
     /// Seconds after which a session no call used ends (a coordinator
-    /// that died without ending it).
+    /// that died without ending it). A session whose coordinator's
+    /// connection has closed ends after 10 s unused.
     #[arg(long, default_value_t = 600, value_name = "SECS",
           value_parser = clap::value_parser!(u64).range(1..=86_400))]
     session_idle: u64,
@@ -132,6 +133,7 @@ pub fn worker(args: WorkerArgs) -> anyhow::Result<()> {
         idle: std::time::Duration::from_secs(args.session_idle),
         max_memory: args.max_memory_mib << 20,
         max_session_memory: args.max_session_memory_mib.unwrap_or(args.max_memory_mib) << 20,
+        ..cluster::SessionLimits::default()
     });
     let tls = args.tls.load()?;
     let token = args.token.load()?;

@@ -150,7 +150,7 @@ pub struct Timing {
 }
 
 /// Names a session in the metadata of every call (see
-/// [`SESSION_KEY`]), and carries the cluster's token when there is one.
+/// the `wisplight-session` key), and carries the cluster's token when there is one.
 #[derive(Debug, Clone)]
 pub struct SessionHeader {
     session: Option<tonic::metadata::AsciiMetadataValue>,

@@ -168,7 +168,14 @@ pub struct WorkerError {
     pub kind: WorkerErrorKind,
     /// The worker's reason.
     pub message: String,
+    /// The peer the worker waited for in vain (its index in the call's
+    /// plan), when that is why the call failed: the worker at fault is
+    /// that one (the `wisplight-waited-for` metadata).
+    pub waited_for: Option<u32>,
 }
+
+/// The metadata key of [`WorkerError::waited_for`].
+const WAITED_FOR_KEY: &str = "wisplight-waited-for";
 
 impl WorkerError {
     /// A failure of `kind` for `message`.
@@ -176,6 +183,7 @@ impl WorkerError {
         WorkerError {
             kind,
             message: message.into(),
+            waited_for: None,
         }
     }
 
@@ -187,7 +195,12 @@ impl WorkerError {
 
 impl From<WorkerError> for tonic::Status {
     fn from(e: WorkerError) -> tonic::Status {
-        tonic::Status::new(e.kind.code(), e.message)
+        let mut s = tonic::Status::new(e.kind.code(), e.message);
+        if let Some(b) = e.waited_for {
+            s.metadata_mut()
+                .insert(WAITED_FOR_KEY, b.to_string().parse().expect("digits"));
+        }
+        s
     }
 }
 
@@ -198,7 +211,13 @@ impl From<tonic::Status> for WorkerError {
         } else {
             s.message().to_string()
         };
-        WorkerError::new(WorkerErrorKind::of(s.code()), message)
+        let mut e = WorkerError::new(WorkerErrorKind::of(s.code()), message);
+        e.waited_for = s
+            .metadata()
+            .get(WAITED_FOR_KEY)
+            .and_then(|v| v.to_str().ok())
+            .and_then(|v| v.parse().ok());
+        e
     }
 }
 

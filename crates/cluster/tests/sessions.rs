@@ -488,3 +488,34 @@ fn a_worker_with_a_token_serves_only_coordinators_that_show_it() {
         "{t:?}"
     );
 }
+
+#[test]
+fn a_session_whose_coordinator_hung_up_ends_soon_and_a_live_one_stays() {
+    let limits = SessionLimits {
+        max_sessions: 2,
+        idle: Duration::from_secs(600),
+        orphaned: Duration::from_millis(300),
+        ..SessionLimits::default()
+    };
+    let (addr, _stop) = common::start_service(WorkerService::new(limits), Listen::default());
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        // One client stays connected, one hangs up (as a killed
+        // coordinator's connection closes).
+        let mut live = client(addr).await;
+        live.hello(hello(0.1)).await.unwrap();
+        {
+            let mut gone = client(addr).await;
+            gone.hello(hello(0.1)).await.unwrap();
+        }
+        // Both slots are taken at once...
+        let e = live.hello(hello(0.1)).await.unwrap_err();
+        assert_eq!(e.code(), tonic::Code::ResourceExhausted);
+        // ...and the hung-up one's is free well before the idle limit.
+        tokio::time::sleep(Duration::from_millis(900)).await;
+        live.hello(hello(0.1)).await.unwrap();
+        // The live client's first session was kept: both slots are its.
+        let e = live.hello(hello(0.1)).await.unwrap_err();
+        assert_eq!(e.code(), tonic::Code::ResourceExhausted);
+    });
+}

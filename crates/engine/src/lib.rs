@@ -1,15 +1,15 @@
 //! The scene and the frame pipeline.
 //!
-//! [`scene`] reads a TOML scene in two steps: raw serde structs that refuse
+//! `scene` reads a TOML scene in two steps: raw serde structs that refuse
 //! unknown keys, then a validated [`Scene`] the rest of the engine trusts.
-//! [`pipeline`] builds the hair a scene describes and runs the shadow stages
-//! for every light; [`part`] filters and shades drawn vertices and bins
-//! them for drawing; [`render`] frames, draws and composites a frame.
-//! [`animate`] moves the hair over time (simulated wisps, or rigidly with
-//! the head) and cuts it into fixed groups, and [`frames`] runs an
+//! `pipeline` builds the hair a scene describes and runs the shadow stages
+//! for every light; `part` filters and shades drawn vertices and bins
+//! them for drawing; `render` frames, draws and composites a frame.
+//! `animate` moves the hair over time (simulated wisps, or rigidly with
+//! the head) and cuts it into fixed groups, and `frames` runs an
 //! animation's frames, each stage only when the scene's effects call for
-//! it and its inputs changed, through an executor ([`exec`]) that runs the
-//! stages which grow with the hair here or elsewhere; [`share`] is whole
+//! it and its inputs changed, through an executor (`exec`) that runs the
+//! stages which grow with the hair here or elsewhere; `share` is whole
 //! groups held elsewhere, run by the same stage code.
 //!
 //! The engine is synchronous and deterministic: it does no networking, and

@@ -448,7 +448,7 @@ impl Renderer {
 }
 
 /// Where the default camera looks from, towards the hair, slightly above:
-/// as `view` says; for [`CameraView::Auto`] the front (+z), but three
+/// as `view` says; for [`crate::CameraView::Auto`] the front (+z), but three
 /// quarters (45 degrees to the right) when the hair is less than a third
 /// as wide (x) as it is deep (z), where a front view would see it edge-on
 /// (a mohawk).

@@ -332,7 +332,7 @@ pub(crate) const BUILT_IN_SCENE: &str = "[hair]\nstyle = \"smooth\"\nparting = t
 pub(crate) const BUILT_IN_HEAD: &[u8] = include_bytes!("../../../scenes/head.obj");
 
 impl Default for Scene {
-    /// The built-in scene ([`BUILT_IN_SCENE`]), its head mesh held in its
+    /// The built-in scene (`BUILT_IN_SCENE`), its head mesh held in its
     /// files: nothing to read from disk.
     fn default() -> Scene {
         let files = BTreeMap::from([(PathBuf::from("head.obj"), Arc::from(BUILT_IN_HEAD))]);
@@ -412,12 +412,19 @@ impl Scene {
         }
         let raw: RawScene = toml::from_str(text).map_err(|e| SceneError::Parse {
             path: path.to_owned(),
-            message: match e.span().and_then(|s| field_at(text, s.start)) {
-                Some(field) => format!(
-                    "{field}: {} ({})",
-                    e.message().trim(),
-                    one_line(&e.to_string())
-                ),
+            message: match e
+                .span()
+                .and_then(|s| Some((field_at(text, s.start)?, s.start)))
+            {
+                Some((field, at)) => {
+                    let before = &text[..at.min(text.len())];
+                    let line = before.matches('\n').count() + 1;
+                    let column = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
+                    format!(
+                        "{field}: {} (line {line}, column {column})",
+                        one_line(e.message())
+                    )
+                }
                 None => one_line(&e.to_string()),
             },
         })?;

@@ -127,7 +127,7 @@ impl Mesh {
     /// Kasa's algebraic least-squares fit, `|p|^2 = 2 c . p + k` over the
     /// chosen vertices `p`, linear in the centre `c` and `k`, with
     /// `r^2 = k + |c|^2`: first through the vertices in the top
-    /// [`CROWN_SHARE`] of the mesh's height, then twice through those above
+    /// `CROWN_SHARE` of the mesh's height, then twice through those above
     /// the last fit's centre (the cranium's upper half, whatever hangs
     /// below: a jaw, a neck, shoulders). The radius is then the median
     /// distance of those vertices from the centre. A crown too flat or too
@@ -280,7 +280,7 @@ fn vertex_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
         .collect()
 }
 
-/// Parses OBJ text (see [`load_obj`]).
+/// Parses OBJ text (see [`load_obj`](crate::load_obj)).
 pub fn parse_obj(bytes: &[u8]) -> Result<Mesh, MeshError> {
     let text = std::str::from_utf8(bytes).map_err(|e| MeshError::Obj {
         line: bytes[..e.valid_up_to()]

@@ -363,6 +363,7 @@ impl RemoteExecutor {
     /// returns Ok so the caller runs its stage again on the survivors;
     /// otherwise returns `e`.
     fn lose_worker(&mut self, e: ClusterError) -> Result<(), ClusterError> {
+        let e = self.at_fault(e);
         let Some(addr) = e.worker() else {
             return Err(e);
         };
@@ -385,6 +386,26 @@ impl RemoteExecutor {
             "worker lost; its share of the hair and its columns go to the survivors"
         );
         Ok(())
+    }
+
+    /// The error that names the worker at fault for `e`: a worker that
+    /// waited in vain for a peer (its index in the round's plan, which
+    /// lists the workers in this order) blames that peer, not itself.
+    fn at_fault(&self, e: ClusterError) -> ClusterError {
+        if let ClusterError::Call { addr, stage, error } = &e
+            && let Some(peer) = error.waited_for.and_then(|b| self.workers.get(b as usize))
+            && peer.addr != *addr
+        {
+            return ClusterError::Call {
+                addr: peer.addr.clone(),
+                stage,
+                error: crate::WorkerError::new(
+                    crate::WorkerErrorKind::Unavailable,
+                    format!("worker {addr} waited for it in vain ({})", error.message),
+                ),
+            };
+        }
+        e
     }
 
     /// Runs `attempt` until it succeeds, dropping a failed worker before

@@ -56,6 +56,7 @@ impl WorkerService {
         }
         let (tx, rx) = tokio::sync::mpsc::channel(STRIPES_IN_FLIGHT);
         let (held, inbox) = (session.held.clone(), session.inbox.clone());
+        let handle = tokio::runtime::Handle::current();
         tokio::task::spawn_blocking(move || {
             let _received = received;
             let peer_failed = || failed.lock().ok().and_then(|f| f.clone());
@@ -76,23 +77,35 @@ impl WorkerService {
                     let background = raster::to_srgb8(h.share.background());
                     let mut encoders: Vec<wire::StripeEncoder> =
                         (0..n).map(|_| wire::StripeEncoder::new()).collect();
+                    // The peer that stopped taking its stripes, if one did.
+                    let mut stalled_peer = None;
                     let work = on_pool(|| {
                         h.share.draw_band(&job, &maps, &bands.plan, |b, stripe| {
                             let to = senders[b].as_ref().expect("a call for each other worker");
                             for c in encoders[b].chunks(&stripe) {
                                 stripes_sent += c.encoded_len() as u64;
-                                if to.blocking_send(c).is_err() {
-                                    return Err(engine::EngineError::executor(
-                                        peer_failed().unwrap_or_else(|| {
-                                            format!("the call to worker {b} of the round ended")
-                                        }),
-                                    ));
+                                match send_within(&handle, to, c, bands.wait) {
+                                    Ok(()) => {}
+                                    Err(SendFailed::Stalled) => {
+                                        stalled_peer = Some(b);
+                                        return Err(engine::EngineError::executor("stalled"));
+                                    }
+                                    Err(SendFailed::Ended) => {
+                                        return Err(engine::EngineError::executor(
+                                            peer_failed().unwrap_or_else(|| {
+                                                format!("the call to worker {b} of the round ended")
+                                            }),
+                                        ));
+                                    }
                                 }
                             }
                             Ok(())
                         })
                     })
-                    .map_err(|e| status(Kind::Aborted, e.to_string()))?;
+                    .map_err(|e| match stalled_peer {
+                        Some(b) => stalled(b, bands.wait),
+                        None => status(Kind::Aborted, e.to_string()),
+                    })?;
                     (work, background)
                 };
                 // The calls' streams end: the others can finish.
@@ -115,7 +128,7 @@ impl WorkerService {
                     Ok(g) => g.into_iter().map(|(layer, _)| layer).collect(),
                     Err(e) => {
                         canvas = Some(work.into_canvas());
-                        return Err(status(Kind::Aborted, e.to_string()));
+                        return Err(e.status());
                     }
                 };
                 let (bands_drawn, mut times, done) = work.resolve(gathered);

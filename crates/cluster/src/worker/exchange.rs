@@ -9,6 +9,9 @@ pub(super) struct ExchangeSends {
     pub(super) density: Vec<Option<tokio::sync::mpsc::Sender<pb::ExchangeChunk>>>,
     pub(super) swept: Vec<Option<tokio::sync::mpsc::Sender<pb::ExchangeChunk>>>,
     pub(super) failed: Arc<Mutex<Option<String>>>,
+    /// How long a send waits for a peer to take it.
+    pub(super) wait: Duration,
+    pub(super) handle: tokio::runtime::Handle,
 }
 
 impl WorkerService {
@@ -31,6 +34,9 @@ impl WorkerService {
             density: vec![None; n],
             swept: vec![None; n],
             failed: failed.clone(),
+            wait: plan.wait,
+            handle: tokio::runtime::Handle::try_current()
+                .map_err(|e| status(Kind::Internal, format!("no runtime: {e}")))?,
         };
         for b in (0..n).filter(|&b| b != plan.own) {
             let (addr, sid) = &plan.peers[b];
@@ -123,6 +129,7 @@ impl ExchangeRound {
                 .enumerate()
             {
                 density_sent += self.sends.send(
+                    b,
                     &to,
                     pb::ExchangeChunk {
                         round: plan.round,
@@ -136,7 +143,7 @@ impl ExchangeRound {
         }
         let got = inbox
             .gather(2 * plan.round, &others, plan.wait, go_on)
-            .map_err(|e| status(Kind::Aborted, e.to_string()))?;
+            .map_err(Gather::status)?;
         for (b, (item, _)) in others.iter().zip(got) {
             let Exchanged::Density(f, chunks) = item else {
                 return Err(status(
@@ -206,11 +213,15 @@ impl ExchangeSends {
     /// Sends `c` on `to`: its bytes, or the round's failure.
     pub(super) fn send(
         &self,
+        b: usize,
         to: &tokio::sync::mpsc::Sender<pb::ExchangeChunk>,
         c: pb::ExchangeChunk,
     ) -> Result<u64, Status> {
         let bytes = c.encoded_len() as u64;
-        to.blocking_send(c).map_err(|_| {
+        send_within(&self.handle, to, c, self.wait).map_err(|f| {
+            if f == SendFailed::Stalled {
+                return stalled(b, self.wait);
+            }
             status(
                 Kind::Aborted,
                 self.failed
@@ -243,7 +254,7 @@ impl SweptRound {
             for c in &own {
                 round
                     .sends
-                    .send(&to, c.clone())
+                    .send(b, &to, c.clone())
                     .map_err(|s| s.message().to_string())?;
             }
         }

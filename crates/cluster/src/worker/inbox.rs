@@ -87,8 +87,11 @@ impl<T> Inbox<T> {
         from: &[u32],
         wait: Duration,
         go: impl Fn() -> Result<(), String>,
-    ) -> Result<Vec<(T, Grant)>, engine::EngineError> {
-        let fail = |m: String| engine::EngineError::executor(m);
+    ) -> Result<Vec<(T, Grant)>, Gather> {
+        let fail = |m: String| Gather {
+            message: m,
+            missing: None,
+        };
         let until = Instant::now() + wait;
         let mut st = self
             .state
@@ -113,10 +116,13 @@ impl<T> Inbox<T> {
             go().map_err(fail)?;
             let now = Instant::now();
             if now >= until {
-                return Err(fail(format!(
-                    "nothing from workers {missing:?} of the round within {} ms",
-                    wait.as_millis()
-                )));
+                return Err(Gather {
+                    message: format!(
+                        "nothing from workers {missing:?} of the round within {} ms",
+                        wait.as_millis()
+                    ),
+                    missing: missing.first().copied(),
+                });
             }
             let slice = (until - now).min(Duration::from_millis(20));
             st = self
@@ -126,4 +132,73 @@ impl<T> Inbox<T> {
                 .0;
         }
     }
+}
+
+/// Why a [`Inbox::gather`] gave up: the message, and the first worker of
+/// the round nothing came from when that is why.
+#[derive(Debug)]
+pub(super) struct Gather {
+    pub(super) message: String,
+    pub(super) missing: Option<u32>,
+}
+
+impl Gather {
+    /// The call's status: ABORTED, naming the peer waited for in vain
+    /// (`wisplight-waited-for`), so that the coordinator drops that one.
+    pub(super) fn status(self) -> Status {
+        let mut e = WorkerError::new(Kind::Aborted, self.message);
+        e.waited_for = self.missing;
+        e.into()
+    }
+}
+
+impl std::fmt::Display for Gather {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.message)
+    }
+}
+
+/// Why a send to another worker's call failed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum SendFailed {
+    /// The call ended (the peer refused or went away).
+    Ended,
+    /// No room within the wait: the peer stopped reading.
+    Stalled,
+}
+
+/// Sends `c` on `to` from a thread outside the async runtime (`handle`'s),
+/// waiting at most `wait` for room: a peer that stops reading fills the
+/// call's window and the channel, and is then named, not waited on
+/// forever.
+pub(super) fn send_within<T>(
+    handle: &tokio::runtime::Handle,
+    to: &tokio::sync::mpsc::Sender<T>,
+    c: T,
+    wait: Duration,
+) -> Result<(), SendFailed> {
+    let c = match to.try_send(c) {
+        Ok(()) => return Ok(()),
+        Err(tokio::sync::mpsc::error::TrySendError::Closed(_)) => return Err(SendFailed::Ended),
+        Err(tokio::sync::mpsc::error::TrySendError::Full(c)) => c,
+    };
+    handle.block_on(async {
+        match tokio::time::timeout(wait, to.send(c)).await {
+            Ok(Ok(())) => Ok(()),
+            Ok(Err(_)) => Err(SendFailed::Ended),
+            Err(_) => Err(SendFailed::Stalled),
+        }
+    })
+}
+
+/// The status of a call that gave up on peer `b`, which stalled.
+pub(super) fn stalled(b: usize, wait: Duration) -> Status {
+    Gather {
+        message: format!(
+            "worker {b} of the round took nothing for {} ms",
+            wait.as_millis()
+        ),
+        missing: Some(b as u32),
+    }
+    .status()
 }

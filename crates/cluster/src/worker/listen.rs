@@ -62,12 +62,19 @@ pub async fn serve_worker(
     let mut service = service;
     service.peer_tls = listen.tls.clone();
     service.peer_token = listen.token.clone();
+    // Each accepted connection counted while open, for the sessions whose
+    // coordinator went away.
+    let incoming = {
+        use tokio_stream::StreamExt;
+        let connections = service.connections.clone();
+        incoming.map(move |r| r.map(|s| connections.track(s)))
+    };
     // Idle sessions end even when no Hello comes to notice them.
     let service = Arc::new(service);
     let sweeper = {
         let service = service.clone();
-        let every =
-            (service.limits.idle / 4).clamp(Duration::from_millis(50), Duration::from_secs(30));
+        let every = (service.limits.idle.min(service.limits.orphaned) / 4)
+            .clamp(Duration::from_millis(50), Duration::from_secs(30));
         tokio::spawn(async move {
             loop {
                 tokio::time::sleep(every).await;

@@ -5,6 +5,7 @@
 //! gRPC service, with grpc.health.v1 health and server reflection. The
 //! stages are the engine's own ([`engine::Share`]).
 
+mod connections;
 mod deposit;
 mod draw;
 mod exchange;
@@ -55,7 +56,7 @@ const STRIPE_ROWS: u32 = 128;
 const STRIPES_IN_FLIGHT: usize = 8;
 
 /// What a session's pool of maps may hold at most, outside the memory
-/// budget: [`POOLED_MAPS`] maps of [`POOLED_CELLS`] cells (161 a side)
+/// budget: `POOLED_MAPS` (4) maps of `POOLED_CELLS` (2^22) cells (161 a side)
 /// with their scratch (about 86 MiB).
 pub const POOL_BYTES: u64 =
     POOLED_MAPS as u64 * (DensityMap::bytes_for(161) + POOLED_SCRATCH_POINTS as u64 * 20);
@@ -76,6 +77,9 @@ pub struct SessionLimits {
     /// The memory budget of each session and its calls, bytes (at most
     /// `max_memory` counts).
     pub max_session_memory: u64,
+    /// How long a session lives unused once the connection its Hello came
+    /// on has closed (its coordinator gone), at most `idle`.
+    pub orphaned: Duration,
 }
 
 impl Default for SessionLimits {
@@ -86,6 +90,7 @@ impl Default for SessionLimits {
             idle: Duration::from_secs(600),
             max_memory: DEFAULT_MAX_MEMORY,
             max_session_memory: DEFAULT_MAX_MEMORY,
+            orphaned: Duration::from_secs(10),
         }
     }
 }
@@ -102,6 +107,9 @@ pub struct WorkerService {
     peer_tls: Option<Tls>,
     /// The token this worker shows its peers.
     peer_token: Option<crate::Token>,
+    /// The connections clients hold open, to end the sessions of those
+    /// gone.
+    connections: Arc<connections::Connections>,
     /// Connections to other workers, by address and expected name.
     peers: Mutex<HashMap<(String, Option<String>), tonic::transport::Channel>>,
 }
@@ -164,6 +172,7 @@ impl Worker for WorkerService {
                         exchange: Arc::default(),
                         swept: Arc::default(),
                         peers: Mutex::default(),
+                        origin: peer,
                     }),
                 );
                 tracing::info!(session = %&id[..8], sessions = sessions.len(), "session opened");

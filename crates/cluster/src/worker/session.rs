@@ -33,6 +33,8 @@ pub(super) struct Session {
     /// The workers this session's last Assign named: the only peers its
     /// plans may make this worker call.
     pub(super) peers: Mutex<Vec<String>>,
+    /// The client address the Hello came from.
+    pub(super) origin: Option<SocketAddr>,
 }
 
 impl Session {
@@ -97,6 +99,7 @@ impl WorkerService {
             limits,
             peer_tls: None,
             peer_token: None,
+            connections: Arc::default(),
             peers: Mutex::default(),
         }
     }
@@ -165,12 +168,16 @@ impl WorkerService {
             return 0;
         };
         let idle = self.limits.idle;
+        let orphaned = self.limits.orphaned.min(idle);
         let before = sessions.len();
         sessions.retain(|_, s| {
-            s.last_used
-                .lock()
-                .map(|t| t.elapsed() < idle)
-                .unwrap_or(false)
+            let unused = match s.last_used.lock() {
+                Ok(t) => t.elapsed(),
+                Err(_) => return false,
+            };
+            // Its coordinator's connection closed and nobody came back.
+            let gone = s.origin.is_some_and(|a| !self.connections.is_open(a));
+            unused < idle && !(gone && unused >= orphaned)
         });
         let ended = before - sessions.len();
         if ended > 0 {

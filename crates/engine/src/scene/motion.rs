@@ -118,7 +118,7 @@ impl Dynamics {
     }
 }
 
-/// Self-collisions through the density map (see [`crate::collide`]).
+/// Self-collisions through the density map (see the engine's `collide` module).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Collision {
     /// `rho_max`: hair density (length per volume, 1/scene unit^2) above

@@ -17,7 +17,7 @@ pub(super) fn srgb_table() -> &'static [u8] {
     })
 }
 
-/// A linear colour as the 8-bit sRGB pixel [`Canvas::resolve`] writes for it.
+/// A linear colour as the 8-bit sRGB pixel [`Canvas::resolve`](super::Canvas::resolve) writes for it.
 pub fn to_srgb8(c: Vec3) -> [u8; 3] {
     encode(srgb_table(), c)
 }
