@@ -733,6 +733,59 @@ fn one_worker_given_twice_is_refused() {
 }
 
 #[test]
+fn a_step_asking_more_work_than_the_cap_is_refused_before_any_step() {
+    let addr = start_worker();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let mut c = greeted_client(addr).await;
+        // The whole hair: every group's wisps, at rest.
+        let scene = Scene::from_toml_str(DANCE, std::path::Path::new("d")).unwrap();
+        let anim = engine::Animator::new(&scene).unwrap();
+        let groups = anim.groups().count();
+        let wisps = anim.groups().wisp_range(0..groups);
+        let points = wisps.len() * anim.points_per_wisp();
+        let mut assign = vec![pb::AssignChunk {
+            scene_toml: DANCE.to_string(),
+            scene_path: "dance.toml".into(),
+            first_group: 0,
+            end_group: groups as u32,
+            ..Default::default()
+        }];
+        let states = protocol::wisp_chunks(0, wisps.map(|w| anim.wisp_state(w).unwrap()));
+        assign.extend(states.into_iter().map(|s| pb::AssignChunk {
+            state: Some(s),
+            ..Default::default()
+        }));
+        c.assign(tokio_stream::iter(assign)).await.unwrap();
+        let head = glam::Affine3A::IDENTITY.to_cols_array().to_vec();
+        let pose = pb::PosePlan {
+            version: 1,
+            head: head.clone(),
+            lights: vec![0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0],
+            anchor: vec![0.0; 3],
+            ..Default::default()
+        };
+        // Just past the cap: within MAX_STEPS, but too much work.
+        let steps = (protocol::MAX_STEP_WORK / (points as u64 + 1) + 1) as usize;
+        assert!(
+            steps <= protocol::MAX_STEPS,
+            "{points} points: the cap is not what stops it"
+        );
+        let e = c
+            .step(pb::StepRequest {
+                heads: head.repeat(steps),
+                body_counts: vec![0; steps],
+                pose: Some(pose),
+                ..Default::default()
+            })
+            .await
+            .unwrap_err();
+        assert_eq!(e.code(), tonic::Code::InvalidArgument, "{}", e.message());
+        assert!(e.message().contains("MAX_STEP_WORK"), "{}", e.message());
+    });
+}
+
+#[test]
 fn a_step_past_its_deadline_stops_and_frees_the_worker_for_the_next_call() {
     let addr = start_worker();
     let rt = tokio::runtime::Runtime::new().unwrap();

@@ -544,6 +544,11 @@ pub(crate) const GUIDE_POINTS_PER_CHUNK: usize = 64 * 1024;
 /// The most time steps one Step call may ask for.
 pub const MAX_STEPS: usize = 100_000;
 
+/// The most work one Step call may ask for: time steps times (guide
+/// points of the share plus bodies a step), 2^29, about 6 s of one core
+/// (a frame of the 1000 steps a scene allows on 500K guide points fits).
+pub const MAX_STEP_WORK: u64 = 1 << 29;
+
 /// The most bodies one time step may hold.
 pub(crate) const MAX_BODIES: usize = 1024;
 

@@ -119,6 +119,17 @@ pub(super) fn step_plan(
         })
         .collect();
     let points = share.wisps().len() * share.animator().points_per_wisp();
+    // The work the call asks for: every guide point of the share and
+    // every body, at every time step.
+    let work = heads.len() as u64 * (points as u64 + total / heads.len().max(1) as u64 + 1);
+    if work > wire::MAX_STEP_WORK {
+        return Err(wire::Malformed(format!(
+            "{} time steps of {points} guide points and {total} bodies: more than {} \
+             point-steps in one call (wire::MAX_STEP_WORK; a frame has at most 1000 steps)",
+            heads.len(),
+            wire::MAX_STEP_WORK
+        )));
+    }
     let accel = if r.has_accel {
         Some(wire::accel_from_pb(&r.accel_skip, &r.accel, points)?)
     } else {
