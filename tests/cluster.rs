@@ -59,6 +59,20 @@ impl Drop for Worker {
     }
 }
 
+/// The workers' addresses, comma-separated, for `--workers`.
+fn addr_list(workers: &[Worker]) -> String {
+    workers
+        .iter()
+        .map(|w| w.addr.as_str())
+        .collect::<Vec<_>>()
+        .join(",")
+}
+
+/// The bytes of frame `i` of a `%d` file pattern.
+fn frame_bytes(pattern: &Path, i: usize) -> Vec<u8> {
+    std::fs::read(pattern.to_str().unwrap().replace("%d", &i.to_string())).unwrap()
+}
+
 fn run(args: &[&str]) -> Output {
     Command::new(bin()).args(args).output().unwrap()
 }
@@ -110,11 +124,7 @@ fn three_workers_render_the_same_bytes_as_one_process_and_stop_on_sigterm() {
     let scene = dir.join("scene.toml");
     std::fs::write(&scene, SCENE).unwrap();
     let workers: Vec<Worker> = (0..3).map(|_| Worker::start()).collect();
-    let list = workers
-        .iter()
-        .map(|w| w.addr.as_str())
-        .collect::<Vec<_>>()
-        .join(",");
+    let list = addr_list(&workers);
 
     // A still (frame 0) and a short animation, drawn on the workers (the
     // default) and on the coordinator (the paper's scheme).
@@ -130,8 +140,7 @@ fn three_workers_render_the_same_bytes_as_one_process_and_stop_on_sigterm() {
         assert!(o.status.success(), "{e}");
         assert!(e.contains("3 workers, bytes on the wire: frame 0"), "{e}");
         for i in 0..frames.parse::<usize>().unwrap() {
-            let a = std::fs::read(local.to_str().unwrap().replace("%d", &i.to_string())).unwrap();
-            let b = std::fs::read(remote.to_str().unwrap().replace("%d", &i.to_string())).unwrap();
+            let (a, b) = (frame_bytes(&local, i), frame_bytes(&remote, i));
             assert!(
                 a == b,
                 "frame {i} of {frames} differs between one process and three workers ({draw} drawing)"
@@ -155,11 +164,7 @@ fn a_worker_killed_mid_animation_changes_no_byte_and_is_reported() {
     // The second worker is killed (SIGKILL) once the coordinator has
     // written its third frame: mid-animation, at whatever stage it is in.
     let mut workers = [Worker::start(), Worker::start(), Worker::start()];
-    let list = workers
-        .iter()
-        .map(|w| w.addr.as_str())
-        .collect::<Vec<_>>()
-        .join(",");
+    let list = addr_list(&workers);
     let (frames, n) = ("12", 12);
     let local = dir.join("local_%d.png");
     let remote = dir.join("remote_%d.png");
@@ -202,8 +207,7 @@ fn a_worker_killed_mid_animation_changes_no_byte_and_is_reported() {
         "the loss is logged with the worker's address: {e}"
     );
     for i in 0..n {
-        let a = std::fs::read(local.to_str().unwrap().replace("%d", &i.to_string())).unwrap();
-        let b = std::fs::read(remote.to_str().unwrap().replace("%d", &i.to_string())).unwrap();
+        let (a, b) = (frame_bytes(&local, i), frame_bytes(&remote, i));
         assert!(a == b, "frame {i} differs after a worker died");
     }
 }
@@ -586,11 +590,7 @@ fn a_stopped_worker_is_the_one_dropped_whichever_it_is() {
         // The workers compose and sum among themselves, so the healthy
         // ones wait on the stopped one: they must not be blamed for it.
         let workers = [Worker::start(), Worker::start(), Worker::start()];
-        let list = workers
-            .iter()
-            .map(|w| w.addr.as_str())
-            .collect::<Vec<_>>()
-            .join(",");
+        let list = addr_list(&workers);
         let remote = dir.join(format!("remote{stopped}_%d.png"));
         let coordinator = Command::new(bin())
             .args([
@@ -630,8 +630,7 @@ fn a_stopped_worker_is_the_one_dropped_whichever_it_is() {
             lost[0]
         );
         for i in 0..n {
-            let a = std::fs::read(local.to_str().unwrap().replace("%d", &i.to_string())).unwrap();
-            let b = std::fs::read(remote.to_str().unwrap().replace("%d", &i.to_string())).unwrap();
+            let (a, b) = (frame_bytes(&local, i), frame_bytes(&remote, i));
             assert!(a == b, "frame {i} differs after worker {stopped} stopped");
         }
     }

@@ -732,39 +732,51 @@ fn one_worker_given_twice_is_refused() {
     }
 }
 
+/// Assigns the dance scene's first `groups` groups (all when `None`) to
+/// `c`'s session, at rest: the share's guide points, the identity head
+/// transform as floats, and a pose plan of version 1 with a light straight
+/// down.
+async fn assign_at_rest(
+    c: &mut cluster::SessionClient,
+    groups: Option<usize>,
+) -> (usize, Vec<f32>, pb::PosePlan) {
+    let scene = Scene::from_toml_str(DANCE, std::path::Path::new("d")).unwrap();
+    let anim = engine::Animator::new(&scene).unwrap();
+    let groups = groups.unwrap_or_else(|| anim.groups().count());
+    let wisps = anim.groups().wisp_range(0..groups);
+    let points = wisps.len() * anim.points_per_wisp();
+    let mut assign = vec![pb::AssignChunk {
+        scene_toml: DANCE.to_string(),
+        scene_path: "dance.toml".into(),
+        first_group: 0,
+        end_group: groups as u32,
+        ..Default::default()
+    }];
+    let states = protocol::wisp_chunks(0, wisps.map(|w| anim.wisp_state(w).unwrap()));
+    assign.extend(states.into_iter().map(|s| pb::AssignChunk {
+        state: Some(s),
+        ..Default::default()
+    }));
+    c.assign(tokio_stream::iter(assign)).await.unwrap();
+    let head = glam::Affine3A::IDENTITY.to_cols_array().to_vec();
+    let pose = pb::PosePlan {
+        version: 1,
+        head: head.clone(),
+        lights: vec![0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0],
+        anchor: vec![0.0; 3],
+        ..Default::default()
+    };
+    (points, head, pose)
+}
+
 #[test]
 fn a_step_asking_more_work_than_the_cap_is_refused_before_any_step() {
     let addr = start_worker();
     let rt = tokio::runtime::Runtime::new().unwrap();
     rt.block_on(async {
         let mut c = greeted_client(addr).await;
-        // The whole hair: every group's wisps, at rest.
-        let scene = Scene::from_toml_str(DANCE, std::path::Path::new("d")).unwrap();
-        let anim = engine::Animator::new(&scene).unwrap();
-        let groups = anim.groups().count();
-        let wisps = anim.groups().wisp_range(0..groups);
-        let points = wisps.len() * anim.points_per_wisp();
-        let mut assign = vec![pb::AssignChunk {
-            scene_toml: DANCE.to_string(),
-            scene_path: "dance.toml".into(),
-            first_group: 0,
-            end_group: groups as u32,
-            ..Default::default()
-        }];
-        let states = protocol::wisp_chunks(0, wisps.map(|w| anim.wisp_state(w).unwrap()));
-        assign.extend(states.into_iter().map(|s| pb::AssignChunk {
-            state: Some(s),
-            ..Default::default()
-        }));
-        c.assign(tokio_stream::iter(assign)).await.unwrap();
-        let head = glam::Affine3A::IDENTITY.to_cols_array().to_vec();
-        let pose = pb::PosePlan {
-            version: 1,
-            head: head.clone(),
-            lights: vec![0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0],
-            anchor: vec![0.0; 3],
-            ..Default::default()
-        };
+        // The whole hair.
+        let (points, head, pose) = assign_at_rest(&mut c, None).await;
         // Just past the cap: within MAX_STEPS, but too much work.
         let steps = (protocol::MAX_STEP_WORK / (points as u64 + 1) + 1) as usize;
         assert!(
@@ -791,31 +803,8 @@ fn a_step_past_its_deadline_stops_and_frees_the_worker_for_the_next_call() {
     let rt = tokio::runtime::Runtime::new().unwrap();
     rt.block_on(async {
         let mut c = greeted_client(addr).await;
-        // A share of group 0, at rest.
-        let scene = Scene::from_toml_str(DANCE, std::path::Path::new("d")).unwrap();
-        let anim = engine::Animator::new(&scene).unwrap();
-        let wisps = anim.groups().wisp_range(0..1);
-        let mut assign = vec![pb::AssignChunk {
-            scene_toml: DANCE.to_string(),
-            scene_path: "dance.toml".into(),
-            first_group: 0,
-            end_group: 1,
-            ..Default::default()
-        }];
-        let states = protocol::wisp_chunks(0, wisps.map(|w| anim.wisp_state(w).unwrap()));
-        assign.extend(states.into_iter().map(|s| pb::AssignChunk {
-            state: Some(s),
-            ..Default::default()
-        }));
-        c.assign(tokio_stream::iter(assign)).await.unwrap();
-        let head = glam::Affine3A::IDENTITY.to_cols_array().to_vec();
-        let pose = pb::PosePlan {
-            version: 1,
-            head: head.clone(),
-            lights: vec![0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0],
-            anchor: vec![0.0; 3],
-            ..Default::default()
-        };
+        // A share of group 0.
+        let (_, head, pose) = assign_at_rest(&mut c, Some(1)).await;
         // The most steps a call may ask for: seconds of work, far past
         // this call's deadline.
         let steps = protocol::MAX_STEPS;
