@@ -264,7 +264,9 @@ pub(crate) async fn hello(
                     msg: format!("full: {}", e.message),
                 },
                 WorkerErrorKind::Precondition
-                | WorkerErrorKind::Other(tonic::Code::Unauthenticated) => ClusterError::Version {
+                | WorkerErrorKind::Other(
+                    tonic::Code::Unauthenticated | tonic::Code::PermissionDenied,
+                ) => ClusterError::Refused {
                     addr: addr.to_string(),
                     msg: e.message,
                 },
@@ -278,7 +280,7 @@ pub(crate) async fn hello(
         })?
         .into_inner();
     if reply.protocol_version != wire::PROTOCOL_VERSION {
-        return Err(ClusterError::Version {
+        return Err(ClusterError::Refused {
             addr: addr.to_string(),
             msg: format!(
                 "the worker speaks protocol version {}, this coordinator {}",

@@ -27,7 +27,7 @@ pub enum ClusterError {
     },
     /// A worker that refused this coordinator (another protocol version, the fiber, its limits).
     #[error("worker {addr} refused: {msg}")]
-    Version {
+    Refused {
         /// The worker.
         addr: String,
         /// Its reason.
@@ -74,7 +74,7 @@ impl ClusterError {
     pub fn worker(&self) -> Option<&str> {
         match self {
             ClusterError::Connect { addr, .. }
-            | ClusterError::Version { addr, .. }
+            | ClusterError::Refused { addr, .. }
             | ClusterError::Call { addr, .. }
             | ClusterError::Deadline { addr, .. }
             | ClusterError::Malformed { addr, .. } => Some(addr),

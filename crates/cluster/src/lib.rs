@@ -41,7 +41,7 @@ pub mod protocol {
 pub use client::{SessionClient, SessionHeader, Timing, Traffic};
 pub use error::{ClusterError, WorkerError, WorkerErrorKind};
 pub use remote::{DrawAt, Options, RemoteExecutor};
-pub use tls::{Pki, Tls};
+pub use tls::{COORDINATOR_NAME, Pki, Tls};
 pub use token::{MIN_TOKEN_LEN, Token};
 pub use worker::{
     Bound, DEFAULT_MAX_MEMORY, Listen, POOL_BYTES, SessionLimits, WorkerService, run_worker,

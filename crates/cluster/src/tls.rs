@@ -7,12 +7,67 @@
 //! from a client whose certificate chains to its CA, and the coordinator
 //! talks only to a worker whose certificate chains to its CA and names the
 //! host it dialled (or `--tls-domain`).
+//!
+//! Roles: every certificate of the CA gets through the handshake, but only
+//! one that names [`COORDINATOR_NAME`] among its subject alternative names
+//! may drive a worker (Hello, Assign, Step and the stages). Workers'
+//! certificates do not name it: they may only call the two calls workers
+//! make of each other (Exchange and Composite).
 
 use std::path::Path;
 
 use tonic::transport::{Certificate, ClientTlsConfig, Identity, ServerTlsConfig};
 
 use crate::ClusterError;
+
+/// The DNS name (subject alternative name) that makes a client
+/// certificate a coordinator's.
+pub const COORDINATOR_NAME: &str = "wisplight-coordinator";
+
+/// Who may make a call, when the worker serves mutual TLS.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Caller {
+    /// Only a coordinator: its certificate names [`COORDINATOR_NAME`].
+    Coordinator,
+    /// A fellow worker or a coordinator: any certificate of the CA.
+    Peer,
+}
+
+/// Whether a client that presented `certs` (leaf first; `None` without
+/// TLS) may make a call meant for `caller`. Without TLS, roles are not
+/// told apart (the cluster token guards the calls).
+pub(crate) fn may_call(
+    certs: Option<&[tonic::transport::CertificateDer<'static>]>,
+    caller: Caller,
+) -> Result<(), tonic::Status> {
+    let Some(certs) = certs else {
+        return Ok(());
+    };
+    if caller == Caller::Peer {
+        return Ok(());
+    }
+    let named = certs.first().is_some_and(|leaf| names_coordinator(leaf));
+    if named {
+        Ok(())
+    } else {
+        Err(tonic::Status::permission_denied(format!(
+            "only a coordinator may make this call: the client's certificate does not name \
+             `{COORDINATOR_NAME}` (a worker's certificate cannot drive workers; use \
+             coordinator.pem from `wisplight certs`)"
+        )))
+    }
+}
+
+/// Whether the certificate `der` is valid for the DNS name
+/// [`COORDINATOR_NAME`] (its subject alternative names, as a server name
+/// is checked; wildcards do not match a name without dots).
+fn names_coordinator(der: &tonic::transport::CertificateDer<'_>) -> bool {
+    let Ok(cert) = webpki::EndEntityCert::try_from(der) else {
+        return false;
+    };
+    rustls_pki_types::ServerName::try_from(COORDINATOR_NAME)
+        .is_ok_and(|name| cert.verify_is_valid_for_subject_name(&name).is_ok())
+}
 
 /// One side's credentials for mutual TLS, read and checked from PEM files.
 #[derive(Debug, Clone)]
@@ -162,8 +217,9 @@ fn check_pem(pem: &[u8], path: &Path, label: &str, what: &str) -> Result<(), Clu
 }
 
 /// A small certificate authority for one cluster: a CA, one certificate
-/// for every worker (server authentication, valid for `names`) and one for
-/// the coordinator (client authentication). All PEM.
+/// for every worker (server and client authentication, valid for `names`)
+/// and one for the coordinator (client authentication, naming
+/// [`COORDINATOR_NAME`]). All PEM.
 #[derive(Debug, Clone)]
 pub struct Pki {
     /// The CA's certificate.
@@ -195,6 +251,15 @@ impl Pki {
                 "the workers' certificate needs at least one name".into(),
             ));
         }
+        if let Some(n) = names
+            .iter()
+            .find(|n| n.eq_ignore_ascii_case(COORDINATOR_NAME))
+        {
+            return Err(ClusterError::Tls(format!(
+                "`{n}` is the coordinator's name: a worker's certificate naming it could drive \
+                 other workers"
+            )));
+        }
         let mut ca = CertificateParams::new(Vec::<String>::new()).map_err(err)?;
         ca.is_ca = IsCa::Ca(BasicConstraints::Constrained(0));
         ca.distinguished_name
@@ -225,7 +290,7 @@ impl Pki {
             ],
         )?;
         let (coordinator_cert, coordinator_key) = leaf(
-            vec!["wisplight-coordinator".into()],
+            vec![COORDINATOR_NAME.into()],
             "wisplight coordinator",
             &[ExtendedKeyUsagePurpose::ClientAuth],
         )?;
@@ -297,5 +362,39 @@ mod tests {
         let e = check_pem(key, p, "CERTIFICATE", "a certificate").unwrap_err();
         assert!(e.to_string().contains("x.pem"), "{e}");
         assert!(check_pem(b"", p, "PRIVATE KEY", "a key").is_err());
+    }
+
+    fn leaf_der(pem: &str) -> tonic::transport::CertificateDer<'static> {
+        use rustls_pki_types::pem::PemObject;
+        tonic::transport::CertificateDer::from_pem_slice(pem.as_bytes()).unwrap()
+    }
+
+    #[test]
+    fn only_the_coordinators_certificate_may_drive_a_worker() {
+        let pki = Pki::generate(&["localhost".into(), "10.0.0.2".into()]).unwrap();
+        let coordinator = [leaf_der(&pki.coordinator_cert)];
+        let worker = [leaf_der(&pki.worker_cert)];
+        assert!(may_call(Some(&coordinator), Caller::Coordinator).is_ok());
+        assert!(may_call(Some(&coordinator), Caller::Peer).is_ok());
+        assert!(may_call(Some(&worker), Caller::Peer).is_ok());
+        let e = may_call(Some(&worker), Caller::Coordinator).unwrap_err();
+        assert_eq!(e.code(), tonic::Code::PermissionDenied);
+        assert!(e.message().contains(COORDINATOR_NAME), "{}", e.message());
+        // Garbage instead of a certificate, or none, is no coordinator.
+        let junk = [tonic::transport::CertificateDer::from(vec![
+            0x30, 0x03, 1, 2, 3,
+        ])];
+        assert!(may_call(Some(&junk), Caller::Coordinator).is_err());
+        assert!(may_call(Some(&[]), Caller::Coordinator).is_err());
+        // Without TLS the roles are not told apart.
+        assert!(may_call(None, Caller::Coordinator).is_ok());
+    }
+
+    #[test]
+    fn a_workers_certificate_may_not_carry_the_coordinators_name() {
+        let e = Pki::generate(&["localhost".into(), "Wisplight-Coordinator".into()])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("coordinator's name"), "{e}");
     }
 }

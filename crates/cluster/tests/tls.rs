@@ -201,9 +201,12 @@ fn a_worker_refuses_clients_without_the_clusters_certificate() {
     let e = connect(addr, Some(&rogue)).unwrap_err();
     assert!(matches!(e, ClusterError::Connect { .. }), "{e}");
     assert!(e.to_string().contains(&addr.to_string()), "{e}");
-    // A worker's own certificate serves as a client's too: workers call
-    // each other to composite a picture.
-    assert!(connect(addr, Some(&pki().worker())).is_ok());
+    // A worker's own certificate gets through the handshake (workers call
+    // each other to composite a picture) but may not drive a worker: no
+    // session opens.
+    let e = connect(addr, Some(&pki().worker())).unwrap_err();
+    assert!(matches!(e, ClusterError::Refused { .. }), "{e}");
+    assert!(e.to_string().contains(cluster::COORDINATOR_NAME), "{e}");
     // Health checks are refused the same way.
     assert!(cluster::check_health(&addr.to_string(), Duration::from_secs(5), None).is_err());
     // The worker still serves the right coordinator afterwards.

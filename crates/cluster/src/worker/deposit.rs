@@ -10,7 +10,7 @@ impl WorkerService {
     ) -> Result<Response<Chunks<pb::ColumnChunk>>, Status> {
         let peer = req.remote_addr();
         let served = async move {
-            let session = self.session(req.metadata())?;
+            let session = self.session(&req, Caller::Coordinator)?;
             let fiber = session.fiber;
             let mut stream = req.into_inner();
             let first = first_message(&mut stream, "Deposit").await?;

@@ -43,6 +43,7 @@ use tonic::{Request, Response, Status, Streaming};
 use crate::client::SESSION_KEY;
 use crate::error::{WorkerError, WorkerErrorKind as Kind};
 use crate::pb::worker_server::{Worker, WorkerServer};
+use crate::tls::{self, Caller, may_call};
 use crate::{ClusterError, Tls, pb, wire};
 
 type Chunks<T> = Pin<Box<dyn Stream<Item = Result<T, Status>> + Send>>;
@@ -128,6 +129,10 @@ impl Worker for WorkerService {
     ) -> Result<Response<pb::HelloReply>, Status> {
         let peer = req.remote_addr();
         let served = async move {
+            tls::may_call(
+                req.peer_certs().as_deref().map(|c| c.as_slice()),
+                Caller::Coordinator,
+            )?;
             let r = req.into_inner();
             if r.protocol_version != wire::PROTOCOL_VERSION {
                 return Err(status(
@@ -190,6 +195,10 @@ impl Worker for WorkerService {
         let peer = req.remote_addr();
         let served = async move {
             let id = named_session(req.metadata())?;
+            tls::may_call(
+                req.peer_certs().as_deref().map(|c| c.as_slice()),
+                Caller::Coordinator,
+            )?;
             let mut sessions = self.sessions.lock().map_err(poisoned)?;
             sessions.remove(id).ok_or_else(|| not_open(id))?;
             tracing::info!(session = %&id[..id.len().min(8)], sessions = sessions.len(), "session ended");
@@ -213,7 +222,7 @@ impl Worker for WorkerService {
     ) -> Result<Response<pb::AssignReply>, Status> {
         let peer = req.remote_addr();
         let served = async move {
-            let session = self.session(req.metadata())?;
+            let session = self.session(&req, Caller::Coordinator)?;
             let mut stream = req.into_inner();
             let first = first_message(&mut stream, "Assign").await?;
             let groups = first.first_group as usize..first.end_group as usize;
@@ -335,7 +344,7 @@ impl Worker for WorkerService {
     ) -> Result<Response<Self::StepStream>, Status> {
         let peer = req.remote_addr();
         let served = async move {
-            let session = self.session(req.metadata())?;
+            let session = self.session(&req, Caller::Coordinator)?;
             let r = req.into_inner();
             // Set when this call is dropped (cancelled, or past its deadline):
             // the steps stop at the next one and the share is free again.
@@ -377,7 +386,7 @@ impl Worker for WorkerService {
     async fn pose(&self, req: Request<pb::PosePlan>) -> Result<Response<pb::PoseReport>, Status> {
         let peer = req.remote_addr();
         let served = async move {
-            let session = self.session(req.metadata())?;
+            let session = self.session(&req, Caller::Coordinator)?;
             let plan = wire::pose_plan_from_pb(&req.into_inner()).map_err(invalid)?;
             let report = with_share(&session.held, move |share| Ok(share.pose(&plan))).await?;
             Ok(Response::new(wire::report_to_pb(&report)))
@@ -393,7 +402,7 @@ impl Worker for WorkerService {
     ) -> Result<Response<Self::SweepStream>, Status> {
         let peer = req.remote_addr();
         let served = async move {
-            let session = self.session(req.metadata())?;
+            let session = self.session(&req, Caller::Coordinator)?;
             let mut stream = req.into_inner();
             let first = first_message(&mut stream, "Sweep").await?;
             let frame = wire::frame_from_pb(first.map.as_ref()).map_err(invalid)?;
@@ -442,7 +451,7 @@ impl Worker for WorkerService {
     ) -> Result<Response<Self::DrawStream>, Status> {
         let peer = req.remote_addr();
         let served = async move {
-            let session = self.session(req.metadata())?;
+            let session = self.session(&req, Caller::Coordinator)?;
             let mut stream = req.into_inner();
             let first = first_message(&mut stream, "Draw").await?;
             let job = first.job.as_ref().ok_or_else(|| {
@@ -565,7 +574,7 @@ impl Worker for WorkerService {
     ) -> Result<Response<pb::CompositeReply>, Status> {
         let peer = req.remote_addr();
         let served = async move {
-            let session = self.session(req.metadata())?;
+            let session = self.session(&req, Caller::Peer)?;
             let memory = self.budget(&session);
             let mut stream = req.into_inner();
             let first = first_message(&mut stream, "Composite").await?;
@@ -610,7 +619,7 @@ impl Worker for WorkerService {
     ) -> Result<Response<pb::ExchangeReply>, Status> {
         let peer = req.remote_addr();
         let served = async move {
-            let session = self.session(req.metadata())?;
+            let session = self.session(&req, Caller::Peer)?;
             let memory = self.budget(&session);
             let mut stream = req.into_inner();
             let first = first_message(&mut stream, "Exchange").await?;

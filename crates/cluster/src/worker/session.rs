@@ -150,12 +150,16 @@ impl WorkerService {
         }
     }
 
-    /// The session a call names in its metadata, marked used now.
-    pub(super) fn session(
+    /// The session a call names in its metadata, marked used now, once
+    /// the client may make the call (with TLS, only a coordinator's
+    /// certificate may make a coordinator's call).
+    pub(super) fn session<T>(
         &self,
-        meta: &tonic::metadata::MetadataMap,
+        req: &Request<T>,
+        caller: Caller,
     ) -> Result<Arc<Session>, Status> {
-        let id = named_session(meta)?;
+        may_call(req.peer_certs().as_deref().map(|c| c.as_slice()), caller)?;
+        let id = named_session(req.metadata())?;
         let sessions = self.sessions.lock().map_err(poisoned)?;
         let s = sessions.get(id).cloned().ok_or_else(|| not_open(id))?;
         *s.last_used.lock().map_err(poisoned)? = Instant::now();
