@@ -6,7 +6,9 @@
 //! its comments or unit tests) names. A path to a name the crate root
 //! re-exports counts as a path to the module the name comes from. An import
 //! from inside sibling `a` into sibling `b` (or anything inside `b`) is an
-//! edge `a -> b`; a child naming its parent's items is not an edge.
+//! edge `a -> b`; a child naming its parent's items is not an edge, but a
+//! child that imports all of them (`use super::*;`) gets every sibling
+//! the parent imports from (`use b::...;`, glob or not): an edge to each.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -129,6 +131,47 @@ fn reexports(root_code: &str) -> BTreeMap<String, String> {
     out
 }
 
+/// Whether the code imports all of its parent's names: `use super::*;`.
+fn globs_parent(code: &str) -> bool {
+    code.split(';').any(|stmt| {
+        let t: String = stmt.split_whitespace().collect();
+        t.ends_with("usesuper::*")
+    })
+}
+
+/// The first segments of the module's own `use` paths (`use a::B;`, `pub use
+/// self::a::*;`, `use {a::B, c::D};`), not those through `crate::` or
+/// `super::`: the child modules (or crates) it imports from.
+fn imported_modules(code: &str) -> BTreeSet<String> {
+    let mut out = BTreeSet::new();
+    for stmt in code.split(';') {
+        let t = stmt.trim_start();
+        let t = t.strip_prefix("pub(crate) ").unwrap_or(t);
+        let t = t.strip_prefix("pub(super) ").unwrap_or(t);
+        let t = t.strip_prefix("pub ").unwrap_or(t);
+        let Some(path) = t.strip_prefix("use ") else {
+            continue;
+        };
+        let path = path.trim().strip_prefix("self::").unwrap_or(path.trim());
+        let parts: Vec<&str> = match path.strip_prefix('{') {
+            Some(group) => group.split(',').collect(),
+            None => vec![path],
+        };
+        for part in parts {
+            let part = part.trim();
+            let part = part.strip_prefix("self::").unwrap_or(part);
+            if part.starts_with("crate::") || part.starts_with("super::") {
+                continue;
+            }
+            let name: String = part.chars().take_while(|&c| is_ident(c)).collect();
+            if !name.is_empty() && part[name.len()..].starts_with("::") {
+                out.insert(name);
+            }
+        }
+    }
+    out
+}
+
 /// Edges between siblings: `(parent, a) -> (parent, b)`.
 fn sibling_edges(src: &Path, root_file: &Path) -> BTreeMap<Module, BTreeSet<Module>> {
     let mut files = Vec::new();
@@ -153,6 +196,17 @@ fn sibling_edges(src: &Path, root_file: &Path) -> BTreeMap<Module, BTreeSet<Modu
             }
         }
         let parent = &m[..m.len() - 1];
+        if globs_parent(&c) {
+            let parent_file = &modules[&parent.to_vec()];
+            let parent_code = code(&std::fs::read_to_string(parent_file).unwrap());
+            for name in imported_modules(&parent_code) {
+                let mut sibling = parent.to_vec();
+                sibling.push(name);
+                if modules.contains_key(&sibling) && &sibling != m {
+                    targets.insert(sibling);
+                }
+            }
+        }
         for name in first_segments(&c, "super::") {
             let mut sibling = parent.to_vec();
             sibling.push(name);
@@ -230,6 +284,30 @@ fn the_checker_sees_a_cycle() {
     std::fs::write(src.join("b.rs"), "pub struct B;\n").unwrap();
     assert_eq!(
         cycle_from(&sibling_edges(&src, &src.join("lib.rs")), &a),
+        None
+    );
+    // A cycle hidden by glob imports: the parent imports both children's
+    // items, and each child imports all of the parent's.
+    let m = src.join("m");
+    std::fs::create_dir_all(&m).unwrap();
+    std::fs::write(src.join("lib.rs"), "mod m;\n").unwrap();
+    std::fs::write(
+        m.join("mod.rs"),
+        "mod x;\nmod y;\nuse x::*;\nuse y::{Y, y_too};\n",
+    )
+    .unwrap();
+    std::fs::write(m.join("x.rs"), "use super::*;\npub struct X(Y);\n").unwrap();
+    std::fs::write(m.join("y.rs"), "use super::*;\npub struct Y(X);\n").unwrap();
+    let x = vec!["m".to_string(), "x".to_string()];
+    let y = vec!["m".to_string(), "y".to_string()];
+    assert_eq!(
+        cycle_from(&sibling_edges(&src, &src.join("lib.rs")), &x),
+        Some(vec![x.clone(), y.clone()])
+    );
+    // A child that names what it takes breaks it.
+    std::fs::write(m.join("y.rs"), "pub struct Y;\n").unwrap();
+    assert_eq!(
+        cycle_from(&sibling_edges(&src, &src.join("lib.rs")), &x),
         None
     );
     std::fs::remove_dir_all(&dir).unwrap();

@@ -62,8 +62,8 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use glam::Vec3;
-use shadow::{Beyond, Fiber, Light, MethodConfig, OpacityMode};
-use strands::{FollowParams, Hair, Style, StyleParams};
+use shadow::{Fiber, Light, MethodConfig};
+use strands::{FollowParams, Hair, StyleParams};
 
 pub use motion::{Animation, BodySettings, Collision, Dynamics, Effects};
 pub use view::{CameraSettings, CameraView, RenderSettings};

@@ -1,7 +1,19 @@
 //! The Deposit call: a share's density filled into a map, summed and swept
 //! among the workers when the call carries a column plan.
 
-use super::*;
+use super::exchange::ExchangeRound;
+use super::memory::{Grant, POINT_BYTES, STRAND_BYTES};
+use super::session::with_share;
+use super::share::deposit_reply;
+use super::status::{
+    cancelled, first_message, invalid, logged, poisoned, refused, status, stop_switch, stream_of,
+};
+use super::{Chunks, STRIPES_IN_FLIGHT};
+use crate::error::WorkerErrorKind as Kind;
+use crate::tls::Caller;
+use crate::{WorkerService, pb, wire};
+use strands::Hair;
+use tonic::{Request, Response, Status, Streaming};
 
 impl WorkerService {
     pub(super) async fn deposit_call(

@@ -1,6 +1,16 @@
 //! Draw rounds with a band plan: the band this worker composites from the other workers' stripes.
 
-use super::*;
+use super::inbox::{SendFailed, send_within, stalled};
+use super::memory::Grant;
+use super::session::{Session, on_pool};
+use super::status::{cancelled, poisoned, status};
+use super::{Chunks, STRIPES_IN_FLIGHT};
+use crate::error::WorkerErrorKind as Kind;
+use crate::{WorkerService, pb, wire};
+use prost::Message;
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+use tonic::Status;
 
 impl WorkerService {
     /// A Draw composited on the workers (see [`wire::Bands`]): one

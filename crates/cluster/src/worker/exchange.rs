@@ -1,6 +1,18 @@
 //! Deposit rounds with a column plan: this worker's columns summed and swept among the workers (reduce-scatter, then all-gather), and what the rounds leave for the Draw.
 
-use super::*;
+use super::STRIPES_IN_FLIGHT;
+use super::inbox::{Gather, Inbox, SendFailed, send_within, stalled};
+use super::memory::{Budget, Grant};
+use super::session::{Exchanged, Session, on_pool};
+use super::status::{cancelled, refused, status};
+use crate::error::WorkerErrorKind as Kind;
+use crate::{WorkerService, pb, wire};
+use engine::Share;
+use prost::Message;
+use shadow::{DensityMap, Fiber, LightFrame};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+use tonic::Status;
 
 /// The calls carrying this worker's columns to each other worker of a
 /// column plan: per worker (none for this one), a sender of the density
@@ -293,99 +305,5 @@ impl SweptRound {
             )
             .map_err(|s| s.message().to_string())?;
         Ok((trans, kept))
-    }
-}
-
-/// The transmittance each Deposit round with a column plan leaves for the
-/// Draw of its hair version, light by light, as the rounds finish.
-#[derive(Debug, Default)]
-pub(super) struct SweptStore {
-    pub(super) state: Mutex<SweptHere>,
-    pub(super) ready: std::sync::Condvar,
-}
-
-impl SweptStore {
-    /// A round of hair `version`, light `light`, begins.
-    pub(super) fn begin(&self, version: u64, light: usize) {
-        if let Ok(mut st) = self.state.lock() {
-            if st.version != version {
-                *st = SweptHere {
-                    version,
-                    ..Default::default()
-                };
-            }
-            if st.maps.len() <= light {
-                st.maps.resize_with(light + 1, || None);
-                st.pending.resize(light + 1, false);
-            }
-            st.maps[light] = None;
-            st.pending[light] = true;
-        }
-    }
-
-    /// The round of `version`, `light` ended with `result`.
-    pub(super) fn end(
-        &self,
-        version: u64,
-        light: usize,
-        result: Result<(shadow::Transmittance, Grant), String>,
-    ) {
-        if let Ok(mut st) = self.state.lock()
-            && st.version == version
-            && light < st.maps.len()
-        {
-            st.pending[light] = false;
-            match result {
-                Ok(m) => st.maps[light] = Some(m),
-                Err(e) => {
-                    tracing::warn!(version, light, error = %e, "the swept columns were not gathered");
-                    st.failed.get_or_insert(e);
-                }
-            }
-            self.ready.notify_all();
-        }
-    }
-
-    /// Every light's transmittance of hair `version`, `lights` of them,
-    /// once the rounds gathered them (waiting at most `wait`), and their
-    /// memory; why not otherwise.
-    #[allow(clippy::type_complexity)]
-    pub(super) fn take(
-        &self,
-        version: u64,
-        lights: usize,
-        wait: Duration,
-    ) -> Result<(Vec<shadow::Transmittance>, Vec<Grant>), String> {
-        let until = Instant::now() + wait;
-        let mut st = self.state.lock().map_err(|_| "worker state poisoned")?;
-        loop {
-            if st.version != version || st.maps.len() != lights {
-                return Err(format!(
-                    "no columns of all {lights} lights summed here for hair version {version}"
-                ));
-            }
-            if let Some(e) = &st.failed {
-                return Err(e.clone());
-            }
-            if st.maps.iter().all(Option::is_some) {
-                st.pending.clear();
-                return Ok(st.maps.drain(..).map(|m| m.expect("checked")).unzip());
-            }
-            if !st.pending.iter().any(|&p| p) {
-                return Err("a light's columns were not summed here".into());
-            }
-            let now = Instant::now();
-            if now >= until {
-                return Err(format!(
-                    "the other workers' swept columns did not come within {} ms",
-                    wait.as_millis()
-                ));
-            }
-            st = self
-                .ready
-                .wait_timeout(st, (until - now).min(Duration::from_millis(50)))
-                .map_err(|_| "worker state poisoned")?
-                .0;
-        }
     }
 }

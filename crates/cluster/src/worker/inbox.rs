@@ -1,6 +1,12 @@
 //! What other workers send a session for its rounds, until the round's call gathers it.
 
-use super::*;
+use super::memory::Grant;
+use super::status::{poisoned, status};
+use crate::WorkerError;
+use crate::error::WorkerErrorKind as Kind;
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+use tonic::Status;
 
 /// The most stripes a session's inbox holds at once (each a whole
 /// Composite call, counted against the memory budget).

@@ -1,6 +1,10 @@
 //! Serving: the listening socket, TLS, health, reflection and shutdown.
 
-use super::*;
+use crate::pb::worker_server::WorkerServer;
+use crate::{ClusterError, Tls, WorkerService, pb, wire};
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::time::Duration;
 
 /// How a worker listens, besides its address.
 #[derive(Debug, Clone, Default)]

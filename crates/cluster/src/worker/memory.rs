@@ -1,6 +1,11 @@
 //! The worker's memory budgets: what calls and sessions may hold.
 
-use super::*;
+use super::status::status;
+use crate::error::WorkerErrorKind as Kind;
+use engine::Scene;
+use shadow::{DensityMap, LightFrame};
+use std::sync::Arc;
+use tonic::Status;
 
 /// Memory is budgeted in granules of 64 KiB.
 pub(super) const GRANULE: u64 = 1 << 16;

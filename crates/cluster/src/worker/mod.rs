@@ -15,8 +15,8 @@ mod memory;
 mod session;
 mod share;
 mod status;
+mod swept;
 
-use exchange::*;
 use inbox::*;
 pub use listen::{Bound, Listen, run_worker, serve_worker};
 use memory::*;
@@ -25,26 +25,20 @@ use share::*;
 use status::*;
 
 use std::collections::HashMap;
-use std::net::SocketAddr;
 use std::pin::Pin;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use std::ops::Range;
-
-use engine::{FrameStats, Scene, SceneSource, Share, StepPlan};
+use engine::{FrameStats, SceneSource};
 use prost::Message;
-use shadow::{ColumnSlab, DensityMap, Fiber, FillStats, LightFrame};
-use strands::Hair;
+use shadow::{ColumnSlab, DensityMap, Fiber};
 use tokio_stream::Stream;
 use tonic::{Request, Response, Status, Streaming};
 
-use crate::client::SESSION_KEY;
-use crate::error::{WorkerError, WorkerErrorKind as Kind};
-use crate::pb::worker_server::{Worker, WorkerServer};
-use crate::tls::{self, Caller, may_call};
-use crate::{ClusterError, Tls, pb, wire};
+use crate::error::WorkerErrorKind as Kind;
+use crate::pb::worker_server::Worker;
+use crate::tls::{self, Caller};
+use crate::{Tls, pb, wire};
 
 type Chunks<T> = Pin<Box<dyn Stream<Item = Result<T, Status>> + Send>>;
 

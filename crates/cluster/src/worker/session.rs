@@ -1,6 +1,18 @@
 //! A coordinator's session on a worker: its state, its memory, its pool of maps, and finding it from a call.
 
-use super::*;
+use super::inbox::Inbox;
+use super::memory::{Budget, Grant, Memory};
+use super::status::{named_session, not_open, poisoned, status};
+use super::swept::SweptStore;
+use crate::error::WorkerErrorKind as Kind;
+use crate::tls::{Caller, may_call};
+use crate::{SessionLimits, WorkerService, pb, wire};
+use engine::{SceneSource, Share};
+use shadow::{DensityMap, Fiber, LightFrame};
+use std::net::SocketAddr;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+use tonic::{Request, Status};
 
 /// The most cells a map kept between calls (a session's pool) may have:
 /// 2^22 (16 MiB of quanta); larger maps are dropped after their call.
@@ -65,18 +77,6 @@ fn named_peer(peers: &[String], index: usize, addr: &str) -> Result<(), Status> 
 pub(super) enum Exchanged {
     Density(LightFrame, Vec<pb::ColumnChunk>),
     Swept(Vec<pb::DrawChunk>),
-}
-
-/// The transmittance a session's workers swept among themselves for one
-/// hair version, light by light, until its Draw takes it (with its memory).
-#[derive(Debug, Default)]
-pub(super) struct SweptHere {
-    pub(super) version: u64,
-    pub(super) maps: Vec<Option<(shadow::Transmittance, Grant)>>,
-    /// Per light, whether its round is still gathering.
-    pub(super) pending: Vec<bool>,
-    /// The first round of the version that failed.
-    pub(super) failed: Option<String>,
 }
 
 /// A share of a scene's hair and the scene it came from (a new Assign of

@@ -1,6 +1,15 @@
 //! Building a session's share and turning its requests and replies into the engine's terms.
 
-use super::*;
+use super::memory::{Budget, Grant, share_bytes};
+use super::session::Held;
+use super::status::{invalid, status};
+use crate::error::WorkerErrorKind as Kind;
+use crate::{WorkerService, pb, wire};
+use engine::{Scene, SceneSource, Share, StepPlan};
+use shadow::{DensityMap, FillStats, LightFrame};
+use std::ops::Range;
+use std::sync::Mutex;
+use tonic::Status;
 
 /// A Deposit's reply: a pooled map in `frame`, filled by `fill`, as
 /// column chunks, the last one carrying the fill's counts and, for posed

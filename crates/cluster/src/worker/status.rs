@@ -1,6 +1,13 @@
 //! Status values, session names and the small helpers every call uses.
 
-use super::*;
+use super::Chunks;
+use crate::client::SESSION_KEY;
+use crate::error::WorkerErrorKind as Kind;
+use crate::{WorkerError, wire};
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use tonic::{Status, Streaming};
 
 /// A status of `kind` with the worker's `reason`, through the one mapping
 /// of worker errors to status codes ([`WorkerError`]).

@@ -1,6 +1,13 @@
 //! `[hair]` from files and inline strands: the groom's unit, its placement.
 
-use super::*;
+use super::raw::RawHair;
+use super::{
+    DEFAULT_FOLLOW_RADIUS, DEFAULT_SUBDIVIDE, DEFAULT_TFX_FOLLOWERS, MAX_INLINE_POINTS, Validator,
+};
+use crate::{HairSource, Placement, SceneError};
+use glam::Vec3;
+use std::path::Path;
+use strands::{FollowParams, Hair, Style, StyleParams};
 
 impl Validator<'_> {
     /// The length unit the groom at `path`, placed by `place`, appears to

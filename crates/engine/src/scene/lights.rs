@@ -1,6 +1,10 @@
 //! `[[light]]`: directional, point and spot lights.
 
-use super::*;
+use super::raw::RawLight;
+use super::{DEFAULT_CONE_DEG, DEFAULT_FALLOFF_DEG, Validator};
+use crate::SceneError;
+use glam::Vec3;
+use shadow::Light;
 
 impl Validator<'_> {
     /// One `[[light]]`: directional (`direction`), point (`position`) or

@@ -1,6 +1,9 @@
 //! `[shading]`: the shading model and its settings, colours.
 
-use super::*;
+use super::Validator;
+use super::raw::RawShading;
+use crate::SceneError;
+use glam::Vec3;
 
 impl Validator<'_> {
     pub(super) fn color(

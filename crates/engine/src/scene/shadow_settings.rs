@@ -1,6 +1,9 @@
 //! `[shadow]`: the shadow method and its settings.
 
-use super::*;
+use super::raw::RawShadow;
+use super::{DEFAULT_CELLS, Validator};
+use crate::{SceneError, ShadowSettings};
+use shadow::{Beyond, MethodConfig, OpacityMode};
 
 impl Validator<'_> {
     /// The `[shadow]` table: the method, then the settings it takes; a

@@ -1,4 +1,6 @@
 use super::*;
+use shadow::{Beyond, OpacityMode};
+use strands::Style;
 
 fn parse(text: &str) -> Result<Scene, SceneError> {
     Scene::from_toml_str(text, Path::new("dir/scene.toml"))

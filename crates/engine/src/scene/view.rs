@@ -1,6 +1,12 @@
 //! `[camera]` and `[render]`: where the picture is taken from and its size.
 
-use super::*;
+use super::raw::{RawCamera, RawRender};
+use super::{
+    DEFAULT_BACKGROUND, DEFAULT_FOV_DEG, DEFAULT_HAIR_ALPHA, DEFAULT_HEIGHT, DEFAULT_NEAREST,
+    DEFAULT_WIDTH, Validator,
+};
+use crate::SceneError;
+use glam::Vec3;
 
 /// Where the camera is; `None` fields are framed around the hair.
 #[derive(Debug, Clone, Copy, PartialEq)]
