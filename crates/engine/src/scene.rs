@@ -53,7 +53,7 @@ mod shadow_settings;
 mod toml_error;
 mod view;
 
-use hair::Grown;
+use hair::{Grown, groom_fiber_width};
 use raw::*;
 use toml_error::{field_at, one_line};
 
@@ -303,6 +303,7 @@ pub(crate) const DEFAULT_LIGHT_DIRECTION: [f32; 3] = [0.9, -0.35, -0.25];
 /// A spot light's cone and soft edge, degrees.
 pub(crate) const DEFAULT_CONE_DEG: f32 = 30.0;
 pub(crate) const DEFAULT_FALLOFF_DEG: f32 = 5.0;
+/// The styles' fiber width (the paper's look), scene units (cm).
 pub(crate) const DEFAULT_FIBER_WIDTH: f32 = 0.1;
 pub(crate) const DEFAULT_FOLLOW_RADIUS: f32 = 0.4;
 pub(crate) const DEFAULT_FIBER_OPACITY: f32 = 0.5;
@@ -773,19 +774,16 @@ impl Validator<'_> {
         } = &mut scene.hair
             && (scale_width || scale_follow)
         {
-            let unit = self.groom_unit(path, place)?;
+            let (unit, files_strands) = self.groom_unit(path, place)?;
             if scale_follow && let Some(f) = follow {
                 f.radius = DEFAULT_FOLLOW_RADIUS * unit;
             }
             if scale_width {
-                scene.fiber = Fiber::new(DEFAULT_FIBER_WIDTH * unit, scene.fiber.opacity())
-                    .map_err(|_| {
-                        self.invalid(
-                            "fiber.width",
-                            DEFAULT_FIBER_WIDTH * unit,
-                            "must be a finite number > 0",
-                        )
-                    })?;
+                let per = follow.as_ref().map_or(1, |f| u64::from(f.followers) + 1);
+                let width = groom_fiber_width(unit, files_strands.saturating_mul(per));
+                scene.fiber = Fiber::new(width, scene.fiber.opacity()).map_err(|_| {
+                    self.invalid("fiber.width", width, "must be a finite number > 0")
+                })?;
             }
         }
         if let Some(h) = scene.head.as_mut().filter(|_| fit_head) {

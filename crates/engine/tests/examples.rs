@@ -14,7 +14,15 @@ fn every_example_scene_loads_and_builds_its_hair() {
         .iter()
         .map(|p| p.file_stem().unwrap().to_string_lossy().into_owned())
         .collect();
-    for expected in ["smooth", "curly", "dense", "sintel", "dance", "mesh-head"] {
+    for expected in [
+        "smooth",
+        "curly",
+        "dense",
+        "sintel",
+        "dance",
+        "mesh-head",
+        "production",
+    ] {
         assert!(
             names.iter().any(|n| n == expected),
             "scenes/{expected}.toml is missing"

@@ -24,23 +24,29 @@ impl Validator<'_> {
     /// (millimetres), 0.01 for 0.1 to 1 (metres); at most 10^4 either way,
     /// 1 for an empty groom. Reads the groom (from the scene's files when
     /// held there).
-    pub(super) fn groom_unit(&self, path: &Path, place: &Placement) -> Result<f32, SceneError> {
+    /// Also gives the file's strand count.
+    pub(super) fn groom_unit(
+        &self,
+        path: &Path,
+        place: &Placement,
+    ) -> Result<(f32, u64), SceneError> {
         let fail = |reason: String| self.invalid("hair.file", path.display(), reason);
         let hair = match self.files.get(path) {
             Some(b) => strands::load_bytes(path, b),
             None => strands::load(path),
         }
         .map_err(|e| fail(e.to_string()))?;
+        let strands = hair.strand_count() as u64;
         let b = hair.bounds();
         if b.is_empty() {
-            return Ok(1.0);
+            return Ok((1.0, strands));
         }
         let side = (b.size() * place.scale).max_element();
         if side.is_nan() || side <= 0.0 {
-            return Ok(1.0);
+            return Ok((1.0, strands));
         }
         let e = (side / 10.0).log10().floor().clamp(-4.0, 4.0);
-        Ok(10f32.powf(e))
+        Ok((10f32.powf(e), strands))
     }
 
     /// `hair.scale`, `hair.rotate_deg`, `hair.translate`: finite, the
@@ -223,4 +229,30 @@ impl Validator<'_> {
             scale_follow,
         })
     }
+}
+
+/// A real hair's width, cm (70 um): a groom file's default fiber width,
+/// in its unit, when it has a real head's strands (see
+/// [`groom_fiber_width`]).
+pub(crate) const HUMAN_HAIR_WIDTH_CM: f32 = 0.007;
+/// The strands of a real head of hair: a groom with fewer draws each wider,
+/// so that it covers as much (see [`groom_fiber_width`]).
+pub(crate) const HEAD_OF_HAIR_STRANDS: f32 = 100_000.0;
+
+/// A groom file's default fiber width, its scene units: a real hair's
+/// width in the groom's length `unit` (units per cm: 1 for cm, 10 for mm), widened for
+/// a groom of fewer strands than a head of hair so that it covers as much
+/// (the summed width of the strands `N w` held at a real head's):
+///
+/// ```text
+/// w = unit * min(w_styles, w_hair * max(1, N_head / N))
+/// ```
+///
+/// with `w_hair` = 70 um ([`HUMAN_HAIR_WIDTH_CM`]), `N_head` = 100,000
+/// ([`HEAD_OF_HAIR_STRANDS`]), `N` the strands drawn (the file's times one
+/// plus the followers of each) and at most the styles' 1 mm
+/// (`DEFAULT_FIBER_WIDTH`, reached below 7,000 strands).
+pub(super) fn groom_fiber_width(unit: f32, strands: u64) -> f32 {
+    let sparse = HEAD_OF_HAIR_STRANDS / (strands.max(1) as f32);
+    unit * (HUMAN_HAIR_WIDTH_CM * sparse.max(1.0)).min(super::DEFAULT_FIBER_WIDTH)
 }

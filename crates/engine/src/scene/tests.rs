@@ -405,6 +405,29 @@ fn length_defaults_follow_the_groom_unit_and_a_mesh_alone_fits_the_head() {
             } => assert!(close(f.radius, 0.4 * unit), "{name}: {}", f.radius),
             other => panic!("{other:?}"),
         }
+        // A head of hair's strands draw as real hairs, 70 um; half as
+        // many, twice as wide (the same coverage).
+        let many = format!("100-{name}");
+        let mut b = 100i32.to_le_bytes().to_vec();
+        for i in 0..100 {
+            b.extend(2i32.to_le_bytes());
+            let x = i as f32 * len / 1000.0;
+            for v in [x, 0.0, 0.0, x, -len, 0.0] {
+                b.extend(v.to_le_bytes());
+            }
+        }
+        std::fs::write(dir.join(&many), b).unwrap();
+        for (followers, want) in [(999, 0.007), (499, 0.014), (99, 0.07)] {
+            let s = scene(&format!(
+                "[hair]\nfile = \"{many}\"\nfollowers = {followers}\n"
+            ))
+            .unwrap();
+            assert!(
+                close(s.fiber.width(), want * unit),
+                "{name}, {followers}: width {}",
+                s.fiber.width()
+            );
+        }
         // Given, a width stays; scaled, the groom's unit follows.
         let s = scene(&format!(
             "[hair]\nfile = \"{name}\"\n[fiber]\nwidth = 0.3\n"
