@@ -95,7 +95,7 @@ impl RemoteExecutor {
 
     /// Whether the next Draw is composited on the workers.
     pub(super) fn composites_now(&self) -> bool {
-        self.draw == DrawAt::Workers && self.composite && self.workers.len() >= 2
+        self.draw == DrawAt::Workers && self.composite.is_on() && self.workers.len() >= 2
     }
 
     /// One Draw round composited on the workers (see [`wire::Bands`]): each
@@ -368,14 +368,10 @@ impl RemoteExecutor {
                     let r = self
                         .with_survivors(|ex| ex.draw_remote(job))
                         .map_err(engine_error);
-                    if r.is_ok() && self.workers.len() == before {
-                        self.composite_failures += 1;
-                        if self.composite_failures >= 2 {
-                            self.composite = false;
-                            tracing::warn!(
-                                "the workers failed twice to composite together with none of them lost (can they reach each other at the addresses the coordinator dials? with TLS, do their certificates allow client use?); the coordinator composites from now on"
-                            );
-                        }
+                    if r.is_ok() && self.workers.len() == before && self.composite.failed() {
+                        tracing::warn!(
+                            "the workers failed twice to composite together with none of them lost (can they reach each other at the addresses the coordinator dials? with TLS, do their certificates allow client use?); the coordinator composites from now on"
+                        );
                     }
                     return r;
                 }

@@ -125,14 +125,11 @@ pub struct RemoteExecutor {
     /// Per light, the frame and slabs of its last sweep.
     swept: Vec<Option<Swept>>,
     /// Whether the workers composite the picture among themselves (two
-    /// or more drawing): on until they fail to twice with none lost.
-    composite: bool,
-    composite_failures: u32,
+    /// or more drawing).
+    composite: Collective,
     /// Whether the workers sum and sweep each light's map among
-    /// themselves (two or more drawing): on until they fail to twice with
-    /// none lost.
-    exchange: bool,
-    exchange_failures: u32,
+    /// themselves (two or more drawing).
+    exchange: Collective,
     /// Whether the maps filled are swept for the frame's shadows (the
     /// density-map method, self-shadowing on); otherwise a fill is the
     /// self-collisions' alone, and the workers need not sweep it.
@@ -159,6 +156,51 @@ pub struct RemoteExecutor {
     failure: Arc<Mutex<Option<ClusterError>>>,
     /// What the workers held when they drew the picture left to finish.
     drawn: Option<Drawn>,
+}
+
+/// A step the workers take among themselves (compositing the picture,
+/// summing and sweeping the maps): on until it fails twice with no worker
+/// lost (they cannot reach each other), then off for the run, the
+/// coordinator doing it instead.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Collective {
+    /// Tried each frame; `failures` rounds failed so far with none lost.
+    On { failures: u32 },
+    /// Done through the coordinator from now on.
+    Off,
+}
+
+impl Default for Collective {
+    fn default() -> Collective {
+        Collective::On { failures: 0 }
+    }
+}
+
+impl Collective {
+    /// Failures with no worker lost that turn it off.
+    const FAILURES: u32 = 2;
+
+    fn is_on(self) -> bool {
+        matches!(self, Collective::On { .. })
+    }
+
+    /// Counts a round that failed with no worker lost; whether that
+    /// turned it off.
+    fn failed(&mut self) -> bool {
+        match *self {
+            Collective::On { failures } if failures + 1 >= Self::FAILURES => {
+                *self = Collective::Off;
+                true
+            }
+            Collective::On { failures } => {
+                *self = Collective::On {
+                    failures: failures + 1,
+                };
+                false
+            }
+            Collective::Off => false,
+        }
+    }
 }
 
 /// A light's last sweep: its frame and slabs.
@@ -301,10 +343,8 @@ impl RemoteExecutor {
             filter: scene.shadow.method.filter(),
             reads: vec![None; scene.lights.len()],
             swept: vec![None; scene.lights.len()],
-            composite: true,
-            composite_failures: 0,
-            exchange: true,
-            exchange_failures: 0,
+            composite: Collective::default(),
+            exchange: Collective::default(),
             sweeps_follow: scene.effects.self_shadow
                 && matches!(scene.shadow.method, shadow::MethodConfig::DensityMap { .. }),
             exchanged: vec![None; scene.lights.len()],
@@ -524,7 +564,10 @@ impl Executor for RemoteExecutor {
                 *x = None;
             }
         }
-        if self.draw == DrawAt::Workers && self.exchange && self.sweeps_follow && version.is_some()
+        if self.draw == DrawAt::Workers
+            && self.exchange.is_on()
+            && self.sweeps_follow
+            && version.is_some()
         {
             let before = self.workers.len();
             // A worker lost in the round is dropped, and the survivors
@@ -546,14 +589,10 @@ impl Executor for RemoteExecutor {
                     // coordinator instead.
                     tracing::warn!(error = %e, "summing and sweeping on the workers failed; this frame's map goes through the coordinator");
                     self.clock(|t| t.exchange_fallbacks += 1);
-                    if self.workers.len() == before {
-                        self.exchange_failures += 1;
-                        if self.exchange_failures >= 2 {
-                            self.exchange = false;
-                            tracing::warn!(
-                                "the workers failed twice to sum and sweep together with none of them lost (can they reach each other at the addresses the coordinator dials? with TLS, do their certificates allow client use?); the coordinator sums and hands out the columns from now on"
-                            );
-                        }
+                    if self.workers.len() == before && self.exchange.failed() {
+                        tracing::warn!(
+                            "the workers failed twice to sum and sweep together with none of them lost (can they reach each other at the addresses the coordinator dials? with TLS, do their certificates allow client use?); the coordinator sums and hands out the columns from now on"
+                        );
                     }
                 }
                 Err(e) => return Err(engine_error(e)),
@@ -636,5 +675,22 @@ impl Executor for RemoteExecutor {
 impl RemoteExecutor {
     fn addrs(&self) -> Vec<String> {
         self.workers.iter().map(|w| w.addr.clone()).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Collective;
+
+    #[test]
+    fn a_collective_step_turns_off_at_its_second_failure_and_stays_off() {
+        let mut c = Collective::default();
+        assert!(c.is_on());
+        assert!(!c.failed(), "one failure leaves it on");
+        assert!(c.is_on());
+        assert!(c.failed(), "the second turns it off, and says so once");
+        assert!(!c.is_on());
+        assert!(!c.failed());
+        assert_eq!(c, Collective::Off);
     }
 }
