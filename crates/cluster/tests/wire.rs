@@ -13,7 +13,7 @@ use std::time::Duration;
 
 use cluster::pb::worker_client::WorkerClient;
 use cluster::{DrawAt, Options, RemoteExecutor, pb, protocol};
-use engine::{EngineError, Executor, LocalExecutor, Scene, Sequence};
+use engine::{Drawing, EngineError, Executor, LocalExecutor, Scene, Sequence};
 use glam::Vec3;
 use shadow::{DensityMap, Fiber, Light, LightFrame};
 use strands::{Style, StyleParams, WispModel};
@@ -972,25 +972,30 @@ impl Executor for GivesUp {
     ) -> Result<shadow::Transmittance, EngineError> {
         self.inner.sweep(light, map)
     }
-    fn draws(&self) -> bool {
-        self.inner.draws()
+    fn drawing(&mut self) -> Option<&mut dyn Drawing> {
+        Some(self)
     }
+}
+
+impl Drawing for GivesUp {
     fn composites(&self) -> bool {
-        self.inner.composites()
+        Drawing::composites(&self.inner)
     }
     fn pose(&mut self, plan: &engine::PosePlan) -> Result<engine::PoseReport, EngineError> {
-        self.inner.pose(plan)
+        Drawing::pose(&mut self.inner, plan)
     }
     fn draw(&mut self, job: &engine::DrawJob) -> Result<engine::DrawReport, EngineError> {
-        self.inner.draw(job)
+        Drawing::draw(&mut self.inner, job)
     }
     fn draw_ahead(&mut self, job: &engine::DrawJob) -> Result<engine::DrawReport, EngineError> {
         let mut r = self.inner.draw_ahead(job)?;
         if job.version >= self.at && !self.gave_up.load(Ordering::Relaxed) {
-            let real = r.pending.take().expect("composited on the workers");
+            let engine::Drawn::Pending(real) = std::mem::take(&mut r.drawn) else {
+                panic!("composited on the workers");
+            };
             real.wait()?;
             self.gave_up.store(true, Ordering::Relaxed);
-            r.pending = Some(engine::PendingPicture::new(|| {
+            r.drawn = engine::Drawn::Pending(engine::PendingPicture::new(|| {
                 Err(EngineError::executor("given up"))
             }));
         }

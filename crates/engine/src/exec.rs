@@ -4,7 +4,7 @@
 //! pipeline, each on any share of its input: the simulation of the wisps
 //! (any share of wisps), the filling of the density map (any share of
 //! strands) and its sweep (any share of columns), and, for an executor
-//! that holds the drawn hair itself ([`Executor::draws`]: cluster workers),
+//! that holds the drawn hair itself ([`Executor::drawing`]: cluster workers),
 //! the pose, filter, shade and rasterization of whole groups of strands
 //! (see [`crate::Groups`]). [`LocalExecutor`] runs the first three in this
 //! process and leaves the rest to the frame, which runs the same stage
@@ -121,7 +121,7 @@ pub struct DrawJob {
 }
 
 /// The rest of a picture being finished elsewhere: see
-/// [`Executor::draw_ahead`].
+/// [`Drawing::draw_ahead`].
 pub struct PendingPicture(Box<dyn FnOnce() -> Result<image::RgbImage, EngineError> + Send>);
 
 impl PendingPicture {
@@ -144,18 +144,33 @@ impl std::fmt::Debug for PendingPicture {
     }
 }
 
-/// What drawing elsewhere gave: the partial pictures, to composite (or
-/// the finished picture, composited where the hair is, or the promise of
-/// it), and the slowest share's milliseconds of each stage.
+/// What drawing elsewhere gave: the partial pictures to composite here,
+/// or the finished picture, or the promise of it.
+#[derive(Debug)]
+pub enum Drawn {
+    /// Partial pictures, one per share, to composite on the head drawn
+    /// here.
+    Layers(Vec<HairLayer>),
+    /// The finished picture, head and background included, composited
+    /// where the hair is (see [`Drawing::composites`]).
+    Picture(image::RgbImage),
+    /// The finished picture still on its way (see [`Drawing::draw_ahead`]).
+    Pending(PendingPicture),
+}
+
+impl Default for Drawn {
+    /// No partial pictures yet.
+    fn default() -> Drawn {
+        Drawn::Layers(Vec::new())
+    }
+}
+
+/// What drawing elsewhere gave, and the slowest share's milliseconds of
+/// each stage.
 #[derive(Debug, Default)]
 pub struct DrawReport {
-    /// Partial pictures, one per share, to composite.
-    pub layers: Vec<HairLayer>,
-    /// The finished picture, head and background included, when the
-    /// executor composited it (see [`Executor::composites`]).
-    pub picture: Option<image::RgbImage>,
-    /// The finished picture still on its way (see [`Executor::draw_ahead`]).
-    pub pending: Option<PendingPicture>,
+    /// The partial pictures, or the picture.
+    pub drawn: Drawn,
     /// The filter stage, ms.
     pub filter_ms: f64,
     /// Shading, ms.
@@ -189,7 +204,7 @@ pub trait Executor: Send + Sync + std::fmt::Debug {
     ) -> Result<(), EngineError>;
     /// Adds the density of every strand of `hair` to `map` (empty, in its
     /// frame) for light `light`. `version` is the hair's pose counter when
-    /// it was posed after [`Self::simulate`] or [`Self::pose`] with a plan
+    /// it was posed after [`Self::simulate`] or [`Drawing::pose`] with a plan
     /// of that version (an executor that posed elsewhere fills from the
     /// strands it posed there, and `hair` may be empty), `None` for any
     /// other hair.
@@ -203,23 +218,34 @@ pub trait Executor: Send + Sync + std::fmt::Debug {
     ) -> Result<FillStats, EngineError>;
     /// Sweeps every column of `map` (paper 4.2).
     fn sweep(&mut self, light: usize, map: &DensityMap) -> Result<Transmittance, EngineError>;
-    /// Whether this executor holds the drawn hair and poses, filters,
-    /// shades and rasterizes it where it is ([`Self::pose`],
-    /// [`Self::draw`]); otherwise the frame does, in this process.
-    fn draws(&self) -> bool {
-        false
+    /// The executor's drawing part, when it holds the drawn hair and
+    /// poses, filters, shades and rasterizes it where it is; `None` (the
+    /// default): the frame does, in this process.
+    fn drawing(&mut self) -> Option<&mut dyn Drawing> {
+        None
     }
+}
+
+/// The part of an executor that holds the drawn hair: it poses it,
+/// filters the transmittance at its vertices, shades and rasterizes it
+/// where it is.
+pub trait Drawing: Send + Sync {
     /// Whether [`Self::draw`] will most likely return the finished picture,
     /// composited where the hair is, head included (so this process need
     /// not draw the head); a report without one is composited here.
-    fn composites(&self) -> bool {
-        false
-    }
+    fn composites(&self) -> bool;
+    /// Poses the drawn hair as `plan` says, where it is held (after the
+    /// simulation's steps, if any), and reports on it.
+    fn pose(&mut self, plan: &PosePlan) -> Result<PoseReport, EngineError>;
+    /// Filters the transmittance of the last [`Executor::sweep`] of every
+    /// light at the drawn vertices, shades them and rasterizes them, where
+    /// they are held: one partial picture per share, or the picture.
+    fn draw(&mut self, job: &DrawJob) -> Result<DrawReport, EngineError>;
     /// [`Self::draw`], free to return once the hair is rasterized and
-    /// before its picture is finished: the report's `pending` then gives
-    /// it, while the caller runs the next frame's stages through this
-    /// executor. When the pending picture fails, [`Self::redraw`] draws
-    /// the frame of `job` again.
+    /// before its picture is finished ([`Drawn::Pending`]), while the
+    /// caller runs the next frame's stages through the executor. When the
+    /// pending picture fails, [`Self::redraw`] draws the frame of `job`
+    /// again.
     fn draw_ahead(&mut self, job: &DrawJob) -> Result<DrawReport, EngineError> {
         self.draw(job)
     }
@@ -228,23 +254,6 @@ pub trait Executor: Send + Sync + std::fmt::Debug {
     /// to composite here or as a finished picture.
     fn redraw(&mut self, job: &DrawJob) -> Result<DrawReport, EngineError> {
         self.draw(job)
-    }
-    /// Poses the drawn hair as `plan` says, where it is held (after the
-    /// simulation's steps, if any), and reports on it.
-    fn pose(&mut self, plan: &PosePlan) -> Result<PoseReport, EngineError> {
-        let _ = plan;
-        Err(EngineError::executor(
-            "this executor does not hold the drawn hair",
-        ))
-    }
-    /// Filters the transmittance of the last [`Self::sweep`] of every
-    /// light at the drawn vertices, shades them and rasterizes them, where
-    /// they are held: one partial picture per share.
-    fn draw(&mut self, job: &DrawJob) -> Result<DrawReport, EngineError> {
-        let _ = job;
-        Err(EngineError::executor(
-            "this executor does not hold the drawn hair",
-        ))
     }
 }
 

@@ -26,8 +26,8 @@ use strands::Hair;
 use crate::animate::Animator;
 use crate::collide::DensityRepulsion;
 use crate::{
-    Composite, EngineError, Executor, FrameStats, LocalExecutor, PosePlan, PoseReport, Renderer,
-    Scene, Stage, StepPlan,
+    Composite, Drawn, EngineError, Executor, FrameStats, LocalExecutor, PosePlan, PoseReport,
+    Renderer, Scene, Stage, StepPlan,
 };
 
 /// Which hair a map or result was computed from: the pose counter.
@@ -38,7 +38,7 @@ type Version = u64;
 /// The sequence plans each frame and owns the [`Executor`] that runs the
 /// stages which grow with the hair: in this process by default, or on
 /// cluster workers. When the executor holds the drawn hair itself
-/// ([`Executor::draws`]) and the shadows are the density map's, the
+/// ([`Executor::drawing`]) and the shadows are the density map's, the
 /// sequence never poses the drawn hair here: it fits the maps to the
 /// extents the executor reports, and composites the partial pictures it
 /// returns over the head.
@@ -85,7 +85,7 @@ pub struct Sequence {
 /// `composite` waited for and resolved (on `pool`'s threads when given),
 /// and its milliseconds; a picture finished elsewhere that failed gives
 /// back the composite with the error.
-#[allow(clippy::type_complexity)]
+#[allow(clippy::type_complexity, clippy::result_large_err)]
 fn resolve_timed(
     mut composite: Composite,
     pool: Option<&rayon::ThreadPool>,
@@ -96,10 +96,10 @@ fn resolve_timed(
     let t = Instant::now();
     let out = match composite.wait() {
         Err(e) => Err((composite, e)),
-        Ok(()) => Ok(match pool {
+        Ok(()) => match pool {
             Some(p) => p.install(|| composite.resolve()),
             None => composite.resolve(),
-        }),
+        },
     };
     (out, t.elapsed().as_secs_f64() * 1e3)
 }
@@ -128,6 +128,11 @@ fn collision_map(scene: &Scene, anim: &Animator) -> Result<Option<DensityMapMeth
         scene.shadow.cells().max(1),
         false,
     )?))
+}
+
+/// The executor gave up its drawing part between two calls of a frame.
+fn no_drawing() -> EngineError {
+    EngineError::executor("the executor stopped drawing in the middle of a frame")
 }
 
 /// No hair: what the density fill is handed for hair posed elsewhere.
@@ -269,10 +274,11 @@ impl Sequence {
     /// Whether the drawn hair is posed, filtered, shaded and rasterized by
     /// the executor, elsewhere: it holds it, and no shadow method needs all
     /// of it here.
-    fn draws_elsewhere(&self) -> bool {
-        self.executor.draws()
-            && (!self.scene.effects.self_shadow
-                || matches!(self.scene.shadow.method, MethodConfig::DensityMap { .. }))
+    /// The one place that decides where the hair is drawn.
+    fn draws_elsewhere(&mut self) -> bool {
+        (!self.scene.effects.self_shadow
+            || matches!(self.scene.shadow.method, MethodConfig::DensityMap { .. }))
+            && self.executor.drawing().is_some()
     }
 
     /// Says that the caller will ask for `frames` more frames (and no
@@ -324,7 +330,7 @@ impl Sequence {
                 self.frame_camera(index, bounds)?;
                 let job = self.renderer.draw_job(version, fx.self_shadow)?;
                 let start = Instant::now();
-                let ex = self.executor.as_mut();
+                let ex = self.executor.drawing().ok_or_else(no_drawing)?;
                 // Ahead of the next frame, the head is drawn here too (while
                 // the hair's call waits): if the picture finished elsewhere
                 // fails once this frame's stages are gone, the frame drawn
@@ -363,17 +369,28 @@ impl Sequence {
                     Err((mut composite, e)) => {
                         let _span = tracing::warn_span!("frame", index).entered();
                         tracing::warn!(error = %e, "the picture finished elsewhere failed; the frame is drawn again");
-                        let again = self.executor.redraw(&job)?;
+                        let again = self
+                            .executor
+                            .drawing()
+                            .ok_or_else(no_drawing)?
+                            .redraw(&job)?;
                         let t = Instant::now();
-                        let done = match again.picture {
-                            Some(img) => (None, img),
-                            None if composite.add_layers(again.layers) => composite.resolve(),
-                            None => {
-                                return Err(EngineError::executor(format!(
-                                    "frame {index} could not be drawn again: {e}"
-                                )));
+                        let again = match again.drawn {
+                            Drawn::Picture(img) => Ok((None, img)),
+                            Drawn::Layers(layers) if composite.has_head() => {
+                                if composite.add_layers(layers) {
+                                    composite.resolve().map_err(|(_, e)| e)
+                                } else {
+                                    Err(EngineError::executor("a partial picture of another size"))
+                                }
                             }
+                            _ => Err(EngineError::executor("no head drawn here to draw it on")),
                         };
+                        let done = again.map_err(|again| {
+                            EngineError::executor(format!(
+                                "frame {index} could not be drawn again ({again}): {e}"
+                            ))
+                        })?;
                         ms += t.elapsed().as_secs_f64() * 1e3;
                         done
                     }
@@ -601,7 +618,7 @@ impl Sequence {
     fn posed(&mut self, stats: &mut FrameStats, plan: &PosePlan) -> Result<(), EngineError> {
         self.last_plan = Some(plan.clone());
         if self.draws_elsewhere() {
-            let ex = self.executor.as_mut();
+            let ex = self.executor.drawing().ok_or_else(no_drawing)?;
             self.report = Some(stats.time(Stage::Pose, || ex.pose(plan))?);
             self.stale_here = true;
         } else {

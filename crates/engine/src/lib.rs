@@ -33,8 +33,8 @@ mod stats;
 
 pub use animate::{Animator, GROUPS, Groups, split_by};
 pub use exec::{
-    DrawJob, DrawReport, Executor, LocalExecutor, PendingPicture, PosePlan, PoseReport, StepPlan,
-    step_wisps, step_wisps_while,
+    DrawJob, DrawReport, Drawing, Drawn, Executor, LocalExecutor, PendingPicture, PosePlan,
+    PoseReport, StepPlan, step_wisps, step_wisps_while,
 };
 pub use export::{CYCLES_FORMAT, CYCLES_SCRIPT, CyclesExport, cycles_export};
 pub use frames::Sequence;

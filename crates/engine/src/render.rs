@@ -7,7 +7,9 @@ use raster::{Camera, Canvas, HairLayer, ShadingModel};
 use strands::{Bounds, Hair};
 
 use crate::part::{draw_head, head_lambert};
-use crate::{DrawJob, DrawReport, EngineError, HairPart, PendingPicture, Scene, ShadowPipeline};
+use crate::{
+    DrawJob, DrawReport, Drawn, EngineError, HairPart, PendingPicture, Scene, ShadowPipeline,
+};
 
 pub use crate::part::DEFAULT_HAIR_COLOR;
 
@@ -328,7 +330,7 @@ impl Renderer {
     ) -> Result<(image::RgbImage, DrawReport), EngineError> {
         let (mut composite, drawn) = self.compose_later(shadows, false, hair)?;
         composite.wait()?;
-        let (canvas, img) = composite.resolve();
+        let (canvas, img) = composite.resolve().map_err(|(_, e)| e)?;
         self.restore_canvas(canvas);
         Ok((img, drawn))
     }
@@ -338,7 +340,7 @@ impl Renderer {
     /// next frame's shadows, say); hand its canvas back with
     /// [`Self::restore_canvas`] before the next draw, or a new one is made.
     /// The report's layers are in the composite. With `head_elsewhere`
-    /// (the executor [composites](crate::Executor::composites)) the head is
+    /// (the executor [composites](crate::Drawing::composites)) the head is
     /// drawn here only when the hair's call returns layers rather than the
     /// finished picture.
     pub fn compose_later(
@@ -348,17 +350,11 @@ impl Renderer {
         hair: impl FnOnce() -> Result<DrawReport, EngineError> + Send,
     ) -> Result<(Composite, DrawReport), EngineError> {
         let background = self.scene.render.background;
-        let mut drawn = if head_elsewhere {
-            let mut drawn = hair()?;
-            if drawn.picture.is_some() || drawn.pending.is_some() {
-                let composite = Composite {
-                    canvas: None,
-                    layers: Vec::new(),
-                    background,
-                    finished: drawn.picture.take(),
-                    pending: drawn.pending.take(),
-                };
-                return Ok((composite, drawn));
+        let drawn = if head_elsewhere {
+            let drawn = hair()?;
+            if !matches!(drawn.drawn, Drawn::Layers(_)) {
+                let (state, report) = Composing::of(None, drawn);
+                return Ok((Composite { background, state }, report));
             }
             self.canvas_with_head(shadows)?;
             drawn
@@ -378,10 +374,10 @@ impl Renderer {
             drawn
         };
         let canvas = self.canvas.take().expect("drawn above");
-        if let Some(l) = drawn
-            .layers
-            .iter()
-            .find(|l| l.width() != canvas.width() || l.height() != canvas.height())
+        if let Drawn::Layers(layers) = &drawn.drawn
+            && let Some(l) = layers
+                .iter()
+                .find(|l| l.width() != canvas.width() || l.height() != canvas.height())
         {
             let msg = format!(
                 "a partial picture of {}x{} for a {}x{} frame",
@@ -393,13 +389,8 @@ impl Renderer {
             self.canvas = Some(canvas);
             return Err(EngineError::executor(msg));
         }
-        let composite = Composite {
-            canvas: Some(canvas),
-            layers: std::mem::take(&mut drawn.layers),
-            background,
-            finished: drawn.picture.take(),
-            pending: drawn.pending.take(),
-        };
+        let (state, drawn) = Composing::of(Some(canvas), drawn);
+        let composite = Composite { background, state };
         Ok((composite, drawn))
     }
 
@@ -473,11 +464,47 @@ pub fn view_direction(hair: Bounds, view: crate::CameraView) -> Vec3 {
 /// [`Renderer::compose_later`].
 #[derive(Debug)]
 pub struct Composite {
-    canvas: Option<Canvas>,
-    layers: Vec<HairLayer>,
     background: Vec3,
-    finished: Option<image::RgbImage>,
-    pending: Option<PendingPicture>,
+    state: Composing,
+}
+
+/// Where a [`Composite`] stands. The head drawn here (`canvas`) is kept
+/// with a picture finished elsewhere, when it was drawn, for the frame
+/// drawn again should that picture fail.
+#[derive(Debug)]
+enum Composing {
+    /// Partial pictures to composite on the head drawn here.
+    Layers {
+        canvas: Canvas,
+        layers: Vec<HairLayer>,
+    },
+    /// The picture, finished elsewhere.
+    Finished {
+        picture: image::RgbImage,
+        canvas: Option<Canvas>,
+    },
+    /// The picture, still on its way.
+    Pending {
+        pending: PendingPicture,
+        canvas: Option<Canvas>,
+    },
+    /// Its picture failed, and no head was drawn here to draw the frame
+    /// again on.
+    Failed,
+}
+
+impl Composing {
+    /// What `report` drew, on the head in `canvas` (if drawn here); the
+    /// report's times.
+    fn of(canvas: Option<Canvas>, mut report: DrawReport) -> (Composing, DrawReport) {
+        let state = match (std::mem::take(&mut report.drawn), canvas) {
+            (Drawn::Layers(layers), Some(canvas)) => Composing::Layers { canvas, layers },
+            (Drawn::Layers(_), None) => Composing::Failed,
+            (Drawn::Picture(picture), canvas) => Composing::Finished { picture, canvas },
+            (Drawn::Pending(pending), canvas) => Composing::Pending { pending, canvas },
+        };
+        (state, report)
+    }
 }
 
 impl Composite {
@@ -485,46 +512,96 @@ impl Composite {
     /// error when it fails (the composite then holds the head drawn here,
     /// when it was, for [`Self::add_layers`] of the frame drawn again).
     pub fn wait(&mut self) -> Result<(), EngineError> {
-        if let Some(p) = self.pending.take() {
-            self.finished = Some(p.wait()?);
+        match std::mem::replace(&mut self.state, Composing::Failed) {
+            Composing::Pending { pending, canvas } => match pending.wait() {
+                Ok(picture) => {
+                    self.state = Composing::Finished { picture, canvas };
+                    Ok(())
+                }
+                Err(e) => {
+                    if let Some(canvas) = canvas {
+                        self.state = Composing::Layers {
+                            canvas,
+                            layers: Vec::new(),
+                        };
+                    }
+                    Err(e)
+                }
+            },
+            other => {
+                self.state = other;
+                Ok(())
+            }
         }
-        Ok(())
     }
 
     /// Whether the head was drawn here, to composite partial pictures on.
     pub fn has_head(&self) -> bool {
-        self.canvas.is_some()
+        match &self.state {
+            Composing::Layers { .. } => true,
+            Composing::Finished { canvas, .. } | Composing::Pending { canvas, .. } => {
+                canvas.is_some()
+            }
+            Composing::Failed => false,
+        }
     }
 
     /// Adds partial pictures to composite (a frame drawn again), in place
     /// of a finished picture; false (and nothing changes) when a layer is
     /// not of this picture's size or no head was drawn here.
-    pub fn add_layers(&mut self, layers: Vec<HairLayer>) -> bool {
-        let Some(c) = &self.canvas else {
-            return false;
+    pub fn add_layers(&mut self, more: Vec<HairLayer>) -> bool {
+        let fits = |c: &Canvas| {
+            more.iter()
+                .all(|l| l.width() == c.width() && l.height() == c.height())
         };
-        if layers
-            .iter()
-            .any(|l| l.width() != c.width() || l.height() != c.height())
-        {
-            return false;
+        match std::mem::replace(&mut self.state, Composing::Failed) {
+            Composing::Layers { canvas, mut layers } if fits(&canvas) => {
+                layers.extend(more);
+                self.state = Composing::Layers { canvas, layers };
+                true
+            }
+            Composing::Finished {
+                canvas: Some(canvas),
+                ..
+            } if fits(&canvas) => {
+                self.state = Composing::Layers {
+                    canvas,
+                    layers: more,
+                };
+                true
+            }
+            other => {
+                self.state = other;
+                false
+            }
         }
-        self.finished = None;
-        self.layers.extend(layers);
-        true
     }
 
     /// The finished picture, and the canvas for the renderer to reuse
-    /// (after [`Self::wait`]).
-    pub fn resolve(self) -> (Option<Canvas>, image::RgbImage) {
-        assert!(self.pending.is_none(), "waited for before resolving");
-        match (self.finished, self.canvas) {
-            (Some(img), canvas) => (canvas, img),
-            (None, Some(canvas)) => {
-                let img = canvas.resolve_layers(self.background, &self.layers);
-                (Some(canvas), img)
+    /// (after [`Self::wait`]); when there is none to give, the error and
+    /// the composite back.
+    #[allow(clippy::result_large_err)]
+    pub fn resolve(self) -> Result<(Option<Canvas>, image::RgbImage), (Composite, EngineError)> {
+        let background = self.background;
+        match self.state {
+            Composing::Finished { picture, canvas } => Ok((canvas, picture)),
+            Composing::Layers { canvas, layers } => {
+                let img = canvas.resolve_layers(background, &layers);
+                Ok((Some(canvas), img))
             }
-            (None, None) => unreachable!("a composite holds a canvas or a picture"),
+            state @ Composing::Pending { .. } => Err((
+                Composite { background, state },
+                EngineError::executor("a picture on its way was resolved before it came"),
+            )),
+            Composing::Failed => Err((
+                Composite {
+                    background,
+                    state: Composing::Failed,
+                },
+                EngineError::executor(
+                    "the picture finished elsewhere failed, and no head was drawn here to draw it again on",
+                ),
+            )),
         }
     }
 }

@@ -7,8 +7,8 @@ use std::ops::Range;
 use std::path::Path;
 
 use engine::{
-    Animator, DrawJob, DrawReport, EngineError, Executor, FrameStats, PosePlan, PoseReport, Scene,
-    Sequence, Share, StepPlan,
+    Animator, DrawJob, DrawReport, Drawing, Drawn, EngineError, Executor, FrameStats, PosePlan,
+    PoseReport, Scene, Sequence, Share, StepPlan,
 };
 use shadow::{DensityMap, Fiber, FillStats, Transmittance};
 use strands::Hair;
@@ -79,8 +79,14 @@ impl Executor for Shares {
         Ok(Transmittance::compute(map))
     }
 
-    fn draws(&self) -> bool {
-        true
+    fn drawing(&mut self) -> Option<&mut dyn Drawing> {
+        Some(self)
+    }
+}
+
+impl Drawing for Shares {
+    fn composites(&self) -> bool {
+        false
     }
 
     fn pose(&mut self, plan: &PosePlan) -> Result<PoseReport, EngineError> {
@@ -95,7 +101,7 @@ impl Executor for Shares {
         } else {
             Vec::new()
         };
-        let mut out = DrawReport::default();
+        let mut layers = Vec::new();
         for s in &mut self.shares {
             // Each share sees only the columns its own strands read.
             let mine: Vec<Transmittance> = maps
@@ -106,10 +112,13 @@ impl Executor for Shares {
                 })
                 .collect();
             let (layer, _) = s.draw(job, &mine)?;
-            out.layers.push(layer);
+            layers.push(layer);
         }
         let _ = &self.fiber;
-        Ok(out)
+        Ok(DrawReport {
+            drawn: Drawn::Layers(layers),
+            ..DrawReport::default()
+        })
     }
 }
 
@@ -209,8 +218,14 @@ impl Executor for Unfinished {
         self.shares.sweep(light, map)
     }
 
-    fn draws(&self) -> bool {
-        true
+    fn drawing(&mut self) -> Option<&mut dyn Drawing> {
+        Some(self)
+    }
+}
+
+impl Drawing for Unfinished {
+    fn composites(&self) -> bool {
+        false
     }
 
     fn pose(&mut self, plan: &PosePlan) -> Result<PoseReport, EngineError> {
@@ -223,16 +238,15 @@ impl Executor for Unfinished {
 
     fn draw_ahead(&mut self, job: &DrawJob) -> Result<DrawReport, EngineError> {
         let mut drawn = self.shares.draw(job)?;
-        let layers = std::mem::take(&mut drawn.layers);
         self.calls += 1;
-        let fails = self.calls == self.fail;
-        if fails {
+        if self.calls == self.fail {
+            let Drawn::Layers(layers) = std::mem::take(&mut drawn.drawn) else {
+                panic!("the shares draw partial pictures");
+            };
             self.kept = Some((job.version, layers));
-            drawn.pending = Some(engine::PendingPicture::new(|| {
+            drawn.drawn = Drawn::Pending(engine::PendingPicture::new(|| {
                 Err(EngineError::executor("a worker went away"))
             }));
-        } else {
-            drawn.layers = layers;
         }
         Ok(drawn)
     }
@@ -245,7 +259,7 @@ impl Executor for Unfinished {
         self.redrawn
             .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         Ok(DrawReport {
-            layers,
+            drawn: Drawn::Layers(layers),
             ..DrawReport::default()
         })
     }

@@ -74,14 +74,16 @@ impl RemoteExecutor {
         let mut report = DrawReport::default();
         let mut received = 0u64;
         let mut slowest = 0.0f64;
+        let mut layers = Vec::with_capacity(replies.len());
         for (layer, times, bytes) in replies {
             received += bytes;
             report.filter_ms = report.filter_ms.max(times.filter_ms);
             report.shade_ms = report.shade_ms.max(times.shade_ms);
             report.raster_ms = report.raster_ms.max(times.raster_ms);
             slowest = slowest.max(times.filter_ms + times.shade_ms + times.raster_ms);
-            report.layers.push(layer);
+            layers.push(layer);
         }
+        report.drawn = Drawn::Layers(layers);
         self.count(|x| {
             x.draw_sent += sent;
             x.layers_received += received;
@@ -289,7 +291,7 @@ impl RemoteExecutor {
         });
         if ahead {
             let failure = self.failure.clone();
-            report.pending = Some(PendingPicture::new(move || {
+            report.drawn = Drawn::Pending(PendingPicture::new(move || {
                 round.finish().map_err(|e| {
                     if let Ok(mut f) = failure.lock() {
                         *f = Some(e.clone());
@@ -298,7 +300,7 @@ impl RemoteExecutor {
                 })
             }));
         } else {
-            report.picture = Some(
+            report.drawn = Drawn::Picture(
                 round
                     .finish()
                     .map_err(|e| ClusterError::Composite(e.to_string()))?,
@@ -308,8 +310,8 @@ impl RemoteExecutor {
     }
 
     /// What drawing hair version `version` again takes, as things stand.
-    pub(super) fn snapshot(&self, version: u64) -> Drawn {
-        Drawn {
+    pub(super) fn snapshot(&self, version: u64) -> Snapshot {
+        Snapshot {
             version,
             states: self
                 .hair
@@ -325,7 +327,7 @@ impl RemoteExecutor {
 
     /// Back to `to`: the workers are assigned its states and pose it again
     /// before their next stage (reading every column when they changed).
-    pub(super) fn restore(&mut self, to: Drawn) {
+    pub(super) fn restore(&mut self, to: Snapshot) {
         if let Some(h) = &mut self.hair {
             h.states = to.states;
         }

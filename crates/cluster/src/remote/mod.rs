@@ -27,8 +27,8 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use engine::{
-    Animator, DrawJob, DrawReport, EngineError, Executor, FrameStats, PendingPicture, PosePlan,
-    PoseReport, Scene, SceneSource, Stage, StepPlan, split_by,
+    Animator, DrawJob, DrawReport, Drawing, Drawn, EngineError, Executor, FrameStats,
+    PendingPicture, PosePlan, PoseReport, Scene, SceneSource, Stage, StepPlan, split_by,
 };
 use prost::Message;
 use shadow::{ColumnSlab, DensityMap, Fiber, FillStats, LightFrame, Transmittance};
@@ -152,10 +152,10 @@ pub struct RemoteExecutor {
     /// each other.
     tls_domain: Option<String>,
     /// The first failure of a picture left to finish (see
-    /// [`Executor::draw_ahead`]), for [`Executor::redraw`].
+    /// [`Drawing::draw_ahead`]), for [`Drawing::redraw`].
     failure: Arc<Mutex<Option<ClusterError>>>,
     /// What the workers held when they drew the picture left to finish.
-    drawn: Option<Drawn>,
+    drawn: Option<Snapshot>,
 }
 
 /// A step the workers take among themselves (compositing the picture,
@@ -246,7 +246,7 @@ impl SweptMap {
 /// What drawing a frame again takes, kept while its picture is finished
 /// on the workers and the next frame's stages run.
 #[derive(Debug)]
-struct Drawn {
+struct Snapshot {
     version: u64,
     states: Vec<WispState>,
     pose: Option<PosePlan>,
@@ -612,10 +612,16 @@ impl Executor for RemoteExecutor {
             .map_err(engine_error)
     }
 
-    fn draws(&self) -> bool {
-        self.draw == DrawAt::Workers
+    fn drawing(&mut self) -> Option<&mut dyn Drawing> {
+        match self.draw {
+            DrawAt::Workers => Some(self),
+            DrawAt::Coordinator => None,
+        }
     }
+}
 
+/// The workers hold the drawn hair (`--draw workers`).
+impl Drawing for RemoteExecutor {
     fn pose(&mut self, plan: &PosePlan) -> Result<PoseReport, EngineError> {
         if self.posed != Some(plan.version) {
             self.with_survivors(|ex| {
