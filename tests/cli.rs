@@ -1260,3 +1260,33 @@ fn view_refuses_a_bad_scene_an_address_in_use_and_unreachable_workers() {
     let o = wisplight(&["view", "--deadline", "0", "--workers", "127.0.0.1:1"]);
     assert_eq!(o.status.code(), Some(2));
 }
+
+#[test]
+fn bench_runs_the_benchmark_program_and_says_how_to_get_it_when_it_is_missing() {
+    // Beside wisplight (as cargo builds and installs them): its exit code
+    // and its help come through, under the name `wisplight bench`.
+    let o = wisplight(&["bench", "--help"]);
+    assert!(o.status.success());
+    let help = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        help.contains("Usage: wisplight bench") && help.contains("scaling"),
+        "{help}"
+    );
+    assert_eq!(wisplight(&["bench", "nonsense"]).status.code(), Some(2));
+    // A copy of wisplight alone, with nothing on PATH: a usage error that
+    // says what to install.
+    let dir = scratch("bench-alone");
+    let alone = dir.join("wisplight");
+    std::fs::copy(env!("CARGO_BIN_EXE_wisplight"), &alone).unwrap();
+    let o = Command::new(&alone)
+        .args(["bench", "frame"])
+        .env("PATH", "")
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(
+        e.contains("wisplight-bench") && e.contains("cargo install --path ."),
+        "{e}"
+    );
+}

@@ -23,7 +23,9 @@ fn root() -> PathBuf {
 
 /// Every crate's source directory and root file.
 fn crates() -> Vec<(PathBuf, PathBuf)> {
-    let mut out = vec![(root().join("src"), root().join("src/main.rs"))];
+    // The programs' shared code; `main.rs` and `bin/` are programs of their
+    // own on top of it.
+    let mut out = vec![(root().join("src"), root().join("src/lib.rs"))];
     for e in std::fs::read_dir(root().join("crates")).unwrap() {
         let src = e.unwrap().path().join("src");
         if src.join("lib.rs").exists() {
@@ -37,6 +39,9 @@ fn crates() -> Vec<(PathBuf, PathBuf)> {
 fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
     for e in std::fs::read_dir(dir).unwrap() {
         let p = e.unwrap().path();
+        if p == root().join("src/main.rs") || p == root().join("src/bin") {
+            continue;
+        }
         if p.is_dir() {
             rust_files(&p, out);
         } else if p.extension().is_some_and(|x| x == "rs") {

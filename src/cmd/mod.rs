@@ -1,13 +1,9 @@
 //! One module per subcommand.
 
-pub mod accuracy;
-pub mod bench;
 pub mod cluster;
 pub mod export;
-pub mod nodes;
 pub mod probe;
 pub mod render;
-pub mod scaling;
 pub mod view;
 
 use std::path::Path;
@@ -65,32 +61,6 @@ pub fn usage(message: impl Into<String>) -> anyhow::Error {
     Usage(message.into()).into()
 }
 
-/// Checks a `--plot` path: a `.png`, which gets the same chart as SVG
-/// beside it (`.svg`).
-pub fn check_plot_path(path: &Path) -> anyhow::Result<()> {
-    if path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("png"))
-    {
-        Ok(())
-    } else {
-        Err(usage(format!(
-            "--plot {}: the plot is a .png (the SVG goes beside it)",
-            path.display()
-        )))
-    }
-}
-
-/// Writes `chart` to `path` (a PNG) and as SVG beside it, each whole or
-/// not at all; says where on stderr.
-pub fn write_chart(path: &Path, chart: &crate::plot::Chart) -> anyhow::Result<()> {
-    crate::output::write_png(path, &chart.png()?).context("cannot save the plot")?;
-    let svg = path.with_extension("svg");
-    crate::output::write_bytes(&svg, chart.svg()?.as_bytes()).context("cannot save the plot")?;
-    eprintln!("wrote {} and {}", path.display(), svg.display());
-    Ok(())
-}
-
 /// Loads a scene file, or the built-in scene when none is given.
 pub fn load_scene(path: Option<&Path>) -> anyhow::Result<Scene> {
     match path {
@@ -139,14 +109,6 @@ impl MethodArg {
     }
 }
 
-/// What a benchmark reports beside its times: the scene's name, the worker
-/// threads, and the machine's cores.
-pub(crate) fn machine(scene: Option<&std::path::Path>) -> (String, usize, usize) {
-    let name = scene.map_or("built-in".to_string(), |p| p.display().to_string());
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    (name, rayon::current_num_threads(), cores)
-}
-
 /// The median of `v` (the mean of the middle two for even lengths).
 pub fn median(v: &mut [f64]) -> f64 {
     if v.is_empty() {
@@ -158,6 +120,42 @@ pub fn median(v: &mut [f64]) -> f64 {
         v[m]
     } else {
         0.5 * (v[m - 1] + v[m])
+    }
+}
+
+/// `wisplight bench ARGS`: runs `wisplight-bench ARGS` (beside this
+/// program, or on `PATH`) with `-q`/`-v` passed on, and ends with its exit
+/// code.
+pub fn run_bench(quiet: bool, verbose: u8, args: Vec<std::ffi::OsString>) -> anyhow::Result<()> {
+    const NAME: &str = "wisplight-bench";
+    let beside = std::env::current_exe()
+        .ok()
+        .map(|p| p.with_file_name(NAME))
+        .filter(|p| p.is_file());
+    let program = beside.map_or_else(|| std::ffi::OsString::from(NAME), |p| p.into_os_string());
+    let mut command = std::process::Command::new(&program);
+    if quiet {
+        command.arg("-q");
+    }
+    for _ in 0..verbose {
+        command.arg("-v");
+    }
+    command.args(&args);
+    match command.status() {
+        Ok(status) => match status.code() {
+            Some(0) => Ok(()),
+            // Its own message is printed; its code is this one's.
+            Some(code) => std::process::exit(code),
+            None => Err(anyhow::anyhow!("{NAME} was stopped by a signal")),
+        },
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Err(usage(format!(
+            "`wisplight bench` runs {NAME}, found neither beside {} nor on PATH: \
+             `cargo install --path .` installs both programs, `cargo build --release` \
+             builds both into target/release",
+            std::env::current_exe()
+                .map_or_else(|_| "wisplight".into(), |p| p.display().to_string())
+        ))),
+        Err(e) => Err(anyhow::Error::new(e).context(format!("cannot run {NAME}"))),
     }
 }
 

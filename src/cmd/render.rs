@@ -52,6 +52,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 /// Cluster mode: the workers, and how the coordinator runs them.
+#[derive(Debug)]
 pub struct Remote {
     pub workers: Vec<String>,
     pub options: cluster::Options,

@@ -4,7 +4,7 @@
 //! each point labelled with its setting, the Pareto front marked, a legend
 //! of methods) and frame times for `bench scaling` (bars with their
 //! values). Text is set in DejaVu Sans Condensed, built into the program
-//! (`src/fonts/`, with its licence), so no font needs to be installed.
+//! (`src/bench/fonts/`, with its licence), so no font needs to be installed.
 
 use std::sync::Once;
 

@@ -1,6 +1,14 @@
-//! `wisplight bench`: stage timings, medians over repeated runs.
+//! `wisplight-bench` (`wisplight bench`): stage timings, medians over
+//! repeated runs, the shadow methods' accuracy, scaling over local worker
+//! processes with emulated nodes, and their plots. Kept out of the
+//! `wisplight` program itself.
 
-use std::path::PathBuf;
+pub mod accuracy;
+pub mod nodes;
+pub mod plot;
+pub mod scaling;
+
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use engine::Stage;
@@ -16,12 +24,12 @@ pub enum Bench {
     Frame(FrameArgs),
     /// Every shadow method at a range of settings against the exact
     /// reference: time and error at every drawn point and in the picture.
-    Accuracy(super::accuracy::AccuracyArgs),
+    Accuracy(accuracy::AccuracyArgs),
     /// The same animated frames in one process and on 1, 2, 3, ... local
     /// worker processes: median frame time, speedups, where the time went
     /// (workers' steps, density fill, sweep, the coordinator's own work),
     /// bytes on the wire; writes a plot.
-    Scaling(super::scaling::ScalingArgs),
+    Scaling(scaling::ScalingArgs),
 }
 
 #[derive(Debug, clap::Args)]
@@ -36,7 +44,7 @@ pub struct FrameArgs {
     #[arg(long)]
     json: bool,
     #[command(flatten)]
-    pub threads: super::Threads,
+    pub threads: crate::cmd::Threads,
 }
 
 #[derive(Debug, clap::Args)]
@@ -55,7 +63,7 @@ pub struct ShadowArgs {
     #[arg(long)]
     json: bool,
     #[command(flatten)]
-    pub threads: super::Threads,
+    pub threads: crate::cmd::Threads,
 }
 
 impl Bench {
@@ -74,13 +82,13 @@ pub fn run(b: Bench) -> anyhow::Result<()> {
     match b {
         Bench::Shadow(a) => shadow(a),
         Bench::Frame(a) => frame(a),
-        Bench::Accuracy(a) => super::accuracy::run(a),
-        Bench::Scaling(a) => super::scaling::run(a),
+        Bench::Accuracy(a) => accuracy::run(a),
+        Bench::Scaling(a) => scaling::run(a),
     }
 }
 
 fn shadow(a: ShadowArgs) -> anyhow::Result<()> {
-    let mut scene = super::load_scene(a.scene.as_deref())?;
+    let mut scene = crate::cmd::load_scene(a.scene.as_deref())?;
     if let Some(c) = a.cells {
         scene.shadow.set_cells(c);
     }
@@ -88,7 +96,7 @@ fn shadow(a: ShadowArgs) -> anyhow::Result<()> {
     scene.effects.self_shadow = true;
     scene.animation.motion = sim::Motion::Still;
     let mut seq = engine::Sequence::new(&scene).context("cannot set up the scene")?;
-    let (name, threads, cores) = super::machine(a.scene.as_deref());
+    let (name, threads, cores) = machine(a.scene.as_deref());
     eprintln!(
         "bench shadow: {name}: {} segments, {} points, {}^3 cells, {} light(s), {threads} threads on {cores} cores, {} runs",
         seq.hair().segment_count(),
@@ -110,7 +118,7 @@ fn shadow(a: ShadowArgs) -> anyhow::Result<()> {
         }
         samples = stats.samples;
     }
-    let [density_ms, transmittance_ms, filter_ms] = times.map(|mut v| super::median(&mut v));
+    let [density_ms, transmittance_ms, filter_ms] = times.map(|mut v| crate::cmd::median(&mut v));
     let total_ms = density_ms + transmittance_ms + filter_ms;
     println!("stage           median ms");
     println!("density         {density_ms:9.3}");
@@ -140,8 +148,8 @@ fn shadow(a: ShadowArgs) -> anyhow::Result<()> {
 }
 
 fn frame(a: FrameArgs) -> anyhow::Result<()> {
-    let scene = super::load_scene(a.scene.as_deref())?;
-    let (name, threads, cores) = super::machine(a.scene.as_deref());
+    let scene = crate::cmd::load_scene(a.scene.as_deref())?;
+    let (name, threads, cores) = machine(a.scene.as_deref());
     let mut seq = engine::Sequence::new(&scene).context("cannot set up the scene")?;
     eprintln!(
         "bench frame: {name}: {} segments, {}x{}, {}^3 cells, {} motion, {threads} threads on {cores} cores, {} runs",
@@ -175,8 +183,11 @@ fn frame(a: FrameArgs) -> anyhow::Result<()> {
             whole.push(ms);
         }
     }
-    let medians: Vec<f64> = per_stage.iter_mut().map(|v| super::median(v)).collect();
-    let frame_ms = super::median(&mut whole);
+    let medians: Vec<f64> = per_stage
+        .iter_mut()
+        .map(|v| crate::cmd::median(v))
+        .collect();
+    let frame_ms = crate::cmd::median(&mut whole);
     println!("stage           median ms");
     for (s, m) in Stage::ALL.iter().zip(&medians) {
         println!("{:<15} {m:9.3}", s.name());
@@ -200,4 +211,38 @@ fn frame(a: FrameArgs) -> anyhow::Result<()> {
         println!("{j}");
     }
     Ok(())
+}
+
+/// Checks a `--plot` path: a `.png`, which gets the same chart as SVG
+/// beside it (`.svg`).
+pub fn check_plot_path(path: &Path) -> anyhow::Result<()> {
+    if path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"))
+    {
+        Ok(())
+    } else {
+        Err(crate::cmd::usage(format!(
+            "--plot {}: the plot is a .png (the SVG goes beside it)",
+            path.display()
+        )))
+    }
+}
+
+/// Writes `chart` to `path` (a PNG) and as SVG beside it, each whole or
+/// not at all; says where on stderr.
+pub fn write_chart(path: &Path, chart: &plot::Chart) -> anyhow::Result<()> {
+    crate::output::write_png(path, &chart.png()?).context("cannot save the plot")?;
+    let svg = path.with_extension("svg");
+    crate::output::write_bytes(&svg, chart.svg()?.as_bytes()).context("cannot save the plot")?;
+    eprintln!("wrote {} and {}", path.display(), svg.display());
+    Ok(())
+}
+
+/// What a benchmark reports beside its times: the scene's name, the worker
+/// threads, and the machine's cores.
+pub fn machine(scene: Option<&std::path::Path>) -> (String, usize, usize) {
+    let name = scene.map_or("built-in".to_string(), |p| p.display().to_string());
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    (name, rayon::current_num_threads(), cores)
 }

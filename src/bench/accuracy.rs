@@ -8,7 +8,7 @@ use engine::{Scene, Sequence, Stage};
 use image::RgbImage;
 use shadow::{Beyond, MethodConfig, OpacityMode};
 
-use crate::plot;
+use super::plot;
 
 #[derive(Debug, clap::Args)]
 pub struct AccuracyArgs {
@@ -43,7 +43,7 @@ pub struct AccuracyArgs {
           value_parser = clap::value_parser!(u32).range(1..=65_536))]
     cycles_samples: u32,
     #[command(flatten)]
-    pub threads: super::Threads,
+    pub threads: crate::cmd::Threads,
 }
 
 /// Pixels a side of the blocks whose shadow ratio is compared with
@@ -117,7 +117,7 @@ struct Row {
 }
 
 pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
-    let scene = direct_light(&super::load_scene(a.scene.as_deref())?);
+    let scene = direct_light(&crate::cmd::load_scene(a.scene.as_deref())?);
     if let Some(p) = &a.plot {
         super::check_plot_path(p)?;
     }
@@ -129,7 +129,7 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
         })?),
         None => None,
     };
-    let hair = super::build_hair(&scene)?;
+    let hair = crate::cmd::build_hair(&scene)?;
     let (name, threads, cores) = super::machine(a.scene.as_deref());
     let configs: Vec<MethodConfig> = sweep()
         .into_iter()
@@ -175,7 +175,7 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
         )),
         _ => None,
     };
-    let bar = super::progress_bar(
+    let bar = crate::cmd::progress_bar(
         configs.len() as u64 + 1,
         "{bar:30} {pos}/{len} {msg} [{elapsed}]",
     );
@@ -397,7 +397,7 @@ fn measure(
         Some(c) => visible_points(c, seq.hair().points()),
         None => Vec::new(),
     };
-    Ok((super::median(&mut times), t, img, visible))
+    Ok((crate::cmd::median(&mut times), t, img, visible))
 }
 
 /// The drawn points the picture shows: at each pixel, the point nearest

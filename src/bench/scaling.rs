@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use std::process::{Child, Stdio};
 use std::time::{Duration, Instant};
 
-use super::median;
+use crate::cmd::median;
 use anyhow::{Context, bail};
 
 use super::nodes::{Nodes, Request};
@@ -35,7 +35,7 @@ pub struct ScalingArgs {
         default_value = "workers",
         value_name = "WHERE,..."
     )]
-    draw: Vec<super::cluster::Draw>,
+    draw: Vec<crate::cmd::cluster::Draw>,
     /// The plot of median frame times (PNG, and the same chart as SVG
     /// beside it).
     #[arg(long, default_value = "scaling.png", value_name = "FILE.png")]
@@ -56,7 +56,7 @@ pub struct ScalingArgs {
           value_parser = clap::value_parser!(u32).range(1..=400_000))]
     link_mbit: Option<u32>,
     #[command(flatten)]
-    pub threads: super::Threads,
+    pub threads: crate::cmd::Threads,
 }
 
 /// A worker process on a free localhost port.
@@ -160,13 +160,13 @@ impl Row {
 }
 
 pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
-    let scene = super::load_scene(a.scene.as_deref())?;
+    let scene = crate::cmd::load_scene(a.scene.as_deref())?;
     super::check_plot_path(&a.plot)?;
     let (name, threads, cores) = super::machine(a.scene.as_deref());
     if let Some(c) = a.node_cpus
         && !(c.is_finite() && c >= 0.01 && c <= cores as f64)
     {
-        return Err(super::usage(format!(
+        return Err(crate::cmd::usage(format!(
             "--node-cpus {c}: must be between 0.01 and this machine's {cores} cores"
         )));
     }
@@ -198,7 +198,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
     let warm = 2;
     let total = warm + a.frames;
     let configs = (a.workers.len() * schemes.len()) as u64;
-    let bar = super::progress_bar(
+    let bar = crate::cmd::progress_bar(
         total * (1 + configs),
         "{bar:30} {pos}/{len} frames [{elapsed} < {eta}]",
     );
@@ -401,7 +401,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
         (false, true) => format!(", {} Mbit/s links", a.link_mbit.unwrap_or(0)),
         (false, false) => String::new(),
     };
-    let chart = crate::plot::bars(
+    let chart = super::plot::bars(
         &format!("frame ms, {short}{limits}"),
         "ms",
         &labels,

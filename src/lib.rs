@@ -1,0 +1,14 @@
+//! The code of the `wisplight` and `wisplight-bench` programs: the only
+//! code that touches the terminal, parses arguments and turns errors into
+//! messages and exit codes. `wisplight` renders, serves and coordinates
+//! workers, views and exports (`cmd`); `wisplight-bench` measures
+//! (`bench`), and `wisplight bench ...` runs it.
+
+#![recursion_limit = "256"]
+
+pub mod app;
+pub mod bench;
+pub mod cmd;
+pub mod csv;
+pub mod cycles;
+pub mod output;
