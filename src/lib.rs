@@ -8,6 +8,7 @@
 
 pub mod app;
 pub mod bench;
+pub mod cli;
 pub mod cmd;
 pub mod csv;
 pub mod cycles;

@@ -3,77 +3,9 @@
 
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand};
-use wisplight_cli::{app, cmd};
-
-/// Renders hair with light-oriented density-map self-shadowing.
-#[derive(Debug, Parser)]
-#[command(name = "wisplight", version, about, propagate_version = true)]
-struct Cli {
-    /// More log detail on stderr (-v info, -vv debug).
-    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
-    verbose: u8,
-    /// Only errors on stderr.
-    #[arg(short, long, global = true, conflicts_with = "verbose")]
-    quiet: bool,
-    #[command(subcommand)]
-    command: Command,
-}
-
-#[derive(Debug, Subcommand)]
-enum Command {
-    /// Renders a self-shadowed picture of a scene (the built-in one without a file), or frames of its animation.
-    Render(cmd::render::Args),
-    /// Prints how much light reaches given points: CSV `x,y,z` in, `x,y,z,transmittance` out.
-    Probe(cmd::probe::Args),
-    /// Serves a coordinator (cluster mode): simulates a share of the wisps, fills their density, sweeps a share of the map's columns.
-    Worker(cmd::cluster::WorkerArgs),
-    /// Renders like `render` with workers simulating the wisps and filling and sweeping the density map: the same bytes as one process.
-    Coordinator(cmd::cluster::CoordinatorArgs),
-    /// Checks that a worker answers SERVING to a gRPC health check (exit 0), for container health checks.
-    Health(cmd::cluster::HealthArgs),
-    /// Makes a certificate authority and certificates for mutual TLS between a coordinator and its workers.
-    Certs(cmd::cluster::CertsArgs),
-    /// Writes a frame of a scene for Blender Cycles: the strands as posed, head, camera, lights, fiber, and a script that renders it.
-    Export(cmd::export::Args),
-    /// Serves a page that shows the animation as it renders and steers it: camera, lights, effects, shadow method.
-    View(cmd::view::Args),
-    /// Measures the speed of pipeline stages, the shadow methods' accuracy and cluster scaling: runs `wisplight-bench` (`wisplight bench --help`).
-    #[command(disable_help_flag = true)]
-    Bench {
-        /// What `wisplight-bench` gets: `shadow`, `frame`, `accuracy` or `scaling`, and their options.
-        #[arg(trailing_var_arg = true, allow_hyphen_values = true, num_args = 0..)]
-        args: Vec<std::ffi::OsString>,
-    },
-}
+use clap::Parser;
+use wisplight_cli::cli::{Cli, run};
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
-    app::start(cli.quiet, cli.verbose);
-    // Commands that write pictures leave no partial file when stopped.
-    if matches!(cli.command, Command::Render(_) | Command::Coordinator(_)) {
-        app::exit_cleanly_on_signals();
-    }
-    let threads = match &cli.command {
-        Command::Render(a) => a.threads.threads,
-        Command::Probe(a) => a.threads.threads,
-        Command::Worker(a) => a.threads.threads,
-        Command::Coordinator(a) => a.threads(),
-        Command::View(a) => a.threads.threads,
-        Command::Export(a) => a.threads.threads,
-        Command::Health(_) | Command::Certs(_) | Command::Bench { .. } => None,
-    };
-    let result = app::init_threads(threads).and_then(|()| match cli.command {
-        Command::Render(args) => cmd::render::run(args),
-        Command::Probe(args) => cmd::probe::run(args),
-        Command::Worker(args) => cmd::cluster::worker(args),
-        Command::Coordinator(args) => cmd::cluster::coordinator(args),
-        Command::Health(args) => cmd::cluster::health(args),
-        Command::Certs(args) => cmd::cluster::certs(args),
-        Command::View(args) => cmd::view::run(args),
-        Command::Export(args) => cmd::export::run(args),
-        // The flags given before `bench` go along.
-        Command::Bench { args } => cmd::run_bench(cli.quiet, cli.verbose, args),
-    });
-    app::finish(result)
+    run(Cli::parse())
 }

@@ -105,3 +105,156 @@ fn every_scene_key_is_documented_and_every_documented_key_is_accepted() {
         }
     }
 }
+
+/// Every `wisplight` command the docs show, as a user would paste it: the
+/// lines of the code blocks of README.md, ARCHITECTURE.md, deploy/ and
+/// docs/ that start with `wisplight ` (continued over `\` line ends,
+/// comments cut), and the inline code spans that do, except synopses
+/// (`[OPTIONAL]`, `A|B`, `...`). Each with where it is.
+fn documented_commands() -> Vec<(String, Vec<String>)> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut files = vec![
+        root.join("README.md"),
+        root.join("ARCHITECTURE.md"),
+        root.join("deploy/README.md"),
+    ];
+    for e in std::fs::read_dir(root.join("docs")).unwrap() {
+        let p = e.unwrap().path();
+        if p.extension().is_some_and(|x| x == "md") {
+            files.push(p);
+        }
+    }
+    files.sort();
+    let mut out = Vec::new();
+    for f in files {
+        let text = std::fs::read_to_string(&f).unwrap();
+        let name = f.strip_prefix(root).unwrap().display().to_string();
+        let mut in_block = false;
+        let mut pending: Option<(usize, String)> = None;
+        // Prose, its lines joined, with where each line starts: inline
+        // spans run over line ends.
+        let mut prose = String::new();
+        let mut starts: Vec<(usize, usize)> = Vec::new();
+        for (i, line) in text.lines().enumerate() {
+            if line.trim_start().starts_with("```") {
+                in_block = !in_block;
+                continue;
+            }
+            if !in_block {
+                starts.push((prose.len(), i + 1));
+                prose.push_str(line);
+                prose.push(' ');
+                continue;
+            }
+            let l = line.trim_start().trim_start_matches("$ ");
+            let (at, mut cmd) = match pending.take() {
+                Some((at, c)) => (at, c + " " + l.trim()),
+                None if l.starts_with("wisplight ") => (i + 1, l.to_string()),
+                None => continue,
+            };
+            if cmd.ends_with('\\') {
+                cmd.pop();
+                pending = Some((at, cmd));
+                continue;
+            }
+            // Run in the background: the command is what comes before.
+            let cmd = cmd.trim_end().trim_end_matches('&').to_string();
+            out.push((format!("{name}:{at}"), words(&cmd)));
+        }
+        let mut offset = 0;
+        for (k, span) in prose.split('`').enumerate() {
+            let line = starts
+                .iter()
+                .take_while(|(start, _)| *start <= offset)
+                .last()
+                .map_or(1, |(_, l)| *l);
+            offset += span.len() + 1;
+            let span = span.split_whitespace().collect::<Vec<_>>().join(" ");
+            // A synopsis, or a command named in passing (`wisplight certs`).
+            let synopsis = ["[", "|", "...", "<"].iter().any(|s| span.contains(s))
+                || span.split(' ').count() <= 2;
+            if k % 2 == 1 && span.starts_with("wisplight ") && !synopsis {
+                out.push((format!("{name}:{line}"), words(&span)));
+            }
+        }
+    }
+    out
+}
+
+/// A command line's words as a POSIX shell splits them (quotes and
+/// backslashes), up to a `#` comment.
+fn words(line: &str) -> Vec<String> {
+    let (mut out, mut word, mut quote, mut any) = (Vec::new(), String::new(), None, false);
+    let mut chars = line.chars();
+    while let Some(c) = chars.next() {
+        match (quote, c) {
+            (None, '#') if !any => break,
+            (None, c) if c.is_whitespace() => {
+                if any {
+                    out.push(std::mem::take(&mut word));
+                    any = false;
+                }
+            }
+            (None, '\'' | '"') => {
+                quote = Some(c);
+                any = true;
+            }
+            (Some(q), c) if c == q => quote = None,
+            (None | Some('"'), '\\') => {
+                word.extend(chars.next());
+                any = true;
+            }
+            (_, c) => {
+                word.push(c);
+                any = true;
+            }
+        }
+    }
+    if any {
+        out.push(word);
+    }
+    out
+}
+
+#[test]
+fn every_command_the_docs_show_parses_as_written() {
+    use clap::Parser;
+    let commands = documented_commands();
+    assert!(
+        commands.len() > 30,
+        "only {} commands found",
+        commands.len()
+    );
+    let mut wrong = Vec::new();
+    for (at, args) in &commands {
+        let parsed = if args.get(1).is_some_and(|a| a == "bench") {
+            let rest =
+                std::iter::once("wisplight bench".to_string()).chain(args[2..].iter().cloned());
+            wisplight_cli::bench::Cli::try_parse_from(rest).map(|_| ())
+        } else {
+            wisplight_cli::cli::Cli::try_parse_from(args).map(|_| ())
+        };
+        use clap::error::ErrorKind;
+        if let Err(e) = parsed
+            && !matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion)
+        {
+            let first = e.to_string().lines().next().unwrap_or_default().to_string();
+            wrong.push(format!("{at}: `{}`: {first}", args.join(" ")));
+        }
+    }
+    assert!(
+        wrong.is_empty(),
+        "{} of {} documented commands do not parse:\n{}",
+        wrong.len(),
+        commands.len(),
+        wrong.join("\n")
+    );
+}
+
+#[test]
+fn the_docs_command_reader_splits_as_a_shell_does() {
+    assert_eq!(
+        words(r#"wisplight render "a b.toml" -o 'x y.png' c\ d # a comment"#),
+        ["wisplight", "render", "a b.toml", "-o", "x y.png", "c d"]
+    );
+}

@@ -13,6 +13,32 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use engine::Stage;
 
+/// The `wisplight-bench` program's command line.
+#[derive(Debug, clap::Parser)]
+#[command(
+    name = "wisplight-bench",
+    bin_name = "wisplight bench",
+    version,
+    about = "Measures wisplight: stage timings, the shadow methods' accuracy, cluster scaling"
+)]
+pub struct Cli {
+    /// More log detail on stderr (-v info, -vv debug).
+    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    pub verbose: u8,
+    /// Only errors on stderr.
+    #[arg(short, long, global = true, conflicts_with = "verbose")]
+    pub quiet: bool,
+    #[command(subcommand)]
+    pub bench: Bench,
+}
+
+/// Runs the benchmark `cli` names: its exit code.
+pub fn run_cli(cli: Cli) -> std::process::ExitCode {
+    crate::app::start(cli.quiet, cli.verbose);
+    let result = crate::app::init_threads(cli.bench.threads()).and_then(|()| run(cli.bench));
+    crate::app::finish(result)
+}
+
 #[derive(Debug, clap::Subcommand)]
 pub enum Bench {
     /// Median time of the three shadow stages (density, transmittance,
