@@ -14,7 +14,7 @@ use std::time::Duration;
 use cluster::Listen;
 use cluster::Pki;
 use cluster::{ClusterError, RemoteExecutor, Tls};
-use engine::{Executor, LocalExecutor};
+use engine::{Executor, LocalExecutor, Strands};
 use glam::Vec3;
 use shadow::{DensityMap, Fiber, Light, LightFrame};
 use strands::{Style, StyleParams, WispModel};
@@ -29,6 +29,11 @@ fn pki() -> &'static Pki {
 fn other() -> &'static Pki {
     static PKI: OnceLock<Pki> = OnceLock::new();
     PKI.get_or_init(|| Pki::generate(&["127.0.0.1".into()]).unwrap())
+}
+
+/// Hair of this process, posed through no executor.
+fn here(hair: &strands::Hair) -> Strands<'_> {
+    Strands::Here { hair, posed: None }
 }
 
 /// A worker serving mutual TLS with `tls`, on a free port.
@@ -80,11 +85,11 @@ fn a_coordinator_with_the_clusters_credentials_gets_the_local_bytes() {
             .unwrap();
     let (mut a, mut b) = (DensityMap::new(frame), DensityMap::new(frame));
     LocalExecutor
-        .fill(0, &mut a, &hair, &fiber(), None)
+        .density(0, &mut a, here(&hair), &fiber())
         .unwrap();
-    remote.fill(0, &mut b, &hair, &fiber(), None).unwrap();
-    let ta = LocalExecutor.sweep(0, &a).unwrap();
-    let tb = remote.sweep(0, &b).unwrap();
+    remote.density(0, &mut b, here(&hair), &fiber()).unwrap();
+    let ta = LocalExecutor.transmittance(0, &a).unwrap();
+    let tb = remote.transmittance(0, &b).unwrap();
     let mut checked = 0;
     for p in hair.points().iter().step_by(7) {
         let (x, y) = (ta.optical_depth(*p, true), tb.optical_depth(*p, true));

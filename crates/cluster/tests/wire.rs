@@ -60,8 +60,28 @@ fn three_workers_give_the_local_map_and_transmittance_bit_for_bit() {
         RemoteExecutor::connect(&addrs, &Scene::default(), &options(DrawAt::Coordinator, 20))
             .unwrap();
     let (mut a, mut b) = (DensityMap::new(frame), DensityMap::new(frame));
-    let sa = local.fill(0, &mut a, &hair, &fiber, None).unwrap();
-    let sb = remote.fill(0, &mut b, &hair, &fiber, None).unwrap();
+    let sa = local
+        .density(
+            0,
+            &mut a,
+            engine::Strands::Here {
+                hair: &hair,
+                posed: None,
+            },
+            &fiber,
+        )
+        .unwrap();
+    let sb = remote
+        .density(
+            0,
+            &mut b,
+            engine::Strands::Here {
+                hair: &hair,
+                posed: None,
+            },
+            &fiber,
+        )
+        .unwrap();
     assert_eq!(sa, sb);
     for col in 0..frame.columns() {
         assert_eq!(a.meta(col), b.meta(col), "column {col}");
@@ -69,8 +89,8 @@ fn three_workers_give_the_local_map_and_transmittance_bit_for_bit() {
             assert_eq!(a.column(col, lo..hi + 1), b.column(col, lo..hi + 1));
         }
     }
-    let ta = local.sweep(0, &a).unwrap();
-    let tb = remote.sweep(0, &b).unwrap();
+    let ta = local.transmittance(0, &a).unwrap();
+    let tb = remote.transmittance(0, &b).unwrap();
     for p in hair.points().iter().step_by(13) {
         assert_eq!(
             ta.optical_depth(*p, true).to_bits(),
@@ -955,22 +975,21 @@ impl Executor for GivesUp {
     ) -> Result<(), EngineError> {
         self.inner.simulate(anim, plan, stats)
     }
-    fn fill(
+    fn density(
         &mut self,
         light: usize,
         map: &mut shadow::DensityMap,
-        hair: &strands::Hair,
+        strands: engine::Strands<'_>,
         fiber: &shadow::Fiber,
-        version: Option<u64>,
     ) -> Result<shadow::FillStats, EngineError> {
-        self.inner.fill(light, map, hair, fiber, version)
+        self.inner.density(light, map, strands, fiber)
     }
-    fn sweep(
+    fn transmittance(
         &mut self,
         light: usize,
         map: &shadow::DensityMap,
     ) -> Result<shadow::Transmittance, EngineError> {
-        self.inner.sweep(light, map)
+        self.inner.transmittance(light, map)
     }
     fn drawing(&mut self) -> Option<&mut dyn Drawing> {
         Some(self)

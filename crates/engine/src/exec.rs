@@ -47,7 +47,7 @@ pub struct PosePlan {
     /// not pushed).
     pub drawn_bodies: Vec<Body>,
     /// The pose counter the drawn hair has once posed;
-    /// [`Executor::fill`] is told it again.
+    /// [`Executor::density`] is told it again.
     pub version: u64,
     /// The lights whose map extents are measured, from `anchor`.
     pub lights: Vec<Light>,
@@ -184,6 +184,27 @@ pub struct DrawReport {
     pub composite_ms: f64,
 }
 
+/// The hair a density map is filled from.
+#[derive(Debug, Clone, Copy)]
+pub enum Strands<'a> {
+    /// Hair in this process. `posed` is its pose counter when it was posed
+    /// after [`Executor::simulate`] with a plan of that version (an
+    /// executor that holds the same hair elsewhere may fill from there),
+    /// `None` for any other hair.
+    Here {
+        /// The strands.
+        hair: &'a Hair,
+        /// Its pose counter, if posed through the executor.
+        posed: Option<u64>,
+    },
+    /// The hair the executor's [`Drawing`] part holds, posed there at
+    /// this counter by [`Drawing::pose`].
+    Held {
+        /// Its pose counter.
+        posed: u64,
+    },
+}
+
 /// Where the stages that grow with the hair run. Implementations must give
 /// exactly the results of [`LocalExecutor`] and the frame's own stages.
 pub trait Executor: Send + Sync + std::fmt::Debug {
@@ -202,22 +223,21 @@ pub trait Executor: Send + Sync + std::fmt::Debug {
         plan: &StepPlan,
         stats: &mut FrameStats,
     ) -> Result<(), EngineError>;
-    /// Adds the density of every strand of `hair` to `map` (empty, in its
-    /// frame) for light `light`. `version` is the hair's pose counter when
-    /// it was posed after [`Self::simulate`] or [`Drawing::pose`] with a plan
-    /// of that version (an executor that posed elsewhere fills from the
-    /// strands it posed there, and `hair` may be empty), `None` for any
-    /// other hair.
-    fn fill(
+    /// Stage 1, density: adds the density of every strand of `strands` to
+    /// `map` (empty, in its frame) for light `light`.
+    fn density(
         &mut self,
         light: usize,
         map: &mut DensityMap,
-        hair: &Hair,
+        strands: Strands<'_>,
         fiber: &Fiber,
-        version: Option<u64>,
     ) -> Result<FillStats, EngineError>;
-    /// Sweeps every column of `map` (paper 4.2).
-    fn sweep(&mut self, light: usize, map: &DensityMap) -> Result<Transmittance, EngineError>;
+    /// Stage 2, transmittance: sweeps every column of `map` (paper 4.2).
+    fn transmittance(
+        &mut self,
+        light: usize,
+        map: &DensityMap,
+    ) -> Result<Transmittance, EngineError>;
     /// The executor's drawing part, when it holds the drawn hair and
     /// poses, filters, shades and rasterizes it where it is; `None` (the
     /// default): the frame does, in this process.
@@ -237,7 +257,7 @@ pub trait Drawing: Send + Sync {
     /// Poses the drawn hair as `plan` says, where it is held (after the
     /// simulation's steps, if any), and reports on it.
     fn pose(&mut self, plan: &PosePlan) -> Result<PoseReport, EngineError>;
-    /// Filters the transmittance of the last [`Executor::sweep`] of every
+    /// Filters the transmittance of the last [`Executor::transmittance`] of every
     /// light at the drawn vertices, shades them and rasterizes them, where
     /// they are held: one partial picture per share, or the picture.
     fn draw(&mut self, job: &DrawJob) -> Result<DrawReport, EngineError>;
@@ -274,18 +294,26 @@ impl Executor for LocalExecutor {
         Ok(())
     }
 
-    fn fill(
+    fn density(
         &mut self,
         _light: usize,
         map: &mut DensityMap,
-        hair: &Hair,
+        strands: Strands<'_>,
         fiber: &Fiber,
-        _version: Option<u64>,
     ) -> Result<FillStats, EngineError> {
-        Ok(map.deposit(hair, 0..hair.strand_count(), fiber))
+        match strands {
+            Strands::Here { hair, .. } => Ok(map.deposit(hair, 0..hair.strand_count(), fiber)),
+            Strands::Held { .. } => Err(EngineError::executor(
+                "this process holds the hair: no hair is held elsewhere",
+            )),
+        }
     }
 
-    fn sweep(&mut self, _light: usize, map: &DensityMap) -> Result<Transmittance, EngineError> {
+    fn transmittance(
+        &mut self,
+        _light: usize,
+        map: &DensityMap,
+    ) -> Result<Transmittance, EngineError> {
         Ok(Transmittance::compute(map))
     }
 }

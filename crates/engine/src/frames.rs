@@ -19,7 +19,7 @@
 use std::time::Instant;
 
 use glam::Affine3A;
-use shadow::{DensityMapMethod, MethodConfig, ShadowInput};
+use shadow::{DensityMapMethod, MethodConfig, fit_to_extent};
 use sim::Body;
 use strands::Hair;
 
@@ -27,7 +27,7 @@ use crate::animate::Animator;
 use crate::collide::DensityRepulsion;
 use crate::{
     Composite, Drawn, EngineError, Executor, FrameStats, LocalExecutor, PosePlan, PoseReport,
-    Renderer, Scene, Stage, StepPlan,
+    Renderer, Scene, Stage, StepPlan, Strands,
 };
 
 /// Which hair a map or result was computed from: the pose counter.
@@ -135,8 +135,18 @@ fn no_drawing() -> EngineError {
     EngineError::executor("the executor stopped drawing in the middle of a frame")
 }
 
-/// No hair: what the density fill is handed for hair posed elsewhere.
-static NO_HAIR: std::sync::LazyLock<Hair> = std::sync::LazyLock::new(Hair::new);
+/// The hair a frame's maps are filled from, at pose counter `version`:
+/// the executor's when it draws elsewhere, else `hair`, here.
+fn strands_of(elsewhere: bool, hair: &Hair, version: Version) -> Strands<'_> {
+    if elsewhere {
+        Strands::Held { posed: version }
+    } else {
+        Strands::Here {
+            hair,
+            posed: Some(version),
+        }
+    }
+}
 
 impl Sequence {
     /// The frames of `scene`, in this process until an executor is set.
@@ -535,17 +545,13 @@ impl Sequence {
         if fx.self_shadow && self.shadow_at != Some(version) {
             let report = self.report(&mut stats)?.clone();
             let anchor = self.anim.anchor_at(&self.posed_head);
-            let hair = if elsewhere {
-                &*NO_HAIR
-            } else {
-                self.anim.hair()
-            };
+            let hair = self.anim.hair();
+            let strands = strands_of(elsewhere, hair, version);
             let (r, ex) = (&mut self.renderer, self.executor.as_mut());
             let extents = Some((anchor, &report.extents[..]));
             stats.samples = stats
                 .time(Stage::Density, || {
-                    r.shadows_mut()
-                        .density_with(hair, Some(version), extents, ex)
+                    r.shadows_mut().density_with(strands, extents, ex)
                 })?
                 .samples;
             stats.time(Stage::Transmittance, || {
@@ -652,31 +658,22 @@ impl Sequence {
             let elsewhere = self.draws_elsewhere();
             let report = self.report(stats)?.clone();
             let anchor = self.anim.anchor_at(&self.posed_head);
-            let hair = if elsewhere {
-                &*NO_HAIR
-            } else {
-                self.anim.hair()
-            };
-            let version = Some(self.version);
+            let strands = strands_of(elsewhere, self.anim.hair(), self.version);
             let ex = self.executor.as_mut();
             match self.collision_map.as_mut() {
                 Some(m) => {
-                    let input = ShadowInput {
-                        light: &self.scene.lights[0],
-                        hair,
-                        fiber: &self.scene.fiber,
-                        occluders: &[],
-                        extent: Some((anchor, report.extents[0])),
-                    };
+                    let light = &self.scene.lights[0];
+                    let frame = fit_to_extent(light, &[], (anchor, report.extents[0]), m.cells())?;
+                    let fiber = &self.scene.fiber;
                     stats.time(Stage::Density, || {
-                        m.build_with(&input, |map| ex.fill(0, map, hair, input.fiber, version))
+                        m.density_with(frame, &[], |map| ex.density(0, map, strands, fiber))
                     })?;
                 }
                 None => {
                     let shadows = self.renderer.shadows_mut();
                     let extents = Some((anchor, &report.extents[..]));
                     stats.time(Stage::Density, || {
-                        shadows.density_with(hair, version, extents, ex)
+                        shadows.density_with(strands, extents, ex)
                     })?;
                     // The shadow result now lags the map: recompute it.
                     self.shadow_at = None;

@@ -34,7 +34,7 @@ mod stats;
 pub use animate::{Animator, GROUPS, Groups, split_by};
 pub use exec::{
     DrawJob, DrawReport, Drawing, Drawn, Executor, LocalExecutor, PendingPicture, PosePlan,
-    PoseReport, StepPlan, step_wisps, step_wisps_while,
+    PoseReport, StepPlan, Strands, step_wisps, step_wisps_while,
 };
 pub use export::{CYCLES_FORMAT, CYCLES_SCRIPT, CyclesExport, cycles_export};
 pub use frames::Sequence;

@@ -4,7 +4,7 @@ use glam::{Affine3A, Vec3};
 use shadow::{Extent, Fiber, FillStats, Light, Occluder, ShadowInput, ShadowMethod};
 use strands::Hair;
 
-use crate::{EngineError, Executor, Head, LocalExecutor, Scene};
+use crate::{EngineError, Executor, Head, LocalExecutor, Scene, Strands};
 
 /// How far off an opaque surface its lookups of the hair's shadow go,
 /// along its normal, in map cells (see
@@ -105,34 +105,49 @@ impl ShadowPipeline {
     /// density map, fits the map to them and fills it. Returns the samples
     /// over all lights.
     pub fn density(&mut self, hair: &Hair) -> Result<FillStats, EngineError> {
-        self.density_with(hair, None, None, &mut LocalExecutor)
+        let strands = Strands::Here { hair, posed: None };
+        self.density_with(strands, None, &mut LocalExecutor)
     }
 
-    /// [`Self::density`] with the density map filled through `ex`, of hair
-    /// whose pose counter is `version` (see [`Executor::fill`]); the maps
-    /// are fitted to `extents` (one per light, measured from the anchor)
-    /// when given, else to `hair`'s points.
+    /// [`Self::density`] of `strands` with the density map filled through
+    /// `ex` (see [`Executor::density`]); the maps are fitted to `extents`
+    /// (one per light, measured from the anchor) when given, else to the
+    /// hair's points (hair held elsewhere needs its extents, and the
+    /// density map's method).
     pub fn density_with(
         &mut self,
-        hair: &Hair,
-        version: Option<u64>,
+        strands: Strands<'_>,
         extents: Option<(Vec3, &[Extent])>,
         ex: &mut dyn Executor,
     ) -> Result<FillStats, EngineError> {
         let mut total = FillStats::default();
         for (i, l) in self.lights.iter_mut().enumerate() {
-            let input = ShadowInput {
-                light: &l.light,
-                hair,
-                fiber: &self.fiber,
-                occluders: &self.occluders,
-                extent: extents.map(|(a, e)| (a, e[i])),
-            };
-            let stats = match &mut l.method {
-                ShadowMethod::DensityMap(m) => {
-                    m.build_with(&input, |map| ex.fill(i, map, hair, &self.fiber, version))?
+            let extent = extents.map(|(a, e)| (a, e[i]));
+            let (fiber, occluders) = (&self.fiber, &self.occluders[..]);
+            let stats = match (&mut l.method, strands) {
+                (ShadowMethod::DensityMap(m), _) => {
+                    let frame = match (extent, strands) {
+                        (Some(e), _) => shadow::fit_to_extent(&l.light, occluders, e, m.cells())?,
+                        (None, Strands::Here { hair, .. }) => ShadowInput {
+                            light: &l.light,
+                            hair,
+                            fiber,
+                            occluders,
+                            extent: None,
+                        }
+                        .fit(m.cells())?,
+                        (None, Strands::Held { .. }) => return Err(held_needs("its extents")),
+                    };
+                    m.density_with(frame, occluders, |map| ex.density(i, map, strands, fiber))?
                 }
-                other => other.build(&input)?,
+                (other, Strands::Here { hair, .. }) => other.build(&ShadowInput {
+                    light: &l.light,
+                    hair,
+                    fiber,
+                    occluders,
+                    extent,
+                })?,
+                (_, Strands::Held { .. }) => return Err(held_needs("the density map method")),
             };
             if stats.out_of_map > 0 {
                 tracing::warn!(
@@ -155,7 +170,9 @@ impl ShadowPipeline {
     pub fn transmittance_with(&mut self, ex: &mut dyn Executor) -> Result<(), EngineError> {
         for (i, l) in self.lights.iter_mut().enumerate() {
             match &mut l.method {
-                ShadowMethod::DensityMap(m) => m.prepare_with(|map| ex.sweep(i, map))?,
+                ShadowMethod::DensityMap(m) => {
+                    m.transmittance_with(|map| ex.transmittance(i, map))?
+                }
                 other => other.prepare(),
             }
         }
@@ -231,4 +248,9 @@ pub(crate) fn off_surface(f: &shadow::LightFrame, p: Vec3, n: Vec3) -> Vec3 {
             p + (n * HEAD_NORMAL_BIAS - ray * HEAD_LIGHT_BIAS) * width
         }
     }
+}
+
+/// The hair is held elsewhere, and a map of it needs `what`.
+fn held_needs(what: &str) -> EngineError {
+    EngineError::executor(format!("a shadow map of hair held elsewhere needs {what}"))
 }

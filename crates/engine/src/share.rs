@@ -302,7 +302,7 @@ impl Share {
 
     /// Adds the head, under the head motion's transform `pose`, to `map`
     /// as an opaque occluder, as the frame's shadow stages add it to theirs
-    /// (see [`shadow::DensityMapMethod::build_with`]): for a share that
+    /// (see [`shadow::DensityMapMethod::density_with`]): for a share that
     /// sweeps columns of a map summed where it is. False when the scene
     /// has no head.
     pub fn deposit_head(&mut self, map: &mut DensityMap, pose: glam::Affine3A) -> bool {

@@ -8,10 +8,9 @@ use std::path::Path;
 
 use engine::{
     Animator, DrawJob, DrawReport, Drawing, Drawn, EngineError, Executor, FrameStats, PosePlan,
-    PoseReport, Scene, Sequence, Share, StepPlan,
+    PoseReport, Scene, Sequence, Share, StepPlan, Strands,
 };
 use shadow::{DensityMap, Fiber, FillStats, Transmittance};
-use strands::Hair;
 
 /// The shares of a scene's hair, in this process.
 #[derive(Debug)]
@@ -57,15 +56,20 @@ impl Executor for Shares {
         Ok(())
     }
 
-    fn fill(
+    fn density(
         &mut self,
         _light: usize,
         map: &mut DensityMap,
-        _hair: &Hair,
+        strands: Strands<'_>,
         fiber: &Fiber,
-        version: Option<u64>,
     ) -> Result<FillStats, EngineError> {
-        let v = version.expect("posed hair");
+        let v = match strands {
+            Strands::Held { posed }
+            | Strands::Here {
+                posed: Some(posed), ..
+            } => posed,
+            Strands::Here { posed: None, .. } => panic!("the shares fill posed hair"),
+        };
         let mut total = FillStats::default();
         for s in &self.shares {
             total = total + s.deposit(v, map, fiber)?;
@@ -73,7 +77,11 @@ impl Executor for Shares {
         Ok(total)
     }
 
-    fn sweep(&mut self, light: usize, map: &DensityMap) -> Result<Transmittance, EngineError> {
+    fn transmittance(
+        &mut self,
+        light: usize,
+        map: &DensityMap,
+    ) -> Result<Transmittance, EngineError> {
         let frame = *map.frame();
         self.maps[light] = Some((frame, shadow::sweep(map, 0..frame.columns() as u32)));
         Ok(Transmittance::compute(map))
@@ -203,19 +211,22 @@ impl Executor for Unfinished {
         self.shares.simulate(anim, plan, stats)
     }
 
-    fn fill(
+    fn density(
         &mut self,
         light: usize,
         map: &mut DensityMap,
-        hair: &Hair,
+        strands: Strands<'_>,
         fiber: &Fiber,
-        version: Option<u64>,
     ) -> Result<FillStats, EngineError> {
-        self.shares.fill(light, map, hair, fiber, version)
+        self.shares.density(light, map, strands, fiber)
     }
 
-    fn sweep(&mut self, light: usize, map: &DensityMap) -> Result<Transmittance, EngineError> {
-        self.shares.sweep(light, map)
+    fn transmittance(
+        &mut self,
+        light: usize,
+        map: &DensityMap,
+    ) -> Result<Transmittance, EngineError> {
+        self.shares.transmittance(light, map)
     }
 
     fn drawing(&mut self) -> Option<&mut dyn Drawing> {

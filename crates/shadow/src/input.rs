@@ -32,11 +32,22 @@ impl ShadowInput<'_> {
     pub fn fit(&self, n: u32) -> Result<LightFrame, ShadowError> {
         let corners: Vec<Vec3> = self.occluders.iter().flat_map(|o| o.corners()).collect();
         match self.extent {
-            Some((anchor, e)) => {
-                let all = e.union(Extent::of(self.light, anchor, &corners));
-                LightFrame::fit_extent(self.light, anchor, all, n)
-            }
+            Some(extent) => fit_to_extent(self.light, self.occluders, extent, n),
             None => LightFrame::fit_with(self.light, self.hair.points(), &corners, n),
         }
     }
+}
+
+/// A map of `n` cells a side for `light`, fitted to hair of known
+/// [`Extent`] along the light's axes from an anchor point (hair held
+/// elsewhere) and to the `occluders`.
+pub fn fit_to_extent(
+    light: &Light,
+    occluders: &[Occluder],
+    (anchor, extent): (Vec3, Extent),
+    n: u32,
+) -> Result<LightFrame, ShadowError> {
+    let corners: Vec<Vec3> = occluders.iter().flat_map(|o| o.corners()).collect();
+    let all = extent.union(Extent::of(light, anchor, &corners));
+    LightFrame::fit_extent(light, anchor, all, n)
 }

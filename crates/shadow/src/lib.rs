@@ -35,7 +35,7 @@ pub use density::{ColumnMeta, DEPOSIT_RUN_WORK, DEPTH_QUANTUM, DensityMap, FillS
 pub use fiber::Fiber;
 pub use footprint_reference::FootprintReference;
 pub use frame::{Extent, Fan, Light, LightFrame, MAX_CELLS, MAX_FAN_TAN};
-pub use input::{OPAQUE_DEPTH, ShadowInput};
+pub use input::{OPAQUE_DEPTH, ShadowInput, fit_to_extent};
 pub use method::{DensityMapMethod, ShadowMethod};
 pub use occluder::{Occluder, OccluderView};
 pub use peers::{DeepOpacityMap, DeepShadowMap, DensityClustering, OpacityShadowMap};

@@ -19,6 +19,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
+use crate::Occluder;
 use crate::config::MethodConfig;
 use crate::footprint_reference::FootprintReference;
 use crate::input::{OPAQUE_DEPTH, ShadowInput};
@@ -183,15 +184,21 @@ impl DensityMapMethod {
         self.map.as_ref()
     }
 
-    /// Stage 1 with the hair's density filled by `fill`: fits the map and
-    /// empties it, lets `fill` add the density of every strand to the empty
-    /// map, then adds the occluders.
-    pub fn build_with<E: From<ShadowError>>(
+    /// Its cells a side.
+    pub fn cells(&self) -> u32 {
+        self.cells
+    }
+
+    /// Stage 1 (density) with the hair's density filled by `fill`: empties
+    /// the map in `frame` (fitted by [`ShadowInput::fit`] or
+    /// [`fit_to_extent`](crate::fit_to_extent)), lets `fill` add the
+    /// density of every strand to it, then adds the `occluders`.
+    pub fn density_with<E>(
         &mut self,
-        input: &ShadowInput,
+        frame: LightFrame,
+        occluders: &[Occluder],
         fill: impl FnOnce(&mut DensityMap) -> Result<FillStats, E>,
     ) -> Result<FillStats, E> {
-        let frame = input.fit(self.cells)?;
         let map = match &mut self.map {
             Some(m) => {
                 m.set_frame(frame);
@@ -201,14 +208,14 @@ impl DensityMapMethod {
         };
         self.trans = None;
         let stats = fill(map)?;
-        for o in input.occluders {
+        for o in occluders {
             map.deposit_body(o, OPAQUE_DEPTH);
         }
         Ok(stats)
     }
 
-    /// Stage 2 with the columns swept by `sweep`.
-    pub fn prepare_with<E>(
+    /// Stage 2 (transmittance) with the columns swept by `sweep`.
+    pub fn transmittance_with<E>(
         &mut self,
         sweep: impl FnOnce(&DensityMap) -> Result<Transmittance, E>,
     ) -> Result<(), E> {
@@ -220,7 +227,10 @@ impl DensityMapMethod {
     fn build(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
         // The map is already empty: deposit, without clearing it again.
         let all = 0..input.hair.strand_count();
-        self.build_with(input, |map| Ok(map.deposit(input.hair, all, input.fiber)))
+        let frame = input.fit(self.cells)?;
+        self.density_with(frame, input.occluders, |map| {
+            Ok::<_, ShadowError>(map.deposit(input.hair, all, input.fiber))
+        })
     }
 
     fn prepare(&mut self) {

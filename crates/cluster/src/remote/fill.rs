@@ -4,47 +4,52 @@ use super::*;
 
 impl RemoteExecutor {
     /// The Deposit requests of one fill: the workers' posed strands when
-    /// they hold hair `version`, else shares of `hair`'s strands.
+    /// they hold hair `version`, else shares of `hair`'s strands; `None`
+    /// when they hold another version and no strands are given.
     pub(super) fn deposit_requests(
         &self,
         id: u64,
         light: u32,
         frame: &LightFrame,
-        hair: &Hair,
+        hair: Option<&Hair>,
         version: Option<u64>,
-    ) -> Vec<(Remote, Vec<pb::DepositChunk>)> {
+    ) -> Option<Vec<(Remote, Vec<pb::DepositChunk>)>> {
         if version.is_some() && version == self.posed && self.shares.is_some() {
-            return self
-                .workers
-                .iter()
-                .map(|w| {
-                    let c = pb::DepositChunk {
-                        frame_id: id,
-                        light,
-                        map: Some(wire::frame_to_pb(frame)),
-                        posed: true,
-                        version: version.unwrap_or_default(),
-                        filter: self.filter,
-                        ..Default::default()
-                    };
-                    (w.clone(), vec![c])
-                })
-                .collect();
+            return Some(
+                self.workers
+                    .iter()
+                    .map(|w| {
+                        let c = pb::DepositChunk {
+                            frame_id: id,
+                            light,
+                            map: Some(wire::frame_to_pb(frame)),
+                            posed: true,
+                            version: version.unwrap_or_default(),
+                            filter: self.filter,
+                            ..Default::default()
+                        };
+                        (w.clone(), vec![c])
+                    })
+                    .collect(),
+            );
         }
+        let hair = hair.filter(|h| h.strand_count() > 0)?;
         let offsets = hair.offsets();
         let shares = split_by(hair.strand_count(), self.workers.len(), |s| {
             u64::from(offsets[s + 1] - offsets[s]) + 1
         });
-        self.workers
-            .iter()
-            .zip(shares)
-            .map(|(w, share)| {
-                (
-                    w.clone(),
-                    wire::deposit_chunks(id, light, frame, hair, share),
-                )
-            })
-            .collect()
+        Some(
+            self.workers
+                .iter()
+                .zip(shares)
+                .map(|(w, share)| {
+                    (
+                        w.clone(),
+                        wire::deposit_chunks(id, light, frame, hair, share),
+                    )
+                })
+                .collect(),
+        )
     }
 
     /// One Deposit round in which the workers sum and sweep light
@@ -250,7 +255,7 @@ impl RemoteExecutor {
         &mut self,
         light: usize,
         map: &mut DensityMap,
-        hair: &Hair,
+        hair: Option<&Hair>,
         version: Option<u64>,
     ) -> Result<FillStats, ClusterError> {
         if self.draw == DrawAt::Workers {
@@ -261,14 +266,13 @@ impl RemoteExecutor {
             self.calls
         });
         let frame = *map.frame();
-        let requests = self.deposit_requests(id, light as u32, &frame, hair, version);
-        let posed = requests.first().is_some_and(|(_, c)| c[0].posed);
-        if !posed && hair.strand_count() == 0 {
+        let Some(requests) = self.deposit_requests(id, light as u32, &frame, hair, version) else {
             return Err(ClusterError::Setup(format!(
                 "the workers hold hair version {:?}, not {version:?}, and no strands were given",
                 self.posed
             )));
-        }
+        };
+        let posed = requests.first().is_some_and(|(_, c)| c[0].posed);
         let sent: u64 = requests
             .iter()
             .flat_map(|(_, c)| c)

@@ -28,7 +28,7 @@ use std::time::{Duration, Instant};
 
 use engine::{
     Animator, DrawJob, DrawReport, Drawing, Drawn, EngineError, Executor, FrameStats,
-    PendingPicture, PosePlan, PoseReport, Scene, SceneSource, Stage, StepPlan, split_by,
+    PendingPicture, PosePlan, PoseReport, Scene, SceneSource, Stage, StepPlan, Strands, split_by,
 };
 use prost::Message;
 use shadow::{ColumnSlab, DensityMap, Fiber, FillStats, LightFrame, Transmittance};
@@ -551,14 +551,18 @@ impl Executor for RemoteExecutor {
         Ok(())
     }
 
-    fn fill(
+    fn density(
         &mut self,
         light: usize,
         map: &mut DensityMap,
-        hair: &Hair,
+        strands: Strands<'_>,
         _fiber: &Fiber,
-        version: Option<u64>,
     ) -> Result<FillStats, EngineError> {
+        // Hair held on the workers needs no strands sent.
+        let (hair, version) = match strands {
+            Strands::Here { hair, posed } => (Some(hair), posed),
+            Strands::Held { posed } => (None, Some(posed)),
+        };
         for x in [&mut self.exchanged, &mut self.swept_on_workers] {
             if let Some(x) = x.get_mut(light) {
                 *x = None;
@@ -604,7 +608,11 @@ impl Executor for RemoteExecutor {
             .map_err(engine_error)
     }
 
-    fn sweep(&mut self, light: usize, map: &DensityMap) -> Result<Transmittance, EngineError> {
+    fn transmittance(
+        &mut self,
+        light: usize,
+        map: &DensityMap,
+    ) -> Result<Transmittance, EngineError> {
         if self.posed.is_some() && self.exchanged.get(light).copied().flatten() == self.posed {
             return self.sweep_here(light, map).map_err(engine_error);
         }
