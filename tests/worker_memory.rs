@@ -105,13 +105,13 @@ fn a_worker_stays_under_its_memory_bound_whatever_it_is_sent() {
         let mut c = session(&w.addr).await;
 
         // Strands of no points, a million a chunk, far past the budget.
-        let nothing = (0..40).map(|i| pb::DepositChunk {
+        let nothing = (0..40).map(|i| pb::DensityChunk {
             map: (i == 0).then(|| frame(64)),
             strand_lengths: vec![0; 1 << 20],
             ..Default::default()
         });
         let m = exhausted(
-            c.deposit(tokio_stream(nothing)).await,
+            c.density(tokio_stream(nothing)).await,
             "zero-length strands",
         );
         assert!(m.contains("memory-mib"), "{m}");
@@ -150,7 +150,7 @@ fn a_worker_stays_under_its_memory_bound_whatever_it_is_sent() {
         let calls = (0..4).map(|i| {
             let mut c = if i % 2 == 0 { c.clone() } else { d.clone() };
             async move {
-                let chunk = pb::DepositChunk {
+                let chunk = pb::DensityChunk {
                     map: Some(frame(256)),
                     strand_lengths: vec![2; 1000],
                     points: (0..1000)
@@ -163,7 +163,7 @@ fn a_worker_stays_under_its_memory_bound_whatever_it_is_sent() {
                 };
                 let mut r = tonic::Request::new(tokio_stream([chunk]));
                 r.set_timeout(Duration::from_secs(60));
-                let mut s = c.deposit(r).await.unwrap().into_inner();
+                let mut s = c.density(r).await.unwrap().into_inner();
                 let mut samples = 0;
                 while let Some(m) = s.message().await.unwrap() {
                     samples += m.samples;

@@ -59,6 +59,23 @@ pub struct ScalingArgs {
     pub threads: crate::cmd::Threads,
 }
 
+/// The `wisplight` program that serves the workers: beside this one (as
+/// cargo builds and installs them).
+fn wisplight_program() -> anyhow::Result<std::path::PathBuf> {
+    let me = std::env::current_exe().context("cannot find this program")?;
+    let beside = me.with_file_name("wisplight");
+    if beside.is_file() {
+        Ok(beside)
+    } else {
+        Err(crate::cmd::usage(format!(
+            "bench scaling starts `wisplight worker` processes: no wisplight beside {} \
+             (`cargo install --path .` installs both programs, `cargo build --release` \
+             builds both into target/release)",
+            me.display()
+        )))
+    }
+}
+
 /// A worker process on a free localhost port.
 struct WorkerProcess {
     child: Child,
@@ -68,7 +85,7 @@ struct WorkerProcess {
 impl WorkerProcess {
     /// Worker `node` (1-based), on its emulated node when there are any.
     fn start(nodes: &Nodes, node: u32) -> anyhow::Result<WorkerProcess> {
-        let exe = std::env::current_exe().context("cannot find this program to start workers")?;
+        let exe = wisplight_program()?;
         let mut cmd = nodes.worker_command(&exe, node);
         let mut child = cmd
             .stdin(Stdio::null())
@@ -116,8 +133,8 @@ struct Row {
     step_ms: f64,
     step_compute_ms: f64,
     pose_ms: f64,
-    fill_ms: f64,
-    sweep_ms: f64,
+    density_ms: f64,
+    transmittance_ms: f64,
     /// Wall time of the Draw calls, and the slowest worker's compute in them.
     draw_ms: f64,
     draw_compute_ms: f64,
@@ -145,8 +162,8 @@ impl Row {
             step_ms: 0.0,
             step_compute_ms: 0.0,
             pose_ms: 0.0,
-            fill_ms: 0.0,
-            sweep_ms: 0.0,
+            density_ms: 0.0,
+            transmittance_ms: 0.0,
             draw_ms: 0.0,
             draw_compute_ms: 0.0,
             band_wait_ms: 0.0,
@@ -252,8 +269,8 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
                     let (b1, c1) = (*lock(&traffic)?, *lock(&timing)?);
                     let step = c1.step_wall_ms - c0.step_wall_ms;
                     let pose = c1.pose_ms - c0.pose_ms;
-                    let fill = c1.fill_ms - c0.fill_ms;
-                    let sweep = c1.sweep_ms - c0.sweep_ms;
+                    let fill = c1.density_ms - c0.density_ms;
+                    let sweep = c1.transmittance_ms - c0.transmittance_ms;
                     let drawn = c1.draw_ms - c0.draw_ms;
                     frames_traffic.push(b1.since(&b0));
                     for (v, x) in v.iter_mut().zip([
@@ -297,8 +314,8 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
                 step_ms: m[1],
                 step_compute_ms: m[2],
                 pose_ms: m[3],
-                fill_ms: m[4],
-                sweep_ms: m[5],
+                density_ms: m[4],
+                transmittance_ms: m[5],
                 draw_ms: m[6],
                 draw_compute_ms: m[7],
                 coordinator_ms: m[8],
@@ -327,14 +344,14 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
         }
     };
     table(format!(
-        "{:<28} {:>8} {:>7} {:>7} {:>13} {:>6} {:>6} {:>13} {:>11} {:>7} {:>7} {:>5}",
+        "{:<28} {:>8} {:>7} {:>7} {:>13} {:>7} {:>7} {:>13} {:>11} {:>7} {:>7} {:>5}",
         "config",
         "frame ms",
         "vs 1 w",
         "vs proc",
         "step/slowest",
-        "fill",
-        "sweep",
+        "density",
+        "transm",
         "draw/slowest",
         "wait/comp",
         "coord",
@@ -347,15 +364,15 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
             (_, Some(o)) => format!("{:.2}x", o / r.frame_ms),
         };
         table(format!(
-            "{:<28} {:>8.1} {:>7} {:>6.2}x {:>6.1}/{:<6.1} {:>6.1} {:>6.1} {:>6.1}/{:<6.1} {:>5.1}/{:<5.1} {:>7.1} {:>7.3} {:>5}",
+            "{:<28} {:>8.1} {:>7} {:>6.2}x {:>6.1}/{:<6.1} {:>7.1} {:>7.1} {:>6.1}/{:<6.1} {:>5.1}/{:<5.1} {:>7.1} {:>7.3} {:>5}",
             r.label,
             r.frame_ms,
             vs1,
             single / r.frame_ms,
             r.step_ms + r.pose_ms,
             r.step_compute_ms,
-            r.fill_ms,
-            r.sweep_ms,
+            r.density_ms,
+            r.transmittance_ms,
             r.draw_ms,
             r.draw_compute_ms,
             r.band_wait_ms,
@@ -366,7 +383,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
         ));
     }
     eprintln!(
-        "bench scaling: medians per frame; step = wall time of the wisps' Step (or Pose) calls / the slowest worker's own compute; fill = Deposit calls (with two workers or more drawing: the workers summing each other's columns) and merging the sums; sweep = Sweep calls and assembling the slabs (with two workers or more drawing: the coordinator's own sweep of its copy, the workers' swept columns being gathered among them); draw = Draw calls, with the compositing (on the workers, or decoding partial pictures here) / the slowest worker's filter, shade and rasterization; wait/comp = compositing on the workers: the slowest worker's wait for the others' stripes of its band / its resolving of the band; coord = the rest of the frame on the coordinator (the self-collision field, and with one worker the head and compositing, or with the coordinator drawing: posing, filtering, shading and drawing every strand); MB = bytes on the wire per frame; same = pictures identical to one process"
+        "bench scaling: medians per frame; step = wall time of the wisps' Step (or Pose) calls / the slowest worker's own compute; density = Density calls (with two workers or more drawing: the workers summing each other's columns) and merging the sums; transm = Transmittance calls and assembling the slabs (with two workers or more drawing: the coordinator's own sweep of its copy, the workers' swept columns being gathered among them); draw = Draw calls, with the compositing (on the workers, or decoding partial pictures here) / the slowest worker's filter, shade and rasterization; wait/comp = compositing on the workers: the slowest worker's wait for the others' stripes of its band / its resolving of the band; coord = the rest of the frame on the coordinator (the self-collision field, and with one worker the head and compositing, or with the coordinator drawing: posing, filtering, shading and drawing every strand); MB = bytes on the wire per frame; same = pictures identical to one process"
     );
     for r in rows.iter().skip(1) {
         eprintln!(
@@ -432,8 +449,8 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
                 "step_ms": r.step_ms,
                 "slowest_worker_ms": r.step_compute_ms,
                 "pose_ms": r.pose_ms,
-                "fill_ms": r.fill_ms,
-                "sweep_ms": r.sweep_ms,
+                "density_ms": r.density_ms,
+                "transmittance_ms": r.transmittance_ms,
                 "draw_ms": r.draw_ms,
                 "slowest_draw_ms": r.draw_compute_ms,
                 "band_wait_ms": r.band_wait_ms,

@@ -26,7 +26,7 @@ pub struct Traffic {
     pub step_sent: u64,
     /// Wisp states received (Step replies).
     pub wisps_received: u64,
-    /// Strands sent to workers (Deposit requests).
+    /// Strands sent to workers (Density requests).
     pub strands_sent: u64,
     /// Partial density columns received.
     pub density_received: u64,
@@ -123,10 +123,10 @@ pub struct Timing {
     pub step_wall_ms: f64,
     /// The slowest worker's own compute time in each Step, summed.
     pub step_compute_ms: f64,
-    /// Wall time of Deposit calls plus merging their partial densities.
-    pub fill_ms: f64,
-    /// Wall time of Sweep calls plus assembling their slabs.
-    pub sweep_ms: f64,
+    /// Wall time of Density calls plus merging their partial densities.
+    pub density_ms: f64,
+    /// Wall time of Transmittance calls plus assembling their slabs.
+    pub transmittance_ms: f64,
     /// Wall time of Pose calls (hair posed without steps).
     pub pose_ms: f64,
     /// Wall time of Draw calls plus decoding their partial pictures.
@@ -142,7 +142,7 @@ pub struct Timing {
     /// Draw rounds whose compositing on the workers failed and was done
     /// on the coordinator instead.
     pub composite_fallbacks: u32,
-    /// Deposit rounds whose summing and sweeping on the workers failed and
+    /// Density rounds whose summing and sweeping on the workers failed and
     /// were done through the coordinator instead.
     pub exchange_fallbacks: u32,
     /// Workers lost and their work handed to the survivors.

@@ -364,7 +364,7 @@ fn a_session_past_its_own_memory_is_refused_and_the_others_are_served() {
             tokio_stream::iter(protocol::deposit_chunks(1, 0, &frame, &hair, 0..strands))
         };
         // 60 MB: past this session's 32 MiB, far within the worker's.
-        let e = a.deposit(deposit(1_000_000)).await.unwrap_err();
+        let e = a.density(deposit(1_000_000)).await.unwrap_err();
         assert_eq!(e.code(), tonic::Code::ResourceExhausted, "{}", e.message());
         assert!(
             e.message().contains("--max-session-memory-mib"),
@@ -373,7 +373,7 @@ fn a_session_past_its_own_memory_is_refused_and_the_others_are_served() {
         );
         // 6 MB: served, in this session and the other.
         for c in [&mut a, &mut b] {
-            let mut s = c.deposit(deposit(100_000)).await.unwrap().into_inner();
+            let mut s = c.density(deposit(100_000)).await.unwrap().into_inner();
             let mut samples = 0;
             while let Some(m) = s.message().await.unwrap() {
                 samples += m.samples;

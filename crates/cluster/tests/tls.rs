@@ -181,7 +181,7 @@ fn workers_that_cannot_call_each_other_leave_the_compositing_to_the_coordinator(
     let (t, timing) = drawn_over_tls(&worker, &coordinator, 2, 4);
     // Two rounds fail (the workers refuse each other's certificate), then
     // the coordinator composites every frame; nobody is dropped. So with
-    // summing and sweeping the maps: two Deposit rounds fail, then the
+    // summing and sweeping the maps: two Density rounds fail, then the
     // coordinator sums the densities and hands out the columns.
     assert_eq!(timing.composite_fallbacks, 2, "{timing:?}");
     assert_eq!(timing.exchange_fallbacks, 2, "{timing:?}");

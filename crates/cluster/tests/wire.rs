@@ -111,9 +111,9 @@ fn a_worker_refuses_another_protocol_version_and_calls_before_hello() {
         let mut c = WorkerClient::connect(format!("http://{addr}"))
             .await
             .unwrap();
-        let chunk = pb::DepositChunk::default();
+        let chunk = pb::DensityChunk::default();
         let e = c
-            .deposit(tokio_stream::iter(vec![chunk]))
+            .density(tokio_stream::iter(vec![chunk]))
             .await
             .unwrap_err();
         assert_eq!(e.code(), tonic::Code::FailedPrecondition);
@@ -148,39 +148,39 @@ fn malformed_messages_get_an_error_and_the_worker_lives_on() {
     rt.block_on(async {
         let mut c = greeted_client(addr).await;
         let good = protocol::frame_to_pb(&frame);
-        let cases: Vec<pb::DepositChunk> = vec![
+        let cases: Vec<pb::DensityChunk> = vec![
             // No frame.
-            pb::DepositChunk::default(),
+            pb::DensityChunk::default(),
             // Lengths that do not match the points.
-            pb::DepositChunk {
+            pb::DensityChunk {
                 map: Some(good.clone()),
                 strand_lengths: vec![3],
                 points: vec![0.0; 6],
                 ..Default::default()
             },
             // A NaN point.
-            pb::DepositChunk {
+            pb::DensityChunk {
                 map: Some(good.clone()),
                 strand_lengths: vec![2],
                 points: vec![0.0, 0.0, 0.0, f32::NAN, 0.0, 0.0],
                 ..Default::default()
             },
             // An absurd map.
-            pb::DepositChunk {
+            pb::DensityChunk {
                 map: Some(pb::MapFrame {
                     n_cells: 100_000,
                     ..good.clone()
                 }),
                 ..Default::default()
             },
-            pb::DepositChunk {
+            pb::DensityChunk {
                 map: Some(pb::MapFrame {
                     ds: f32::INFINITY,
                     ..good.clone()
                 }),
                 ..Default::default()
             },
-            pb::DepositChunk {
+            pb::DensityChunk {
                 map: Some(pb::MapFrame {
                     axes: vec![1.0; 2],
                     ..good.clone()
@@ -190,7 +190,7 @@ fn malformed_messages_get_an_error_and_the_worker_lives_on() {
         ];
         for chunk in cases {
             let e = c
-                .deposit(tokio_stream::iter(vec![chunk.clone()]))
+                .density(tokio_stream::iter(vec![chunk.clone()]))
                 .await
                 .unwrap_err();
             assert_eq!(
@@ -243,7 +243,7 @@ fn malformed_messages_get_an_error_and_the_worker_lives_on() {
         ];
         for chunk in sweeps {
             let e = c
-                .sweep(tokio_stream::iter(vec![chunk.clone()]))
+                .transmittance(tokio_stream::iter(vec![chunk.clone()]))
                 .await
                 .unwrap_err();
             assert_eq!(
@@ -254,14 +254,14 @@ fn malformed_messages_get_an_error_and_the_worker_lives_on() {
             );
         }
         // Still serving: a good call works.
-        let ok = pb::DepositChunk {
+        let ok = pb::DensityChunk {
             map: Some(good),
             strand_lengths: vec![2],
             points: vec![0.0, 0.5, -0.5, 0.0, 0.5, 0.5],
             ..Default::default()
         };
         let mut s = c
-            .deposit(tokio_stream::iter(vec![ok]))
+            .density(tokio_stream::iter(vec![ok]))
             .await
             .unwrap()
             .into_inner();
@@ -428,7 +428,7 @@ fn three_workers_give_the_local_animation_byte_for_byte_drawing_anywhere() {
         let first = after_first.unwrap();
         let t = traffic.lock().unwrap().since(&first);
         // Later frames: the wisps are stepped on the workers, and the
-        // density filled from the strands they posed: the Deposit requests
+        // density filled from the strands they posed: the Density requests
         // carry a map frame (about 70 bytes) and, drawing on the workers,
         // the column plan (addresses, sessions, the head: about 300), no
         // strand (a strand is 200+ bytes).
@@ -665,19 +665,19 @@ fn malformed_assign_and_step_calls_get_an_error_and_the_worker_lives_on() {
         assert!(!report.bounds.is_empty() && !report.extents[0].is_empty());
         let light = Light::directional(Vec3::NEG_Y).unwrap();
         let frame = LightFrame::centered(&light, Vec3::ZERO, 80.0, 8).unwrap();
-        let posed = |version| pb::DepositChunk {
+        let posed = |version| pb::DensityChunk {
             map: Some(protocol::frame_to_pb(&frame)),
             posed: true,
             version,
             ..Default::default()
         };
         let e = c
-            .deposit(tokio_stream::iter(vec![posed(6)]))
+            .density(tokio_stream::iter(vec![posed(6)]))
             .await
             .unwrap_err();
         assert_eq!(e.code(), tonic::Code::FailedPrecondition, "{}", e.message());
         let mut s = c
-            .deposit(tokio_stream::iter(vec![posed(7)]))
+            .density(tokio_stream::iter(vec![posed(7)]))
             .await
             .unwrap()
             .into_inner();
@@ -897,7 +897,7 @@ fn an_assign_past_the_limits_is_refused_saying_which() {
 /// A Deposit of `strands` two-point strands across a map of `cells` a
 /// side and out beyond it on both sides: each cut into `4 * cells` pieces,
 /// the most a segment is.
-fn crossing_deposit(cells: u32, strands: usize) -> Vec<pb::DepositChunk> {
+fn crossing_deposit(cells: u32, strands: usize) -> Vec<pb::DensityChunk> {
     let light = Light::directional(Vec3::X).unwrap();
     let frame = LightFrame::centered(&light, Vec3::ZERO, 2.0, cells).unwrap();
     let mut hair = strands::Hair::new();
@@ -927,24 +927,24 @@ fn a_deposit_past_its_deadline_stops_and_gives_its_memory_back() {
         let mut long = tonic::Request::new(tokio_stream::iter(crossing_deposit(256, 300_000)));
         long.set_timeout(Duration::from_millis(500));
         let t = std::time::Instant::now();
-        assert!(c.deposit(long).await.is_err());
+        assert!(c.density(long).await.is_err());
         let sent = t.elapsed();
         // The next map fits only once the first is given back: at once,
         // had the deposit stopped; seconds later otherwise.
         let mut next = tonic::Request::new(tokio_stream::iter(crossing_deposit(256, 10)));
         next.set_timeout(Duration::from_secs(2));
-        let r = c.deposit(next).await;
+        let r = c.density(next).await;
         assert!(r.is_ok(), "{r:?} (the first call took {sent:?})");
         // Received strands past the budget are refused, saying which limit.
         let e = c
-            .deposit(tokio_stream::iter(crossing_deposit(8, 5_000_000)))
+            .density(tokio_stream::iter(crossing_deposit(8, 5_000_000)))
             .await
             .unwrap_err();
         assert_eq!(e.code(), tonic::Code::ResourceExhausted, "{}", e.message());
         assert!(e.message().contains("--max-memory-mib"), "{}", e.message());
         // A map larger than the whole budget is refused, not waited for.
         let e = c
-            .deposit(tokio_stream::iter(crossing_deposit(512, 1)))
+            .density(tokio_stream::iter(crossing_deposit(512, 1)))
             .await
             .unwrap_err();
         assert_eq!(e.code(), tonic::Code::ResourceExhausted, "{}", e.message());

@@ -111,8 +111,9 @@ pub struct DrawJob {
     /// Whether the lights' transmittance is looked up at every vertex;
     /// otherwise it is 1.
     pub shadows: bool,
-    /// Whether the lookups are filtered (trilinear) or take the cell's value.
-    pub filter: bool,
+    /// Whether the filter stage interpolates the transmittance trilinearly
+    /// or takes the cell's value (the scene's `shadow.filter`).
+    pub trilinear: bool,
     /// The head transform: hair behind the head is hidden.
     pub head: Affine3A,
     /// Fragments of a pixel composited front to back

@@ -256,7 +256,7 @@ impl Renderer {
             shading: s.shading,
             lights: self.lights(),
             shadows,
-            filter: s.shadow.method.filter(),
+            trilinear: s.shadow.method.filter(),
             head: self.shadows.head_pose(),
             nearest: s.render.nearest,
         })

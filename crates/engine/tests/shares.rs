@@ -115,7 +115,7 @@ impl Drawing for Shares {
             let mine: Vec<Transmittance> = maps
                 .iter()
                 .map(|(frame, slab)| {
-                    let need = s.columns_read(job.version, frame, job.filter).unwrap();
+                    let need = s.columns_read(job.version, frame, job.trilinear).unwrap();
                     Transmittance::assemble(*frame, [slab.keep(&need)]).unwrap()
                 })
                 .collect();

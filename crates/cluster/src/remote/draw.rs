@@ -465,7 +465,7 @@ impl BandRound {
     }
 }
 
-/// What one worker's Deposit reply held, decoded and checked.
+/// What one worker's Density reply held, decoded and checked.
 #[derive(Default)]
 pub(super) struct Gathered {
     pub(super) columns: Vec<wire::Columns>,

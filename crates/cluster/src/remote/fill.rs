@@ -1,9 +1,9 @@
-//! The coordinator's shadow calls: filling the density map (Deposit), with the workers summing and sweeping it among themselves or here, and the sweep (Sweep).
+//! The coordinator's shadow calls: filling the density map (Density), with the workers summing and sweeping it among themselves or here, and the sweep (Transmittance).
 
 use super::*;
 
 impl RemoteExecutor {
-    /// The Deposit requests of one fill: the workers' posed strands when
+    /// The Density requests of one fill: the workers' posed strands when
     /// they hold hair `version`, else shares of `hair`'s strands; `None`
     /// when they hold another version and no strands are given.
     pub(super) fn deposit_requests(
@@ -13,19 +13,19 @@ impl RemoteExecutor {
         frame: &LightFrame,
         hair: Option<&Hair>,
         version: Option<u64>,
-    ) -> Option<Vec<(Remote, Vec<pb::DepositChunk>)>> {
+    ) -> Option<Vec<(Remote, Vec<pb::DensityChunk>)>> {
         if version.is_some() && version == self.posed && self.shares.is_some() {
             return Some(
                 self.workers
                     .iter()
                     .map(|w| {
-                        let c = pb::DepositChunk {
+                        let c = pb::DensityChunk {
                             frame_id: id,
                             light,
                             map: Some(wire::frame_to_pb(frame)),
                             posed: true,
                             version: version.unwrap_or_default(),
-                            filter: self.filter,
+                            trilinear: self.filter,
                             ..Default::default()
                         };
                         (w.clone(), vec![c])
@@ -52,7 +52,7 @@ impl RemoteExecutor {
         )
     }
 
-    /// One Deposit round in which the workers sum and sweep light
+    /// One Density round in which the workers sum and sweep light
     /// `light`'s map among themselves (see [`wire::ColumnPlan`]): `map`
     /// gets the sum of every worker's columns, each as its owner summed
     /// it. Any failure of the round is the round's ([`ClusterError::Exchange`]),
@@ -103,13 +103,13 @@ impl RemoteExecutor {
                 tls_domain: self.tls_domain.clone(),
                 head,
             };
-            let c = pb::DepositChunk {
+            let c = pb::DensityChunk {
                 frame_id: version,
                 light: light as u32,
                 map: Some(wire::frame_to_pb(&frame)),
                 posed: true,
                 version,
-                filter: self.filter,
+                trilinear: self.filter,
                 columns: Some(plan.to_pb()),
                 ..Default::default()
             };
@@ -120,7 +120,7 @@ impl RemoteExecutor {
         let replies = fan_out_all(
             &self.rt,
             requests,
-            "deposit",
+            "density",
             self.deadline,
             move |mut w, (chunk, range)| async move {
                 // A worker that gave up for another's sake names no
@@ -131,13 +131,13 @@ impl RemoteExecutor {
                     }
                     error => ClusterError::Call {
                         addr: w.addr.clone(),
-                        stage: "deposit",
+                        stage: "density",
                         error,
                     },
                 };
                 let mut s = w
                     .client
-                    .deposit(tokio_stream::iter([chunk]))
+                    .density(tokio_stream::iter([chunk]))
                     .await
                     .map_err(failed)?
                     .into_inner();
@@ -225,7 +225,7 @@ impl RemoteExecutor {
             t.swept_between_workers += swept_between;
         });
         let ms = t.elapsed().as_secs_f64() * 1e3;
-        self.clock(|x| x.fill_ms += ms);
+        self.clock(|x| x.density_ms += ms);
         Ok(stats)
     }
 
@@ -247,7 +247,7 @@ impl RemoteExecutor {
             *x = self.exchanged.get(light).copied().flatten();
         }
         let ms = t.elapsed().as_secs_f64() * 1e3;
-        self.clock(|x| x.sweep_ms += ms);
+        self.clock(|x| x.transmittance_ms += ms);
         Ok(trans)
     }
 
@@ -282,14 +282,14 @@ impl RemoteExecutor {
         let replies = fan_out(
             &self.rt,
             requests,
-            "deposit",
+            "density",
             self.deadline,
             move |mut w, chunks| async move {
                 let mut s = w
                     .client
-                    .deposit(tokio_stream::iter(chunks))
+                    .density(tokio_stream::iter(chunks))
                     .await
-                    .map_err(|s| call_error(&w.addr, "deposit", s))?
+                    .map_err(|s| call_error(&w.addr, "density", s))?
                     .into_inner();
                 // Each chunk is decoded as it comes (the other workers'
                 // replies still travel), and checked before the map changes.
@@ -298,7 +298,7 @@ impl RemoteExecutor {
                 while let Some(c) = s
                     .message()
                     .await
-                    .map_err(|e| call_error(&w.addr, "deposit", e))?
+                    .map_err(|e| call_error(&w.addr, "density", e))?
                 {
                     let d = wire::decode_columns(&frame, &c).map_err(|e| malformed(&w.addr, e))?;
                     got.columns.push(d);
@@ -308,7 +308,7 @@ impl RemoteExecutor {
                     last = Some(c.columns_read);
                 }
                 if posed {
-                    let last = last.ok_or_else(|| malformed(&w.addr, "an empty Deposit reply"))?;
+                    let last = last.ok_or_else(|| malformed(&w.addr, "an empty Density reply"))?;
                     got.read = Some(
                         wire::columns_from_pb(&last, frame.columns())
                             .map_err(|e| malformed(&w.addr, e))?,
@@ -342,7 +342,7 @@ impl RemoteExecutor {
             t.density_received += received;
         });
         let ms = t.elapsed().as_secs_f64() * 1e3;
-        self.clock(|x| x.fill_ms += ms);
+        self.clock(|x| x.density_ms += ms);
         Ok(stats)
     }
 
@@ -382,18 +382,18 @@ impl RemoteExecutor {
         let replies = fan_out(
             &self.rt,
             requests,
-            "sweep",
+            "transmittance",
             self.deadline,
             move |mut w, (chunks, layout)| async move {
                 let s = w
                     .client
-                    .sweep(tokio_stream::iter(chunks))
+                    .transmittance(tokio_stream::iter(chunks))
                     .await
-                    .map_err(|s| call_error(&w.addr, "sweep", s))?
+                    .map_err(|s| call_error(&w.addr, "transmittance", s))?
                     .into_inner();
                 let mut reader = wire::SlabReader::new(layout);
                 let mut bytes = 0u64;
-                for c in collect(&w.addr, "sweep", s).await? {
+                for c in collect(&w.addr, "transmittance", s).await? {
                     bytes += c.encoded_len() as u64;
                     reader.add(&c).map_err(|e| malformed(&w.addr, e))?;
                 }
@@ -417,7 +417,7 @@ impl RemoteExecutor {
             x.density_sent += sent;
             x.slabs_received += received;
         });
-        self.clock(|x| x.sweep_ms += ms);
+        self.clock(|x| x.transmittance_ms += ms);
         tracing::debug!(frame_id = id, light, "transmittance gathered");
         Ok(trans)
     }

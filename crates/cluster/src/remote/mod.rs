@@ -120,7 +120,7 @@ pub struct RemoteExecutor {
     last_pose: Option<PosePlan>,
     report: Option<PoseReport>,
     /// Per light, the columns each live worker's lookups read (from its
-    /// last posed Deposit), in worker order.
+    /// last posed Density), in worker order.
     reads: Vec<Option<Vec<Vec<u64>>>>,
     /// Per light, the frame and slabs of its last sweep.
     swept: Vec<Option<Swept>>,

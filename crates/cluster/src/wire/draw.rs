@@ -237,7 +237,7 @@ pub(crate) fn job_to_pb(j: &DrawJob) -> pb::DrawJob {
         },
         lights: lights_to_floats(&j.lights),
         shadows: j.shadows,
-        filter: j.filter,
+        trilinear: j.trilinear,
         head: j.head.to_cols_array().to_vec(),
         nearest: j.nearest,
         exchanged: false,
@@ -372,7 +372,7 @@ pub(crate) fn job_from_pb(j: &pb::DrawJob) -> Result<DrawJob, Malformed> {
         },
         lights,
         shadows: j.shadows,
-        filter: j.filter,
+        trilinear: j.trilinear,
         head: one_affine("draw head", &j.head)?,
         nearest: if j.nearest as usize <= raster::MAX_NEAREST {
             j.nearest

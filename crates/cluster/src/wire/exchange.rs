@@ -1,5 +1,5 @@
 //! What crosses the wire when the workers sum and sweep a light's map
-//! among themselves (a posed Deposit round with a [`ColumnPlan`]): the
+//! among themselves (a posed Density round with a [`ColumnPlan`]): the
 //! plan, and the swept columns they send each other. Everything received
 //! is checked before use.
 
@@ -12,7 +12,7 @@ use shadow::{ColumnSlab, LightFrame};
 use super::{Malformed, bad, draw_columns};
 use crate::pb;
 
-/// How the workers of one posed Deposit round sum and sweep a light's map
+/// How the workers of one posed Density round sum and sweep a light's map
 /// among themselves: reduce-scatter of the density to the columns' owners,
 /// each sweeping its own columns, then all-gather of the swept columns.
 #[derive(Debug, Clone, PartialEq)]

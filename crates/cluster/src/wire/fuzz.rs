@@ -28,7 +28,7 @@ fn occupied_map(f: &LightFrame) -> DensityMap {
 /// each message type that decodes.
 fn check_all(bytes: &[u8]) {
     let f = frame();
-    if let Ok(m) = pb::DepositChunk::decode(bytes) {
+    if let Ok(m) = pb::DensityChunk::decode(bytes) {
         if let Ok(fr) = frame_from_pb(m.map.as_ref()) {
             assert!(fr.n_cells >= 1 && fr.ds > 0.0);
         }
@@ -108,7 +108,7 @@ fn check_all(bytes: &[u8]) {
             }
         }
     }
-    if let Ok(m) = pb::DepositChunk::decode(bytes) {
+    if let Ok(m) = pb::DensityChunk::decode(bytes) {
         check_column_plan(&m);
     }
     if let Ok(m) = pb::DrawChunk::decode(bytes)
@@ -129,7 +129,7 @@ fn check_all(bytes: &[u8]) {
 /// A column plan that is accepted cuts the map whole, in ranges that
 /// never fall, and every worker's swept columns that are accepted lie in
 /// its range.
-fn check_column_plan(m: &pb::DepositChunk) {
+fn check_column_plan(m: &pb::DensityChunk) {
     let f = frame();
     let Some(p) = &m.columns else { return };
     let Ok(plan) = ColumnPlan::from_pb(p, f.columns()) else {
@@ -208,7 +208,7 @@ proptest! {
         flips in proptest::collection::vec((any::<usize>(), any::<u8>()), 1..8),
         cut in any::<usize>(),
     ) {
-        // A real Deposit chunk, column chunk and slab chunk, damaged.
+        // A real Density chunk, column chunk and slab chunk, damaged.
         let f = frame();
         let mut hair = strands::Hair::new();
         hair.push_strand(&[Vec3::ZERO, Vec3::new(0.1, 0.2, 0.0), Vec3::new(0.2, 0.5, 0.1)]).unwrap();
@@ -249,7 +249,7 @@ proptest! {
             tls_domain: None,
             head: Some(glam::Affine3A::from_translation(Vec3::X)),
         };
-        let planned = pb::DepositChunk { columns: Some(column_plan.to_pb()), ..deposit.clone() };
+        let planned = pb::DensityChunk { columns: Some(column_plan.to_pb()), ..deposit.clone() };
         let messages = [
             planned.encode_to_vec(),
             band.encode_to_vec(),

@@ -22,9 +22,9 @@ pub(crate) use exchange::*;
 
 /// The protocol version this build speaks. A coordinator and a worker of
 /// different versions refuse each other.
-pub const PROTOCOL_VERSION: u32 = 14;
+pub const PROTOCOL_VERSION: u32 = 15;
 
-/// Points per Deposit chunk: 3 floats each, 1.5 MB.
+/// Points per Density chunk: 3 floats each, 1.5 MB.
 pub(crate) const POINTS_PER_CHUNK: usize = 128 * 1024;
 
 /// Density cells or depths per column or slab chunk: at most about 1.3 MB.
@@ -56,7 +56,7 @@ pub fn text_pieces(text: &str, max: usize) -> impl Iterator<Item = &str> {
 }
 
 /// The most points (and the most strands) one worker takes in one
-/// Deposit call: 32 M, about 400 MB of points and 128 MB of offsets.
+/// Density call: 32 M, about 400 MB of points and 128 MB of offsets.
 pub(crate) const MAX_POINTS: usize = 32_000_000;
 
 /// The longest scene text an Assign may carry (16 MiB).
@@ -153,7 +153,7 @@ pub(crate) fn frame_from_pb(m: Option<&pb::MapFrame>) -> Result<LightFrame, Malf
     })
 }
 
-/// Strands `strands` of `hair` as Deposit chunks; the first carries the
+/// Strands `strands` of `hair` as Density chunks; the first carries the
 /// ids and the frame.
 pub fn deposit_chunks(
     frame_id: u64,
@@ -161,9 +161,9 @@ pub fn deposit_chunks(
     frame: &LightFrame,
     hair: &Hair,
     strands: Range<usize>,
-) -> Vec<pb::DepositChunk> {
+) -> Vec<pb::DensityChunk> {
     let mut out = Vec::new();
-    let mut chunk = pb::DepositChunk {
+    let mut chunk = pb::DensityChunk {
         frame_id,
         light,
         map: Some(frame_to_pb(frame)),
@@ -184,8 +184,8 @@ pub fn deposit_chunks(
     out
 }
 
-/// Adds the strands of one Deposit chunk to `hair`.
-pub(crate) fn add_strands(hair: &mut Hair, c: &pb::DepositChunk) -> Result<(), Malformed> {
+/// Adds the strands of one Density chunk to `hair`.
+pub(crate) fn add_strands(hair: &mut Hair, c: &pb::DensityChunk) -> Result<(), Malformed> {
     let total: u64 = c.strand_lengths.iter().map(|&l| u64::from(l)).sum();
     if total * 3 != c.points.len() as u64 {
         return Err(bad(format!(

@@ -1,4 +1,4 @@
-//! The Deposit call: a share's density filled into a map, summed and swept
+//! The Density call: a share's density filled into a map, summed and swept
 //! among the workers when the call carries a column plan.
 
 use super::exchange::ExchangeRound;
@@ -18,24 +18,24 @@ use tonic::{Request, Response, Status, Streaming};
 impl WorkerService {
     pub(super) async fn deposit_call(
         &self,
-        req: Request<Streaming<pb::DepositChunk>>,
+        req: Request<Streaming<pb::DensityChunk>>,
     ) -> Result<Response<Chunks<pb::ColumnChunk>>, Status> {
         let peer = req.remote_addr();
         let served = async move {
             let session = self.session(&req, Caller::Coordinator)?;
             let fiber = session.fiber;
             let mut stream = req.into_inner();
-            let first = first_message(&mut stream, "Deposit").await?;
+            let first = first_message(&mut stream, "Density").await?;
             let frame = wire::frame_from_pb(first.map.as_ref()).map_err(invalid)?;
             let (frame_id, light) = (first.frame_id, first.light);
             let mut hair = Hair::new();
             // The strands' memory, held until the call ends.
             let mut received = Grant::default();
             let memory = self.budget(&session);
-            let mut add = |c: &pb::DepositChunk| -> Result<(), Status> {
+            let mut add = |c: &pb::DensityChunk| -> Result<(), Status> {
                 let bytes = c.points.len() as u64 / 3 * POINT_BYTES
                     + c.strand_lengths.len() as u64 * STRAND_BYTES;
-                memory.take(&mut received, bytes, "the Deposit's strands")?;
+                memory.take(&mut received, bytes, "the Density call's strands")?;
                 wire::add_strands(&mut hair, c).map_err(invalid)
             };
             add(&first)?;
@@ -57,7 +57,7 @@ impl WorkerService {
                 if !first.posed || hair.strand_count() > 0 {
                     return Err(status(
                         Kind::Invalid,
-                        "a Deposit with a column plan is of posed strands, and carries none",
+                        "a Density with a column plan is of posed strands, and carries none",
                     ));
                 }
                 if light as usize >= wire::MAX_LIGHTS {
@@ -111,7 +111,7 @@ impl WorkerService {
                                     store.end(
                                         version,
                                         light,
-                                        Err("the coordinator left the Deposit".into()),
+                                        Err("the coordinator left the Density call".into()),
                                     );
                                     return;
                                 }
@@ -128,7 +128,7 @@ impl WorkerService {
                     None => {
                         return Err(status(
                             Kind::Internal,
-                            "the Deposit's task ended without a reply",
+                            "the Density call's task ended without a reply",
                         ));
                     }
                 };
@@ -140,16 +140,16 @@ impl WorkerService {
                 return Ok(Response::new(stream));
             } else if first.posed {
                 if hair.strand_count() > 0 {
-                    return Err(status(Kind::Invalid, "a posed Deposit carries no strands"));
+                    return Err(status(Kind::Invalid, "a posed Density carries no strands"));
                 }
-                let (version, filter) = (first.version, first.filter);
+                let (version, filter) = (first.version, first.trilinear);
                 with_share(&session.held, move |share| {
                     let _budget = budget;
                     deposit_reply(&maps, frame, |map| {
                         let stats = share
                             .deposit_while(version, map, &fiber, go)
                             .map_err(refused)?
-                            .ok_or_else(|| cancelled("Deposit"))?;
+                            .ok_or_else(|| cancelled("Density"))?;
                         let read = share
                             .columns_read(version, &frame, filter)
                             .map_err(refused)?;
@@ -163,7 +163,7 @@ impl WorkerService {
                     deposit_reply(&maps, frame, |map| {
                         let stats = map
                             .deposit_while(&hair, 0..hair.strand_count(), &fiber, go)
-                            .ok_or_else(|| cancelled("Deposit"))?;
+                            .ok_or_else(|| cancelled("Density"))?;
                         Ok((stats, None))
                     })
                 })
@@ -178,6 +178,6 @@ impl WorkerService {
             tracing::debug!(frame_id, light, chunks = chunks.len(), "deposit done");
             Ok(Response::new(stream_of(chunks)))
         };
-        logged(peer, "Deposit", served.await)
+        logged(peer, "Density", served.await)
     }
 }

@@ -1,4 +1,4 @@
-//! Deposit rounds with a column plan: this worker's columns summed and swept among the workers (reduce-scatter, then all-gather), and what the rounds leave for the Draw.
+//! Density rounds with a column plan: this worker's columns summed and swept among the workers (reduce-scatter, then all-gather), and what the rounds leave for the Draw.
 
 use super::STRIPES_IN_FLIGHT;
 use super::inbox::{Gather, Inbox, SendFailed, send_within, stalled};
@@ -27,7 +27,7 @@ pub(super) struct ExchangeSends {
 }
 
 impl WorkerService {
-    /// Opens the Exchange calls of a Deposit round with column plan
+    /// Opens the Exchange calls of a Density round with column plan
     /// `plan`: two to each other worker, fed as the round goes.
     pub(super) fn exchange_calls(
         &self,
@@ -80,7 +80,7 @@ impl WorkerService {
     }
 }
 
-/// One worker's part of a Deposit round with a column plan (see
+/// One worker's part of a Density round with a column plan (see
 /// [`wire::ColumnPlan`]).
 pub(super) struct ExchangeRound {
     pub(super) version: u64,
@@ -118,7 +118,7 @@ impl ExchangeRound {
         let failed = self.sends.failed.clone();
         let go_on = || {
             if !go() {
-                return Err("the coordinator left the Deposit".to_string());
+                return Err("the coordinator left the Density call".to_string());
             }
             failed
                 .lock()
@@ -129,7 +129,7 @@ impl ExchangeRound {
         let mut map = WorkerService::map_in(maps, frame);
         let stats = on_pool(|| share.deposit_while(self.version, &mut map, fiber, go.clone()))
             .map_err(refused)?
-            .ok_or_else(|| cancelled("Deposit"))?;
+            .ok_or_else(|| cancelled("Density"))?;
         // Reduce-scatter: each other worker's columns to it.
         let mut density_sent = 0u64;
         for b in 0..n {
@@ -188,7 +188,7 @@ impl ExchangeRound {
         }
         let slab = on_pool(|| shadow::sweep_while(&map, mine.start as u32..mine.end as u32, go));
         WorkerService::give_back(maps, map);
-        let slab = slab.ok_or_else(|| cancelled("Deposit"))?;
+        let slab = slab.ok_or_else(|| cancelled("Density"))?;
         let own_swept: Vec<pb::ExchangeChunk> = wire::swept_chunks(&frame, &slab)
             .into_iter()
             .map(|c| pb::ExchangeChunk {

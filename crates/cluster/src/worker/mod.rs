@@ -201,12 +201,12 @@ impl Worker for WorkerService {
         logged(peer, "End", served.await)
     }
 
-    type DepositStream = Chunks<pb::ColumnChunk>;
+    type DensityStream = Chunks<pb::ColumnChunk>;
 
-    async fn deposit(
+    async fn density(
         &self,
-        req: Request<Streaming<pb::DepositChunk>>,
-    ) -> Result<Response<Self::DepositStream>, Status> {
+        req: Request<Streaming<pb::DensityChunk>>,
+    ) -> Result<Response<Self::DensityStream>, Status> {
         self.deposit_call(req).await
     }
 
@@ -388,17 +388,17 @@ impl Worker for WorkerService {
         logged(peer, "Pose", served.await)
     }
 
-    type SweepStream = Chunks<pb::SlabChunk>;
+    type TransmittanceStream = Chunks<pb::SlabChunk>;
 
-    async fn sweep(
+    async fn transmittance(
         &self,
         req: Request<Streaming<pb::ColumnChunk>>,
-    ) -> Result<Response<Self::SweepStream>, Status> {
+    ) -> Result<Response<Self::TransmittanceStream>, Status> {
         let peer = req.remote_addr();
         let served = async move {
             let session = self.session(&req, Caller::Coordinator)?;
             let mut stream = req.into_inner();
-            let first = first_message(&mut stream, "Sweep").await?;
+            let first = first_message(&mut stream, "Transmittance").await?;
             let frame = wire::frame_from_pb(first.map.as_ref()).map_err(invalid)?;
             let (lo, hi) = (first.first_column, first.end_column);
             if lo > hi || hi as usize > frame.columns() {
@@ -422,7 +422,7 @@ impl Worker for WorkerService {
                 WorkerService::give_back(&maps, map);
                 drop(budget);
                 slab.map(|s| wire::slab_chunks(&s))
-                    .ok_or_else(|| cancelled("Sweep"))
+                    .ok_or_else(|| cancelled("Transmittance"))
             })
             .await
             .map_err(|e| status(Kind::Internal, format!("sweep task failed: {e}")))??;
@@ -434,7 +434,7 @@ impl Worker for WorkerService {
             );
             Ok(Response::new(stream_of(chunks)))
         };
-        logged(peer, "Sweep", served.await)
+        logged(peer, "Transmittance", served.await)
     }
 
     type DrawStream = Chunks<pb::LayerChunk>;

@@ -37,10 +37,10 @@ pub(super) struct Session {
     pub(super) memory: Memory,
     /// Other workers' stripes of this worker's band, by Draw round.
     pub(super) inbox: Arc<Inbox<raster::HairLayer>>,
-    /// Other workers' columns, by Deposit round (twice the round for
+    /// Other workers' columns, by Density round (twice the round for
     /// density, and one more for swept columns).
     pub(super) exchange: Arc<Inbox<Exchanged>>,
-    /// What the last Deposit rounds with a column plan swept.
+    /// What the last Density rounds with a column plan swept.
     pub(super) swept: Arc<SweptStore>,
     /// The workers this session's last Assign named: the only peers its
     /// plans may make this worker call.

@@ -11,7 +11,7 @@ use std::ops::Range;
 use std::sync::Mutex;
 use tonic::Status;
 
-/// A Deposit's reply: a pooled map in `frame`, filled by `fill`, as
+/// A Density call's reply: a pooled map in `frame`, filled by `fill`, as
 /// column chunks, the last one carrying the fill's counts and, for posed
 /// strands, the columns their lookups read.
 pub(super) fn deposit_reply(

@@ -1,4 +1,4 @@
-//! What a session's Deposit rounds with a column plan leave for its Draw:
+//! What a session's Density rounds with a column plan leave for its Draw:
 //! the transmittance swept among the workers, light by light.
 
 use std::sync::Mutex;
@@ -18,7 +18,7 @@ pub(super) struct SweptHere {
     pub(super) failed: Option<String>,
 }
 
-/// The transmittance each Deposit round with a column plan leaves for the
+/// The transmittance each Density round with a column plan leaves for the
 /// Draw of its hair version, light by light, as the rounds finish.
 #[derive(Debug, Default)]
 pub(super) struct SweptStore {

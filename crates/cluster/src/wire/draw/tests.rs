@@ -46,7 +46,7 @@ fn pose_plans_reports_and_jobs_round_trip_exactly() {
             Light::spot(Vec3::new(-5.0, 20.0, 3.0), Vec3::NEG_Y, 25.0, 4.0, 300.0).unwrap(),
         ],
         shadows: true,
-        filter: false,
+        trilinear: false,
         head: plan.head,
         nearest: 8,
     };
