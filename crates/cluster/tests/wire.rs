@@ -760,6 +760,15 @@ async fn assign_at_rest(
     c: &mut cluster::SessionClient,
     groups: Option<usize>,
 ) -> (usize, Vec<f32>, pb::PosePlan) {
+    assign_at_rest_with_peers(c, groups, Vec::new()).await
+}
+
+/// [`assign_at_rest`], the session's workers being `peers`.
+async fn assign_at_rest_with_peers(
+    c: &mut cluster::SessionClient,
+    groups: Option<usize>,
+    peers: Vec<String>,
+) -> (usize, Vec<f32>, pb::PosePlan) {
     let scene = Scene::from_toml_str(DANCE, std::path::Path::new("d")).unwrap();
     let anim = engine::Animator::new(&scene).unwrap();
     let groups = groups.unwrap_or_else(|| anim.groups().count());
@@ -770,6 +779,7 @@ async fn assign_at_rest(
         scene_path: "dance.toml".into(),
         first_group: 0,
         end_group: groups as u32,
+        peers,
         ..Default::default()
     }];
     let states = protocol::wisp_chunks(0, wisps.map(|w| anim.wisp_state(w).unwrap()));
@@ -894,7 +904,7 @@ fn an_assign_past_the_limits_is_refused_saying_which() {
     });
 }
 
-/// A Deposit of `strands` two-point strands across a map of `cells` a
+/// A Density call of `strands` two-point strands across a map of `cells` a
 /// side and out beyond it on both sides: each cut into `4 * cells` pieces,
 /// the most a segment is.
 fn crossing_deposit(cells: u32, strands: usize) -> Vec<pb::DensityChunk> {
@@ -1106,4 +1116,69 @@ fn point_and_spot_lights_draw_the_same_bytes_on_workers() {
     // And the lights matter: the directional default draws otherwise.
     let sun = Scene::from_toml_str(DANCE, std::path::Path::new("sun.toml")).unwrap();
     assert!(local_frames(&sun, 1)[0] != want[0]);
+}
+
+#[test]
+fn a_plan_naming_a_worker_outside_the_session_is_refused_and_never_dialled() {
+    // The stray address: a listener that would see any connection.
+    let stray = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    stray.set_nonblocking(true).unwrap();
+    let stray_addr = stray.local_addr().unwrap().to_string();
+    // A second worker, which the session does name.
+    let addr = start_worker();
+    let other = start_worker().to_string();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let mut c = greeted_client(addr).await;
+        let peers = vec![addr.to_string(), other.clone()];
+        let (_, _, pose) = assign_at_rest_with_peers(&mut c, None, peers).await;
+        c.pose(pose).await.unwrap();
+        let light = Light::directional(Vec3::NEG_Y).unwrap();
+        let frame = LightFrame::centered(&light, Vec3::ZERO, 80.0, 8).unwrap();
+        let columns = frame.columns() as u32;
+        let round = |peer: &str| pb::DensityChunk {
+            map: Some(protocol::frame_to_pb(&frame)),
+            posed: true,
+            version: 1,
+            columns: Some(pb::ColumnPlan {
+                round: 1,
+                cuts: vec![0, columns / 2, columns],
+                own: 0,
+                peers: vec![addr.to_string(), peer.to_string()],
+                sessions: vec!["a".repeat(32), "b".repeat(32)],
+                wait_ms: 500,
+                ..Default::default()
+            }),
+            ..Default::default()
+        };
+        let refused = |r: Result<_, tonic::Status>| match r {
+            Err(e) => e,
+            Ok(_) => panic!("a plan naming {stray_addr} was taken"),
+        };
+        let e = refused(
+            c.density(tokio_stream::iter(vec![round(&stray_addr)]))
+                .await,
+        );
+        assert_eq!(e.code(), tonic::Code::InvalidArgument, "{}", e.message());
+        assert!(e.message().contains("peer 1"), "{}", e.message());
+        // The refusal says nothing of the address or whether it listens.
+        let port = stray_addr.rsplit(':').next().unwrap();
+        assert!(!e.message().contains(port), "{}", e.message());
+        // A closed port gets the same answer.
+        let closed = {
+            let l = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+            l.local_addr().unwrap().to_string()
+        };
+        let e2 = refused(c.density(tokio_stream::iter(vec![round(&closed)])).await);
+        assert_eq!(
+            (e2.code(), e2.message().replace(&closed, "")),
+            (e.code(), e.message().to_string())
+        );
+    });
+    // Nothing ever connected to the stray listener.
+    std::thread::sleep(Duration::from_millis(200));
+    assert_eq!(
+        stray.accept().map(|_| ()).map_err(|e| e.kind()),
+        Err(std::io::ErrorKind::WouldBlock)
+    );
 }
