@@ -140,7 +140,7 @@ impl ShadowPipeline {
                     };
                     m.density_with(frame, occluders, |map| ex.density(i, map, strands, fiber))?
                 }
-                (other, Strands::Here { hair, .. }) => other.build(&ShadowInput {
+                (other, Strands::Here { hair, .. }) => other.density(&ShadowInput {
                     light: &l.light,
                     hair,
                     fiber,
@@ -173,15 +173,15 @@ impl ShadowPipeline {
                 ShadowMethod::DensityMap(m) => {
                     m.transmittance_with(|map| ex.transmittance(i, map))?
                 }
-                other => other.prepare(),
+                other => other.transmittance(),
             }
         }
         Ok(())
     }
 
     /// Stage 3 for light `l` at `points`, into `out`.
-    pub fn lookup(&self, l: usize, points: &[Vec3], out: &mut [f32]) {
-        self.lights[l].method.lookup(points, out);
+    pub fn filter_light(&self, l: usize, points: &[Vec3], out: &mut [f32]) {
+        self.lights[l].method.filter(points, out);
     }
 
     /// Stage 3: transmittance of every light at every point; `out[l][p]`.
@@ -189,7 +189,7 @@ impl ShadowPipeline {
         assert_eq!(out.len(), self.lights.len());
         for (l, o) in self.lights.iter().zip(out) {
             o.resize(points.len(), 0.0);
-            l.method.lookup(points, o);
+            l.method.filter(points, o);
         }
     }
 
@@ -211,7 +211,7 @@ impl ShadowPipeline {
     pub fn transmittance_off_surface(&self, l: usize, p: Vec3, n: Vec3) -> f32 {
         let m = &self.lights[l].method;
         let f = m.frame().expect("density runs before lookups");
-        m.transmittance(off_surface(f, p, n))
+        m.transmittance_at(off_surface(f, p, n))
     }
 
     /// The frame of light `l`'s last map (methods that keep one).

@@ -208,7 +208,7 @@ impl Renderer {
         let shadows = &self.shadows;
         self.part
             .filter(hair, shadows.light_count(), |l, pts, out| {
-                shadows.lookup(l, pts, out)
+                shadows.filter_light(l, pts, out)
             });
     }
 

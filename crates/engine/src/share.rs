@@ -463,7 +463,7 @@ impl Share {
             }
             let t = Instant::now();
             self.part.filter(hair, maps.len(), |l, pts, out| {
-                maps[l].lookup(pts, job.trilinear, out)
+                maps[l].filter(pts, job.trilinear, out)
             });
             times.filter_ms = ms(t);
         }
@@ -505,7 +505,7 @@ impl Share {
                 head_lambert(color, ambient, &job.lights, p, n, |l| {
                     if head_shadow {
                         let m = &maps[l];
-                        m.transmittance(off_surface(m.frame(), p, n), job.trilinear)
+                        m.transmittance_at(off_surface(m.frame(), p, n), job.trilinear)
                     } else {
                         1.0
                     }

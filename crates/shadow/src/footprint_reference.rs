@@ -65,7 +65,7 @@ impl FootprintReference {
         }
     }
 
-    pub(crate) fn build(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
+    pub(crate) fn density(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
         let bins = SegmentBins::new(input, GRID)?;
         let frame = bins.frame;
         let stats = bins.stats;
@@ -92,11 +92,11 @@ impl FootprintReference {
         Ok(stats)
     }
 
-    pub(crate) fn prepare(&mut self) {
+    pub(crate) fn transmittance(&mut self) {
         assert!(self.built.is_some(), "build runs before prepare");
     }
 
-    pub(crate) fn transmittance(&self, p: Vec3) -> f32 {
+    pub(crate) fn transmittance_at(&self, p: Vec3) -> f32 {
         let built = self.built.as_ref().expect("build runs before lookups");
         let b = &built.bins;
         let n = GRID as i32;

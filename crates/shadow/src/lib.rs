@@ -10,7 +10,7 @@
 //! 2. [`sweep`]: one pass along each `(j, k)` column turns density into
 //!    cumulative optical depth; any range of columns can be swept alone, and
 //!    [`Transmittance::assemble`] joins the slabs.
-//! 3. [`Transmittance::lookup`]: trilinear filtering of the transmittance at
+//! 3. [`Transmittance::filter`]: trilinear filtering of the transmittance at
 //!    each point (or the unfiltered cell value, for comparison).
 //!
 //! The crate knows nothing of cameras, shading, files or networks.

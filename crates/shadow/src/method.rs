@@ -111,33 +111,34 @@ impl ShadowMethod {
         })
     }
 
-    /// Stage 1: samples the hair (and occluders) from the light.
-    pub fn build(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
-        each!(self, m => m.build(input))
+    /// Stage 1, density: samples the hair (and occluders) from the light.
+    pub fn density(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
+        each!(self, m => m.density(input))
     }
 
-    /// Stage 2: makes the samples ready for lookups. Panics before `build`.
-    pub fn prepare(&mut self) {
-        each!(self, m => m.prepare())
+    /// Stage 2, transmittance: makes the samples ready for lookups. Panics
+    /// before [`Self::density`].
+    pub fn transmittance(&mut self) {
+        each!(self, m => m.transmittance())
     }
 
-    /// Stage 3 at one point: `T(p)` in [0, 1]. Panics before `prepare`.
-    pub fn transmittance(&self, p: Vec3) -> f32 {
-        each!(self, m => m.transmittance(p))
+    /// `T(p)` in [0, 1] at one point. Panics before [`Self::transmittance`].
+    pub fn transmittance_at(&self, p: Vec3) -> f32 {
+        each!(self, m => m.transmittance_at(p))
     }
 
-    /// Stage 3 at many points, in parallel; the same values as
-    /// [`Self::transmittance`] one by one.
-    pub fn lookup(&self, points: &[Vec3], out: &mut [f32]) {
+    /// Stage 3, filter: `T` at many points, in parallel; the same values
+    /// as [`Self::transmittance_at`] one by one.
+    pub fn filter(&self, points: &[Vec3], out: &mut [f32]) {
         assert_eq!(points.len(), out.len());
         if let ShadowMethod::DensityMap(m) = self {
-            return m.lookup(points, out);
+            return m.filter(points, out);
         }
         out.par_chunks_mut(2048)
             .zip(points.par_chunks(2048))
             .for_each(|(o, p)| {
                 for (o, &p) in o.iter_mut().zip(p) {
-                    *o = self.transmittance(p);
+                    *o = self.transmittance_at(p);
                 }
             });
     }
@@ -219,12 +220,15 @@ impl DensityMapMethod {
         &mut self,
         sweep: impl FnOnce(&DensityMap) -> Result<Transmittance, E>,
     ) -> Result<(), E> {
-        let map = self.map.as_ref().expect("build runs before prepare");
+        let map = self
+            .map
+            .as_ref()
+            .expect("the density stage runs before the transmittance stage");
         self.trans = Some(sweep(map)?);
         Ok(())
     }
 
-    fn build(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
+    fn density(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
         // The map is already empty: deposit, without clearing it again.
         let all = 0..input.hair.strand_count();
         let frame = input.fit(self.cells)?;
@@ -233,23 +237,26 @@ impl DensityMapMethod {
         })
     }
 
-    fn prepare(&mut self) {
-        let map = self.map.as_ref().expect("build runs before prepare");
+    fn transmittance(&mut self) {
+        let map = self
+            .map
+            .as_ref()
+            .expect("the density stage runs before the transmittance stage");
         self.trans = Some(Transmittance::compute(map));
     }
 
-    fn transmittance(&self, p: Vec3) -> f32 {
+    fn transmittance_at(&self, p: Vec3) -> f32 {
         self.trans
             .as_ref()
-            .expect("prepare runs before lookups")
-            .transmittance(p, self.filter)
+            .expect("the transmittance stage runs before lookups")
+            .transmittance_at(p, self.filter)
     }
 
-    fn lookup(&self, points: &[Vec3], out: &mut [f32]) {
+    fn filter(&self, points: &[Vec3], out: &mut [f32]) {
         self.trans
             .as_ref()
-            .expect("prepare runs before lookups")
-            .lookup(points, self.filter, out);
+            .expect("the transmittance stage runs before lookups")
+            .filter(points, self.filter, out);
     }
 
     fn frame(&self) -> Option<&LightFrame> {

@@ -149,7 +149,7 @@ impl Reference {
         }
     }
 
-    pub(crate) fn build(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
+    pub(crate) fn density(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
         let bins = SegmentBins::new(input, GRID)?;
         let stats = bins.stats;
         let points = input.hair.points().to_vec();
@@ -174,12 +174,18 @@ impl Reference {
         Ok(stats)
     }
 
-    pub(crate) fn prepare(&mut self) {
-        assert!(self.built.is_some(), "build runs before prepare");
+    pub(crate) fn transmittance(&mut self) {
+        assert!(
+            self.built.is_some(),
+            "the density stage runs before the transmittance stage"
+        );
     }
 
-    pub(crate) fn transmittance(&self, p: Vec3) -> f32 {
-        let b = self.built.as_ref().expect("build runs before lookups");
+    pub(crate) fn transmittance_at(&self, p: Vec3) -> f32 {
+        let b = self
+            .built
+            .as_ref()
+            .expect("the density stage runs before lookups");
         let to_light = -b.light.direction_at(p);
         // The drawn point's fiber: its strand and tangent.
         let own = b

@@ -608,12 +608,12 @@ impl Transmittance {
     /// Transmittance `T(p) = exp(-D(p'))` in [0, 1], `p'` being `p`
     /// moved [`LIT_EDGE_OFFSET`] cells towards the light.
     #[inline]
-    pub fn transmittance(&self, p: Vec3, filter: bool) -> f32 {
+    pub fn transmittance_at(&self, p: Vec3, filter: bool) -> f32 {
         (-self.optical_depth(p, filter)).exp()
     }
 
     /// Transmittance at every point (the filtering stage), in parallel.
-    pub fn lookup(&self, points: &[Vec3], filter: bool, out: &mut [f32]) {
+    pub fn filter(&self, points: &[Vec3], filter: bool, out: &mut [f32]) {
         assert_eq!(points.len(), out.len());
         out.par_chunks_mut(4096)
             .zip(points.par_chunks(4096))
@@ -626,7 +626,7 @@ impl Transmittance {
                     }
                 } else {
                     for (o, &p) in o.iter_mut().zip(p) {
-                        *o = self.transmittance(p, filter);
+                        *o = self.transmittance_at(p, filter);
                     }
                 }
             });

@@ -26,7 +26,7 @@ fn every_method(cells: u32) -> Vec<MethodConfig> {
 fn build(config: &MethodConfig, hair: &Hair, light: &Light, fiber: &Fiber) -> ShadowMethod {
     let mut m = ShadowMethod::new(config).unwrap();
     let stats = m
-        .build(&ShadowInput {
+        .density(&ShadowInput {
             light,
             hair,
             fiber,
@@ -40,7 +40,7 @@ fn build(config: &MethodConfig, hair: &Hair, light: &Light, fiber: &Fiber) -> Sh
         "{}: a fitted map holds all the hair",
         config.name()
     );
-    m.prepare();
+    m.transmittance();
     m
 }
 
@@ -110,7 +110,7 @@ fn check_invariants_within(
         let mut ray = Vec::with_capacity(32);
         for i in 0..32 {
             let p = start + l * (length * i as f32 / 31.0);
-            let t = m.transmittance(p);
+            let t = m.transmittance_at(p);
             assert!(
                 t.is_finite() && (0.0..=1.0).contains(&t),
                 "{what}: T = {t} at {p}"
@@ -181,7 +181,7 @@ fn extremely_dense_hair_keeps_optical_depth_finite_and_leaves_no_light() {
     for c in every_method(32) {
         let m = build(&c, &hair, &light, &fiber);
         check_invariants(c.name(), &m, &hair, &light, 12);
-        let t = m.transmittance(behind);
+        let t = m.transmittance_at(behind);
         assert!(t < 1e-3, "{}: T = {t} behind the dense core", c.name());
     }
     // The density map stores optical depth, not its exponential: the depth
@@ -280,8 +280,8 @@ fn strands_on_cell_boundaries_cast_an_even_shadow() {
     for j in [8.0f32, 8.5, 12.25, 20.0, 23.9] {
         for k in [8.0f32, 16.5, 22.0] {
             for filter in [true, false] {
-                let front = t.transmittance(frame.to_world(Vec3::new(14.5, j, k)), filter);
-                let back = t.transmittance(frame.to_world(Vec3::new(18.5, j, k)), filter);
+                let front = t.transmittance_at(frame.to_world(Vec3::new(14.5, j, k)), filter);
+                let back = t.transmittance_at(frame.to_world(Vec3::new(18.5, j, k)), filter);
                 assert_eq!(front, 1.0, "in front of the sheet at ({j}, {k})");
                 assert!(
                     (back - want).abs() < 1e-3,
@@ -340,7 +340,7 @@ fn zero_length_segments_repeated_points_and_one_point_strands_add_nothing() {
         let m = build(&c, &odd, &light, &fiber);
         check_invariants(c.name(), &m, &odd, &light, 12);
         for &p in &points {
-            let (ta, tm) = (a.transmittance(p), m.transmittance(p));
+            let (ta, tm) = (a.transmittance_at(p), m.transmittance_at(p));
             assert!(
                 (ta - tm).abs() < 1e-5,
                 "{}: T = {tm} with degenerate strands, {ta} without, at {p}",
@@ -376,7 +376,7 @@ fn hair_past_a_fixed_map_is_counted_and_never_wraps_into_it() {
     assert!(stats.samples > 0);
     let t = Transmittance::compute(&map);
     // The strand inside shadows its own column...
-    let behind_inside = t.transmittance(frame.to_world(Vec3::new(12.0, 4.5, 8.0)), true);
+    let behind_inside = t.transmittance_at(frame.to_world(Vec3::new(12.0, 4.5, 8.0)), true);
     assert!(
         behind_inside < 0.9,
         "T = {behind_inside} behind the strand inside"
@@ -384,7 +384,7 @@ fn hair_past_a_fixed_map_is_counted_and_never_wraps_into_it() {
     // ... and the wrapped positions of the others get no false shadow:
     // nothing lies in column j = 10.5, and the side strand's shadow on j =
     // 4.5 is the inside strand's own.
-    let other = t.transmittance(frame.to_world(Vec3::new(12.0, 10.5, 8.0)), true);
+    let other = t.transmittance_at(frame.to_world(Vec3::new(12.0, 10.5, 8.0)), true);
     assert_eq!(
         other, 1.0,
         "a false shadow from hair past the back of the map"
@@ -397,18 +397,18 @@ fn hair_past_a_fixed_map_is_counted_and_never_wraps_into_it() {
     for x in [6.0, 9.0, 15.5] {
         let p = frame.to_world(Vec3::new(x, 4.5, 8.0));
         assert_eq!(
-            t.transmittance(p, true),
-            t1.transmittance(p, true),
+            t.transmittance_at(p, true),
+            t1.transmittance_at(p, true),
             "at slice {x}"
         );
     }
     // Points outside the map see no hair (nothing known there) or, behind
     // it, the column's total.
     assert_eq!(
-        t.transmittance(frame.to_world(Vec3::new(8.0, 4.5 + n as f32, 8.0)), true),
+        t.transmittance_at(frame.to_world(Vec3::new(8.0, 4.5 + n as f32, 8.0)), true),
         1.0
     );
-    let far_behind = t.transmittance(frame.to_world(Vec3::new(40.0, 4.5, 8.0)), true);
+    let far_behind = t.transmittance_at(frame.to_world(Vec3::new(40.0, 4.5, 8.0)), true);
     assert!((far_behind - behind_inside).abs() < 1e-6 && ds > 0.0);
 }
 
@@ -434,7 +434,7 @@ fn hair_far_from_the_origin_shadows_like_hair_at_the_origin() {
         // the mean, which such jitter moves little.
         let diff: f32 = points
             .iter()
-            .map(|&p| (near.transmittance(p) - m.transmittance(p + offset)).abs())
+            .map(|&p| (near.transmittance_at(p) - m.transmittance_at(p + offset)).abs())
             .sum::<f32>()
             / points.len() as f32;
         assert!(
@@ -481,12 +481,12 @@ fn opacity_zero_casts_no_shadow_and_opacity_one_the_darkest() {
         check_invariants(c.name(), &full, &hair, &light, 12);
         for &p in &points {
             assert_eq!(
-                clear.transmittance(p),
+                clear.transmittance_at(p),
                 1.0,
                 "{}: opacity 0 casts a shadow at {p}",
                 c.name()
             );
-            let (h, f) = (half.transmittance(p), full.transmittance(p));
+            let (h, f) = (half.transmittance_at(p), full.transmittance_at(p));
             assert!(
                 f <= h + 1e-5,
                 "{}: opacity 1 gives T = {f} > {h} at opacity 0.5",
@@ -539,7 +539,7 @@ fn a_sheet_at_one_depth_gives_its_known_shadow_in_every_method() {
         for x in [-0.5f32, 0.0, 0.31] {
             for z in [-0.5f32, 0.2] {
                 assert_eq!(
-                    m.transmittance(Vec3::new(x, 0.5, z)),
+                    m.transmittance_at(Vec3::new(x, 0.5, z)),
                     1.0,
                     "{what}: in front"
                 );
@@ -548,11 +548,11 @@ fn a_sheet_at_one_depth_gives_its_known_shadow_in_every_method() {
                 // over many points is the sheet's shadow.
                 let t = if matches!(c, MethodConfig::Reference { .. }) {
                     (0..200)
-                        .map(|i| m.transmittance(Vec3::new(x + gap * i as f32 / 97.0, -0.5, z)))
+                        .map(|i| m.transmittance_at(Vec3::new(x + gap * i as f32 / 97.0, -0.5, z)))
                         .sum::<f32>()
                         / 200.0
                 } else {
-                    m.transmittance(Vec3::new(x, -0.5, z))
+                    m.transmittance_at(Vec3::new(x, -0.5, z))
                 };
                 assert!(t.is_finite());
                 let ignores = matches!(
@@ -604,12 +604,12 @@ fn a_widely_spread_cluster_casts_nothing_in_front_of_its_hair() {
     let m = build(&c, &hair, &light, &fiber);
     for y in [3.0f32, 1.0, 0.05] {
         assert_eq!(
-            m.transmittance(Vec3::new(0.05, y, 0.0)),
+            m.transmittance_at(Vec3::new(0.05, y, 0.0)),
             1.0,
             "T < 1 at y = {y}, in front of all hair"
         );
     }
-    assert!(m.transmittance(Vec3::new(0.05, -11.0, 0.0)) < 1.0);
+    assert!(m.transmittance_at(Vec3::new(0.05, -11.0, 0.0)) < 1.0);
 }
 
 #[test]
@@ -707,7 +707,7 @@ fn a_head_casts_its_shadow_along_the_rays_of_a_point_light() {
     let outside = Vec3::new(2.6, -2.2, 0.0);
     for c in every_method(64) {
         let mut m = ShadowMethod::new(&c).unwrap();
-        m.build(&ShadowInput {
+        m.density(&ShadowInput {
             light: &light,
             hair: &hair,
             fiber: &fiber,
@@ -715,22 +715,22 @@ fn a_head_casts_its_shadow_along_the_rays_of_a_point_light() {
             extent: None,
         })
         .unwrap();
-        m.prepare();
+        m.transmittance();
         let name = c.name();
         assert!(
-            m.transmittance(behind) < 0.05,
+            m.transmittance_at(behind) < 0.05,
             "{name}: behind the head {}",
-            m.transmittance(behind)
+            m.transmittance_at(behind)
         );
         assert!(
-            m.transmittance(spread) < 0.05,
+            m.transmittance_at(spread) < 0.05,
             "{name}: in the spreading shadow {}",
-            m.transmittance(spread)
+            m.transmittance_at(spread)
         );
         assert!(
-            m.transmittance(outside) > 0.95,
+            m.transmittance_at(outside) > 0.95,
             "{name}: outside it {}",
-            m.transmittance(outside)
+            m.transmittance_at(outside)
         );
     }
 }

@@ -19,7 +19,7 @@ fn run(config: &MethodConfig, hair: &Hair, light: &Light, occluders: &[Occluder]
     let fiber = Fiber::new(FIBER.0, FIBER.1).unwrap();
     let mut m = ShadowMethod::new(config).unwrap();
     let stats = m
-        .build(&ShadowInput {
+        .density(&ShadowInput {
             light,
             hair,
             fiber: &fiber,
@@ -33,7 +33,7 @@ fn run(config: &MethodConfig, hair: &Hair, light: &Light, occluders: &[Occluder]
         "{}: a fitted map holds all the hair",
         config.name()
     );
-    m.prepare();
+    m.transmittance();
     m
 }
 
@@ -93,7 +93,7 @@ fn depth_error(m: &ShadowMethod, depths: &[f32], truth: impl Fn(f32) -> f32) -> 
                 })
                 .collect();
             let mut t = vec![0.0; points.len()];
-            m.lookup(&points, &mut t);
+            m.filter(&points, &mut t);
             let mean = t.iter().sum::<f32>() / t.len() as f32;
             (mean - truth(x)).abs()
         })
@@ -222,7 +222,7 @@ fn coarse_opacity_maps_show_their_known_layering_error() {
     // half slab alone, the two planes are its own top and bottom and the
     // linear interpolation is exact for its uniform density.
     let truth = (-kappa_of() * 0.25).exp();
-    let got = m.transmittance(Vec3::new(0.0, h - 0.25, 0.0));
+    let got = m.transmittance_at(Vec3::new(0.0, h - 0.25, 0.0));
     assert!(
         (got - truth).abs() < 0.05,
         "half slab alone: {got} vs {truth}"
@@ -237,7 +237,7 @@ fn coarse_opacity_maps_show_their_known_layering_error() {
     // A bundle far below stretches the planes: the interpolation now
     // spreads the slab's opacity over the whole range.
     let m = run(&coarse, &stretched, &light, &[]);
-    let got = m.transmittance(Vec3::new(0.0, h - 0.25, 0.0));
+    let got = m.transmittance_at(Vec3::new(0.0, h - 0.25, 0.0));
     assert!(
         got - truth > 0.1,
         "two slices over a stretched range must underestimate the shadow: {got} vs {truth}"
@@ -323,7 +323,7 @@ fn every_method_keeps_t_in_unit_range_and_non_increasing_along_the_light() {
                     let mut prev = 1.0f32;
                     for i in 0..40 {
                         let p = s + l * (len * i as f32 / 39.0);
-                        let t = m.transmittance(p);
+                        let t = m.transmittance_at(p);
                         assert!(
                             (0.0..=1.0).contains(&t),
                             "{} {}: T = {t} at {p}",
@@ -366,7 +366,7 @@ fn every_method_gives_the_same_bytes_on_any_number_of_threads() {
                 pool.install(|| {
                     let m = run(&c, &hair, &light, &head);
                     let mut t = vec![0.0f32; points.len()];
-                    m.lookup(&points, &mut t);
+                    m.filter(&points, &mut t);
                     t.iter().map(|x| x.to_bits()).collect()
                 })
             })
@@ -415,7 +415,7 @@ fn every_method_and_the_reference_follow_a_close_point_light_along_every_ray() {
                     .sum::<f32>()
                     / points.len() as f32;
                 let mut t = vec![0.0; points.len()];
-                m.lookup(&points, &mut t);
+                m.filter(&points, &mut t);
                 let got = t.iter().sum::<f32>() / t.len() as f32;
                 (got - want).abs()
             })

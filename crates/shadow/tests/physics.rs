@@ -27,7 +27,7 @@ fn mean_t_at_depth(t: &Transmittance, h: f32, x: f32, inner: f32, rot: Quat) -> 
         for b in 0..m {
             let px = -inner + 2.0 * inner * (a as f32 + 0.5) / m as f32;
             let pz = -inner + 2.0 * inner * (b as f32 + 0.5) / m as f32;
-            sum += t.transmittance(rot * Vec3::new(px, h - x, pz), true);
+            sum += t.transmittance_at(rot * Vec3::new(px, h - x, pz), true);
         }
     }
     sum / (m * m) as f32
@@ -126,7 +126,7 @@ fn light_reaches_points_in_front_of_all_hair_untouched() {
             let q = p - (p.dot(l) - first + 0.01) * l;
             for filter in [true, false] {
                 assert_eq!(
-                    t.transmittance(q, filter),
+                    t.transmittance_at(q, filter),
                     1.0,
                     "{q} in front of the hair, light {d}, filter {filter}"
                 );
@@ -136,7 +136,7 @@ fn light_reaches_points_in_front_of_all_hair_untouched() {
         let b = hair.bounds();
         for far in [b.max + Vec3::splat(100.0), b.min - Vec3::splat(100.0)] {
             let behind = far.dot(l) > first;
-            let tf = t.transmittance(far, true);
+            let tf = t.transmittance_at(far, true);
             assert!(tf == 1.0 || behind, "{far}: {tf}");
         }
     }
@@ -162,7 +162,7 @@ fn transmittance_stays_in_range_and_never_increases_along_the_light() {
                 let mut prev = 1.0f32;
                 for s in 0..200 {
                     let p = start + l * (size * (s as f32 / 100.0 - 1.0));
-                    let v = t.transmittance(p, filter);
+                    let v = t.transmittance_at(p, filter);
                     assert!((0.0..=1.0).contains(&v), "T({p}) = {v}");
                     // The test's points drift off the ray by float rounding
                     // (a few ulps of |p|), which moves the bilinear weights
@@ -194,7 +194,7 @@ fn patch_mean(t: &Transmittance, centre: Vec3, side: f32, rot: Quat) -> f32 {
                 0.0,
                 side * ((b as f32 + 0.5) / 8.0 - 0.5),
             );
-            sum += t.transmittance(rot * (centre + off), true);
+            sum += t.transmittance_at(rot * (centre + off), true);
         }
     }
     sum / 64.0
@@ -264,7 +264,7 @@ fn results_are_the_same_bytes_on_any_number_of_threads() {
         pool.install(|| {
             let t = shadow_of(&hair, &light, &fiber, 96);
             let mut out = vec![0.0; points.len()];
-            t.lookup(&points, true, &mut out);
+            t.filter(&points, true, &mut out);
             (t, out.iter().map(|v| v.to_bits()).collect::<Vec<u32>>())
         })
     };
@@ -303,7 +303,7 @@ fn point_lit_means(
             let e = (p - source).normalize();
             let length = x / e.y.abs();
             let sin = e.cross(dir.normalize()).length();
-            got += t.transmittance(p, true);
+            got += t.transmittance_at(p, true);
             want += (-kappa_per_sin * sin * length).exp();
         }
     }
@@ -340,8 +340,8 @@ fn a_point_light_close_to_a_slab_follows_beer_lambert_along_every_ray() {
         }
         // Between the light and the hair the light is whole.
         for p in [Vec3::new(0.0, h + 0.01, 0.0), Vec3::new(0.2, h + 0.3, -0.1)] {
-            assert_eq!(t.transmittance(p, true), 1.0, "{p}");
-            assert_eq!(t.transmittance(p, false), 1.0, "{p}");
+            assert_eq!(t.transmittance_at(p, true), 1.0, "{p}");
+            assert_eq!(t.transmittance_at(p, false), 1.0, "{p}");
         }
     }
 }

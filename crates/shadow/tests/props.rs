@@ -89,9 +89,9 @@ proptest! {
         let fiber = Fiber::new(width, opacity).unwrap();
         let occluders: Vec<Occluder> = head.map(|(center, radius)| Occluder::sphere(center, radius)).into_iter().collect();
         let mut m = shadow::ShadowMethod::new(&config).unwrap();
-        let stats = m.build(&ShadowInput { light: &light, hair: &hair, fiber: &fiber, occluders: &occluders, extent: None }).unwrap();
+        let stats = m.density(&ShadowInput { light: &light, hair: &hair, fiber: &fiber, occluders: &occluders, extent: None }).unwrap();
         prop_assert_eq!(stats.out_of_map, 0);
-        m.prepare();
+        m.transmittance();
         let l = light.direction();
         // Successive points of a ray are rounded across the light by an
         // ulp, and their map coordinates (up to 40 cells) by a few more:
@@ -126,11 +126,11 @@ proptest! {
         };
         for s in starts {
             let (front, l, reach) = ray(s);
-            prop_assert_eq!(m.transmittance(front), 1.0, "{} in front of the hair", config.name());
+            prop_assert_eq!(m.transmittance_at(front), 1.0, "{} in front of the hair", config.name());
             let mut prev = 1.0f32;
             for i in 0..=40 {
                 let p = front + l * (reach * i as f32 / 40.0);
-                let t = m.transmittance(p);
+                let t = m.transmittance_at(p);
                 prop_assert!(t.is_finite() && (0.0..=1.0).contains(&t), "{}: T = {} at {}", config.name(), t, p);
                 prop_assert!(t <= prev + slack, "{}: T rises from {} to {} at {}", config.name(), prev, t, p);
                 prev = t;

@@ -12,7 +12,7 @@ const ALPHA: f32 = 0.6;
 fn reference(hair: &Hair, light: &Light, rays: u32) -> ShadowMethod {
     let fiber = Fiber::new(W, ALPHA).unwrap();
     let mut m = ShadowMethod::new(&MethodConfig::Reference { rays }).unwrap();
-    m.build(&ShadowInput {
+    m.density(&ShadowInput {
         light,
         hair,
         fiber: &fiber,
@@ -20,7 +20,7 @@ fn reference(hair: &Hair, light: &Light, rays: u32) -> ShadowMethod {
         extent: None,
     })
     .unwrap();
-    m.prepare();
+    m.transmittance();
     m
 }
 
@@ -50,7 +50,7 @@ fn a_fiber_sees_what_covers_it_and_nothing_beside_it() {
     along_z(&mut hair, 4.0, 1.0); // F, in front
     along_z(&mut hair, 4.0 + 3.0 * W, 0.0); // G, behind and beside F
     let m = reference(&hair, &light, 4);
-    let t = |s: usize, i: usize| m.transmittance(hair.strand(s)[i]);
+    let t = |s: usize, i: usize| m.transmittance_at(hair.strand(s)[i]);
     for i in 0..9 {
         // A and A2 are lit: a fiber is not its own shadow.
         assert_eq!(t(0, i), 1.0, "A point {i}");
@@ -77,7 +77,7 @@ fn a_fiber_sees_what_covers_it_and_nothing_beside_it() {
         rays: 16,
     })
     .unwrap();
-    f.build(&ShadowInput {
+    f.density(&ShadowInput {
         light: &light,
         hair: &hair,
         fiber: &fiber,
@@ -85,8 +85,8 @@ fn a_fiber_sees_what_covers_it_and_nothing_beside_it() {
         extent: None,
     })
     .unwrap();
-    f.prepare();
-    assert!(f.transmittance(hair.strand(6)[4]) < 0.95);
+    f.transmittance();
+    assert!(f.transmittance_at(hair.strand(6)[4]) < 0.95);
 }
 
 #[test]
@@ -107,7 +107,7 @@ fn a_fiber_along_the_light_is_not_its_own_shadow() {
     hair.push_strand(&pts).unwrap();
     let m = reference(&hair, &light, 4);
     for &p in hair.points() {
-        assert_eq!(m.transmittance(p), 1.0, "at {p}");
+        assert_eq!(m.transmittance_at(p), 1.0, "at {p}");
     }
 }
 
@@ -129,11 +129,14 @@ fn a_strand_that_turns_back_shadows_itself() {
     hair.push_strand(&pts).unwrap();
     let m = reference(&hair, &light, 4);
     for (i, &p) in pts[..=10].iter().enumerate() {
-        assert_eq!(m.transmittance(p), 1.0, "upper leg point {i}");
+        assert_eq!(m.transmittance_at(p), 1.0, "upper leg point {i}");
     }
     // The lower leg away from the bend.
     for p in &pts[pts.len() - 8..] {
-        assert!(close(m.transmittance(*p), 1.0 - ALPHA), "lower leg at {p}");
+        assert!(
+            close(m.transmittance_at(*p), 1.0 - ALPHA),
+            "lower leg at {p}"
+        );
     }
 }
 
@@ -147,17 +150,17 @@ fn a_probe_is_one_ray_and_a_point_light_sends_rays_to_its_source() {
     let m = reference(&hair, &light, 4);
     // Straight below the light, under both fibers.
     assert!(close(
-        m.transmittance(Vec3::new(0.0, 0.0, 0.0)),
+        m.transmittance_at(Vec3::new(0.0, 0.0, 0.0)),
         (1.0 - ALPHA) * (1.0 - ALPHA)
     ));
     // Off to the side: the ray to the light passes both fibers by.
-    assert_eq!(m.transmittance(Vec3::new(1.0, 0.0, 0.0)), 1.0);
+    assert_eq!(m.transmittance_at(Vec3::new(1.0, 0.0, 0.0)), 1.0);
     // The upper fiber is lit; the lower one is in its shadow all along
     // (its rays converge on the light, across the upper fiber).
     for i in 0..9 {
-        assert_eq!(m.transmittance(hair.strand(1)[i]), 1.0);
+        assert_eq!(m.transmittance_at(hair.strand(1)[i]), 1.0);
         assert!(
-            close(m.transmittance(hair.strand(0)[i]), 1.0 - ALPHA),
+            close(m.transmittance_at(hair.strand(0)[i]), 1.0 - ALPHA),
             "point {i}"
         );
     }

@@ -50,13 +50,16 @@ impl DeepOpacityMap {
         }
     }
 
-    pub(crate) fn build(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
+    pub(crate) fn density(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
         self.prepared = None;
         self.pixels.build(input, self.resolution)
     }
 
-    pub(crate) fn prepare(&mut self) {
-        assert!(self.pixels.frame.is_some(), "build runs before prepare");
+    pub(crate) fn transmittance(&mut self) {
+        assert!(
+            self.pixels.frame.is_some(),
+            "the density stage runs before the transmittance stage"
+        );
         let (layers, beyond) = (self.layers, self.beyond);
         let pixels = self.pixels.count();
         let frags = &self.pixels.frags;
@@ -99,10 +102,12 @@ impl DeepOpacityMap {
         self.prepared = Some(Layers { z0, delta, omega });
     }
 
-    pub(crate) fn transmittance(&self, p: Vec3) -> f32 {
+    pub(crate) fn transmittance_at(&self, p: Vec3) -> f32 {
         let frame = self.pixels.frame();
-        let Layers { z0, delta, omega } =
-            self.prepared.as_ref().expect("prepare runs before lookups");
+        let Layers { z0, delta, omega } = self
+            .prepared
+            .as_ref()
+            .expect("the transmittance stage runs before lookups");
         let layers = self.layers;
         let d = sample(frame, p, self.filter, 0.0, |pix, x| {
             let z = z0[pix];

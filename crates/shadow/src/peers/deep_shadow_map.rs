@@ -45,12 +45,12 @@ impl DeepShadowMap {
         }
     }
 
-    pub(crate) fn build(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
+    pub(crate) fn density(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
         self.prepared = None;
         self.pixels.build(input, self.resolution)
     }
 
-    pub(crate) fn prepare(&mut self) {
+    pub(crate) fn transmittance(&mut self) {
         let n = self.pixels.frame().n_cells as usize;
         let (frags, tolerance) = (&self.pixels.frags, self.tolerance);
         let rows: Vec<RowVertices> = (0..n)
@@ -80,10 +80,12 @@ impl DeepShadowMap {
         self.prepared = Some(Visibility { start, verts });
     }
 
-    pub(crate) fn transmittance(&self, p: Vec3) -> f32 {
+    pub(crate) fn transmittance_at(&self, p: Vec3) -> f32 {
         let frame = self.pixels.frame();
-        let Visibility { start, verts } =
-            self.prepared.as_ref().expect("prepare runs before lookups");
+        let Visibility { start, verts } = self
+            .prepared
+            .as_ref()
+            .expect("the transmittance stage runs before lookups");
         sample(frame, p, self.filter, 1.0, |pix, x| {
             let v = &verts[start[pix] as usize..start[pix + 1] as usize];
             visibility_at(v, x)

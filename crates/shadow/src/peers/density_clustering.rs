@@ -32,13 +32,16 @@ impl DensityClustering {
         }
     }
 
-    pub(crate) fn build(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
+    pub(crate) fn density(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
         self.bins = None;
         self.pixels.build(input, self.resolution)
     }
 
-    pub(crate) fn prepare(&mut self) {
-        assert!(self.pixels.frame.is_some(), "build runs before prepare");
+    pub(crate) fn transmittance(&mut self) {
+        assert!(
+            self.pixels.frame.is_some(),
+            "the density stage runs before the transmittance stage"
+        );
         let k = self.k;
         let frags = &self.pixels.frags;
         let mut bins = vec![Bin::EMPTY; self.pixels.count() * k];
@@ -48,9 +51,12 @@ impl DensityClustering {
         self.bins = Some(bins);
     }
 
-    pub(crate) fn transmittance(&self, p: Vec3) -> f32 {
+    pub(crate) fn transmittance_at(&self, p: Vec3) -> f32 {
         let frame = self.pixels.frame();
-        let bins = self.bins.as_ref().expect("prepare runs before lookups");
+        let bins = self
+            .bins
+            .as_ref()
+            .expect("the transmittance stage runs before lookups");
         let k = self.k;
         let d = sample(frame, p, self.filter, 0.0, |pix, x| {
             bins[pix * k..(pix + 1) * k]

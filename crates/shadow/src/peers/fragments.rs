@@ -34,7 +34,7 @@ impl Pixels {
     pub(super) fn frame(&self) -> &LightFrame {
         self.frame
             .as_ref()
-            .expect("build runs before prepare and lookups")
+            .expect("the density stage runs before the transmittance stage and lookups")
     }
 
     /// Pixels of the map.

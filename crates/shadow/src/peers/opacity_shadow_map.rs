@@ -51,13 +51,16 @@ impl OpacityShadowMap {
         }
     }
 
-    pub(crate) fn build(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
+    pub(crate) fn density(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
         self.prepared = None;
         self.pixels.build(input, self.resolution)
     }
 
-    pub(crate) fn prepare(&mut self) {
-        assert!(self.pixels.frame.is_some(), "build runs before prepare");
+    pub(crate) fn transmittance(&mut self) {
+        assert!(
+            self.pixels.frame.is_some(),
+            "the density stage runs before the transmittance stage"
+        );
         let slices = self.slices;
         let frags = &self.pixels.frags;
         // The hair's depth range (Koster et al.: the bounding box).
@@ -88,10 +91,12 @@ impl OpacityShadowMap {
         self.prepared = Some(Slices { d0, delta, omega });
     }
 
-    pub(crate) fn transmittance(&self, p: Vec3) -> f32 {
+    pub(crate) fn transmittance_at(&self, p: Vec3) -> f32 {
         let frame = self.pixels.frame();
-        let Slices { d0, delta, omega } =
-            self.prepared.as_ref().expect("prepare runs before lookups");
+        let Slices { d0, delta, omega } = self
+            .prepared
+            .as_ref()
+            .expect("the transmittance stage runs before lookups");
         let (d0, delta, slices) = (*d0, *delta, self.slices);
         let offset = self.offset;
         let om = sample(frame, p, self.filter, 0.0, |pix, x| {
