@@ -511,6 +511,43 @@ fn a_scene_that_never_ends_or_is_too_big_or_not_text_is_refused_by_name() {
 }
 
 #[test]
+fn a_scene_from_a_fifo_that_never_ends_is_refused_at_the_limit() {
+    let dir = scratch("render-fifo");
+    let fifo = dir.join("endless.toml");
+    let made = Command::new("mkfifo").arg(&fifo).status().unwrap();
+    assert!(made.success());
+    // A writer that never stops (until the reader goes: a broken pipe).
+    let path = fifo.clone();
+    let writer = std::thread::spawn(move || {
+        use std::io::Write;
+        let mut f = std::fs::OpenOptions::new().write(true).open(path).unwrap();
+        let line = b"# a comment, over and over\n".repeat(4096);
+        let mut sent = 0usize;
+        while f.write_all(&line).is_ok() {
+            sent += line.len();
+        }
+        sent
+    });
+    let out = dir.join("x.png");
+    let o = wisplight(&[
+        "render",
+        fifo.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(
+        e.contains(fifo.to_str().unwrap()) && e.contains("a device or a FIFO"),
+        "{e}"
+    );
+    assert!(!out.exists());
+    // The reader stopped a little past the 16 MiB limit.
+    let sent = writer.join().unwrap();
+    assert!((16 << 20..64 << 20).contains(&sent), "{sent} bytes written");
+}
+
+#[test]
 fn render_takes_a_groom_file_alone() {
     let dir = scratch("render-groom");
     // Two strands of four points in the .hair format (Yuksel): the header,
