@@ -620,10 +620,14 @@ impl Executor for RemoteExecutor {
             .map_err(engine_error)
     }
 
+    /// With one worker left the coordinator draws: a lone worker's
+    /// partial picture would cross the wire only to be composited here
+    /// (`bench scaling`, curly, 0.4 core a node: 420 ms a frame drawn on
+    /// the worker against 288 drawn here, one process 299).
     fn drawing(&mut self) -> Option<&mut dyn Drawing> {
         match self.draw {
-            DrawAt::Workers => Some(self),
-            DrawAt::Coordinator => None,
+            DrawAt::Workers if self.workers.len() >= 2 => Some(self),
+            DrawAt::Workers | DrawAt::Coordinator => None,
         }
     }
 }
