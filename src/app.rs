@@ -38,7 +38,8 @@ pub fn exit_cleanly_on_signals() {
 
 /// Reports a bug on one line, never as a trace; sets `-q`/`-v` logging on
 /// stderr.
-pub fn start(quiet: bool, verbose: u8) {
+pub fn start(log: crate::cmd::Log) {
+    let crate::cmd::Log { quiet, verbose } = log;
     std::panic::set_hook(Box::new(|info| {
         let message = info
             .payload()

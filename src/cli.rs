@@ -11,12 +11,8 @@ use crate::{app, cmd};
 #[derive(Debug, Parser)]
 #[command(name = "wisplight", version, about, propagate_version = true)]
 pub struct Cli {
-    /// More log detail on stderr (-v info, -vv debug).
-    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
-    pub verbose: u8,
-    /// Only errors on stderr.
-    #[arg(short, long, global = true, conflicts_with = "verbose")]
-    pub quiet: bool,
+    #[command(flatten)]
+    pub log: cmd::Log,
     #[command(subcommand)]
     pub command: Command,
 }
@@ -50,7 +46,7 @@ pub enum Command {
 
 /// Runs the command `cli` names: its exit code.
 pub fn run(cli: Cli) -> ExitCode {
-    app::start(cli.quiet, cli.verbose);
+    app::start(cli.log);
     // Commands that write pictures leave no partial file when stopped.
     if matches!(cli.command, Command::Render(_) | Command::Coordinator(_)) {
         app::exit_cleanly_on_signals();
@@ -74,7 +70,7 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::View(args) => cmd::view::run(args),
         Command::Export(args) => cmd::export::run(args),
         // The flags given before `bench` go along.
-        Command::Bench { args } => cmd::run_bench(cli.quiet, cli.verbose, args),
+        Command::Bench { args } => cmd::run_bench(cli.log, args),
     });
     app::finish(result)
 }

@@ -22,19 +22,15 @@ use engine::Stage;
     about = "Measures wisplight: stage timings, the shadow methods' accuracy, cluster scaling"
 )]
 pub struct Cli {
-    /// More log detail on stderr (-v info, -vv debug).
-    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
-    pub verbose: u8,
-    /// Only errors on stderr.
-    #[arg(short, long, global = true, conflicts_with = "verbose")]
-    pub quiet: bool,
+    #[command(flatten)]
+    pub log: crate::cmd::Log,
     #[command(subcommand)]
     pub bench: Bench,
 }
 
 /// Runs the benchmark `cli` names: its exit code.
 pub fn run_cli(cli: Cli) -> std::process::ExitCode {
-    crate::app::start(cli.quiet, cli.verbose);
+    crate::app::start(cli.log);
     let result = crate::app::init_threads(cli.bench.threads()).and_then(|()| run(cli.bench));
     crate::app::finish(result)
 }

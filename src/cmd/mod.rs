@@ -22,6 +22,17 @@ pub struct Threads {
     pub threads: Option<u16>,
 }
 
+/// `-v` and `-q`, on both programs' every command.
+#[derive(Debug, Clone, Copy, clap::Args)]
+pub struct Log {
+    /// More log detail on stderr (-v info, -vv debug).
+    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    pub verbose: u8,
+    /// Only errors on stderr.
+    #[arg(short, long, global = true, conflicts_with = "verbose")]
+    pub quiet: bool,
+}
+
 static QUIET: AtomicBool = AtomicBool::new(false);
 
 /// `-q`: only errors on stderr, the summary lines of a run too.
@@ -126,7 +137,7 @@ pub fn median(v: &mut [f64]) -> f64 {
 /// `wisplight bench ARGS`: runs `wisplight-bench ARGS` (beside this
 /// program, or on `PATH`) with `-q`/`-v` passed on, and ends with its exit
 /// code.
-pub fn run_bench(quiet: bool, verbose: u8, args: Vec<std::ffi::OsString>) -> anyhow::Result<()> {
+pub fn run_bench(log: Log, args: Vec<std::ffi::OsString>) -> anyhow::Result<()> {
     const NAME: &str = "wisplight-bench";
     let beside = std::env::current_exe()
         .ok()
@@ -134,10 +145,10 @@ pub fn run_bench(quiet: bool, verbose: u8, args: Vec<std::ffi::OsString>) -> any
         .filter(|p| p.is_file());
     let program = beside.map_or_else(|| std::ffi::OsString::from(NAME), |p| p.into_os_string());
     let mut command = std::process::Command::new(&program);
-    if quiet {
+    if log.quiet {
         command.arg("-q");
     }
-    for _ in 0..verbose {
+    for _ in 0..log.verbose {
         command.arg("-v");
     }
     command.args(&args);

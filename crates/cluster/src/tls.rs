@@ -58,6 +58,14 @@ pub(crate) fn may_call(
     }
 }
 
+/// [`may_call`] for the client of `req`.
+pub(crate) fn request_may_call<T>(
+    req: &tonic::Request<T>,
+    caller: Caller,
+) -> Result<(), tonic::Status> {
+    may_call(req.peer_certs().as_deref().map(|c| c.as_slice()), caller)
+}
+
 /// Whether the certificate `der` is valid for the DNS name
 /// [`COORDINATOR_NAME`] (its subject alternative names, as a server name
 /// is checked; wildcards do not match a name without dots).

@@ -30,10 +30,12 @@ pub struct ShadowInput<'a> {
 impl ShadowInput<'_> {
     /// A map of `n` cells a side fitted to the hair and the occluders.
     pub fn fit(&self, n: u32) -> Result<LightFrame, ShadowError> {
-        let corners: Vec<Vec3> = self.occluders.iter().flat_map(|o| o.corners()).collect();
         match self.extent {
             Some(extent) => fit_to_extent(self.light, self.occluders, extent, n),
-            None => LightFrame::fit_with(self.light, self.hair.points(), &corners, n),
+            None => {
+                let corners: Vec<Vec3> = self.occluders.iter().flat_map(|o| o.corners()).collect();
+                LightFrame::fit_with(self.light, self.hair.points(), &corners, n)
+            }
         }
     }
 }

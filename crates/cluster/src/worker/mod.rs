@@ -123,10 +123,7 @@ impl Worker for WorkerService {
     ) -> Result<Response<pb::HelloReply>, Status> {
         let peer = req.remote_addr();
         let served = async move {
-            tls::may_call(
-                req.peer_certs().as_deref().map(|c| c.as_slice()),
-                Caller::Coordinator,
-            )?;
+            tls::request_may_call(&req, Caller::Coordinator)?;
             let r = req.into_inner();
             if r.protocol_version != wire::PROTOCOL_VERSION {
                 return Err(status(
@@ -189,10 +186,7 @@ impl Worker for WorkerService {
         let peer = req.remote_addr();
         let served = async move {
             let id = named_session(req.metadata())?;
-            tls::may_call(
-                req.peer_certs().as_deref().map(|c| c.as_slice()),
-                Caller::Coordinator,
-            )?;
+            tls::request_may_call(&req, Caller::Coordinator)?;
             let mut sessions = self.sessions.lock().map_err(poisoned)?;
             sessions.remove(id).ok_or_else(|| not_open(id))?;
             tracing::info!(session = %&id[..id.len().min(8)], sessions = sessions.len(), "session ended");

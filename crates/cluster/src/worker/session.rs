@@ -5,7 +5,7 @@ use super::memory::{Budget, Grant, Memory};
 use super::status::{named_session, not_open, poisoned, status};
 use super::swept::SweptStore;
 use crate::error::WorkerErrorKind as Kind;
-use crate::tls::{Caller, may_call};
+use crate::tls::{Caller, request_may_call};
 use crate::{SessionLimits, WorkerService, pb, wire};
 use engine::{SceneSource, Share};
 use shadow::{DensityMap, Fiber, LightFrame};
@@ -158,7 +158,7 @@ impl WorkerService {
         req: &Request<T>,
         caller: Caller,
     ) -> Result<Arc<Session>, Status> {
-        may_call(req.peer_certs().as_deref().map(|c| c.as_slice()), caller)?;
+        request_may_call(req, caller)?;
         let id = named_session(req.metadata())?;
         let sessions = self.sessions.lock().map_err(poisoned)?;
         let s = sessions.get(id).cloned().ok_or_else(|| not_open(id))?;
