@@ -312,7 +312,16 @@ fn the_full_scene_is_valid() {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(1500))]
+    #![proptest_config(ProptestConfig {
+        cases: 1500,
+        // The same cases on every run (CI gates on them); set
+        // PROPTEST_RNG_SEED to explore others.
+        rng_seed: match ProptestConfig::default().rng_seed {
+            proptest::test_runner::RngSeed::Random => proptest::test_runner::RngSeed::Fixed(0x5eed),
+            chosen => chosen,
+        },
+        ..ProptestConfig::default()
+    })]
 
     #[test]
     fn a_full_scene_with_values_replaced(

