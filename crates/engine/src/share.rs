@@ -42,8 +42,8 @@ pub struct Share {
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct BandPlan {
     /// Band `b` is rows `cuts[b]..cuts[b + 1]`: from 0 to the picture's
-    /// height, ascending, each on a multiple of [`Canvas::BAND_ROWS`]
-    /// (but the last).
+    /// height, ascending, each on a multiple of the canvas's band rows
+    /// ([`Canvas::band_rows_for`] its size; but the last).
     pub cuts: Vec<u32>,
     /// The workers the bands are dealt to.
     pub workers: usize,
@@ -53,9 +53,9 @@ pub struct BandPlan {
 
 impl BandPlan {
     /// Bands of `rows` rows (rounded up to whole canvas bands) of a
-    /// picture of `height` rows, dealt to `workers` workers.
-    pub fn dealt(height: u32, rows: u32, workers: usize, own: usize) -> BandPlan {
-        let band = Canvas::BAND_ROWS;
+    /// picture of `width x height` pixels, dealt to `workers` workers.
+    pub fn dealt(width: u32, height: u32, rows: u32, workers: usize, own: usize) -> BandPlan {
+        let band = Canvas::band_rows_for(width, height);
         let step = rows.max(1).div_ceil(band) * band;
         let mut cuts: Vec<u32> = (0..height.div_ceil(step)).map(|i| i * step).collect();
         cuts.push(height);
@@ -91,9 +91,9 @@ impl BandPlan {
         b >= 1 && b < self.cuts.len() && self.owner(b - 1) == self.own
     }
 
-    /// Checks the plan against a picture of `height` rows.
-    pub fn check(&self, height: u32) -> Result<(), EngineError> {
-        let band = Canvas::BAND_ROWS;
+    /// Checks the plan against a picture of `width x height` pixels.
+    pub fn check(&self, width: u32, height: u32) -> Result<(), EngineError> {
+        let band = Canvas::band_rows_for(width, height);
         let ok = self.cuts.len() >= 2
             && self.own < self.workers
             && self.cuts.first() == Some(&0)
@@ -358,7 +358,7 @@ impl Share {
         mut emit: impl FnMut(HairLayer) -> Result<(), EngineError>,
     ) -> Result<DrawTimes, EngineError> {
         let (canvas, mut times) = self.bin(job, maps, None)?;
-        let band = Canvas::BAND_ROWS;
+        let band = canvas.band_rows();
         let step = stripe_rows.max(1).div_ceil(band) * band;
         let mut y = 0;
         while y < canvas.height() {
@@ -385,8 +385,7 @@ impl Share {
         plan: &BandPlan,
         mut send: impl FnMut(usize, HairLayer) -> Result<(), EngineError>,
     ) -> Result<BandWork, EngineError> {
-        let height = job.camera.height();
-        plan.check(height)?;
+        plan.check(job.camera.width(), job.camera.height())?;
         let own = plan.rows_of(plan.own);
         let background = self.background;
         let (_, mut times) = self.bin(job, maps, Some(plan))?;

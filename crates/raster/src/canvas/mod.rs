@@ -44,8 +44,19 @@ pub const MAX_PIXELS: u64 = 40_000_000;
 
 /// Fragment alpha never reaches 1: one fragment never hides all behind it.
 const MAX_ALPHA: f32 = 0.995;
-/// Image rows per band: bands are drawn in parallel, each by one thread.
-const BAND: usize = 16;
+/// A band's rows are a multiple of this.
+const BAND_STEP: usize = 16;
+/// Pixels of a band at most (but for the narrowest bands): 64 rows of a
+/// 1280-pixel picture. Taller bands cut fewer segments in two (each piece
+/// costs its line's set-up and a fetch of its ends); a thread's band
+/// state (32 bytes a pixel, and `24 k` of nearest fragments) stays a few
+/// MB.
+const BAND_PIXELS: usize = 64 * 1280;
+/// Rows of the tallest band.
+const MAX_BAND: usize = 64;
+/// Bands a picture has at least (but for the shortest pictures): the
+/// threads that can draw it at once.
+const MIN_BANDS: usize = 8;
 
 /// How drawn strands look.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -59,22 +70,35 @@ pub struct HairLook {
     pub depth_ref: f32,
 }
 
-/// One group's per-pixel hair sums while it is rasterized: colour times
-/// alpha times depth weight, alpha times depth weight, and the product of
-/// `1 - alpha`, the fraction of the background the hair reveals.
+/// One band pixel while a group is rasterized: the group's hair sums
+/// (colour times alpha times depth weight, alpha times depth weight, and
+/// the product of `1 - alpha`, the fraction of the background the hair
+/// reveals), and what every fragment there is tested against: the opaque
+/// layer's depth, and the length and farthest depth of the group's list
+/// of nearest fragments.
 ///
 /// Colour and weight sit in one vector (`xyz` and `w`), so that a fragment
-/// adds both in one operation.
+/// adds both in one operation. All of it fits the 32 bytes the vector's
+/// alignment gives: a fragment touches one cache line, not one per array.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Acc {
     rgbw: Vec4,
     reveal: f32,
+    /// View depth of the opaque layer (infinite where nothing).
+    depth: f32,
+    /// The depth of the farthest of a full list (infinite until full).
+    far: f32,
+    /// Fragments in the list.
+    len: u8,
 }
 
 impl Acc {
     const EMPTY: Acc = Acc {
         rgbw: Vec4::ZERO,
         reveal: 1.0,
+        depth: f32::INFINITY,
+        far: f32::INFINITY,
+        len: 0,
     };
 }
 
@@ -95,8 +119,8 @@ pub struct Canvas {
     /// Rows `y0..y1`, columns `x0..x1` of the opaque layer drawn since the
     /// last clear.
     dirty: Option<[usize; 4]>,
-    /// Projected hair vertices (`None`: behind the camera).
-    verts: Vec<Option<ScreenVertex>>,
+    /// Projected hair vertices.
+    verts: Vec<Projected>,
     /// Per chunk of strands (binned in parallel) and band of rows, every
     /// segment that touches the band, as its first vertex's index and its
     /// look's index. A band reads the chunks in order: strand order.
@@ -109,10 +133,56 @@ pub struct Canvas {
     chunk_group: Vec<u32>,
     /// Groups drawn since the last clear.
     groups: u32,
-    /// The look of each call to [`Canvas::draw_hair`] since the last clear.
-    looks: Vec<HairLook>,
+    /// The look of each call to [`Canvas::draw_hair`] since the last clear,
+    /// with the camera's focal length then.
+    looks: Vec<Look>,
     /// Fragments of a pixel composited front to back (the rest blended).
     nearest: usize,
+    /// Image rows per band: bands are drawn in parallel, each by one
+    /// thread ([`Canvas::band_rows_for`]).
+    band: usize,
+}
+
+/// A projected hair vertex as kept for the whole picture: pixel position
+/// and view depth (a NaN depth: behind the camera), and linear colour.
+/// Its width and depth weight follow from its depth and its look
+/// ([`Look::vertex`]): 24 bytes where they would make 36, as a band fetches
+/// the ends of its segments from all over the picture's vertices.
+#[derive(Debug, Clone, Copy)]
+struct Projected {
+    p: Vec3,
+    color: Vec3,
+}
+
+/// A [`HairLook`] on the camera it was drawn with.
+#[derive(Debug, Clone, Copy)]
+struct Look {
+    look: HairLook,
+    /// Fiber width times the camera's focal length: the projected width
+    /// times the depth, pixels times scene units.
+    width_z: f32,
+}
+
+impl Look {
+    /// The screen vertex of `v`, if it is in front of the camera.
+    #[inline]
+    fn vertex(&self, v: Projected) -> Option<ScreenVertex> {
+        let z = v.p.z;
+        if z.is_nan() {
+            return None;
+        }
+        Some(ScreenVertex {
+            p: v.p,
+            color: v.color,
+            // Projected width: w * focal / z pixels, at least a hair's
+            // breadth so that distant hair still covers something.
+            width: (self.width_z / z).clamp(0.05, 8.0),
+            // The depth weight at the ends, interpolated along a segment
+            // (which spans a few pixels; the weight changes little along
+            // it).
+            weight: (self.look.depth_ref / z).powi(6).clamp(1e-3, 1e3),
+        })
+    }
 }
 
 /// A segment binned for drawing: the index in `verts` of its first end
@@ -123,6 +193,9 @@ type Segment = (u32, u32);
 
 /// Strands per binning task.
 const STRANDS_PER_CHUNK: usize = 256;
+
+/// Segments whose ends a band fetches at once before rasterizing them.
+const GATHER: usize = 64;
 
 /// No pixel columns.
 const NO_REACH: [u32; 2] = [u32::MAX, 0];
@@ -150,6 +223,7 @@ impl Canvas {
             groups: 0,
             looks: Vec::new(),
             nearest: 0,
+            band: Canvas::band_rows_for(width, height) as usize,
         })
     }
 
@@ -224,28 +298,17 @@ impl Canvas {
             "groups cover the strands in order"
         );
         let base = self.verts.len();
-        let fiber_width = look.fiber_width;
-        let focal = camera.focal();
-        let depth_ref = look.depth_ref;
         // Project every vertex once.
         self.verts
             .par_extend(points.par_iter().zip(colors).map(|(&p, &color)| {
-                let s = camera.project(p)?;
-                // Projected width: w * focal / z pixels, at least a hair's
-                // breadth so that distant hair still covers something.
-                let width = (fiber_width * focal / s.z).clamp(0.05, 8.0);
-                // The depth weight at the ends, interpolated along a
-                // segment (which spans a few pixels; the weight changes
-                // little along it).
-                let weight = (depth_ref / s.z).powi(6).clamp(1e-3, 1e3);
-                Some(ScreenVertex {
-                    p: s,
-                    color,
-                    width,
-                    weight,
-                })
+                let p = camera.project(p).unwrap_or(Vec3::NAN);
+                Projected { p, color }
             }));
-        self.looks.push(*look);
+        let look = Look {
+            look: *look,
+            width_z: look.fiber_width * camera.focal(),
+        };
+        self.looks.push(look);
         let look_index = (self.looks.len() - 1) as u32;
         // Chunks of strands, none across a group's end.
         let first_chunk = self.chunk_group.len();
@@ -259,7 +322,8 @@ impl Canvas {
         }
         // Bin segments to bands of rows: chunks of strands in parallel, each
         // in strand order.
-        let bands = self.height.div_ceil(BAND);
+        let band_rows = self.band;
+        let bands = self.height.div_ceil(band_rows);
         let end_chunk = self.chunk_group.len();
         if self.bins.len() < end_chunk {
             self.bins.resize_with(end_chunk, || vec![Vec::new(); bands]);
@@ -274,7 +338,10 @@ impl Canvas {
             .for_each(|((bins, reach), strands)| {
                 for s in strands {
                     for i in offsets[s] as usize..(offsets[s + 1] as usize).saturating_sub(1) {
-                        let (Some(a), Some(b)) = (verts[base + i], verts[base + i + 1]) else {
+                        let (Some(a), Some(b)) = (
+                            look.vertex(verts[base + i]),
+                            look.vertex(verts[base + i + 1]),
+                        ) else {
                             continue;
                         };
                         let pad = a.width.max(b.width) + 2.0;
@@ -286,7 +353,10 @@ impl Canvas {
                         }
                         // Columns the segment's fragments can fall in.
                         let (x0, x1) = (left.max(0.0) as u32, (right.min(w) as u32 + 1));
-                        let (first, last) = (lo as usize / BAND, (hi as usize).min(h - 1) / BAND);
+                        let (first, last) = (
+                            lo as usize / band_rows,
+                            (hi as usize).min(h - 1) / band_rows,
+                        );
                         for (bin, r) in bins[first..=last].iter_mut().zip(&mut reach[first..=last])
                         {
                             bin.push(((base + i) as u32, look_index));
@@ -315,7 +385,7 @@ impl Canvas {
     }
 
     /// [`Self::resolve_layers`] of rows `rows` alone (starting on a
-    /// multiple of [`Self::BAND_ROWS`]; clipped to the picture), as 8-bit
+    /// multiple of [`Self::band_rows`]; clipped to the picture), as 8-bit
     /// sRGB, row after row: the same bytes as those rows of the whole
     /// picture. A cluster worker resolves its own band of the picture so.
     pub fn resolve_rows(
@@ -346,9 +416,9 @@ impl Canvas {
         rows: std::ops::Range<u32>,
         own_hair: bool,
     ) -> Vec<u8> {
-        let (w, h) = (self.width, self.height);
+        let (w, h, band_rows) = (self.width, self.height, self.band);
         let (r0, r1) = ((rows.start as usize).min(h), (rows.end as usize).min(h));
-        debug_assert!(r0.is_multiple_of(BAND), "rows start on a band");
+        debug_assert!(r0.is_multiple_of(band_rows), "rows start on a band");
         let mut buf = vec![0u8; r1.saturating_sub(r0) * w * 3];
         let lut = srgb::srgb_table();
         let bg = srgb::encode(lut, background);
@@ -356,11 +426,11 @@ impl Canvas {
             .iter()
             .filter(|l| l.width() as usize == w && l.height() as usize == h)
             .collect();
-        buf.par_chunks_mut(w * BAND * 3).enumerate().for_each_init(
-            Scratch::default,
-            |scratch, (k, out)| {
-                let band = r0 / BAND + k;
-                let y0 = band * BAND;
+        buf.par_chunks_mut(w * band_rows * 3)
+            .enumerate()
+            .for_each_init(Scratch::default, |scratch, (k, out)| {
+                let band = r0 / band_rows + k;
+                let y0 = band * band_rows;
                 let rows = out.len() / (3 * w);
                 // The last group stays in floats, folded as it is composited.
                 let last = if own_hair {
@@ -408,8 +478,7 @@ impl Canvas {
                         }
                     }
                 }
-            },
-        );
+            });
         buf
     }
 
@@ -422,22 +491,33 @@ impl Canvas {
 
     /// Rows are rasterized in bands of this many: [`Self::layer_rows`]
     /// takes whole bands.
-    pub const BAND_ROWS: u32 = BAND as u32;
+    pub fn band_rows(&self) -> u32 {
+        self.band as u32
+    }
+
+    /// The rows of a band of a `width x height` canvas: a multiple of 16,
+    /// from 16 to 64, as many as keep a band near 64 rows of 1280 pixels
+    /// and the picture in at least 8 bands. The bytes drawn do not depend
+    /// on it.
+    pub fn band_rows_for(width: u32, height: u32) -> u32 {
+        let rows = (BAND_PIXELS / width.max(1) as usize).min(height as usize / MIN_BANDS);
+        (rows / BAND_STEP * BAND_STEP).clamp(BAND_STEP, MAX_BAND) as u32
+    }
 
     /// [`Self::layer`] of rows `rows` alone: the bands that hold them
-    /// (`rows` should start and end on a multiple of [`Self::BAND_ROWS`],
+    /// (`rows` should start and end on a multiple of [`Self::band_rows`],
     /// or at the last row). A picture's layers of consecutive row ranges,
     /// appended, are its [`Self::layer`], so a layer can be sent a few
     /// bands at a time, each as soon as it is rasterized.
     pub fn layer_rows(&self, rows: std::ops::Range<u32>) -> HairLayer {
-        let (w, h) = (self.width, self.height);
-        let first = rows.start as usize / BAND;
-        let end = (rows.end as usize).min(h).div_ceil(BAND).max(first);
+        let (w, h, band_rows) = (self.width, self.height, self.band);
+        let first = rows.start as usize / band_rows;
+        let end = (rows.end as usize).min(h).div_ceil(band_rows).max(first);
         let parts: Vec<HairLayer> = (first..end)
             .into_par_iter()
             .map_init(Scratch::default, |scratch, band| {
-                let y0 = band * BAND;
-                let rows = BAND.min(h - y0);
+                let y0 = band * band_rows;
+                let rows = band_rows.min(h - y0);
                 self.band_sums(band, rows, scratch, true);
                 let mut part = HairLayer::new(w as u32, h as u32);
                 for r in 0..rows {
@@ -476,10 +556,18 @@ impl Canvas {
         scratch: &mut Scratch,
         fold_last: bool,
     ) -> [u32; 2] {
-        let (w, y0) = (self.width, band * BAND);
+        let (w, y0) = (self.width, band * self.band);
         scratch.ready(rows, w, self.nearest);
+        for (cell, &d) in scratch
+            .acc
+            .iter_mut()
+            .zip(&self.depth[y0 * w..(y0 + rows) * w])
+        {
+            cell.depth = d;
+        }
         let mut group = None;
         let mut reach = NO_REACH;
+        let mut batch = Vec::with_capacity(GATHER);
         for ((chunk, r), &g) in self.bins.iter().zip(&self.reach).zip(&self.chunk_group) {
             if group != Some(g) {
                 scratch.fold(rows, w, reach);
@@ -487,11 +575,25 @@ impl Canvas {
                 group = Some(g);
             }
             reach = [reach[0].min(r[band][0]), reach[1].max(r[band][1])];
-            for &(i, look) in &chunk[band] {
-                let i = i as usize;
-                // Binned segments have both ends on screen.
-                if let (Some(a), Some(b)) = (self.verts[i], self.verts[i + 1]) {
-                    self.rasterize(a, b, &self.looks[look as usize], y0, rows, scratch);
+            // A band's segments are scattered over the projected vertices
+            // (hundreds of MB for a full groom): their ends are fetched a
+            // batch at a time, in a loop of loads alone, so that the
+            // fetches overlap one another instead of each stalling the
+            // rasterizing between them.
+            for segments in chunk[band].chunks(GATHER) {
+                batch.clear();
+                batch.extend(segments.iter().filter_map(|&(i, look)| {
+                    let i = i as usize;
+                    // Binned segments have both ends on screen.
+                    let at = &self.looks[look as usize];
+                    Some((
+                        at.vertex(self.verts[i])?,
+                        at.vertex(self.verts[i + 1])?,
+                        look,
+                    ))
+                }));
+                for &(a, b, look) in &batch {
+                    self.rasterize(a, b, &self.looks[look as usize].look, y0, rows, scratch);
                 }
             }
         }
@@ -516,12 +618,10 @@ impl Canvas {
         let w = self.width;
         let opacity = look.opacity.clamp(0.0, 1.0);
         let (wa, wb) = (a.weight, b.weight);
-        let depth = &self.depth[y0 * w..(y0 + rows) * w];
         let clip = [0, w as i32, y0 as i32, (y0 + rows) as i32];
         let band = Band {
             w,
             y0,
-            depth,
             opacity,
             wa,
             wb,
@@ -537,15 +637,7 @@ impl Canvas {
                 line_steps::<false>(a, b, clip, |s| band.add::<false, false>(a, b, s, acc, None));
             }
         } else {
-            let (acc, near) = (
-                &mut scratch.acc,
-                (
-                    &mut scratch.near[..],
-                    &mut scratch.near_len[..],
-                    &mut scratch.near_far[..],
-                    k,
-                ),
-            );
+            let (acc, near) = (&mut scratch.acc, (&mut scratch.near[..], k));
             let mut near = Some(near);
             if is_steep(a, b) {
                 line_steps::<true>(a, b, clip, |s| {
@@ -560,23 +652,22 @@ impl Canvas {
     }
 }
 
-/// A band's nearest fragments while a group is rasterized: the lists, their
-/// lengths, each full list's farthest depth, and `k`.
-type Near<'a> = (&'a mut [Fragment], &'a mut [u8], &'a mut [f32], usize);
+/// A band's nearest fragments while a group is rasterized: the lists (`k`
+/// places a pixel; their lengths and farthest depths are in [`Acc`]), and
+/// `k`.
+type Near<'a> = (&'a mut [Fragment], usize);
 
 /// What every step of one segment in one band shares.
-struct Band<'a> {
+struct Band {
     w: usize,
     y0: usize,
-    /// The band's rows of the opaque layer's depth.
-    depth: &'a [f32],
     opacity: f32,
     /// Depth weights at the segment's ends.
     wa: f32,
     wb: f32,
 }
 
-impl Band<'_> {
+impl Band {
     /// Adds the fragments of four steps to `acc`, step by step and in each
     /// step the nearer row first; `STEEP`: y is the major axis. What a
     /// step's two pixels share (depth, colour, weight, alpha) is computed
@@ -619,15 +710,15 @@ impl Band<'_> {
                     (major, minor)
                 };
                 let px = (y as usize - self.y0) * self.w + x as usize;
-                if z[l] >= self.depth[px] {
+                let cell = &mut acc[px];
+                if z[l] >= cell.depth {
                     continue;
                 }
-                let cell = &mut acc[px];
-                if NEAR && let Some((list, len, far, k)) = near.as_deref_mut() {
+                if NEAR && let Some((list, k)) = near.as_deref_mut() {
                     let k = *k;
                     // Behind a full list's farthest: blended at once, the
                     // list untouched (most fragments of a deep pixel).
-                    if z[l] > far[px] {
+                    if z[l] > cell.far {
                         let aw = alpha * wt[l];
                         cell.rgbw += c * aw;
                         cell.reveal *= 1.0 - alpha;
@@ -640,13 +731,13 @@ impl Band<'_> {
                         weight: wt[l],
                     };
                     let mine = &mut list[px * k..(px + 1) * k];
-                    if let Some(out) = front::insert(mine, &mut len[px], k, f) {
+                    if let Some(out) = front::insert(mine, &mut cell.len, k, f) {
                         let (rgbw, reveal) = out.blended();
                         cell.rgbw += rgbw;
                         cell.reveal *= reveal;
                     }
-                    if len[px] as usize == k {
-                        far[px] = mine[k - 1].z;
+                    if cell.len as usize == k {
+                        cell.far = mine[k - 1].z;
                     }
                     continue;
                 }

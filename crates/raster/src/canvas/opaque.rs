@@ -4,7 +4,10 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::{BAND, Canvas};
+use super::Canvas;
+
+/// Rows of the bands the head's triangles are binned to.
+const TRIANGLE_BAND: usize = 16;
 use crate::Camera;
 
 /// An opaque sphere: the default head.
@@ -156,7 +159,7 @@ impl Canvas {
             .collect();
         // Triangles facing either way, with their pixel rows and columns.
         let mut rect: Option<[usize; 4]> = None;
-        let bands = h.div_ceil(BAND);
+        let bands = h.div_ceil(TRIANGLE_BAND);
         let mut bins: Vec<Vec<u32>> = vec![Vec::new(); bands];
         for (t, tri) in triangles.iter().enumerate() {
             let Some([a, b, c]) = screen_corners(*tri, &screen) else {
@@ -173,7 +176,7 @@ impl Canvas {
                 continue;
             }
             rect = Some(union(rect, [x0, x1, y0, y1]));
-            for bin in &mut bins[y0 / BAND..=(y1 - 1) / BAND] {
+            for bin in &mut bins[y0 / TRIANGLE_BAND..=(y1 - 1) / TRIANGLE_BAND] {
                 bin.push(t as u32);
             }
         }
@@ -186,7 +189,7 @@ impl Canvas {
             // triangle and perspective-correct barycentric weights.
             let mut best: Vec<(f32, u32, [f32; 3])> =
                 vec![(f32::INFINITY, u32::MAX, [0.0; 3]); x1 - x0];
-            for &t in &bins[y / BAND] {
+            for &t in &bins[y / TRIANGLE_BAND] {
                 let tri = triangles[t as usize];
                 let Some([a, b, c]) = screen_corners(tri, &screen) else {
                     continue;

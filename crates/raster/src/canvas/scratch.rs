@@ -22,11 +22,8 @@ pub(super) struct Scratch {
     /// Nearest fragments kept per pixel.
     pub(super) k: usize,
     /// The group being rasterized: its `k` nearest fragments per band
-    /// pixel, and how many.
+    /// pixel (how many, and the farthest's depth: in `acc`).
     pub(super) near: Vec<Fragment>,
-    pub(super) near_len: Vec<u8>,
-    /// The depth of a full list's farthest (infinite until full).
-    pub(super) near_far: Vec<f32>,
     /// Per slot of `sums`, the `k` nearest of the groups before it.
     pub(super) fronts: Vec<Fragment>,
     pub(super) front_len: Vec<u8>,
@@ -46,8 +43,6 @@ impl Scratch {
         if self.acc.len() < pixels {
             self.acc.resize(pixels, Acc::EMPTY);
             self.slot.resize(pixels, NO_SLOT);
-            self.near_len.resize(pixels, 0);
-            self.near_far.resize(pixels, f32::INFINITY);
         }
         if self.near.len() < pixels * k {
             self.near.resize(pixels * k, NO_FRAGMENT);
@@ -104,13 +99,14 @@ impl Scratch {
     /// its nearest fragments) into slot `s`.
     #[inline]
     pub(super) fn fold_pixel(&mut self, px: usize, s: usize) {
-        if self.acc[px].rgbw.w != 0.0 {
-            let a = std::mem::replace(&mut self.acc[px], Acc::EMPTY);
-            self.sums[s].fold(a.rgbw, a.reveal);
+        let cell = &mut self.acc[px];
+        if cell.rgbw.w != 0.0 {
+            self.sums[s].fold(cell.rgbw, cell.reveal);
+            (cell.rgbw, cell.reveal) = (Acc::EMPTY.rgbw, Acc::EMPTY.reveal);
         }
-        let n = std::mem::take(&mut self.near_len[px]) as usize;
+        let n = std::mem::take(&mut cell.len) as usize;
         if n > 0 {
-            self.near_far[px] = f32::INFINITY;
+            cell.far = f32::INFINITY;
             let k = self.k;
             // Fields borrowed apart: the group's list merges in place.
             front::merge(
@@ -127,7 +123,7 @@ impl Scratch {
     /// rasterized.
     #[inline]
     pub(super) fn touched(&self, px: usize) -> bool {
-        self.acc[px].rgbw.w != 0.0 || self.near_len[px] != 0
+        self.acc[px].rgbw.w != 0.0 || self.acc[px].len != 0
     }
 
     /// Rounds the float sums of columns `x0..x1` of rows `0..rows` (a band

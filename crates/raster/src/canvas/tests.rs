@@ -90,8 +90,10 @@ fn split_groups_composite_to_the_same_bytes(nearest: usize) {
         radius: 1.2,
     };
     let groups = [0, 7, 20, 21, 33, 60];
-    let canvas = |strands: std::ops::Range<usize>| {
+    // Drawn in bands of `band` rows.
+    let canvas_in = |strands: std::ops::Range<usize>, band: usize| {
         let mut c = Canvas::new(80, 56).unwrap();
+        c.band = band;
         c.set_nearest(nearest);
         c.draw_sphere(&cam, &head, |_, _| Vec3::new(0.6, 0.4, 0.3));
         // Group boundaries within `strands`, as strand indices from its start.
@@ -112,9 +114,19 @@ fn split_groups_composite_to_the_same_bytes(nearest: usize) {
         c.draw_hair(&cam, &pts[p0..p1], &off, &cols[p0..p1], &look, &g);
         c
     };
+    let canvas = |strands| canvas_in(strands, Canvas::band_rows_for(80, 56) as usize);
     let bg = Vec3::splat(0.05);
     let whole = canvas(0..60).resolve(bg);
     assert!(whole.pixels().any(|p| p[0] > 60), "something was drawn");
+    // Bands of any height draw the same bytes: a pixel's fragments come
+    // in strand order whichever band holds it, and a line cut by a band's
+    // edge makes the same fragments on either side.
+    for band in [32, 48, 64] {
+        assert!(
+            canvas_in(0..60, band).resolve(bg) == whole,
+            "bands of {band} rows"
+        );
+    }
     for cuts in [
         vec![0, 60],
         vec![0, 21, 60],
