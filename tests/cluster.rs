@@ -329,6 +329,16 @@ fn bench_scaling_reports_every_configuration_and_writes_its_plot() {
         assert_eq!(c["identical"], true);
         assert!(c["frame_ms"].as_f64().unwrap() > 0.0);
         assert!(c["wire_mb_per_frame"].as_f64().unwrap() > 0.0);
+        // Each worker's peak memory: a few MB at least (its scene and
+        // hair), and not absurd.
+        let peaks = c["worker_peak_mb"].as_array().unwrap();
+        assert_eq!(peaks.len(), k);
+        assert!(
+            peaks
+                .iter()
+                .all(|p| (1.0..4096.0).contains(&p.as_f64().unwrap())),
+            "{peaks:?}"
+        );
         // The median frame's bytes by stage add up to its total; an
         // animated, self-shadowed frame steps wisps, fills and sweeps.
         let w = &c["wire_bytes_median_frame"];

@@ -114,6 +114,24 @@ impl WorkerProcess {
     }
 }
 
+impl WorkerProcess {
+    /// The most memory the worker has held resident so far, MB (`VmHWM`
+    /// of `/proc/PID/status`; `ip netns exec` runs the worker in its own
+    /// process): `None` where the kernel does not say.
+    fn peak_mb(&self) -> Option<f64> {
+        let status = std::fs::read_to_string(format!("/proc/{}/status", self.child.id())).ok()?;
+        let kb: f64 = status
+            .lines()
+            .find_map(|l| l.strip_prefix("VmHWM:"))?
+            .trim()
+            .strip_suffix("kB")?
+            .trim()
+            .parse()
+            .ok()?;
+        Some(kb / 1024.0)
+    }
+}
+
 impl Drop for WorkerProcess {
     fn drop(&mut self) {
         let _ = self.child.kill();
@@ -150,6 +168,8 @@ struct Row {
     /// The bytes of the timed frame with the median total, by stage.
     wire: cluster::Traffic,
     identical: bool,
+    /// Each worker's peak resident memory at the run's end, MB.
+    peak_mb: Vec<Option<f64>>,
 }
 
 impl Row {
@@ -172,6 +192,7 @@ impl Row {
             wire_mb: 0.0,
             wire: cluster::Traffic::default(),
             identical: true,
+            peak_mb: Vec::new(),
         }
     }
 }
@@ -324,6 +345,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
                 band_composite_ms: m[11],
                 wire,
                 identical,
+                peak_mb: procs.iter().map(WorkerProcess::peak_mb).collect(),
             });
         }
     }
@@ -391,6 +413,16 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
             r.label,
             r.wire.summary()
         );
+        let peaks: Vec<String> = r
+            .peak_mb
+            .iter()
+            .map(|p| p.map_or("?".into(), |mb| format!("{mb:.0}")))
+            .collect();
+        eprintln!(
+            "bench scaling: {}, peak resident memory of each worker: {} MB",
+            r.label,
+            peaks.join(", ")
+        );
     }
     // Short labels that fit under a bar: "1 proc", and the worker count
     // with W (workers draw) or C (the coordinator draws).
@@ -457,6 +489,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
                 "band_composite_ms": r.band_composite_ms,
                 "coordinator_ms": r.coordinator_ms,
                 "wire_mb_per_frame": r.wire_mb,
+                "worker_peak_mb": r.peak_mb,
                 "wire_bytes_median_frame": {
                     "total": r.wire.total(),
                     "assign_sent": r.wire.assign_sent,
