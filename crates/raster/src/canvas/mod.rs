@@ -48,9 +48,10 @@ const MAX_ALPHA: f32 = 0.995;
 const BAND_STEP: usize = 16;
 /// Pixels of a band at most (but for the narrowest bands): 64 rows of a
 /// 1280-pixel picture. Taller bands cut fewer segments in two (each piece
-/// costs its line's set-up and a fetch of its ends); a thread's band
-/// state (32 bytes a pixel, and `24 k` of nearest fragments) stays a few
-/// MB.
+/// costs its line's set-up and a fetch of its ends). A thread drawing a
+/// band holds about `36 + 48 k` bytes a band pixel (its cells, and the
+/// group's and the exact nearest fragments, `k` of each): 19 MB at the
+/// default `k = 4`, 66 MB at the most, 16.
 const BAND_PIXELS: usize = 64 * 1280;
 /// Rows of the tallest band.
 const MAX_BAND: usize = 64;
