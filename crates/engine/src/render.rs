@@ -271,8 +271,13 @@ impl Renderer {
     }
 
     /// The canvas, cleared, with the head drawn and shaded: Lambert under
-    /// the hair's shadow when `shadows` and the scene's head shadow are on.
-    fn canvas_with_head(&mut self, shadows: bool) -> Result<(View, &mut Canvas), EngineError> {
+    /// the hair's shadow when `shadows` and the scene's head shadow are on;
+    /// its bands sized for `segments` segments of hair to be drawn on it.
+    fn canvas_with_head(
+        &mut self,
+        shadows: bool,
+        segments: usize,
+    ) -> Result<(View, &mut Canvas), EngineError> {
         let view = self
             .view
             .ok_or_else(|| EngineError::executor("the camera is framed before drawing"))?;
@@ -284,6 +289,11 @@ impl Renderer {
         let canvas = self.canvas.as_mut().expect("made above");
         canvas.clear();
         canvas.set_nearest(s.render.nearest as usize);
+        canvas.set_band_rows(Canvas::band_rows_for(
+            s.render.width,
+            s.render.height,
+            segments,
+        ));
         if let Some(head) = self.shadows.head() {
             let head_shadow = shadows && s.effects.head_shadow;
             let pipeline = &self.shadows;
@@ -310,7 +320,7 @@ impl Renderer {
     pub fn draw(&mut self, hair: &Hair, shadows: bool) -> Result<image::RgbImage, EngineError> {
         self.view(hair)?;
         let background = self.scene.render.background;
-        let (view, _) = self.canvas_with_head(shadows)?;
+        let (view, _) = self.canvas_with_head(shadows, hair.segment_count())?;
         let look = self.look(&view);
         let canvas = self.canvas.as_mut().expect("made above");
         self.part
@@ -356,7 +366,7 @@ impl Renderer {
                 let (state, report) = Composing::of(None, drawn);
                 return Ok((Composite { background, state }, report));
             }
-            self.canvas_with_head(shadows)?;
+            self.canvas_with_head(shadows, 0)?;
             drawn
         } else {
             // The hair's call waits on the network in a thread of its own
@@ -364,7 +374,7 @@ impl Renderer {
             // drawing need).
             let (drawn, head) = std::thread::scope(|s| {
                 let drawn = s.spawn(hair);
-                let head = self.canvas_with_head(shadows).map(|_| ());
+                let head = self.canvas_with_head(shadows, 0).map(|_| ());
                 let drawn = drawn
                     .join()
                     .unwrap_or_else(|p| std::panic::resume_unwind(p));

@@ -42,8 +42,8 @@ pub struct Share {
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct BandPlan {
     /// Band `b` is rows `cuts[b]..cuts[b + 1]`: from 0 to the picture's
-    /// height, ascending, each on a multiple of the canvas's band rows
-    /// ([`Canvas::band_rows_for`] its size; but the last).
+    /// height, ascending, each on a multiple of [`Canvas::BAND_ROWS`]
+    /// (but the last).
     pub cuts: Vec<u32>,
     /// The workers the bands are dealt to.
     pub workers: usize,
@@ -53,9 +53,9 @@ pub struct BandPlan {
 
 impl BandPlan {
     /// Bands of `rows` rows (rounded up to whole canvas bands) of a
-    /// picture of `width x height` pixels, dealt to `workers` workers.
-    pub fn dealt(width: u32, height: u32, rows: u32, workers: usize, own: usize) -> BandPlan {
-        let band = Canvas::band_rows_for(width, height);
+    /// picture of `height` rows, dealt to `workers` workers.
+    pub fn dealt(height: u32, rows: u32, workers: usize, own: usize) -> BandPlan {
+        let band = Canvas::BAND_ROWS;
         let step = rows.max(1).div_ceil(band) * band;
         let mut cuts: Vec<u32> = (0..height.div_ceil(step)).map(|i| i * step).collect();
         cuts.push(height);
@@ -91,9 +91,25 @@ impl BandPlan {
         b >= 1 && b < self.cuts.len() && self.owner(b - 1) == self.own
     }
 
-    /// Checks the plan against a picture of `width x height` pixels.
-    pub fn check(&self, width: u32, height: u32) -> Result<(), EngineError> {
-        let band = Canvas::band_rows_for(width, height);
+    /// The most rows, at most `rows`, of canvas bands that cut this plan's
+    /// bands whole ([`Canvas::set_band_rows`]).
+    pub fn band_rows_within(&self, rows: u32) -> u32 {
+        let step = Canvas::BAND_ROWS;
+        let divides = |r: u32| {
+            self.cuts[..self.cuts.len().saturating_sub(1)]
+                .iter()
+                .all(|c| c.is_multiple_of(r))
+        };
+        (1..=rows / step)
+            .rev()
+            .map(|m| m * step)
+            .find(|&r| divides(r))
+            .unwrap_or(step)
+    }
+
+    /// Checks the plan against a picture of `height` rows.
+    pub fn check(&self, height: u32) -> Result<(), EngineError> {
+        let band = Canvas::BAND_ROWS;
         let ok = self.cuts.len() >= 2
             && self.own < self.workers
             && self.cuts.first() == Some(&0)
@@ -385,7 +401,8 @@ impl Share {
         plan: &BandPlan,
         mut send: impl FnMut(usize, HairLayer) -> Result<(), EngineError>,
     ) -> Result<BandWork, EngineError> {
-        plan.check(job.camera.width(), job.camera.height())?;
+        let height = job.camera.height();
+        plan.check(height)?;
         let own = plan.rows_of(plan.own);
         let background = self.background;
         let (_, mut times) = self.bin(job, maps, Some(plan))?;
@@ -487,6 +504,9 @@ impl Share {
         let canvas = self.canvas.as_mut().expect("made above");
         canvas.clear();
         canvas.set_nearest(job.nearest as usize);
+        // Bands as tall as this share's hair is dense, whole in the plan's.
+        let rows = Canvas::band_rows_for(w, h, hair.segment_count());
+        canvas.set_band_rows(shaded.map_or(rows, |plan| plan.band_rows_within(rows)));
         // The head's depth hides the hair behind it; its colour matters
         // only in the rows `shaded` (a band this share resolves).
         if let Some(head) = &mut self.head {

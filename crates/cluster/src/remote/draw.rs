@@ -169,7 +169,7 @@ impl RemoteExecutor {
         for (i, w) in self.workers.iter().enumerate() {
             let bands = wire::Bands {
                 round,
-                plan: engine::BandPlan::dealt(width, height, BAND_ROWS, n, i),
+                plan: engine::BandPlan::dealt(height, BAND_ROWS, n, i),
                 peers: peers.clone(),
                 wait: self.deadline / 2,
                 tls_domain: self.tls_domain.clone(),

@@ -38,9 +38,9 @@ use strands::Hair;
 use crate::client::{Remote, call_error, collect, fan_out, fan_out_all, hello, malformed};
 use crate::{ClusterError, Timing, Tls, Traffic, WorkerError, WorkerErrorKind, pb, wire};
 
-/// Rows of each band the workers composite (rounded up to whole canvas
-/// bands): bands dealt to the workers in turn share the hair out evenly;
-/// 720 rows 1280 wide make 12 bands of 64.
+/// Rows of each band the workers composite (whole canvas bands): bands
+/// dealt to the workers in turn share the hair out evenly; 720 rows make
+/// 15 bands.
 const BAND_ROWS: u32 = 48;
 
 /// Where the drawn hair is posed, filtered, shaded and rasterized.

@@ -477,11 +477,10 @@ impl Bands {
         }
     }
 
-    /// A band plan as sent, for a picture of `width x height` pixels:
-    /// whole canvas bands,
+    /// A band plan as sent, for a picture of `height` rows: whole bands,
     /// 2 to [`MAX_WORKERS`] workers each with an address and a session, a
     /// wait of at most ten minutes.
-    pub(crate) fn from_pb(b: &pb::BandPlan, width: u32, height: u32) -> Result<Bands, Malformed> {
+    pub(crate) fn from_pb(b: &pb::BandPlan, height: u32) -> Result<Bands, Malformed> {
         let n = b.peers.len();
         if !(2..=MAX_WORKERS).contains(&n) || b.sessions.len() != n {
             return Err(bad(format!(
@@ -494,7 +493,7 @@ impl Bands {
             workers: n,
             own: b.own as usize,
         };
-        plan.check(width, height).map_err(|e| bad(e.to_string()))?;
+        plan.check(height).map_err(|e| bad(e.to_string()))?;
         let long = |v: &String| v.is_empty() || v.len() > MAX_ADDR_BYTES;
         if b.peers.iter().chain(&b.sessions).any(long) || b.tls_domain.len() > 256 {
             return Err(bad("a worker's address or session is empty or too long"));

@@ -113,7 +113,7 @@ fn check_all(bytes: &[u8]) {
     }
     if let Ok(m) = pb::DrawChunk::decode(bytes)
         && let Some(b) = &m.bands
-        && let Ok(bands) = Bands::from_pb(b, 1280, 720)
+        && let Ok(bands) = Bands::from_pb(b, 720)
     {
         assert!(bands.plan.own < bands.peers.len() && bands.peers.len() <= MAX_WORKERS);
         assert!(
@@ -239,7 +239,7 @@ proptest! {
         let band = band_chunks(8, 8, 0, &rows, [0, 0, 0]).remove(0);
         let plan = Bands {
             round: 3,
-            plan: engine::BandPlan::dealt(1280, 720, 48, 2, 1),
+            plan: engine::BandPlan::dealt(720, 48, 2, 1),
             peers: vec![("10.0.0.1:1".into(), "ab".into()), ("10.0.0.2:1".into(), "cd".into())],
             wait: std::time::Duration::from_secs(1),
             tls_domain: None,

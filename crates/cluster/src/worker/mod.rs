@@ -450,7 +450,7 @@ impl Worker for WorkerService {
             let bands = first
                 .bands
                 .as_ref()
-                .map(|b| wire::Bands::from_pb(b, job.camera.width(), job.camera.height()))
+                .map(|b| wire::Bands::from_pb(b, job.camera.height()))
                 .transpose()
                 .map_err(invalid)?;
             let mut reader =

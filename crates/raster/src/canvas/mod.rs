@@ -44,20 +44,22 @@ pub const MAX_PIXELS: u64 = 40_000_000;
 
 /// Fragment alpha never reaches 1: one fragment never hides all behind it.
 const MAX_ALPHA: f32 = 0.995;
-/// A band's rows are a multiple of this.
+/// A band's rows are a multiple of this, and are this many unless the
+/// hair is dense ([`Canvas::band_rows_for`]).
 const BAND_STEP: usize = 16;
 /// Pixels of a band at most (but for the narrowest bands): 64 rows of a
-/// 1280-pixel picture. Taller bands cut fewer segments in two (each piece
-/// costs its line's set-up and a fetch of its ends). A thread drawing a
-/// band holds about `36 + 48 k` bytes a band pixel (its cells, and the
-/// group's and the exact nearest fragments, `k` of each): 19 MB at the
-/// default `k = 4`, 66 MB at the most, 16.
+/// 1280-pixel picture. A thread drawing a band holds about `36 + 48 k`
+/// bytes a band pixel (its cells, and the group's and the exact nearest
+/// fragments, `k` of each): 19 MB at the default `k = 4`, 66 MB at the
+/// most, 16.
 const BAND_PIXELS: usize = 64 * 1280;
 /// Rows of the tallest band.
 const MAX_BAND: usize = 64;
 /// Bands a picture has at least (but for the shortest pictures): the
 /// threads that can draw it at once.
 const MIN_BANDS: usize = 8;
+/// Segments a pixel from which bands grow taller.
+const DENSE: f64 = 1.0;
 
 /// How drawn strands look.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -224,7 +226,7 @@ impl Canvas {
             groups: 0,
             looks: Vec::new(),
             nearest: 0,
-            band: Canvas::band_rows_for(width, height) as usize,
+            band: BAND_STEP,
         })
     }
 
@@ -490,17 +492,47 @@ impl Canvas {
         self.layer_rows(0..self.height as u32)
     }
 
-    /// Rows are rasterized in bands of this many: [`Self::layer_rows`]
+    /// Band rows are always a multiple of this: rows cut on multiples of
+    /// it can be drawn by a canvas whose bands divide the cuts
+    /// ([`Self::set_band_rows`]).
+    pub const BAND_ROWS: u32 = BAND_STEP as u32;
+
+    /// Rows are rasterized in bands of this many (16 unless
+    /// [`Self::set_band_rows`] said otherwise): [`Self::layer_rows`]
     /// takes whole bands.
     pub fn band_rows(&self) -> u32 {
         self.band as u32
     }
 
-    /// The rows of a band of a `width x height` canvas: a multiple of 16,
-    /// from 16 to 64, as many as keep a band near 64 rows of 1280 pixels
-    /// and the picture in at least 8 bands. The bytes drawn do not depend
-    /// on it.
-    pub fn band_rows_for(width: u32, height: u32) -> u32 {
+    /// Bands of `rows` rows (rounded down to a multiple of 16, from 16 to
+    /// 64) for the hair drawn next: call it on a canvas with no hair
+    /// drawn since [`Self::clear`]. The bytes drawn do not depend on it;
+    /// the time does.
+    pub fn set_band_rows(&mut self, rows: u32) {
+        assert!(
+            self.chunk_group.is_empty(),
+            "band rows are set before hair is drawn"
+        );
+        let rows = (rows as usize / BAND_STEP * BAND_STEP).clamp(BAND_STEP, MAX_BAND);
+        if rows != self.band {
+            self.band = rows;
+            self.bins.clear();
+            self.reach.clear();
+        }
+    }
+
+    /// The band rows that draw `segments` segments on a `width x height`
+    /// canvas fastest, as measured: 16 for hair of under one segment a
+    /// pixel, whose lists of nearest fragments then stay in a core's
+    /// cache; for denser hair, taller bands, which cut fewer segments in
+    /// two (each piece costs its line's set-up and a fetch of its ends),
+    /// up to 64 rows and about 64 x 1280 pixels, the picture kept in at
+    /// least 8 bands.
+    pub fn band_rows_for(width: u32, height: u32, segments: usize) -> u32 {
+        let pixels = f64::from(width) * f64::from(height);
+        if (segments as f64) < DENSE * pixels {
+            return BAND_STEP as u32;
+        }
         let rows = (BAND_PIXELS / width.max(1) as usize).min(height as usize / MIN_BANDS);
         (rows / BAND_STEP * BAND_STEP).clamp(BAND_STEP, MAX_BAND) as u32
     }

@@ -10,6 +10,23 @@ fn refuses_absurd_sizes() {
 }
 
 #[test]
+fn bands_grow_taller_for_dense_hair_only() {
+    // Under a segment a pixel: 16 rows.
+    assert_eq!(Canvas::band_rows_for(1280, 720, 100_000), 16);
+    // Dense: up to 64 rows of 1280 pixels, at least 8 bands a picture.
+    assert_eq!(Canvas::band_rows_for(1280, 720, 3_000_000), 64);
+    assert_eq!(Canvas::band_rows_for(640, 360, 3_000_000), 32);
+    assert_eq!(Canvas::band_rows_for(3840, 2160, 30_000_000), 16);
+    assert_eq!(Canvas::band_rows_for(80, 56, 100_000), 16);
+    // Set on an empty canvas, rounded to a multiple of 16 within 16..=64.
+    let mut c = Canvas::new(64, 48).unwrap();
+    for (asked, got) in [(0, 16), (40, 32), (64, 64), (1000, 64)] {
+        c.set_band_rows(asked);
+        assert_eq!(c.band_rows(), got, "{asked}");
+    }
+}
+
+#[test]
 fn thread_count_does_not_change_a_single_byte_and_draw_order_only_rounding() {
     let cam = Camera::new(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, 40.0, 64, 48).unwrap();
     let mut pts = Vec::new();
@@ -93,7 +110,7 @@ fn split_groups_composite_to_the_same_bytes(nearest: usize) {
     // Drawn in bands of `band` rows.
     let canvas_in = |strands: std::ops::Range<usize>, band: usize| {
         let mut c = Canvas::new(80, 56).unwrap();
-        c.band = band;
+        c.set_band_rows(band as u32);
         c.set_nearest(nearest);
         c.draw_sphere(&cam, &head, |_, _| Vec3::new(0.6, 0.4, 0.3));
         // Group boundaries within `strands`, as strand indices from its start.
@@ -114,7 +131,7 @@ fn split_groups_composite_to_the_same_bytes(nearest: usize) {
         c.draw_hair(&cam, &pts[p0..p1], &off, &cols[p0..p1], &look, &g);
         c
     };
-    let canvas = |strands| canvas_in(strands, Canvas::band_rows_for(80, 56) as usize);
+    let canvas = |strands| canvas_in(strands, 16);
     let bg = Vec3::splat(0.05);
     let whole = canvas(0..60).resolve(bg);
     assert!(whole.pixels().any(|p| p[0] > 60), "something was drawn");

@@ -382,20 +382,14 @@ fn finished_bands_round_trip_as_runs_and_malformed_ones_are_refused() {
 
 #[test]
 fn band_plans_deal_whole_bands_and_absurd_ones_are_refused() {
-    // A 3840-pixel picture is drawn in bands of 16 rows: 48 rows are 3.
-    assert_eq!(raster::Canvas::band_rows_for(3840, 720), 16);
-    let wide = engine::BandPlan::dealt(3840, 720, 48, 3, 1);
-    assert_eq!(wide.bands(), 15);
-    assert_eq!(wide.rows_of(1)[..2], [48..96, 192..240]);
-    // A 1280-pixel one in bands of 64: 48 rows round up to 64. A short
-    // one keeps 8 bands.
-    assert_eq!(raster::Canvas::band_rows_for(640, 360), 32);
-    assert_eq!(raster::Canvas::band_rows_for(80, 56), 16);
-    assert_eq!(raster::Canvas::band_rows_for(1280, 720), 64);
-    let plan = engine::BandPlan::dealt(1280, 720, 48, 3, 1);
-    assert_eq!(plan.bands(), 12);
-    assert_eq!(plan.rows_of(1)[..2], [64..128, 256..320]);
-    assert!(plan.owns_row(70) && !plan.owns_row(63) && !plan.owns_row(720));
+    let plan = engine::BandPlan::dealt(720, 48, 3, 1);
+    assert_eq!(plan.bands(), 15);
+    assert_eq!(plan.rows_of(1)[..2], [48..96, 192..240]);
+    assert!(plan.owns_row(50) && !plan.owns_row(47) && !plan.owns_row(720));
+    // Canvas bands that cut these whole: 48 rows, or 16.
+    assert_eq!(plan.band_rows_within(64), 48);
+    assert_eq!(plan.band_rows_within(32), 16);
+    assert_eq!(plan.band_rows_within(16), 16);
     let bands = Bands {
         round: 4,
         plan: plan.clone(),
@@ -405,30 +399,21 @@ fn band_plans_deal_whole_bands_and_absurd_ones_are_refused() {
         wait: std::time::Duration::from_secs(3),
         tls_domain: Some("workers".into()),
     };
-    assert_eq!(Bands::from_pb(&bands.to_pb(), 1280, 720).unwrap(), bands);
-    // Another height, another width (other canvas bands), a cut off the
-    // canvas bands, one worker, no session.
-    assert!(Bands::from_pb(&bands.to_pb(), 1280, 700).is_err());
-    assert!(Bands::from_pb(&wide_bands(&bands), 1280, 720).is_err());
+    assert_eq!(Bands::from_pb(&bands.to_pb(), 720).unwrap(), bands);
+    // Another height, a cut off the canvas bands, one worker, no session.
+    assert!(Bands::from_pb(&bands.to_pb(), 700).is_err());
     let mut b = bands.to_pb();
-    b.cuts[1] = 48;
-    assert!(Bands::from_pb(&b, 1280, 720).is_err());
+    b.cuts[1] = 40;
+    assert!(Bands::from_pb(&b, 720).is_err());
     let mut b = bands.to_pb();
     b.peers.truncate(1);
     b.sessions.truncate(1);
     b.own = 0;
-    assert!(Bands::from_pb(&b, 1280, 720).is_err());
+    assert!(Bands::from_pb(&b, 720).is_err());
     let mut b = bands.to_pb();
     b.sessions[2].clear();
-    assert!(Bands::from_pb(&b, 1280, 720).is_err());
+    assert!(Bands::from_pb(&b, 720).is_err());
     let mut b = bands.to_pb();
     b.own = 3;
-    assert!(Bands::from_pb(&b, 1280, 720).is_err());
-}
-
-/// `bands` with the cuts of a 3840-pixel picture (bands of 48 rows).
-fn wide_bands(bands: &Bands) -> pb::BandPlan {
-    let mut b = bands.to_pb();
-    b.cuts = engine::BandPlan::dealt(3840, 720, 48, 3, 1).cuts;
-    b
+    assert!(Bands::from_pb(&b, 720).is_err());
 }
