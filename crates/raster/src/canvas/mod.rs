@@ -61,6 +61,12 @@ const MIN_BANDS: usize = 8;
 /// Segments a pixel from which bands grow taller.
 const DENSE: f64 = 1.0;
 
+/// `rows` rounded down to a multiple of [`BAND_STEP`], within
+/// `BAND_STEP..=MAX_BAND`.
+fn whole_band(rows: usize) -> usize {
+    (rows / BAND_STEP * BAND_STEP).clamp(BAND_STEP, MAX_BAND)
+}
+
 /// How drawn strands look.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HairLook {
@@ -340,13 +346,15 @@ impl Canvas {
             .zip(chunks)
             .for_each(|((bins, reach), strands)| {
                 for s in strands {
-                    for i in offsets[s] as usize..(offsets[s + 1] as usize).saturating_sub(1) {
-                        let (Some(a), Some(b)) = (
-                            look.vertex(verts[base + i]),
-                            look.vertex(verts[base + i + 1]),
-                        ) else {
+                    // Segment `i` joins vertices `i` and `i + 1`: each
+                    // vertex made a screen vertex once.
+                    let mut prev = None;
+                    for j in offsets[s] as usize..offsets[s + 1] as usize {
+                        let end = look.vertex(verts[base + j]);
+                        let (Some(a), Some(b)) = (std::mem::replace(&mut prev, end), end) else {
                             continue;
                         };
+                        let i = j - 1;
                         let pad = a.width.max(b.width) + 2.0;
                         let lo = (a.p.y.min(b.p.y) - pad).max(0.0);
                         let hi = (a.p.y.max(b.p.y) + pad).min(h as f32);
@@ -513,7 +521,7 @@ impl Canvas {
             self.chunk_group.is_empty(),
             "band rows are set before hair is drawn"
         );
-        let rows = (rows as usize / BAND_STEP * BAND_STEP).clamp(BAND_STEP, MAX_BAND);
+        let rows = whole_band(rows as usize);
         if rows != self.band {
             self.band = rows;
             self.bins.clear();
@@ -534,7 +542,7 @@ impl Canvas {
             return BAND_STEP as u32;
         }
         let rows = (BAND_PIXELS / width.max(1) as usize).min(height as usize / MIN_BANDS);
-        (rows / BAND_STEP * BAND_STEP).clamp(BAND_STEP, MAX_BAND) as u32
+        whole_band(rows) as u32
     }
 
     /// [`Self::layer`] of rows `rows` alone: the bands that hold them
