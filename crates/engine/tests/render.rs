@@ -445,8 +445,11 @@ fn multiple_scattering_gives_self_shadowed_blond_hair_back_its_light() {
     };
     let gain = |eumelanin: f32| shot(eumelanin, true) / shot(eumelanin, false);
     let (blond, brown) = (gain(0.3), gain(1.3));
+    // (1.22x with the fiber averaged across its width with enough
+    // offsets; 1.3x with the 8 that made single scattering too dark at
+    // some angles.)
     assert!(
-        blond > 1.25,
+        blond > 1.15,
         "blond: {blond}x brighter with multiple scattering"
     );
     assert!(

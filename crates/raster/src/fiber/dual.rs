@@ -180,7 +180,7 @@ impl DualTable {
     /// The table of fiber `o` (a few milliseconds).
     pub fn new(o: &FiberOptics) -> DualTable {
         use rayon::prelude::*;
-        let far = FarField::new(o, 16);
+        let far = FarField::of(o);
         let var = super::Chiang::new(o, 0.0).variances();
         let alpha = o.alpha_deg.to_radians();
         // Peaks at theta_i + theta_o = s_p: R -2 alpha, TT alpha, TRT

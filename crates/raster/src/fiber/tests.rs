@@ -219,11 +219,12 @@ fn dual_scattering_a_fiber_that_absorbs_nothing_sends_all_light_forward_or_back(
         for k in 0..=18 {
             let ui = -0.9 + 0.1 * k as f32;
             let (f, b) = t.attenuations(ui);
-            // All of it, but for the few percent the longitudinal lobes
-            // send towards grazing directions (as single scattering does).
+            // All of it (to rounding), but for the few percent the
+            // longitudinal lobes send towards grazing directions (as
+            // single scattering does).
             let sum = f + b;
             assert!(
-                sum.max_element() <= 1.0 && sum.min_element() > least,
+                sum.max_element() <= 1.0 + 1e-5 && sum.min_element() > least,
                 "beta {beta} sin theta_i {ui}: a_f {f} + a_b {b}"
             );
             // Most of the light goes on through the fiber (TT).
@@ -453,5 +454,69 @@ fn dual_scattering_tabulated_agrees_with_the_lobes_evaluated() {
                 "{o:?} tau {tau}: off by {sum_err} in {sum}"
             );
         }
+    }
+}
+
+/// Directions on a fixed pseudo-random spread: `(sin theta_i, sin
+/// theta_o, cos phi)`.
+fn spread(n: usize) -> Vec<(f32, f32, f32)> {
+    let mut x = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        (x >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
+    };
+    (0..n).map(|_| (next(), next(), next())).collect()
+}
+
+#[test]
+fn the_far_field_is_averaged_with_enough_offsets_across_the_fiber() {
+    // Across the fiber the azimuthal lobes sweep the circle fastest near
+    // its edges: 8 Gauss-Legendre offsets were 48 % off at the default
+    // roughness (and pictures up to 35 % off Cycles'). The count chosen
+    // from beta_n must be within 1 % of 2048 offsets.
+    for beta_n in [0.3, 0.2, 0.15] {
+        let o = optics(0.3, beta_n, 2.0, sigma_a_from_melanin(1.3, 0.0));
+        let (chosen, fine) = (FarField::of(&o), FarField::new(&o, 2048));
+        let mut worst = 0.0f32;
+        for (uo, k) in spread(200).into_iter().map(|(u, _, c)| (u, c)) {
+            let phi = k.acos();
+            let (a, b) = (chosen.azimuthal(uo, phi), fine.azimuthal(uo, phi));
+            for p in 0..=P_MAX {
+                let (a, b) = (a[p].x, b[p].x);
+                worst = worst.max((a - b).abs() / b.max(1e-3));
+            }
+        }
+        assert!(
+            worst < 0.01,
+            "beta_n {beta_n}, {} offsets: {worst}",
+            FarField::nodes(&o)
+        );
+    }
+}
+
+#[test]
+fn the_shading_table_follows_the_far_field() {
+    // Radiance-weighted mean error of the trilinear table against the
+    // model it tabulates (averaged with 512 offsets), over directions
+    // spread on the sphere of (w_i, w_o): 4.6 % (blond) and 5.8 %
+    // (brown), the table's interpolation; the table built with 8 offsets
+    // was 12 % off. 61 nodes along theta would halve it, at twice the
+    // table's size, past a core's cache.
+    for o in [blond(), brown()] {
+        let (table, far) = (FiberTable::new(&o), FarField::new(&o, 512));
+        let (mut err, mut sum) = (0.0f64, 0.0f64);
+        for (ui, uo, cos_phi) in spread(4000) {
+            let ci = safe_sqrt(1.0 - ui * ui);
+            let wo = dir(uo, 0.0);
+            let wi = dir(ui, cos_phi.acos());
+            let want = far.f(wo, wi).x * ci;
+            let got = table.radiance(ui, uo, cos_phi).x;
+            err += f64::from((got - want).abs());
+            sum += f64::from(want);
+        }
+        let e = err / sum;
+        assert!(e < 0.07, "{o:?}: {e}");
     }
 }
