@@ -313,28 +313,36 @@ impl HairPart {
 /// under the hair's shadow,
 ///
 /// ```text
-/// Phi = k_a C + sum_l E_l T_l (1 - k_a) C max(n . L_l, 0)
+/// Phi = k_a C + sum_l s E_l T_l C max(n . L_l, 0)
 /// ```
 ///
 /// with `C` the head's linear colour, `k_a` the ambient share, `L_l` the
 /// unit direction towards light `l` at `p`, `E_l` its falloff there
 /// ([`Light::falloff`], 1 for a directional light) and `T_l` its
 /// transmittance there, `trans(l)` (asked only where the light reaches
-/// the surface).
+/// the surface). With Kajiya-Kay `s = 1 - k_a` (the paper's split); with
+/// the physically based fiber `s = E / pi`, a diffuse surface of albedo
+/// `C` under the irradiance `E` that lights the hair (radiance `C E cos /
+/// pi`, as a path tracer's diffuse surface under a sun of strength `E`).
 pub(crate) fn head_lambert(
     color: Vec3,
-    ambient: f32,
+    shading: &Shading,
     lights: &[Light],
     p: Vec3,
     n: Vec3,
     trans: impl Fn(usize) -> f32,
 ) -> Vec3 {
+    let ambient = shading.ambient;
+    let s = match shading.model {
+        ShadingModel::KajiyaKay => 1.0 - ambient,
+        ShadingModel::Marschner { irradiance, .. } => irradiance / std::f32::consts::PI,
+    };
     let mut c = ambient * color;
     for (l, light) in lights.iter().enumerate() {
         let lambert = n.dot(-light.direction_at(p)).max(0.0);
         let scale = light.falloff(p);
         if lambert > 0.0 && scale > 0.0 {
-            c += trans(l) * scale * lambert * (1.0 - ambient) * color;
+            c += trans(l) * scale * lambert * s * color;
         }
     }
     c

@@ -297,10 +297,10 @@ impl Renderer {
         if let Some(head) = self.shadows.head() {
             let head_shadow = shadows && s.effects.head_shadow;
             let pipeline = &self.shadows;
-            let ambient = s.shading.ambient;
+            let shading = &s.shading;
             let color = head.settings().color;
             let shade = |p: Vec3, n: Vec3| {
-                head_lambert(color, ambient, &lights, p, n, |l| {
+                head_lambert(color, shading, &lights, p, n, |l| {
                     // Off the surface: past the head's own deposit.
                     if head_shadow {
                         pipeline.transmittance_off_surface(l, p, n)

@@ -512,7 +512,7 @@ impl Share {
         if let Some(head) = &mut self.head {
             head.set_pose(job.head);
             let head_shadow = job.shadows && self.head_shadow;
-            let (color, ambient) = (head.settings().color, job.shading.ambient);
+            let (color, shading) = (head.settings().color, &job.shading);
             let camera = &job.camera;
             let shade = |p: Vec3, n: Vec3| {
                 // The row of the pixel centre the point was found at.
@@ -521,7 +521,7 @@ impl Share {
                 if !mine {
                     return Vec3::ZERO;
                 }
-                head_lambert(color, ambient, &job.lights, p, n, |l| {
+                head_lambert(color, shading, &job.lights, p, n, |l| {
                     if head_shadow {
                         let m = &maps[l];
                         m.transmittance_at(off_surface(m.frame(), p, n), job.trilinear)

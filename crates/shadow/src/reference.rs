@@ -14,8 +14,12 @@
 //! crosses on its way: one strand's consecutive capsules that the ray
 //! passes through without leaving them are one crossing, and the capsules
 //! of its own fiber that the ray starts inside (and those joined to them
-//! along the ray) are the fiber itself, not a shadow. An opaque body (the
-//! head) stops the ray or not. Then
+//! along the ray) are the fiber itself, not a shadow. Nor is another fiber
+//! the ray starts inside: where fibers run through one another, the point
+//! a camera sees lies outside both, so the light it gets has not crossed
+//! the other (counted, it left the reference's pictures darker than
+//! Cycles' on grooms whose fibers overlap). An opaque body (the head)
+//! stops the ray or not. Then
 //!
 //! ```text
 //! T(p) = (1 / K) sum_k (1 - alpha)^{n_k} [o_k not behind a body]
@@ -274,8 +278,9 @@ impl Reference {
                         end = end.max(hits[i].2);
                         i += 1;
                     }
-                    // The ray's own fiber, from where it starts.
-                    let itself = own == Some(strand) && start <= 0.0;
+                    // The ray's own fiber, from where it starts; and a
+                    // fiber the drawn point's ray starts inside.
+                    let itself = own.is_some() && start <= 0.0;
                     if !itself {
                         crossings += 1;
                     }

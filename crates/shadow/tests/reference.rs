@@ -90,6 +90,35 @@ fn a_fiber_sees_what_covers_it_and_nothing_beside_it() {
 }
 
 #[test]
+fn a_fiber_another_runs_through_is_lit_from_where_its_rays_leave_them() {
+    // Light from +y. B runs through A, its axis a quarter width nearer the
+    // light: every ray from A starts inside B. A point of A that a camera
+    // sees lies outside B, so B does not shadow it (counting it made the
+    // reference darker than Cycles wherever fibers interpenetrate). A
+    // fiber further in front still does: C over A2, through which B2 runs.
+    let light = Light::directional(Vec3::NEG_Y).unwrap();
+    let mut hair = Hair::new();
+    along_z(&mut hair, 0.0, 0.0); // A
+    along_z(&mut hair, 0.0, 0.25 * W); // B
+    along_z(&mut hair, 2.0, 0.0); // A2
+    along_z(&mut hair, 2.0, 0.25 * W); // B2
+    along_z(&mut hair, 2.0, 1.0); // C
+    let m = reference(&hair, &light, 4);
+    let t = |s: usize, i: usize| m.transmittance_at(hair.strand(s)[i]);
+    for i in 0..9 {
+        assert_eq!(t(0, i), 1.0, "A point {i}");
+        assert_eq!(t(1, i), 1.0, "B point {i}");
+        assert!(close(t(2, i), 1.0 - ALPHA), "A2 point {i}: {}", t(2, i));
+        assert!(close(t(3, i), 1.0 - ALPHA), "B2 point {i}: {}", t(3, i));
+    }
+    // A probe is a point, not a fiber's surface: inside A and B, both
+    // count.
+    let probe = Vec3::new(0.0, 0.2 * W, 0.1);
+    let t = m.transmittance_at(probe);
+    assert!(close(t, (1.0 - ALPHA) * (1.0 - ALPHA)), "probe: {t}");
+}
+
+#[test]
 fn a_fiber_along_the_light_is_not_its_own_shadow() {
     // A strand pointing straight at a light from above: every ray from it
     // runs inside it; nothing else is there.
