@@ -32,10 +32,12 @@ pub struct AccuracyArgs {
           value_parser = clap::builder::PossibleValuesParser::new(MethodConfig::NAMES))]
     methods: Vec<String>,
     /// Also compare every setting's picture with Blender Cycles' (the
-    /// same strands, camera, light and fiber, direct light only): the
-    /// frame, its script and Cycles' pictures with and without shadows go
-    /// into DIR and are reused while the frame is the same. Needs
-    /// `blender` on PATH (or `$WISPLIGHT_BLENDER`).
+    /// same strands, camera, light and fiber, direct light only; hair
+    /// shaded with Kajiya-Kay is shaded with the physically based fiber of
+    /// its colour on both sides): the frame, its script and Cycles'
+    /// pictures with and without shadows go into DIR and are reused while
+    /// the frame is the same. Needs `blender` on PATH (or
+    /// `$WISPLIGHT_BLENDER`).
     #[arg(long, value_name = "DIR")]
     cycles: Option<PathBuf>,
     /// Cycles samples per pixel.
