@@ -465,10 +465,21 @@ impl Sequence {
     /// the whole animation stays in the picture, not only its first
     /// frame (the swing of simulated hair beyond the head's motion aside).
     fn frame_camera(&mut self, index: u64, bounds: strands::Bounds) -> Result<(), EngineError> {
+        self.frame_camera_over(index, bounds, self.expected)
+    }
+
+    /// [`Self::frame_camera`] over `expected` frames from this one (as
+    /// [`Self::expect_frames`] counts them once this frame is under way).
+    fn frame_camera_over(
+        &mut self,
+        index: u64,
+        bounds: strands::Bounds,
+        expected: Option<u64>,
+    ) -> Result<(), EngineError> {
         if self.renderer.camera().is_some() {
             return Ok(());
         }
-        let frames = self.expected.unwrap_or(1).max(1);
+        let frames = expected.unwrap_or(1).max(1);
         // At most 512 samples of the motion, evenly over the later frames
         // (the first is where the bounds are).
         let samples = (frames - 1).min(512);
@@ -558,6 +569,12 @@ impl Sequence {
                 r.shadows_mut().transmittance_with(ex)
             })?;
             if !elsewhere {
+                // The camera first: the exact reference looks at each
+                // fiber from the side it sees. Framed as it would be once
+                // this frame is under way (its own frame counted off).
+                let expected = self.expected.map(|n| n.saturating_sub(1));
+                self.frame_camera_over(index, self.anim.hair().bounds(), expected)?;
+                let (r, hair) = (&mut self.renderer, self.anim.hair());
                 stats.time(Stage::Filter, || r.filter(hair));
             }
             self.shadow_at = Some(version);

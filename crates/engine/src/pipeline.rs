@@ -179,6 +179,14 @@ impl ShadowPipeline {
         Ok(())
     }
 
+    /// The camera's eye, for the methods that look at a fiber from the
+    /// side the camera sees ([`ShadowMethod::set_eye`]).
+    pub fn set_eye(&mut self, eye: Option<Vec3>) {
+        for l in &mut self.lights {
+            l.method.set_eye(eye);
+        }
+    }
+
     /// Stage 3 for light `l` at `points`, into `out`.
     pub fn filter_light(&self, l: usize, points: &[Vec3], out: &mut [f32]) {
         self.lights[l].method.filter(points, out);

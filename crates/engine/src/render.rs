@@ -205,6 +205,8 @@ impl Renderer {
     /// Shadow stage 3: the transmittance of every light at every drawn
     /// point, kept for [`Self::shade`].
     pub fn filter(&mut self, hair: &Hair) {
+        self.shadows
+            .set_eye(self.view.as_ref().map(|v| v.camera.position));
         let shadows = &self.shadows;
         self.part
             .filter(hair, shadows.light_count(), |l, pts, out| {

@@ -122,6 +122,14 @@ impl ShadowMethod {
         each!(self, m => m.transmittance())
     }
 
+    /// The camera's eye, for the methods that shade a fiber from the side
+    /// the camera sees (the exact reference); the others ignore it.
+    pub fn set_eye(&mut self, eye: Option<Vec3>) {
+        if let ShadowMethod::Reference(r) = self {
+            r.set_eye(eye);
+        }
+    }
+
     /// `T(p)` in [0, 1] at one point. Panics before [`Self::transmittance`].
     pub fn transmittance_at(&self, p: Vec3) -> f32 {
         each!(self, m => m.transmittance_at(p))

