@@ -144,6 +144,23 @@ fn cycles_and_the_exact_reference_see_the_same_shadow() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(cycles.join("cycles.exr").is_file() && cycles.join("cycles-unshadowed.exr").is_file());
     assert!(cycles.join("ratios.png").is_file());
+    // wisplight's two pictures beside Cycles': the scene's size, and the
+    // shadows only take light away.
+    let luminance = |name: &str| {
+        let img = image::open(cycles.join(name)).unwrap().to_rgb8();
+        assert_eq!(img.dimensions(), (160, 96), "{name}");
+        img.pixels()
+            .map(|p| p.0.iter().map(|&c| f64::from(c)).sum::<f64>())
+            .sum::<f64>()
+    };
+    let (lit, shadowed) = (
+        luminance("wisplight-unshadowed.png"),
+        luminance("wisplight-reference.png"),
+    );
+    assert!(
+        shadowed > 0.0 && shadowed < lit,
+        "shadowed {shadowed}, unshadowed {lit}"
+    );
     let mut reader = csv::Reader::from_path(&csv).unwrap();
     let header = reader.headers().unwrap().clone();
     let col = |name: &str| header.iter().position(|h| h == name).unwrap();

@@ -36,7 +36,8 @@ pub struct AccuracyArgs {
     /// shaded with Kajiya-Kay is shaded with the physically based fiber of
     /// its colour on both sides): the frame, its script and Cycles'
     /// pictures with and without shadows go into DIR and are reused while
-    /// the frame is the same. Needs `blender` on PATH (or
+    /// the frame is the same; wisplight's (the exact reference's and the
+    /// unshadowed) go beside them as PNG. Needs `blender` on PATH (or
     /// `$WISPLIGHT_BLENDER`).
     #[arg(long, value_name = "DIR")]
     cycles: Option<PathBuf>,
@@ -51,6 +52,11 @@ pub struct AccuracyArgs {
 /// Pixels a side of the blocks whose shadow ratio is compared with
 /// Cycles'.
 const BLOCK: usize = 8;
+/// With `--cycles DIR`: the exact reference's picture and the picture
+/// without shadows that the ratios come from (direct light, 8-bit sRGB),
+/// to set beside Cycles' `cycles.exr` and `cycles-unshadowed.exr`.
+const REFERENCE_PNG: &str = "wisplight-reference.png";
+const UNSHADOWED_PNG: &str = "wisplight-unshadowed.png";
 
 /// The settings swept for each method, coarse to fine.
 pub fn sweep() -> Vec<MethodConfig> {
@@ -155,17 +161,18 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
         (Some(dir), Some(b)) => Some(cycles_truth(&scene, b, dir, a.cycles_samples)?),
         _ => None,
     };
-    let unshadowed = match &truth {
-        Some(_) => {
+    let unshadowed = match (&truth, &a.cycles) {
+        (Some(_), Some(dir)) => {
             let mut s = scene.clone();
             s.effects.self_shadow = false;
             s.animation.motion = sim::Motion::Still;
             let mut seq = Sequence::new(&s)?;
-            Some(linear(
-                seq.again().context("cannot render without shadows")?.0,
-            ))
+            let img = seq.again().context("cannot render without shadows")?.0;
+            // wisplight's pictures beside Cycles', for a look.
+            crate::output::write_png(&dir.join(UNSHADOWED_PNG), img)?;
+            Some(linear(img))
         }
-        None => None,
+        _ => None,
     };
     let against_cycles = |img: &RgbImage| match (&truth, &unshadowed) {
         (Some(t), Some(u)) => Some(raster::RatioComparison::new(
@@ -199,11 +206,12 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
             ref_img.height() as usize,
             BLOCK,
         );
+        crate::output::write_png(&dir.join(REFERENCE_PNG), &ref_img)?;
         let side = ratio_picture(&[&t.ratios, &mine]);
         let path = dir.join("ratios.png");
         crate::output::write_png(&path, &side)?;
         eprintln!(
-            "wrote {}: shadow ratio per block, Cycles (left) and the reference (right); red where a block does not count",
+            "wrote {}: shadow ratio per block, Cycles (left) and the reference (right); red where a block does not count; and wisplight's pictures beside Cycles' (direct light): {REFERENCE_PNG}, {UNSHADOWED_PNG}",
             path.display()
         );
     }
