@@ -179,8 +179,8 @@ impl ShadowPipeline {
         Ok(())
     }
 
-    /// The camera's eye, for the methods that look at a fiber from the
-    /// side the camera sees ([`ShadowMethod::set_eye`]).
+    /// The camera's eye, for the methods that start a fiber's rays where
+    /// the camera's rays meet its surface ([`ShadowMethod::set_eye`]).
     pub fn set_eye(&mut self, eye: Option<Vec3>) {
         for l in &mut self.lights {
             l.method.set_eye(eye);

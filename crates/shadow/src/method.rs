@@ -122,8 +122,9 @@ impl ShadowMethod {
         each!(self, m => m.transmittance())
     }
 
-    /// The camera's eye, for the methods that shade a fiber from the side
-    /// the camera sees (the exact reference); the others ignore it.
+    /// The camera's eye, for the methods that start a fiber's rays where
+    /// the camera's rays meet its surface (the exact reference); the
+    /// others ignore it.
     pub fn set_eye(&mut self, eye: Option<Vec3>) {
         if let ShadowMethod::Reference(r) = self {
             r.set_eye(eye);

@@ -10,12 +10,21 @@
 //! ```
 //!
 //! evenly across the fiber's width as the light sees it (`l` the unit
-//! direction to the light at `p`); with the camera's eye `e` known
-//! ([`crate::ShadowMethod::set_eye`]), each origin moves to the side of
-//! the fiber the camera sees, `o_k + (w / 2) unit(v - (v . t) t)` with `v
-//! = e - p`: the surface a path tracer's camera ray meets and starts its
-//! shadow rays from (against Blender Cycles, the mean shadow ratio of the
-//! pictures came from 3 to 6 % below Cycles' to within 2.4 %). Each ray
+//! direction to the light at `p`). With the camera's eye `e` known
+//! ([`crate::ShadowMethod::set_eye`]), the rays start instead where the
+//! camera's rays meet the fiber's surface, at even steps of the offset
+//! across the fiber as the camera sees it:
+//!
+//! ```text
+//! o_k = p + (w / 2) (sqrt(1 - h_k^2) e' + h_k u),   h_k = 2 (k + 1/2) / K - 1,
+//! e' = unit(v - (v . t) t),  v = e - p,  u = unit(t x e')
+//! ```
+//!
+//! the points a path tracer shades and starts its shadow rays from
+//! (against Blender Cycles: the mean shadow ratio of the pictures from 3
+//! to 6 % below Cycles' to within 3.1 %, and the block error 0.039 to
+//! 0.051 on the project's grooms, from 0.046 to 0.062 from the axis).
+//! Each ray
 //! counts `n_k`, the fibers it crosses on its way: one strand's
 //! consecutive capsules that the ray passes through without leaving them
 //! are one crossing; its own fiber where the ray starts inside it or
@@ -222,20 +231,34 @@ impl Reference {
         let Some((strand, t)) = own else {
             return self.ray(b, p, None) as f32;
         };
+        let k = self.rays;
+        let mut sum = 0.0f64;
+        // With the eye known: from the surface the camera sees, at even
+        // steps of the offset `h` across the fiber as the camera sees it
+        // (where a camera ray meets a round fiber of radius r at offset
+        // h r, it meets its surface at `p + r (sqrt(1 - h^2) e + h u)`,
+        // `e` towards the eye across the fiber and `u` across it both).
+        let tn = t.normalize_or_zero();
+        let eye = self.eye.and_then(|e| {
+            let v = e - p;
+            let e = (v - v.dot(tn) * tn).try_normalize()?;
+            Some((e, tn.cross(e).try_normalize()?))
+        });
+        if let Some((e, u)) = eye {
+            for r in 0..k {
+                let h = 2.0 * ((r as f32 + 0.5) / k as f32 - 0.5);
+                let o = p + (e * (1.0 - h * h).sqrt() + u * h) * b.radius;
+                sum += self.ray(b, o, Some(strand));
+            }
+            return (sum / f64::from(k)).clamp(0.0, 1.0) as f32;
+        }
         // A fiber along the light is round to it: across any axis.
         let across = to_light
             .cross(t)
             .try_normalize()
             .unwrap_or(b.bins.frame.axes[1]);
-        // On the side the camera sees: towards the eye across the fiber.
-        let seen = self.eye.map_or(Vec3::ZERO, |e| {
-            let (v, t) = (e - p, t.normalize_or_zero());
-            (v - v.dot(t) * t).normalize_or_zero() * b.radius
-        });
-        let k = self.rays;
-        let mut sum = 0.0f64;
         for r in 0..k {
-            let o = p + seen + across * (2.0 * b.radius * ((r as f32 + 0.5) / k as f32 - 0.5));
+            let o = p + across * (2.0 * b.radius * ((r as f32 + 0.5) / k as f32 - 0.5));
             sum += self.ray(b, o, Some(strand));
         }
         (sum / f64::from(k)).clamp(0.0, 1.0) as f32

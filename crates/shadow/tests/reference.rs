@@ -122,18 +122,26 @@ fn a_fiber_another_runs_through_is_lit_from_where_its_rays_leave_them() {
 fn with_the_camera_known_rays_start_on_the_side_of_the_fiber_it_sees() {
     // Light from +y, A along z at the origin, C in front of it (y = 1)
     // and to the side: x from 0.4 W to 1.4 W. From A's axis the four rays
-    // (x = -3/8 .. 3/8 W) pass C by; seen by a camera at +x, they start
-    // half a width towards it (1/8 .. 7/8 W) and the outer two meet C.
+    // (x = -3/8 .. 3/8 W) pass C by. Seen by a camera at +x, they start on
+    // the surface it sees, where its rays meet the fiber at offsets h =
+    // +-1/4, +-3/4 of the radius r = W / 2: x = r sqrt(1 - h^2), 0.48 W
+    // for the middle two, which meet C, and 0.33 W for the outer two,
+    // which pass it by. A2 and C2 are the same with C2 0.15 W further
+    // out (from 0.55 W): no point of the surface the camera sees is
+    // behind it.
     let light = Light::directional(Vec3::NEG_Y).unwrap();
     let mut hair = Hair::new();
     along_z(&mut hair, 0.0, 0.0); // A
     along_z(&mut hair, 0.9 * W, 1.0); // C
+    along_z(&mut hair, 10.0, 0.0); // A2
+    along_z(&mut hair, 10.0 + 1.05 * W, 1.0); // C2
     let mut m = reference(&hair, &light, 4);
-    let a = hair.strand(0)[4];
+    let (a, a2) = (hair.strand(0)[4], hair.strand(2)[4]);
     assert_eq!(m.transmittance_at(a), 1.0);
     m.set_eye(Some(Vec3::new(100.0, 0.0, 0.0)));
     let t = m.transmittance_at(a);
     assert!(close(t, 1.0 - 0.5 * ALPHA), "seen from +x: {t}");
+    assert_eq!(m.transmittance_at(a2), 1.0, "A2 seen from +x");
     // From the other side, the rays move away from C.
     m.set_eye(Some(Vec3::new(-100.0, 0.0, 0.0)));
     assert_eq!(m.transmittance_at(a), 1.0);
