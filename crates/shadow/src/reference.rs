@@ -237,7 +237,9 @@ impl Reference {
         // steps of the offset `h` across the fiber as the camera sees it
         // (where a camera ray meets a round fiber of radius r at offset
         // h r, it meets its surface at `p + r (sqrt(1 - h^2) e + h u)`,
-        // `e` towards the eye across the fiber and `u` across it both).
+        // `e` towards the eye across the fiber and `u` across it both). A
+        // fiber seen end-on, or with no direction, is sampled as without
+        // a camera.
         let tn = t.normalize_or_zero();
         let eye = self.eye.and_then(|e| {
             let v = e - p;
