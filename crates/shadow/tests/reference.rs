@@ -142,6 +142,12 @@ fn with_the_camera_known_rays_start_on_the_side_of_the_fiber_it_sees() {
     let t = m.transmittance_at(a);
     assert!(close(t, 1.0 - 0.5 * ALPHA), "seen from +x: {t}");
     assert_eq!(m.transmittance_at(a2), 1.0, "A2 seen from +x");
+    // Seen end-on (the camera on A's axis): as without a camera, the rays
+    // spread across the fiber as the light sees it, and C misses them.
+    m.set_eye(Some(Vec3::new(0.0, 0.0, 100.0)));
+    assert_eq!(m.transmittance_at(a), 1.0, "A seen end-on");
+    m.set_eye(Some(Vec3::new(100.0, 0.0, 0.0)));
+    assert!(close(m.transmittance_at(a), 1.0 - 0.5 * ALPHA));
     // From the other side, the rays move away from C.
     m.set_eye(Some(Vec3::new(-100.0, 0.0, 0.0)));
     assert_eq!(m.transmittance_at(a), 1.0);
