@@ -161,6 +161,18 @@ fn cycles_and_the_exact_reference_see_the_same_shadow() {
         shadowed > 0.0 && shadowed < lit,
         "shadowed {shadowed}, unshadowed {lit}"
     );
+    // Cycles' beside them, as PNG too: the same, and about as bright as
+    // wisplight's unshadowed picture (the same fiber and light).
+    let (cycles_lit, cycles_shadowed) =
+        (luminance("cycles-unshadowed.png"), luminance("cycles.png"));
+    assert!(
+        cycles_shadowed > 0.0 && cycles_shadowed < cycles_lit,
+        "Cycles: shadowed {cycles_shadowed}, unshadowed {cycles_lit}"
+    );
+    assert!(
+        (0.5..2.0).contains(&(lit / cycles_lit)),
+        "wisplight's unshadowed picture {lit} against Cycles' {cycles_lit}"
+    );
     let mut reader = csv::Reader::from_path(&csv).unwrap();
     let header = reader.headers().unwrap().clone();
     let col = |name: &str| header.iter().position(|h| h == name).unwrap();

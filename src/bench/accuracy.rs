@@ -37,7 +37,7 @@ pub struct AccuracyArgs {
     /// its colour on both sides): the frame, its script and Cycles'
     /// pictures with and without shadows go into DIR and are reused while
     /// the frame is the same; wisplight's (the exact reference's and the
-    /// unshadowed) go beside them as PNG. Needs `blender` on PATH (or
+    /// unshadowed) go beside them as PNG, and Cycles' as PNG too. Needs `blender` on PATH (or
     /// `$WISPLIGHT_BLENDER`).
     #[arg(long, value_name = "DIR")]
     cycles: Option<PathBuf>,
@@ -57,6 +57,9 @@ const BLOCK: usize = 8;
 /// to set beside Cycles' `cycles.exr` and `cycles-unshadowed.exr`.
 const REFERENCE_PNG: &str = "wisplight-reference.png";
 const UNSHADOWED_PNG: &str = "wisplight-unshadowed.png";
+/// Cycles' `cycles.exr` and `cycles-unshadowed.exr` as 8-bit sRGB.
+const CYCLES_PNG: &str = "cycles.png";
+const CYCLES_UNSHADOWED_PNG: &str = "cycles-unshadowed.png";
 
 /// The settings swept for each method, coarse to fine.
 pub fn sweep() -> Vec<MethodConfig> {
@@ -211,7 +214,7 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
         let path = dir.join("ratios.png");
         crate::output::write_png(&path, &side)?;
         eprintln!(
-            "wrote {}: shadow ratio per block, Cycles (left) and the reference (right); red where a block does not count; and wisplight's pictures beside Cycles' (direct light): {REFERENCE_PNG}, {UNSHADOWED_PNG}",
+            "wrote {}: shadow ratio per block, Cycles (left) and the reference (right); red where a block does not count; and wisplight's pictures beside Cycles' (direct light, 8-bit sRGB): {REFERENCE_PNG}, {UNSHADOWED_PNG}, {CYCLES_PNG}, {CYCLES_UNSHADOWED_PNG}",
             path.display()
         );
     }
@@ -598,6 +601,13 @@ fn cycles_truth(scene: &Scene, blender: &Path, dir: &Path, samples: u32) -> anyh
             "Cycles' pictures in {} are {w}x{h} and {w2}x{h2}, not the scene's {cw}x{ch}",
             dir.display()
         );
+    }
+    // Cycles' pictures as 8-bit sRGB too, encoded as wisplight's are, to
+    // look at beside wisplight's without an OpenEXR viewer.
+    for (name, px) in [(CYCLES_PNG, &lit), (CYCLES_UNSHADOWED_PNG, &unlit)] {
+        let bytes = px.iter().flat_map(|&c| raster::to_srgb8(c)).collect();
+        let img = RgbImage::from_raw(w, h, bytes).expect("one RGB pixel each");
+        crate::output::write_png(&dir.join(name), &img)?;
     }
     Ok(Truth {
         ratios: raster::ShadowRatios::new(&lit, &unlit, w as usize, h as usize, BLOCK),
