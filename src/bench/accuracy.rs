@@ -37,8 +37,8 @@ pub struct AccuracyArgs {
     /// its colour on both sides): the frame, its script and Cycles'
     /// pictures with and without shadows go into DIR and are reused while
     /// the frame is the same; wisplight's (the exact reference's and the
-    /// unshadowed) go beside them as PNG, and Cycles' as PNG too. Needs `blender` on PATH (or
-    /// `$WISPLIGHT_BLENDER`).
+    /// unshadowed) go beside them as PNG, and Cycles' as PNG too. Needs
+    /// `blender` on PATH (or `$WISPLIGHT_BLENDER`).
     #[arg(long, value_name = "DIR")]
     cycles: Option<PathBuf>,
     /// Cycles samples per pixel.

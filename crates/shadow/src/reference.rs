@@ -67,8 +67,8 @@ pub(crate) const GRID: u32 = 512;
 #[derive(Debug)]
 pub struct Reference {
     rays: u32,
-    /// The camera's eye, where drawn points' rays start on the side of
-    /// their fiber it sees.
+    /// The camera's eye: drawn points' rays start where its rays meet
+    /// their fiber's surface.
     eye: Option<Vec3>,
     built: Option<Built>,
 }
@@ -173,7 +173,7 @@ impl Reference {
     }
 
     /// The camera's eye (see the module documentation); `None`: rays
-    /// start on the fiber's axis.
+    /// start on the fiber's axis, across it as the light sees it.
     pub(crate) fn set_eye(&mut self, eye: Option<Vec3>) {
         self.eye = eye.filter(|e| e.is_finite());
     }
@@ -231,36 +231,33 @@ impl Reference {
         let Some((strand, t)) = own else {
             return self.ray(b, p, None) as f32;
         };
-        let k = self.rays;
-        let mut sum = 0.0f64;
         // With the eye known: from the surface the camera sees, at even
         // steps of the offset `h` across the fiber as the camera sees it
         // (where a camera ray meets a round fiber of radius r at offset
         // h r, it meets its surface at `p + r (sqrt(1 - h^2) e + h u)`,
         // `e` towards the eye across the fiber and `u` across it both). A
         // fiber seen end-on, or with no direction, is sampled as without
-        // a camera.
+        // a camera: from its axis, across it as the light sees it (a
+        // fiber along the light is round to it: across any axis).
         let tn = t.normalize_or_zero();
-        let eye = self.eye.and_then(|e| {
+        let seen = self.eye.and_then(|e| {
             let v = e - p;
             let e = (v - v.dot(tn) * tn).try_normalize()?;
             Some((e, tn.cross(e).try_normalize()?))
         });
-        if let Some((e, u)) = eye {
-            for r in 0..k {
-                let h = 2.0 * ((r as f32 + 0.5) / k as f32 - 0.5);
-                let o = p + (e * (1.0 - h * h).sqrt() + u * h) * b.radius;
-                sum += self.ray(b, o, Some(strand));
-            }
-            return (sum / f64::from(k)).clamp(0.0, 1.0) as f32;
-        }
-        // A fiber along the light is round to it: across any axis.
         let across = to_light
             .cross(t)
             .try_normalize()
             .unwrap_or(b.bins.frame.axes[1]);
+        let k = self.rays;
+        let mut sum = 0.0f64;
         for r in 0..k {
-            let o = p + across * (2.0 * b.radius * ((r as f32 + 0.5) / k as f32 - 0.5));
+            // The offset across the fiber, -1 to 1.
+            let h = 2.0 * ((r as f32 + 0.5) / k as f32 - 0.5);
+            let o = match seen {
+                Some((e, u)) => p + (e * (1.0 - h * h).sqrt() + u * h) * b.radius,
+                None => p + across * (h * b.radius),
+            };
             sum += self.ray(b, o, Some(strand));
         }
         (sum / f64::from(k)).clamp(0.0, 1.0) as f32
