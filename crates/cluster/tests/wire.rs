@@ -463,6 +463,32 @@ fn three_workers_give_the_local_animation_byte_for_byte_drawing_anywhere() {
 }
 
 #[test]
+fn one_worker_steps_and_fills_while_the_coordinator_sweeps_and_draws_to_the_same_bytes() {
+    let scene = Scene::from_toml_str(DANCE, std::path::Path::new("dance.toml")).unwrap();
+    let want = local_frames(&scene, 4);
+    let addrs = [start_worker().to_string()];
+    let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::Workers, 20)).unwrap();
+    let traffic = remote.traffic();
+    let mut seq = Sequence::new(&scene).unwrap();
+    seq.set_executor(Box::new(remote)).unwrap();
+    // The coordinator rasterizes each frame while the worker steps and
+    // fills the next one.
+    seq.expect_frames(want.len() as u64);
+    for (i, w) in want.iter().enumerate() {
+        let (img, _) = seq.next_frame().unwrap();
+        assert!(img == w, "frame {i} differs from one process");
+    }
+    // The worker steps the wisps and fills the map; the coordinator sweeps
+    // it and draws: no column goes out, no swept slab or picture comes in.
+    let t = *traffic.lock().unwrap();
+    assert!(t.step_sent > 0 && t.wisps_received > 0, "{t:?}");
+    assert!(t.density_received > 0, "{t:?}");
+    assert_eq!(t.density_sent, 0, "{t:?}");
+    assert_eq!(t.slabs_received, 0, "{t:?}");
+    assert_eq!(t.layers_received + t.bands_received, 0, "{t:?}");
+}
+
+#[test]
 fn another_shadow_method_draws_on_the_coordinator_with_the_same_bytes() {
     // The peer methods need all the hair in one place: the coordinator
     // poses and draws it, the workers still simulate and fill the

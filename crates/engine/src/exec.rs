@@ -239,6 +239,14 @@ pub trait Executor: Send + Sync + std::fmt::Debug {
         light: usize,
         map: &DensityMap,
     ) -> Result<Transmittance, EngineError>;
+    /// Whether the stages run away from this process's cores (on remote
+    /// workers). When the frame is drawn here, the next frame's stages then
+    /// run while it is rasterized ([`crate::Sequence::expect_frames`]);
+    /// `false` (the default): they would share the cores the drawing uses,
+    /// and run after it.
+    fn runs_elsewhere(&self) -> bool {
+        false
+    }
     /// The executor's drawing part, when it holds the drawn hair and
     /// poses, filters, shades and rasterizes it where it is; `None` (the
     /// default): the frame does, in this process.

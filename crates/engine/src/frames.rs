@@ -80,6 +80,11 @@ pub struct Sequence {
     /// run (on the global pool's threads, which would otherwise wait for
     /// the compositing to finish).
     compositor: Option<rayon::ThreadPool>,
+    /// Threads that rasterize a frame drawn here while the next frame's
+    /// stages run on the global pool: on the global pool itself, those
+    /// stages' parallel work (the self-collision field, the filter) would
+    /// queue behind the rasterization.
+    drawer: Option<rayon::ThreadPool>,
 }
 
 /// `composite` waited for and resolved (on `pool`'s threads when given),
@@ -111,6 +116,17 @@ fn compositor_pool() -> Option<rayon::ThreadPool> {
     rayon::ThreadPoolBuilder::new()
         .num_threads(rayon::current_num_threads().div_ceil(2))
         .thread_name(|i| format!("wisplight-composite-{i}"))
+        .build()
+        .ok()
+}
+
+/// As many threads as the global pool's, for rasterizing beside it; none
+/// when no thread can be started (the drawing then shares the global
+/// pool).
+fn drawing_pool() -> Option<rayon::ThreadPool> {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(rayon::current_num_threads())
+        .thread_name(|i| format!("wisplight-draw-{i}"))
         .build()
         .ok()
 }
@@ -175,6 +191,7 @@ impl Sequence {
             repeat: false,
             ahead: None,
             compositor: None,
+            drawer: None,
         })
     }
 
@@ -296,9 +313,11 @@ impl Sequence {
     /// last then runs the next frame's stages up to its drawing (the
     /// simulation, the pose and the shadows, which need only this frame's
     /// density map, not its picture) while its own picture is composited:
-    /// the workers step and fill while the coordinator composites. The
-    /// pictures are the same bytes; the next frame's stages are timed in
-    /// its own [`FrameStats`].
+    /// the workers step and fill while the coordinator composites. With an
+    /// executor that [runs elsewhere](Executor::runs_elsewhere) but leaves
+    /// the drawing here, the next frame's stages likewise run while this
+    /// frame is rasterized. The pictures are the same bytes; the next
+    /// frame's stages are timed in its own [`FrameStats`].
     pub fn expect_frames(&mut self, frames: u64) {
         self.expected = Some(frames);
     }
@@ -425,7 +444,33 @@ impl Sequence {
             }
             if self.picture.as_ref().is_none_or(|p| p.0 != version) {
                 let r = &mut self.renderer;
-                let img = stats.time(Stage::Draw, || r.draw(hair, fx.self_shadow))?;
+                let img = if more && self.executor.runs_elsewhere() {
+                    // Rasterized in a thread of its own while the next
+                    // frame's stages run (the workers step and fill while
+                    // this process draws): binned first, so that it reads
+                    // nothing the next frame changes.
+                    let start = Instant::now();
+                    let composite = r.draw_later(hair, fx.self_shadow)?;
+                    let bin_ms = start.elapsed().as_secs_f64() * 1e3;
+                    drop(span);
+                    let pool = self.drawer.take().or_else(drawing_pool);
+                    let ((finished, resolve_ms), ahead) = std::thread::scope(|s| {
+                        let resolved = s.spawn(|| resolve_timed(composite, pool.as_ref()));
+                        let ahead = self.before_draw(index + 1);
+                        let resolved = resolved
+                            .join()
+                            .unwrap_or_else(|p| std::panic::resume_unwind(p));
+                        (resolved, ahead)
+                    });
+                    self.drawer = pool;
+                    self.ahead = Some(ahead);
+                    let (canvas, img) = finished.map_err(|(_, e)| e)?;
+                    self.renderer.restore_canvas(canvas);
+                    stats.record(Stage::Draw, bin_ms + resolve_ms);
+                    img
+                } else {
+                    stats.time(Stage::Draw, || r.draw(hair, fx.self_shadow))?
+                };
                 self.picture = Some((version, img));
             }
         }

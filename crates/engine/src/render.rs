@@ -320,14 +320,39 @@ impl Renderer {
     /// [`Self::shade`]; the head receives the hair's shadow when `shadows`
     /// and the scene's head shadow are on.
     pub fn draw(&mut self, hair: &Hair, shadows: bool) -> Result<image::RgbImage, EngineError> {
-        self.view(hair)?;
         let background = self.scene.render.background;
+        let canvas = self.bin(hair, shadows)?;
+        Ok(canvas.resolve(background))
+    }
+
+    /// [`Self::draw`] up to the rasterization, which the returned
+    /// [`Composite`] does wherever it is sent (while this renderer runs the
+    /// next frame's stages, say): `hair`'s strands are projected and binned
+    /// with the colours of the last [`Self::shade`], so that neither the
+    /// hair nor this renderer is read again. Hand its canvas back with
+    /// [`Self::restore_canvas`] before the next draw, or a new one is made.
+    pub fn draw_later(&mut self, hair: &Hair, shadows: bool) -> Result<Composite, EngineError> {
+        let background = self.scene.render.background;
+        self.bin(hair, shadows)?;
+        let canvas = self.canvas.take().expect("made by bin");
+        Ok(Composite {
+            background,
+            state: Composing::Layers {
+                canvas,
+                layers: Vec::new(),
+            },
+        })
+    }
+
+    /// The canvas with the head drawn and `hair` projected and binned.
+    fn bin(&mut self, hair: &Hair, shadows: bool) -> Result<&Canvas, EngineError> {
+        self.view(hair)?;
         let (view, _) = self.canvas_with_head(shadows, hair.segment_count())?;
         let look = self.look(&view);
         let canvas = self.canvas.as_mut().expect("made above");
         self.part
             .draw(hair, &view.camera, &look, &self.groups, canvas);
-        Ok(canvas.resolve(background))
+        Ok(canvas)
     }
 
     /// The head drawn here while `hair` draws the hair elsewhere (see

@@ -455,3 +455,82 @@ fn the_built_in_scene_shows_a_face_under_a_fringe_and_hides_the_scalp() {
         );
     }
 }
+
+/// This process's stages, said to run elsewhere (as remote workers that
+/// leave the drawing here do), counting the frames they simulated.
+#[derive(Debug)]
+struct Elsewhere {
+    steps: std::sync::Arc<std::sync::atomic::AtomicU32>,
+}
+
+impl engine::Executor for Elsewhere {
+    fn simulate(
+        &mut self,
+        anim: &mut engine::Animator,
+        plan: &engine::StepPlan,
+        stats: &mut FrameStats,
+    ) -> Result<(), engine::EngineError> {
+        self.steps.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+        engine::LocalExecutor.simulate(anim, plan, stats)
+    }
+
+    fn density(
+        &mut self,
+        light: usize,
+        map: &mut shadow::DensityMap,
+        strands: engine::Strands<'_>,
+        fiber: &shadow::Fiber,
+    ) -> Result<shadow::FillStats, engine::EngineError> {
+        engine::LocalExecutor.density(light, map, strands, fiber)
+    }
+
+    fn transmittance(
+        &mut self,
+        light: usize,
+        map: &shadow::DensityMap,
+    ) -> Result<shadow::Transmittance, engine::EngineError> {
+        engine::LocalExecutor.transmittance(light, map)
+    }
+
+    fn runs_elsewhere(&self) -> bool {
+        true
+    }
+}
+
+#[test]
+fn stages_elsewhere_run_the_next_frame_while_this_one_is_drawn_here_to_the_same_bytes() {
+    for extra in [
+        "[animation]\nmotion = \"dance\"\n",
+        "[animation]\nmotion = \"dance\"\n[shading]\nmodel = \"marschner\"\n\
+         [[light]]\ndirection = [0.9, -0.35, -0.25]\n[[light]]\ndirection = [-0.3, -1, 0.2]\n",
+    ] {
+        let s = scene(extra);
+        // This process, told of the frames to come (the camera framed on
+        // their motion): its stages run after each drawing.
+        let mut here = Sequence::new(&s).unwrap();
+        here.expect_frames(4);
+        let want: Vec<_> = (0..4)
+            .map(|_| here.next_frame().unwrap().0.clone())
+            .collect();
+        let steps = std::sync::Arc::new(std::sync::atomic::AtomicU32::new(0));
+        let mut seq = Sequence::new(&s).unwrap();
+        seq.set_executor(Box::new(Elsewhere {
+            steps: steps.clone(),
+        }))
+        .unwrap();
+        seq.expect_frames(4);
+        let mut ahead = Vec::new();
+        for (f, want) in want.iter().enumerate() {
+            let before = steps.load(std::sync::atomic::Ordering::SeqCst);
+            let (img, stats) = seq.next_frame().unwrap();
+            assert_eq!(stats.index, f as u64);
+            assert!(img == want, "frame {f} of {extra:?} is another picture");
+            ahead.push(steps.load(std::sync::atomic::Ordering::SeqCst) > before);
+        }
+        // Each call steps the wisps: frame 0 settles, and every frame but
+        // the last steps the next one's wisps while it is drawn. Frame 3's
+        // steps ran in frame 2's call, so frame 3's call steps nothing
+        // (drawn without the overlap, it would step its own).
+        assert_eq!(ahead, [true, true, true, false], "{extra:?}");
+    }
+}
