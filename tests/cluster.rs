@@ -362,15 +362,19 @@ fn bench_scaling_reports_every_configuration_and_writes_its_plot() {
         assert_eq!(parts.iter().map(|k| part(k)).sum::<u64>(), part("total"));
         // Drawing on the workers (the default): one worker leaves the
         // drawing to the coordinator (its partial picture would only
-        // cross the wire to be composited there), which sums the
-        // densities and hands out the columns; two sum and sweep the maps
+        // cross the wire to be composited there), which gathers its
+        // density and sweeps the map itself; two sum and sweep the maps
         // among themselves, composite the picture, and send finished
         // bands.
         assert_eq!(c["draw"], "workers");
         let (drawn, none): (&[&str], &[&str]) = if k == 1 {
+            // The coordinator sweeps and draws: no column goes out, no
+            // slab or picture comes back.
             (
-                &["density_sent", "slabs_received"],
+                &[],
                 &[
+                    "density_sent",
+                    "slabs_received",
                     "draw_sent",
                     "layers_received",
                     "density_between_workers",
