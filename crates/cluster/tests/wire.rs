@@ -41,6 +41,20 @@ fn options(draw: DrawAt, secs: u64) -> Options {
     }
 }
 
+/// `scene`'s frames rendered through `remote`, each the same bytes as
+/// `want`'s, with the frames said to follow (as `render --frames` says).
+fn assert_frames(scene: &Scene, remote: RemoteExecutor, want: &[image::RgbImage]) {
+    let mut seq = Sequence::new(scene).unwrap();
+    seq.set_executor(Box::new(remote)).unwrap();
+    seq.expect_frames(want.len() as u64);
+    for (i, w) in want.iter().enumerate() {
+        assert!(
+            seq.next_frame().unwrap().0 == w,
+            "frame {i} differs from one process"
+        );
+    }
+}
+
 fn hair() -> strands::Hair {
     let mut p = StyleParams::new(Style::Curly);
     p.strands_per_wisp = 3;
@@ -469,15 +483,9 @@ fn one_worker_steps_and_fills_while_the_coordinator_sweeps_and_draws_to_the_same
     let addrs = [start_worker().to_string()];
     let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::Workers, 20)).unwrap();
     let traffic = remote.traffic();
-    let mut seq = Sequence::new(&scene).unwrap();
-    seq.set_executor(Box::new(remote)).unwrap();
     // The coordinator rasterizes each frame while the worker steps and
     // fills the next one.
-    seq.expect_frames(want.len() as u64);
-    for (i, w) in want.iter().enumerate() {
-        let (img, _) = seq.next_frame().unwrap();
-        assert!(img == w, "frame {i} differs from one process");
-    }
+    assert_frames(&scene, remote, &want);
     // The worker steps the wisps and fills the map; the coordinator sweeps
     // it and draws: no column goes out, no swept slab or picture comes in.
     let t = *traffic.lock().unwrap();
@@ -498,12 +506,7 @@ fn another_shadow_method_draws_on_the_coordinator_with_the_same_bytes() {
     let want = local_frames(&scene, 3);
     let addrs: Vec<String> = (0..2).map(|_| start_worker().to_string()).collect();
     let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::Workers, 20)).unwrap();
-    let mut seq = Sequence::new(&scene).unwrap();
-    seq.set_executor(Box::new(remote)).unwrap();
-    seq.expect_frames(want.len() as u64);
-    for (i, w) in want.iter().enumerate() {
-        assert!(seq.next_frame().unwrap().0 == w, "frame {i}");
-    }
+    assert_frames(&scene, remote, &want);
 }
 
 #[test]
@@ -514,12 +517,7 @@ fn rigid_hair_drawn_on_workers_is_the_local_animation() {
     let addrs: Vec<String> = (0..2).map(|_| start_worker().to_string()).collect();
     let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::Workers, 20)).unwrap();
     let traffic = remote.traffic();
-    let mut seq = Sequence::new(&scene).unwrap();
-    seq.set_executor(Box::new(remote)).unwrap();
-    seq.expect_frames(want.len() as u64);
-    for (i, w) in want.iter().enumerate() {
-        assert!(seq.next_frame().unwrap().0 == w, "frame {i}");
-    }
+    assert_frames(&scene, remote, &want);
     let t = *traffic.lock().unwrap();
     // Three Deposits to each of two workers, of a frame and a column plan
     // (about 240 bytes each), no strand.

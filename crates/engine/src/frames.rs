@@ -87,17 +87,15 @@ pub struct Sequence {
     drawer: Option<rayon::ThreadPool>,
 }
 
+/// A composite resolved: the canvas to reuse and the picture, or the
+/// composite back with its error.
+type Resolved = Result<(Option<raster::Canvas>, image::RgbImage), (Composite, EngineError)>;
+
 /// `composite` waited for and resolved (on `pool`'s threads when given),
 /// and its milliseconds; a picture finished elsewhere that failed gives
 /// back the composite with the error.
-#[allow(clippy::type_complexity, clippy::result_large_err)]
-fn resolve_timed(
-    mut composite: Composite,
-    pool: Option<&rayon::ThreadPool>,
-) -> (
-    Result<(Option<raster::Canvas>, image::RgbImage), (Composite, EngineError)>,
-    f64,
-) {
+#[allow(clippy::result_large_err)]
+fn resolve_timed(mut composite: Composite, pool: Option<&rayon::ThreadPool>) -> (Resolved, f64) {
     let t = Instant::now();
     let out = match composite.wait() {
         Err(e) => Err((composite, e)),
@@ -109,24 +107,13 @@ fn resolve_timed(
     (out, t.elapsed().as_secs_f64() * 1e3)
 }
 
-/// Half the global pool's threads (at least one), for compositing; none
-/// when no thread can be started (the compositing then shares the global
-/// pool).
-fn compositor_pool() -> Option<rayon::ThreadPool> {
+/// A pool of `threads` threads named `wisplight-{name}-i`, to work beside
+/// the global pool; none when no thread can be started (the work then
+/// shares the global pool).
+fn side_pool(threads: usize, name: &'static str) -> Option<rayon::ThreadPool> {
     rayon::ThreadPoolBuilder::new()
-        .num_threads(rayon::current_num_threads().div_ceil(2))
-        .thread_name(|i| format!("wisplight-composite-{i}"))
-        .build()
-        .ok()
-}
-
-/// As many threads as the global pool's, for rasterizing beside it; none
-/// when no thread can be started (the drawing then shares the global
-/// pool).
-fn drawing_pool() -> Option<rayon::ThreadPool> {
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(rayon::current_num_threads())
-        .thread_name(|i| format!("wisplight-draw-{i}"))
+        .num_threads(threads)
+        .thread_name(move |i| format!("wisplight-{name}-{i}"))
         .build()
         .ok()
 }
@@ -376,19 +363,16 @@ impl Sequence {
                 let mut ms = start.elapsed().as_secs_f64() * 1e3;
                 drop(span);
                 let (finished, resolve_ms) = if more {
-                    // Composited in a thread of its own while the next
-                    // frame's stages run here.
-                    let pool = self.compositor.take().or_else(compositor_pool);
-                    let (resolved, ahead) = std::thread::scope(|s| {
-                        let resolved = s.spawn(|| resolve_timed(composite, pool.as_ref()));
-                        let ahead = self.before_draw(index + 1);
-                        let resolved = resolved
-                            .join()
-                            .unwrap_or_else(|p| std::panic::resume_unwind(p));
-                        (resolved, ahead)
-                    });
+                    // Composited in a thread of its own, on half the global
+                    // pool's threads (at least one), while the next frame's
+                    // stages run here.
+                    let threads = rayon::current_num_threads().div_ceil(2);
+                    let pool = self
+                        .compositor
+                        .take()
+                        .or_else(|| side_pool(threads, "composite"));
+                    let resolved = self.resolve_beside_next(composite, pool.as_ref(), index + 1);
                     self.compositor = pool;
-                    self.ahead = Some(ahead);
                     resolved
                 } else {
                     resolve_timed(composite, None)
@@ -453,17 +437,11 @@ impl Sequence {
                     let composite = r.draw_later(hair, fx.self_shadow)?;
                     let bin_ms = start.elapsed().as_secs_f64() * 1e3;
                     drop(span);
-                    let pool = self.drawer.take().or_else(drawing_pool);
-                    let ((finished, resolve_ms), ahead) = std::thread::scope(|s| {
-                        let resolved = s.spawn(|| resolve_timed(composite, pool.as_ref()));
-                        let ahead = self.before_draw(index + 1);
-                        let resolved = resolved
-                            .join()
-                            .unwrap_or_else(|p| std::panic::resume_unwind(p));
-                        (resolved, ahead)
-                    });
+                    let threads = rayon::current_num_threads();
+                    let pool = self.drawer.take().or_else(|| side_pool(threads, "draw"));
+                    let (finished, resolve_ms) =
+                        self.resolve_beside_next(composite, pool.as_ref(), index + 1);
                     self.drawer = pool;
-                    self.ahead = Some(ahead);
                     let (canvas, img) = finished.map_err(|(_, e)| e)?;
                     self.renderer.restore_canvas(canvas);
                     stats.record(Stage::Draw, bin_ms + resolve_ms);
@@ -476,6 +454,26 @@ impl Sequence {
         }
         self.next += 1;
         Ok(stats)
+    }
+
+    /// `composite` resolved (on `pool`'s threads) in a thread of its own
+    /// while frame `next`'s stages run here, their result kept for it.
+    fn resolve_beside_next(
+        &mut self,
+        composite: Composite,
+        pool: Option<&rayon::ThreadPool>,
+        next: u64,
+    ) -> (Resolved, f64) {
+        let (resolved, ahead) = std::thread::scope(|s| {
+            let resolved = s.spawn(|| resolve_timed(composite, pool));
+            let ahead = self.before_draw(next);
+            let resolved = resolved
+                .join()
+                .unwrap_or_else(|p| std::panic::resume_unwind(p));
+            (resolved, ahead)
+        });
+        self.ahead = Some(ahead);
+        resolved
     }
 
     /// Renders the last frame again, every stage after its motion run anew

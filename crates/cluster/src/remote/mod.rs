@@ -613,14 +613,14 @@ impl Executor for RemoteExecutor {
         light: usize,
         map: &DensityMap,
     ) -> Result<Transmittance, EngineError> {
-        if self.posed.is_some() && self.exchanged.get(light).copied().flatten() == self.posed {
-            return self.sweep_here(light, map).map_err(engine_error);
-        }
-        // A lone worker's sweep runs beside nothing: sending it the map
-        // and taking its columns back costs more than sweeping here (curly,
-        // one core a node: 7 ms a frame and 1 MB on the wire, against 1.5
-        // ms here).
-        if self.workers.len() == 1 {
+        // Swept here (the coordinator's own copy) when the workers swept it
+        // among themselves, or with one worker: its sweep runs beside nothing,
+        // and sending it the map and taking its columns back costs more
+        // than sweeping here (curly, one core a node: 7 ms a frame and 1
+        // MB on the wire, against 1.5 ms here).
+        let exchanged =
+            self.posed.is_some() && self.exchanged.get(light).copied().flatten() == self.posed;
+        if exchanged || self.workers.len() == 1 {
             return self.sweep_here(light, map).map_err(engine_error);
         }
         self.with_survivors(|ex| ex.sweep_remote(light, map))
