@@ -1,5 +1,7 @@
 //! Running the shadow stages for each light.
 
+use std::sync::Arc;
+
 use glam::{Affine3A, Vec3};
 use shadow::{Extent, Fiber, FillStats, Light, Occluder, ShadowInput, ShadowMethod};
 use strands::Hair;
@@ -41,14 +43,23 @@ struct LightState {
 impl ShadowPipeline {
     /// One method per light of `scene`, nothing built yet.
     pub fn new(scene: &Scene) -> Result<ShadowPipeline, EngineError> {
+        // The exact reference weighs a fiber's rays by the light each
+        // part of its width sends to the eye: the physically based
+        // fiber's lobes are narrow across it. Kajiya-Kay's fiber is the
+        // same across its width.
+        let across: Option<Arc<dyn shadow::AcrossFiber>> = match &scene.shading.model {
+            raster::ShadingModel::Marschner { optics, .. } => {
+                Some(Arc::new(FiberWidth::new(optics)))
+            }
+            raster::ShadingModel::KajiyaKay => None,
+        };
         let lights = scene
             .lights
             .iter()
             .map(|&light| {
-                Ok(LightState {
-                    light,
-                    method: ShadowMethod::new(&scene.shadow.method)?,
-                })
+                let mut method = ShadowMethod::new(&scene.shadow.method)?;
+                method.set_across(across.clone());
+                Ok(LightState { light, method })
             })
             .collect::<Result<_, EngineError>>()?;
         let head = scene
@@ -261,4 +272,41 @@ pub(crate) fn off_surface(f: &shadow::LightFrame, p: Vec3, n: Vec3) -> Vec3 {
 /// The hair is held elsewhere, and a map of it needs `what`.
 fn held_needs(what: &str) -> EngineError {
     EngineError::executor(format!("a shadow map of hair held elsewhere needs {what}"))
+}
+
+/// The physically based fiber (Chiang et al. 2016) across its width, as
+/// the exact reference weighs its rays by: the luminance of `f(w_o, w_i)`
+/// at [`FiberWidth::NODES`] even offsets `h`, summed over those in a
+/// ray's part of the width.
+#[derive(Debug)]
+struct FiberWidth {
+    nodes: Vec<(f32, raster::Chiang)>,
+}
+
+impl FiberWidth {
+    /// Offsets across the width: 8 in each quarter, finer than the
+    /// model's lobes (about 0.12 across at the default roughness).
+    const NODES: usize = 32;
+
+    fn new(optics: &raster::FiberOptics) -> FiberWidth {
+        let nodes = (0..Self::NODES)
+            .map(|i| {
+                let h = 2.0 * (i as f32 + 0.5) / Self::NODES as f32 - 1.0;
+                (h, raster::Chiang::new(optics, h))
+            })
+            .collect();
+        FiberWidth { nodes }
+    }
+}
+
+impl shadow::AcrossFiber for FiberWidth {
+    fn weight(&self, wo: Vec3, wi: Vec3, h0: f32, h1: f32) -> f32 {
+        // Rec. 709 luminance, as the pictures are compared.
+        const LUMA: Vec3 = Vec3::new(0.2126, 0.7152, 0.0722);
+        self.nodes
+            .iter()
+            .filter(|(h, _)| (h0..h1).contains(h))
+            .map(|(_, c)| c.f(wo, wi).dot(LUMA))
+            .sum()
+    }
 }

@@ -39,7 +39,7 @@ pub use input::{OPAQUE_DEPTH, ShadowInput, fit_to_extent};
 pub use method::{DensityMapMethod, ShadowMethod};
 pub use occluder::{Occluder, OccluderView};
 pub use peers::{DeepOpacityMap, DeepShadowMap, DensityClustering, OpacityShadowMap};
-pub use reference::Reference;
+pub use reference::{AcrossFiber, Reference};
 pub use transmittance::{
     ColumnSlab, DEPTH_STEP, LIT_EDGE_OFFSET, SWEEP_RUN_COLUMNS, Span, Transmittance, columns_read,
     sweep, sweep_while,

@@ -131,6 +131,15 @@ impl ShadowMethod {
         }
     }
 
+    /// How a fiber's light is spread across its width, for the methods
+    /// that weigh a fiber's rays by it (the exact reference, with the
+    /// camera known); the others ignore it.
+    pub fn set_across(&mut self, across: Option<std::sync::Arc<dyn crate::AcrossFiber>>) {
+        if let ShadowMethod::Reference(r) = self {
+            r.set_across(across);
+        }
+    }
+
     /// `T(p)` in [0, 1] at one point. Panics before [`Self::transmittance`].
     pub fn transmittance_at(&self, p: Vec3) -> f32 {
         each!(self, m => m.transmittance_at(p))

@@ -233,3 +233,77 @@ fn a_probe_is_one_ray_and_a_point_light_sends_rays_to_its_source() {
         );
     }
 }
+
+/// A fiber whose light comes only from offsets `h` with `lo <= |h| < hi`
+/// (in the fiber's frame), recording what it is asked.
+#[derive(Debug)]
+struct Band {
+    lo: f32,
+    hi: f32,
+    asked: std::sync::Mutex<Vec<(Vec3, Vec3, f32, f32)>>,
+}
+
+impl shadow::AcrossFiber for Band {
+    fn weight(&self, wo: Vec3, wi: Vec3, h0: f32, h1: f32) -> f32 {
+        self.asked.lock().unwrap().push((wo, wi, h0, h1));
+        let mid = 0.5 * (h0 + h1);
+        if (self.lo..self.hi).contains(&mid.abs()) {
+            h1 - h0
+        } else {
+            0.0
+        }
+    }
+}
+
+#[test]
+fn a_fibers_rays_count_as_much_as_the_light_its_width_sends_there() {
+    // The arrangement of the test above: seen from +x, A's middle two
+    // rays (h = +-1/4) meet C in front of it, the outer two pass it by.
+    let light = Light::directional(Vec3::NEG_Y).unwrap();
+    let mut hair = Hair::new();
+    along_z(&mut hair, 0.0, 0.0); // A
+    along_z(&mut hair, 0.9 * W, 1.0); // C
+    let mut m = reference(&hair, &light, 4);
+    m.set_eye(Some(Vec3::new(100.0, 0.0, 0.0)));
+    let a = hair.strand(0)[4];
+    let band = |lo: f32, hi: f32| {
+        std::sync::Arc::new(Band {
+            lo,
+            hi,
+            asked: Default::default(),
+        })
+    };
+    // Evenly (no profile): half the rays lose alpha.
+    assert!(close(m.transmittance_at(a), 1.0 - 0.5 * ALPHA));
+    // All the light from the middle of the width: what the middle rays see.
+    let middle = band(0.0, 0.5);
+    m.set_across(Some(middle.clone()));
+    let t = m.transmittance_at(a);
+    assert!(close(t, 1.0 - ALPHA), "bright in the middle: {t}");
+    // The fiber's frame: x along it (+z), z towards the eye (+x), y = z x x
+    // (-y); the light (+y) at -y there. Each ray asked for its quarter.
+    let asked = middle.asked.lock().unwrap().clone();
+    assert_eq!(asked.len(), 4);
+    let mut quarters = Vec::new();
+    for (wo, wi, h0, h1) in asked {
+        assert!((wo - Vec3::Z).length() < 1e-4, "wo {wo}");
+        assert!((wi - Vec3::NEG_Y).length() < 1e-4, "wi {wi}");
+        quarters.push((h0, h1));
+    }
+    quarters.sort_by(|x, y| x.0.total_cmp(&y.0));
+    for (q, (h0, h1)) in quarters.iter().enumerate() {
+        let start = -1.0 + 0.5 * q as f32;
+        assert!(close(*h0, start) && close(*h1, start + 0.5), "{quarters:?}");
+    }
+    // All of it from the edges: what the outer rays see.
+    m.set_across(Some(band(0.5, 1.01)));
+    assert_eq!(m.transmittance_at(a), 1.0, "bright at the edges");
+    // A fiber that sends the eye nothing: evenly.
+    m.set_across(Some(band(2.0, 3.0)));
+    assert!(close(m.transmittance_at(a), 1.0 - 0.5 * ALPHA));
+    // Without the camera the profile is not used: rays across the fiber
+    // as the light sees it, all passing C by.
+    m.set_eye(None);
+    m.set_across(Some(band(0.0, 0.5)));
+    assert_eq!(m.transmittance_at(a), 1.0);
+}
