@@ -66,8 +66,29 @@ pub fn sweep() -> Vec<MethodConfig> {
     let mut v = Vec::new();
     for cells in [32, 64, 128, 256] {
         for filter in [true, false] {
-            v.push(MethodConfig::DensityMap { cells, filter });
+            v.push(MethodConfig::DensityMap {
+                cells,
+                filter,
+                contact: 0.0,
+            });
         }
+    }
+    // Contact shadows: 1, 2 and 4 cells at 128^3; the same distance as 2
+    // cells at 64^3 and 256^3.
+    for (cells, contact) in [
+        (128, 1.0),
+        (128, 2.0),
+        (128, 4.0),
+        (128, 8.0),
+        (128, 16.0),
+        (64, 1.0),
+        (256, 4.0),
+    ] {
+        v.push(MethodConfig::DensityMap {
+            cells,
+            filter: true,
+            contact,
+        });
     }
     let osm = |slices, mode, offset| MethodConfig::OpacityShadowMap {
         resolution: 128,

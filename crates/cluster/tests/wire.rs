@@ -510,6 +510,26 @@ fn another_shadow_method_draws_on_the_coordinator_with_the_same_bytes() {
 }
 
 #[test]
+fn contact_shadows_draw_on_the_coordinator_with_the_same_bytes() {
+    // Contact shadows test every strand near a drawn point: the
+    // coordinator poses and draws, the workers fill and sweep the map.
+    let text = format!("{DANCE}\n[shadow]\ncontact = 2.0\n");
+    let scene = Scene::from_toml_str(&text, std::path::Path::new("contact.toml")).unwrap();
+    let want = local_frames(&scene, 3);
+    let plain = local_frames(
+        &Scene::from_toml_str(DANCE, std::path::Path::new("dance.toml")).unwrap(),
+        3,
+    );
+    assert_ne!(want, plain, "contact shadows change the picture");
+    let addrs: Vec<String> = (0..2).map(|_| start_worker().to_string()).collect();
+    let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::Workers, 20)).unwrap();
+    let traffic = remote.traffic();
+    assert_frames(&scene, remote, &want);
+    let t = *traffic.lock().unwrap();
+    assert!(t.density_received > 0, "filled there: {t:?}");
+}
+
+#[test]
 fn rigid_hair_drawn_on_workers_is_the_local_animation() {
     let text = format!("{DANCE}\n[effects]\ndynamics = false\n");
     let scene = Scene::from_toml_str(&text, std::path::Path::new("rigid.toml")).unwrap();

@@ -287,12 +287,15 @@ impl Sequence {
 
     /// Whether the drawn hair is posed, filtered, shaded and rasterized by
     /// the executor, elsewhere: it holds it, and no shadow method needs all
-    /// of it here.
+    /// of it here (the peer methods and the density map's contact shadows
+    /// test every strand near a point).
     /// The one place that decides where the hair is drawn.
     fn draws_elsewhere(&mut self) -> bool {
-        (!self.scene.effects.self_shadow
-            || matches!(self.scene.shadow.method, MethodConfig::DensityMap { .. }))
-            && self.executor.drawing().is_some()
+        let map_alone = matches!(
+            self.scene.shadow.method,
+            MethodConfig::DensityMap { contact, .. } if contact == 0.0
+        );
+        (!self.scene.effects.self_shadow || map_alone) && self.executor.drawing().is_some()
     }
 
     /// Says that the caller will ask for `frames` more frames (and no
@@ -605,7 +608,11 @@ impl Sequence {
             let extents = Some((anchor, &report.extents[..]));
             stats.samples = stats
                 .time(Stage::Density, || {
-                    r.shadows_mut().density_with(strands, extents, ex)
+                    let s = r.shadows_mut().density_with(strands, extents, ex)?;
+                    if !elsewhere {
+                        r.shadows_mut().contact(hair)?;
+                    }
+                    Ok::<_, EngineError>(s)
                 })?
                 .samples;
             stats.time(Stage::Transmittance, || {

@@ -11,6 +11,7 @@
 //! map does.
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use crate::input::ShadowInput;
 use crate::{FillStats, LightFrame, ShadowError};
@@ -30,6 +31,12 @@ pub(crate) struct SegmentBins {
     /// `cells[s + 1]`) whose capsule's shadow reaches it, ascending.
     start: Vec<u32>,
     segs: Vec<u32>,
+    /// Once ordered by depth ([`Self::order_by_depth`]): per entry of
+    /// `segs`, where its capsule starts along the light (slice coordinate,
+    /// cells), ascending within each column; per column, the longest
+    /// extent of its capsules along the light.
+    lo: Vec<f32>,
+    extent: Vec<f32>,
     /// Fiber radius across the rays, in cells (for a directional light).
     pub(crate) radius: f32,
     pub(crate) stats: FillStats,
@@ -131,9 +138,93 @@ impl SegmentBins {
             strand,
             start,
             segs,
+            lo: Vec::new(),
+            extent: Vec::new(),
             radius,
             stats,
         })
+    }
+
+    /// The column `(j, k)` of the grid a ray from `o` (world) runs in; a
+    /// ray beside the grid, in the edge column (which lists every capsule
+    /// that reaches past it, so a ray there can still graze a fiber).
+    pub(crate) fn column_of(&self, o: Vec3) -> (i32, i32) {
+        let c = self.frame.to_cells(o);
+        let n = self.frame.n_cells as i32;
+        let col = |v: f32| {
+            if v.is_nan() {
+                0
+            } else {
+                (v.max(0.0) as i32).min(n - 1)
+            }
+        };
+        (col(c.y), col(c.z))
+    }
+
+    /// Orders each column's segments by where their capsule starts along
+    /// the light, for [`Self::column_between`]. `margin`: the fiber's
+    /// radius in cells along the light.
+    pub(crate) fn order_by_depth(&mut self, margin: f32) {
+        let cells = &self.cells;
+        let range = |s: u32| {
+            let (a, b) = (cells[s as usize].x, cells[s as usize + 1].x);
+            (a.min(b) - margin, a.max(b) + margin)
+        };
+        // Sort keys: the start's bits made to order as the numbers do (a
+        // finite f32's bits, flipped for negatives), then the segment, so
+        // the order is total and the same on any number of threads.
+        let key = |s: u32| {
+            let b = range(s).0.to_bits();
+            let b = if b >> 31 == 1 { !b } else { b | 1 << 31 };
+            (u64::from(b) << 32) | u64::from(s)
+        };
+        let mut entries: Vec<u64> = self.segs.par_iter().map(|&s| key(s)).collect();
+        let n = self.frame.n_cells as usize;
+        // One task per row of columns.
+        let mut rows = Vec::with_capacity(n);
+        let mut rest = &mut entries[..];
+        for k in 0..n {
+            let len = (self.start[(k + 1) * n] - self.start[k * n]) as usize;
+            let (row, tail) = rest.split_at_mut(len);
+            rows.push((k, row));
+            rest = tail;
+        }
+        let start = &self.start;
+        let extent: Vec<Vec<f32>> = rows
+            .into_par_iter()
+            .map(|(k, row)| {
+                let base = start[k * n];
+                (0..n)
+                    .map(|j| {
+                        let col = &mut row[(start[k * n + j] - base) as usize
+                            ..(start[k * n + j + 1] - base) as usize];
+                        col.sort_unstable();
+                        col.iter()
+                            .map(|&e| {
+                                let (lo, hi) = range(e as u32);
+                                hi - lo
+                            })
+                            .fold(0.0, f32::max)
+                    })
+                    .collect()
+            })
+            .collect();
+        self.extent = extent.concat();
+        self.segs = entries.iter().map(|&e| e as u32).collect();
+        self.lo = self.segs.iter().map(|&s| range(s).0).collect();
+    }
+
+    /// The segments of column `(j, k)` whose capsule may reach slice
+    /// coordinates `x0..=x1` (cells) along the light; after
+    /// [`Self::order_by_depth`].
+    pub(crate) fn column_between(&self, j: i32, k: i32, x0: f32, x1: f32) -> &[u32] {
+        let col = (k * self.frame.n_cells as i32 + j) as usize;
+        let (a, b) = (self.start[col] as usize, self.start[col + 1] as usize);
+        let lo = &self.lo[a..b];
+        // A capsule starting before x0 - extent ends before x0.
+        let first = lo.partition_point(|&x| x < x0 - self.extent[col]);
+        let end = lo.partition_point(|&x| x <= x1);
+        &self.segs[a + first..a + end.max(first)]
     }
 
     /// The segments listed in column `(j, k)` (inside the grid), ascending.

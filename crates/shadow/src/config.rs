@@ -1,5 +1,6 @@
 //! The shadow methods' names and settings.
 
+use crate::contact::MAX_CONTACT_CELLS;
 use crate::{MAX_CELLS, ShadowError};
 
 /// Koster et al.'s two ways of turning accumulated opacity `Omega` into
@@ -63,6 +64,10 @@ pub enum MethodConfig {
         cells: u32,
         /// Trilinear lookups (else the cell's own value).
         filter: bool,
+        /// Contact shadows: the fibers within this many cells of a drawn
+        /// point towards the light counted exactly, one ray a point, the
+        /// map beyond them (`crate::contact`); 0: the map alone.
+        contact: f32,
     },
     /// Kim and Neumann 2001, as Koster et al. 2004 describe it: `slices`
     /// uniform maps of accumulated opacity between the hair's nearest and
@@ -153,6 +158,7 @@ impl MethodConfig {
             "density-map" => MethodConfig::DensityMap {
                 cells,
                 filter: true,
+                contact: 0.0,
             },
             "opacity-shadow-map" => MethodConfig::OpacityShadowMap {
                 resolution: cells,
@@ -264,7 +270,17 @@ impl MethodConfig {
             }
         };
         match *self {
-            MethodConfig::DensityMap { cells, .. } => res(cells),
+            MethodConfig::DensityMap { cells, contact, .. } => {
+                res(cells)?;
+                if !(contact.is_finite() && (0.0..=MAX_CONTACT_CELLS).contains(&contact)) {
+                    return bad(
+                        "contact",
+                        contact.to_string(),
+                        "must be a number of cells in 0..=16",
+                    );
+                }
+                Ok(())
+            }
             MethodConfig::OpacityShadowMap {
                 resolution,
                 slices,
@@ -350,8 +366,16 @@ impl MethodConfig {
     /// The settings as `key=value` pairs, for tables and CSV.
     pub fn parameters(&self) -> String {
         match *self {
-            MethodConfig::DensityMap { cells, filter } => {
-                format!("cells={cells} filter={filter}")
+            MethodConfig::DensityMap {
+                cells,
+                filter,
+                contact,
+            } => {
+                if contact > 0.0 {
+                    format!("cells={cells} filter={filter} contact={contact}")
+                } else {
+                    format!("cells={cells} filter={filter}")
+                }
             }
             MethodConfig::OpacityShadowMap {
                 resolution,

@@ -19,6 +19,7 @@
 
 mod bins;
 mod config;
+mod contact;
 mod density;
 mod fiber;
 mod footprint_reference;
@@ -31,6 +32,7 @@ mod reference;
 mod transmittance;
 
 pub use config::{Beyond, MethodConfig, OpacityMode};
+pub use contact::MAX_CONTACT_CELLS;
 pub use density::{ColumnMeta, DEPOSIT_RUN_WORK, DEPTH_QUANTUM, DensityMap, FillStats};
 pub use fiber::Fiber;
 pub use footprint_reference::FootprintReference;

@@ -21,6 +21,7 @@ use rayon::prelude::*;
 
 use crate::Occluder;
 use crate::config::MethodConfig;
+use crate::contact::Contact;
 use crate::footprint_reference::FootprintReference;
 use crate::input::{OPAQUE_DEPTH, ShadowInput};
 use crate::peers::{DeepOpacityMap, DeepShadowMap, DensityClustering, OpacityShadowMap};
@@ -67,9 +68,13 @@ impl ShadowMethod {
     pub fn new(config: &MethodConfig) -> Result<ShadowMethod, ShadowError> {
         config.validate()?;
         Ok(match *config {
-            MethodConfig::DensityMap { cells, filter } => {
-                ShadowMethod::DensityMap(DensityMapMethod::new(cells, filter)?)
-            }
+            MethodConfig::DensityMap {
+                cells,
+                filter,
+                contact,
+            } => ShadowMethod::DensityMap(
+                DensityMapMethod::new(cells, filter)?.with_contact(contact)?,
+            ),
             MethodConfig::OpacityShadowMap {
                 resolution,
                 slices,
@@ -123,11 +128,13 @@ impl ShadowMethod {
     }
 
     /// The camera's eye, for the methods that start a fiber's rays where
-    /// the camera's rays meet its surface (the exact reference); the
-    /// others ignore it.
+    /// the camera's rays meet its surface (the exact reference, the
+    /// density map's contact rays); the others ignore it.
     pub fn set_eye(&mut self, eye: Option<Vec3>) {
-        if let ShadowMethod::Reference(r) = self {
-            r.set_eye(eye);
+        match self {
+            ShadowMethod::Reference(r) => r.set_eye(eye),
+            ShadowMethod::DensityMap(m) => m.eye = eye.filter(|e| e.is_finite()),
+            _ => {}
         }
     }
 
@@ -182,20 +189,75 @@ impl ShadowMethod {
 pub struct DensityMapMethod {
     cells: u32,
     filter: bool,
+    /// Contact distance, cells (0: none).
+    contact: f32,
+    eye: Option<Vec3>,
     map: Option<DensityMap>,
     trans: Option<Transmittance>,
+    near: Option<Box<Contact>>,
 }
 
 impl DensityMapMethod {
     /// A map of `cells` a side, its lookups filtered trilinearly or not.
     pub fn new(cells: u32, filter: bool) -> Result<DensityMapMethod, ShadowError> {
-        MethodConfig::DensityMap { cells, filter }.validate()?;
+        MethodConfig::DensityMap {
+            cells,
+            filter,
+            contact: 0.0,
+        }
+        .validate()?;
         Ok(DensityMapMethod {
             cells,
             filter,
+            contact: 0.0,
+            eye: None,
             map: None,
             trans: None,
+            near: None,
         })
+    }
+
+    /// With contact shadows of `cells` cells (see
+    /// [`MethodConfig::DensityMap`]); 0: none.
+    pub fn with_contact(mut self, cells: f32) -> Result<DensityMapMethod, ShadowError> {
+        MethodConfig::DensityMap {
+            cells: self.cells,
+            filter: self.filter,
+            contact: cells,
+        }
+        .validate()?;
+        self.contact = cells;
+        Ok(self)
+    }
+
+    /// The contact distance, cells (0: none). A caller that fills the map
+    /// itself ([`Self::density_with`]) then hands the hair to
+    /// [`Self::contact_with`].
+    pub fn contact(&self) -> f32 {
+        self.contact
+    }
+
+    /// Prepares the contact rays of this frame's hair (part of the density
+    /// stage), after [`Self::density_with`]; nothing without contact
+    /// shadows. `input`'s hair is every drawn strand, in this process.
+    pub fn contact_with(&mut self, input: &ShadowInput) -> Result<(), ShadowError> {
+        self.near = None;
+        if self.contact > 0.0 {
+            let ds = self
+                .map
+                .as_ref()
+                .expect("the map is filled before its contact rays are prepared")
+                .frame()
+                .ds;
+            // Columns as wide as the map's cells: a ray tests the
+            // capsules of one column within reach of it.
+            self.near = Some(Box::new(Contact::new(
+                input,
+                self.cells,
+                self.contact * ds,
+            )?));
+        }
+        Ok(())
     }
 
     /// The map of the last build.
@@ -226,6 +288,7 @@ impl DensityMapMethod {
             None => self.map.insert(DensityMap::new(frame)),
         };
         self.trans = None;
+        self.near = None;
         let stats = fill(map)?;
         for o in occluders {
             map.deposit_body(o, OPAQUE_DEPTH);
@@ -250,9 +313,11 @@ impl DensityMapMethod {
         // The map is already empty: deposit, without clearing it again.
         let all = 0..input.hair.strand_count();
         let frame = input.fit(self.cells)?;
-        self.density_with(frame, input.occluders, |map| {
+        let stats = self.density_with(frame, input.occluders, |map| {
             Ok::<_, ShadowError>(map.deposit(input.hair, all, input.fiber))
-        })
+        })?;
+        self.contact_with(input)?;
+        Ok(stats)
     }
 
     fn transmittance(&mut self) {
@@ -264,17 +329,35 @@ impl DensityMapMethod {
     }
 
     fn transmittance_at(&self, p: Vec3) -> f32 {
-        self.trans
+        let trans = self
+            .trans
             .as_ref()
-            .expect("the transmittance stage runs before lookups")
-            .transmittance_at(p, self.filter)
+            .expect("the transmittance stage runs before lookups");
+        match &self.near {
+            Some(c) => c.at(p, |q| trans.transmittance_at(q, self.filter)),
+            None => trans.transmittance_at(p, self.filter),
+        }
     }
 
     fn filter(&self, points: &[Vec3], out: &mut [f32]) {
-        self.trans
+        let trans = self
+            .trans
             .as_ref()
-            .expect("the transmittance stage runs before lookups")
-            .filter(points, self.filter, out);
+            .expect("the transmittance stage runs before lookups");
+        let Some(near) = &self.near else {
+            return trans.filter(points, self.filter, out);
+        };
+        const CHUNK: usize = 2048;
+        out.par_chunks_mut(CHUNK)
+            .zip(points.par_chunks(CHUNK))
+            .enumerate()
+            .for_each(|(c, (o, p))| {
+                for (i, (o, &p)) in o.iter_mut().zip(p).enumerate() {
+                    *o = near.at_drawn(c * CHUNK + i, p, self.eye, |q| {
+                        trans.transmittance_at(q, self.filter)
+                    });
+                }
+            });
     }
 
     fn frame(&self) -> Option<&LightFrame> {

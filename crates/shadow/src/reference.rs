@@ -67,7 +67,6 @@
 //! column is a bundle of rays from the source), so it tests only that
 //! column's segments.
 
-use std::collections::HashMap;
 use std::sync::Arc;
 
 use glam::{DVec3, Vec3};
@@ -112,12 +111,7 @@ pub trait AcrossFiber: Send + Sync + std::fmt::Debug {
 struct Built {
     bins: SegmentBins,
     light: Light,
-    /// A drawn point's index by its coordinates' bits.
-    index: HashMap<[u32; 3], u32>,
-    /// The drawn points' strand offsets (the first point of each strand
-    /// and the end), to find a point's neighbours.
-    offsets: Vec<u32>,
-    points: Vec<Vec3>,
+    drawn: DrawnPoints,
     /// Fiber radius, scene units.
     radius: f32,
     transmit: f32,
@@ -198,6 +192,118 @@ fn ray_capsule(o: Vec3, d: Vec3, a: Vec3, e: Vec3, r: f32) -> Option<(f64, f64)>
     (lo <= hi).then_some((lo, hi))
 }
 
+/// The fibers the ray `o + s d` (`d` unit), `0 < s < reach`, crosses among
+/// the segments `segs` of `bins`: one strand's consecutive capsules that
+/// the ray passes through without leaving them are one crossing; a fiber
+/// the ray starts inside, and its own fiber (strand `own`, when the ray
+/// leaves a drawn point) where it meets it within two widths of its
+/// start, are not counted (see the module documentation).
+pub(crate) fn crossings(
+    bins: &SegmentBins,
+    segs: impl IntoIterator<Item = u32>,
+    o: Vec3,
+    d: Vec3,
+    reach: f64,
+    own: Option<u32>,
+    radius: f32,
+) -> u32 {
+    thread_local! {
+        static HITS: std::cell::RefCell<Vec<(u32, f64, f64)>> = const {
+            std::cell::RefCell::new(Vec::new())
+        };
+    }
+    HITS.with_borrow_mut(|hits| {
+        hits.clear();
+        for s in segs {
+            let (a, e) = (bins.world[s as usize], bins.world[s as usize + 1]);
+            if let Some((s0, s1)) = ray_capsule(o, d, a, e, radius)
+                && s1 > 0.0
+                && s0 < reach
+            {
+                hits.push((bins.strand[s as usize], s0, s1));
+            }
+        }
+        hits.sort_unstable_by(|x, y| x.0.cmp(&y.0).then(x.1.total_cmp(&y.1)));
+        // Crossings: each strand's intervals merged where they touch.
+        let slack = 1e-4 * f64::from(radius);
+        let near_own = 4.0 * f64::from(radius);
+        let mut crossings = 0u32;
+        let mut i = 0;
+        while i < hits.len() {
+            let strand = hits[i].0;
+            let (mut start, mut end) = (hits[i].1, hits[i].2);
+            i += 1;
+            loop {
+                while i < hits.len() && hits[i].0 == strand && hits[i].1 <= end + slack {
+                    end = end.max(hits[i].2);
+                    i += 1;
+                }
+                // A fiber the drawn point's ray starts inside; and
+                // its own fiber near where it starts (a ray from the
+                // fiber's surface may pass through the fiber itself).
+                let itself =
+                    own.is_some() && (start <= 0.0 || (own == Some(strand) && start <= near_own));
+                if !itself {
+                    crossings += 1;
+                }
+                if i < hits.len() && hits[i].0 == strand {
+                    (start, end) = (hits[i].1, hits[i].2);
+                    i += 1;
+                } else {
+                    break;
+                }
+            }
+        }
+        crossings
+    })
+}
+
+/// The drawn points of a frame's hair, to find a point's fiber.
+#[derive(Debug)]
+pub(crate) struct DrawnPoints {
+    /// A drawn point's index by its coordinates' bits.
+    index: foldhash::HashMap<[u32; 3], u32>,
+    /// The strand offsets (the first point of each strand and the end),
+    /// to find a point's neighbours.
+    offsets: Vec<u32>,
+    points: Vec<Vec3>,
+}
+
+impl DrawnPoints {
+    pub(crate) fn new(hair: &strands::Hair) -> DrawnPoints {
+        let points = hair.points().to_vec();
+        let mut index =
+            foldhash::HashMap::with_capacity_and_hasher(points.len(), Default::default());
+        for (i, p) in points.iter().enumerate() {
+            index.entry(bits(*p)).or_insert(i as u32);
+        }
+        DrawnPoints {
+            index,
+            offsets: hair.offsets().to_vec(),
+            points,
+        }
+    }
+
+    /// The strand of the drawn point at exactly `p` and its tangent (not
+    /// normalized; zero where the strand has one point), or `None` for a
+    /// point that is not drawn (a probe).
+    pub(crate) fn fiber(&self, p: Vec3) -> Option<(u32, Vec3)> {
+        let &i = self.index.get(&bits(p))?;
+        Some(self.fiber_of(i as usize))
+    }
+
+    fn fiber_of(&self, i: usize) -> (u32, Vec3) {
+        let s = self.offsets.partition_point(|&o| o as usize <= i) - 1;
+        let (first, last) = (self.offsets[s] as usize, self.offsets[s + 1] as usize - 1);
+        let t = self.points[(i + 1).min(last)] - self.points[i.saturating_sub(1).max(first)];
+        (s as u32, t)
+    }
+}
+
+fn bits(p: Vec3) -> [u32; 3] {
+    p.to_array().map(f32::to_bits)
+}
+
 impl Reference {
     pub(crate) fn new(rays: u32) -> Reference {
         Reference {
@@ -223,21 +329,12 @@ impl Reference {
     pub(crate) fn density(&mut self, input: &ShadowInput) -> Result<FillStats, ShadowError> {
         let bins = SegmentBins::new(input, GRID)?;
         let stats = bins.stats;
-        let points = input.hair.points().to_vec();
-        let mut index = HashMap::with_capacity(points.len());
-        for (i, p) in points.iter().enumerate() {
-            index
-                .entry([p.x.to_bits(), p.y.to_bits(), p.z.to_bits()])
-                .or_insert(i as u32);
-        }
         let occluders =
             (!input.occluders.is_empty()).then(|| OccluderView::new(bins.frame, input.occluders));
         self.built = Some(Built {
             bins,
             light: *input.light,
-            index,
-            offsets: input.hair.offsets().to_vec(),
-            points,
+            drawn: DrawnPoints::new(input.hair),
             radius: 0.5 * input.fiber.width(),
             transmit: 1.0 - input.fiber.opacity(),
             occluders,
@@ -258,19 +355,8 @@ impl Reference {
             .as_ref()
             .expect("the density stage runs before lookups");
         let to_light = -b.light.direction_at(p);
-        // The drawn point's fiber: its strand and tangent.
-        let own = b
-            .index
-            .get(&[p.x.to_bits(), p.y.to_bits(), p.z.to_bits()])
-            .map(|&i| {
-                let i = i as usize;
-                let s = b.offsets.partition_point(|&o| o as usize <= i) - 1;
-                let (first, last) = (b.offsets[s] as usize, b.offsets[s + 1] as usize - 1);
-                let t = b.points[(i + 1).min(last)] - b.points[i.saturating_sub(1).max(first)];
-                (s as u32, t)
-            });
         // A probe is a point: one ray from it.
-        let Some((strand, t)) = own else {
+        let Some((strand, t)) = b.drawn.fiber(p) else {
             return self.ray(b, p, None) as f32;
         };
         // With the eye known: from the surface the camera sees, at even
@@ -338,19 +424,7 @@ impl Reference {
         {
             return 0.0;
         }
-        let frame = &b.bins.frame;
-        let c = frame.to_cells(o);
-        // A ray beside the grid can still graze a fiber at its edge: the
-        // edge columns list every capsule that reaches past them.
-        let n = frame.n_cells as i32;
-        let col = |v: f32| {
-            if v.is_nan() {
-                0
-            } else {
-                (v.max(0.0) as i32).min(n - 1)
-            }
-        };
-        let (j, k) = (col(c.y), col(c.z));
+        let (j, k) = b.bins.column_of(o);
         let (d, reach) = match b.light.source() {
             None => (-b.light.direction(), f64::INFINITY),
             Some(src) => {
@@ -358,55 +432,16 @@ impl Reference {
                 (v.normalize_or_zero(), f64::from(v.length()))
             }
         };
-        thread_local! {
-            static HITS: std::cell::RefCell<Vec<(u32, f64, f64)>> = const {
-                std::cell::RefCell::new(Vec::new())
-            };
-        }
-        HITS.with_borrow_mut(|hits| {
-            hits.clear();
-            for &s in b.bins.column(j, k) {
-                let (a, e) = (b.bins.world[s as usize], b.bins.world[s as usize + 1]);
-                if let Some((s0, s1)) = ray_capsule(o, d, a, e, b.radius)
-                    && s1 > 0.0
-                    && s0 < reach
-                {
-                    hits.push((b.bins.strand[s as usize], s0, s1));
-                }
-            }
-            hits.sort_unstable_by(|x, y| x.0.cmp(&y.0).then(x.1.total_cmp(&y.1)));
-            // Crossings: each strand's intervals merged where they touch.
-            let slack = 1e-4 * f64::from(b.radius);
-            let near_own = 4.0 * f64::from(b.radius);
-            let mut crossings = 0u32;
-            let mut i = 0;
-            while i < hits.len() {
-                let strand = hits[i].0;
-                let (mut start, mut end) = (hits[i].1, hits[i].2);
-                i += 1;
-                loop {
-                    while i < hits.len() && hits[i].0 == strand && hits[i].1 <= end + slack {
-                        end = end.max(hits[i].2);
-                        i += 1;
-                    }
-                    // A fiber the drawn point's ray starts inside; and
-                    // its own fiber near where it starts (a ray from the
-                    // fiber's surface may pass through the fiber itself).
-                    let itself = own.is_some()
-                        && (start <= 0.0 || (own == Some(strand) && start <= near_own));
-                    if !itself {
-                        crossings += 1;
-                    }
-                    if i < hits.len() && hits[i].0 == strand {
-                        (start, end) = (hits[i].1, hits[i].2);
-                        i += 1;
-                    } else {
-                        break;
-                    }
-                }
-            }
-            f64::from(b.transmit).powi(crossings as i32)
-        })
+        let n = crossings(
+            &b.bins,
+            b.bins.column(j, k).iter().copied(),
+            o,
+            d,
+            reach,
+            own,
+            b.radius,
+        );
+        f64::from(b.transmit).powi(n as i32)
     }
 
     pub(crate) fn frame(&self) -> Option<&LightFrame> {

@@ -681,6 +681,7 @@ fn point_and_spot_lights_keep_every_invariant_in_the_hard_cases() {
         &MethodConfig::DensityMap {
             cells: 512,
             filter: true,
+            contact: 0.0,
         },
         &curly,
         &light,

@@ -133,6 +133,7 @@ fn ladders() -> Vec<Vec<MethodConfig>> {
     let dm = |cells| MethodConfig::DensityMap {
         cells,
         filter: true,
+        contact: 0.0,
     };
     vec![
         vec![dm(8), dm(32), dm(128)],

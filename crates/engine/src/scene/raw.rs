@@ -165,6 +165,7 @@ pub(super) struct RawShadow {
     pub(super) method: Option<String>,
     pub(super) cells: Option<i64>,
     pub(super) filter: Option<bool>,
+    pub(super) contact: Option<f32>,
     pub(super) slices: Option<i64>,
     pub(super) mode: Option<String>,
     pub(super) kappa: Option<f32>,

@@ -63,6 +63,8 @@ impl Validator<'_> {
                 }
             };
         }
+        set!("shadow.contact", s.contact, "density-map",
+            MethodConfig::DensityMap { contact, .. } => |v| { *contact = v; Ok::<(), SceneError>(()) });
         set!("shadow.slices", s.slices, "opacity-shadow-map",
             MethodConfig::OpacityShadowMap { slices, .. } => |v| count("shadow.slices", v).map(|v| *slices = v));
         set!("shadow.mode", s.mode.clone(), "opacity-shadow-map",
@@ -113,6 +115,7 @@ impl Validator<'_> {
 /// The scene field of a method setting.
 pub(super) fn setting_field(name: &str) -> &'static str {
     match name {
+        "contact" => "shadow.contact",
         "slices" => "shadow.slices",
         "kappa" => "shadow.kappa",
         "offset" => "shadow.offset",

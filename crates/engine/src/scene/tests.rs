@@ -242,7 +242,8 @@ fn empty_scene_gets_the_documented_defaults() {
         ShadowSettings {
             method: MethodConfig::DensityMap {
                 cells: 128,
-                filter: true
+                filter: true,
+                contact: 0.0,
             }
         }
     );
@@ -537,6 +538,11 @@ fn method_settings_parse_and_settings_of_other_methods_are_refused() {
             filter: true
         }
     );
+    let s = parse("[shadow]\ncontact = 2.5\n").unwrap();
+    assert!(matches!(
+        s.shadow.method,
+        MethodConfig::DensityMap { contact: 2.5, .. }
+    ));
     let s =
         parse("[shadow]\nmethod = \"deep-opacity-map\"\nlayers = 3\nbeyond = \"cover\"\n").unwrap();
     assert!(matches!(
@@ -582,6 +588,12 @@ fn method_settings_parse_and_settings_of_other_methods_are_refused() {
             "[shadow]\nmethod = \"deep-shadow-map\"\ntolerance = -1.0\n",
             "shadow.tolerance",
             "[0, 1)",
+        ),
+        ("[shadow]\ncontact = 17.0\n", "shadow.contact", "0..=16"),
+        (
+            "[shadow]\nmethod = \"reference\"\ncontact = 2.0\n",
+            "shadow.contact",
+            "density-map",
         ),
     ] {
         let e = parse(text).unwrap_err().to_string();
