@@ -73,8 +73,8 @@ pub fn sweep() -> Vec<MethodConfig> {
             });
         }
     }
-    // Contact shadows: 1, 2 and 4 cells at 128^3; the same distance as 2
-    // cells at 64^3 and 256^3.
+    // Contact shadows: 1 to 16 cells at 128^3; the distance of 2 cells at
+    // 128^3 at 64^3 and 256^3.
     for (cells, contact) in [
         (128, 1.0),
         (128, 2.0),

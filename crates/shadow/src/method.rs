@@ -148,12 +148,18 @@ impl ShadowMethod {
     }
 
     /// `T(p)` in [0, 1] at one point. Panics before [`Self::transmittance`].
+    /// With the density map's contact shadows the point is a probe (its
+    /// ray from the point itself, every fiber it crosses counted): only
+    /// [`Self::filter`] knows points as the drawn hair's.
     pub fn transmittance_at(&self, p: Vec3) -> f32 {
         each!(self, m => m.transmittance_at(p))
     }
 
     /// Stage 3, filter: `T` at many points, in parallel; the same values
-    /// as [`Self::transmittance_at`] one by one.
+    /// as [`Self::transmittance_at`] one by one, except for the density
+    /// map's contact shadows, which take the `i`-th point to be the `i`-th
+    /// drawn point of the hair they were prepared from (where it is: its
+    /// own fiber not counted, its ray from the camera's side of it).
     pub fn filter(&self, points: &[Vec3], out: &mut [f32]) {
         assert_eq!(points.len(), out.len());
         if let ShadowMethod::DensityMap(m) = self {
