@@ -664,8 +664,14 @@ fn bench_accuracy_writes_a_table_a_csv_and_a_plot() {
         rows[0],
         "method,parameters,ms,mean_abs,rms,max,image_error,seen_bias,seen_abs,cycles_error,mean_ratio"
     );
-    // The reference, 8 density-map settings and 4 deep-shadow-map settings.
-    assert_eq!(rows.len(), 1 + 1 + 8 + 4, "{text}");
+    // The reference, 15 density-map settings (8 of resolution and filter,
+    // 7 with contact shadows) and 4 deep-shadow-map settings.
+    assert_eq!(rows.len(), 1 + 1 + 15 + 4, "{text}");
+    assert_eq!(
+        rows.iter().filter(|r| r.contains(" contact=")).count(),
+        7,
+        "{text}"
+    );
     assert!(rows[1].starts_with("reference,"));
     // As a CSV reader sees it: eleven fields a row, the parameters whole,
     // no Cycles columns without --cycles.

@@ -287,15 +287,11 @@ impl Sequence {
 
     /// Whether the drawn hair is posed, filtered, shaded and rasterized by
     /// the executor, elsewhere: it holds it, and no shadow method needs all
-    /// of it here (the peer methods and the density map's contact shadows
-    /// test every strand near a point).
+    /// of it here ([`MethodConfig::needs_all_hair`]).
     /// The one place that decides where the hair is drawn.
     fn draws_elsewhere(&mut self) -> bool {
-        let map_alone = matches!(
-            self.scene.shadow.method,
-            MethodConfig::DensityMap { contact, .. } if contact == 0.0
-        );
-        (!self.scene.effects.self_shadow || map_alone) && self.executor.drawing().is_some()
+        let all_here = self.scene.effects.self_shadow && self.scene.shadow.method.needs_all_hair();
+        !all_here && self.executor.drawing().is_some()
     }
 
     /// Says that the caller will ask for `frames` more frames (and no
@@ -608,11 +604,7 @@ impl Sequence {
             let extents = Some((anchor, &report.extents[..]));
             stats.samples = stats
                 .time(Stage::Density, || {
-                    let s = r.shadows_mut().density_with(strands, extents, ex)?;
-                    if !elsewhere {
-                        r.shadows_mut().contact(hair)?;
-                    }
-                    Ok::<_, EngineError>(s)
+                    r.shadows_mut().shadow_density(strands, extents, ex)
                 })?
                 .samples;
             stats.time(Stage::Transmittance, || {

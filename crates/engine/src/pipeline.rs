@@ -126,16 +126,29 @@ impl ShadowPipeline {
     /// over all lights.
     pub fn density(&mut self, hair: &Hair) -> Result<FillStats, EngineError> {
         let strands = Strands::Here { hair, posed: None };
-        let stats = self.density_with(strands, None, &mut LocalExecutor)?;
-        self.contact(hair)?;
+        self.shadow_density(strands, None, &mut LocalExecutor)
+    }
+
+    /// [`Self::density_with`] for the frame's shadows (not a fill for the
+    /// self-collisions alone): with hair here, also prepares the density
+    /// map's contact shadows from it ([`Self::contact`]).
+    pub fn shadow_density(
+        &mut self,
+        strands: Strands<'_>,
+        extents: Option<(Vec3, &[Extent])>,
+        ex: &mut dyn Executor,
+    ) -> Result<FillStats, EngineError> {
+        let stats = self.density_with(strands, extents, ex)?;
+        if let Strands::Here { hair, .. } = strands {
+            self.contact(hair)?;
+        }
         Ok(stats)
     }
 
     /// The density map's contact shadows (`shadow.contact`), after
-    /// [`Self::density_with`] filled the maps of the frame's shadows (not
-    /// a fill for the self-collisions alone): prepares each light's
-    /// contact rays from `hair`, every drawn strand; nothing without
-    /// them. Part of the density stage.
+    /// [`Self::density_with`] filled the maps of the frame's shadows:
+    /// prepares each light's contact rays from `hair`, every drawn
+    /// strand; nothing without them. Part of the density stage.
     pub fn contact(&mut self, hair: &Hair) -> Result<(), EngineError> {
         for l in &mut self.lights {
             if let ShadowMethod::DensityMap(m) = &mut l.method

@@ -257,6 +257,15 @@ impl MethodConfig {
         }
     }
 
+    /// Whether the method needs every strand in one place at once (the
+    /// peer methods and the references rasterize or trace all of it; the
+    /// density map's contact shadows test the strands near each point):
+    /// all but the density map without contact shadows, whose fill and
+    /// sweep any split of the strands can share.
+    pub fn needs_all_hair(&self) -> bool {
+        !matches!(*self, MethodConfig::DensityMap { contact, .. } if contact == 0.0)
+    }
+
     /// Checks the settings, naming the first that is out of range.
     pub fn validate(&self) -> Result<(), ShadowError> {
         let bad = |name: &'static str, value: String, why: &'static str| {
