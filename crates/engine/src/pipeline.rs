@@ -195,15 +195,13 @@ impl ShadowPipeline {
                         .fit(m.cells())?,
                         (None, Strands::Held { .. }) => return Err(held_needs("its extents")),
                     };
-                    let stats =
-                        m.density_with(frame, occluders, |map| ex.density(i, map, strands, fiber))?;
                     // Contact shadows read every fiber near a drawn point.
                     if let Strands::Held { .. } = strands
                         && m.contact() > 0.0
                     {
                         return Err(held_needs("no contact shadows (shadow.contact = 0)"));
                     }
-                    stats
+                    m.density_with(frame, occluders, |map| ex.density(i, map, strands, fiber))?
                 }
                 (other, Strands::Here { hair, .. }) => other.density(&ShadowInput {
                     light: &l.light,

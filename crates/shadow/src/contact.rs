@@ -35,7 +35,7 @@ use glam::Vec3;
 
 use crate::bins::SegmentBins;
 use crate::input::ShadowInput;
-use crate::reference::crossings;
+use crate::reference::{StrandPoints, crossings};
 use crate::{Light, OccluderView, ShadowError};
 
 /// The largest contact distance, in map cells: a bound on what a ray
@@ -46,9 +46,7 @@ pub const MAX_CONTACT_CELLS: f32 = 16.0;
 #[derive(Debug)]
 pub(crate) struct Contact {
     bins: SegmentBins,
-    /// The drawn points and their strands' offsets.
-    points: Vec<Vec3>,
-    offsets: Vec<u32>,
+    drawn: StrandPoints,
     light: Light,
     /// The contact distance `a`, scene units.
     reach: f32,
@@ -71,8 +69,7 @@ impl Contact {
         Ok(Contact {
             occluders,
             bins,
-            points: input.hair.points().to_vec(),
-            offsets: input.hair.offsets().to_vec(),
+            drawn: StrandPoints::new(input.hair),
             light: *input.light,
             reach,
             radius,
@@ -103,21 +100,16 @@ impl Contact {
         eye: Option<Vec3>,
         map: impl Fn(Vec3) -> f32,
     ) -> f32 {
-        let bits = |v: Vec3| v.to_array().map(f32::to_bits);
-        match self.points.get(i) {
-            Some(&q) if bits(q) == bits(p) => {}
-            _ => return self.at(p, map),
-        }
-        let s = self.offsets.partition_point(|&o| o as usize <= i) - 1;
-        let (first, last) = (self.offsets[s] as usize, self.offsets[s + 1] as usize - 1);
-        let t = (self.points[(i + 1).min(last)] - self.points[i.saturating_sub(1).max(first)])
-            .normalize_or_zero();
+        let Some((s, t)) = self.drawn.fiber_at(i, p) else {
+            return self.at(p, map);
+        };
+        let t = t.normalize_or_zero();
         // `p + r e'`, `e'` towards the eye at right angles to the fiber.
         let o = eye.map_or(p, |eye| {
             let v = eye - p;
             p + (v - v.dot(t) * t).normalize_or_zero() * self.radius
         });
-        let (t, beyond) = self.ray(o, Some(s as u32));
+        let (t, beyond) = self.ray(o, Some(s));
         t * map(beyond)
     }
 

@@ -69,6 +69,8 @@
 
 use std::sync::Arc;
 
+use std::collections::HashMap;
+
 use glam::{DVec3, Vec3};
 
 use crate::bins::SegmentBins;
@@ -258,38 +260,29 @@ pub(crate) fn crossings(
     })
 }
 
-/// The drawn points of a frame's hair, to find a point's fiber.
+/// The drawn points of a frame's hair by strand: a drawn point's fiber
+/// from its index.
 #[derive(Debug)]
-pub(crate) struct DrawnPoints {
-    /// A drawn point's index by its coordinates' bits.
-    index: foldhash::HashMap<[u32; 3], u32>,
+pub(crate) struct StrandPoints {
     /// The strand offsets (the first point of each strand and the end),
     /// to find a point's neighbours.
     offsets: Vec<u32>,
     points: Vec<Vec3>,
 }
 
-impl DrawnPoints {
-    pub(crate) fn new(hair: &strands::Hair) -> DrawnPoints {
-        let points = hair.points().to_vec();
-        let mut index =
-            foldhash::HashMap::with_capacity_and_hasher(points.len(), Default::default());
-        for (i, p) in points.iter().enumerate() {
-            index.entry(bits(*p)).or_insert(i as u32);
-        }
-        DrawnPoints {
-            index,
+impl StrandPoints {
+    pub(crate) fn new(hair: &strands::Hair) -> StrandPoints {
+        StrandPoints {
             offsets: hair.offsets().to_vec(),
-            points,
+            points: hair.points().to_vec(),
         }
     }
 
-    /// The strand of the drawn point at exactly `p` and its tangent (not
-    /// normalized; zero where the strand has one point), or `None` for a
-    /// point that is not drawn (a probe).
-    pub(crate) fn fiber(&self, p: Vec3) -> Option<(u32, Vec3)> {
-        let &i = self.index.get(&bits(p))?;
-        Some(self.fiber_of(i as usize))
+    /// The strand of the `i`-th drawn point and its tangent (not
+    /// normalized; zero where the strand has one point), when `p` is
+    /// exactly that point.
+    pub(crate) fn fiber_at(&self, i: usize, p: Vec3) -> Option<(u32, Vec3)> {
+        (bits(*self.points.get(i)?) == bits(p)).then(|| self.fiber_of(i))
     }
 
     fn fiber_of(&self, i: usize) -> (u32, Vec3) {
@@ -297,6 +290,34 @@ impl DrawnPoints {
         let (first, last) = (self.offsets[s] as usize, self.offsets[s + 1] as usize - 1);
         let t = self.points[(i + 1).min(last)] - self.points[i.saturating_sub(1).max(first)];
         (s as u32, t)
+    }
+}
+
+/// [`StrandPoints`] with an index by coordinates, to find the fiber of
+/// any point.
+#[derive(Debug)]
+struct DrawnPoints {
+    strands: StrandPoints,
+    /// A drawn point's index by its coordinates' bits.
+    index: HashMap<[u32; 3], u32>,
+}
+
+impl DrawnPoints {
+    fn new(hair: &strands::Hair) -> DrawnPoints {
+        let strands = StrandPoints::new(hair);
+        let mut index = HashMap::with_capacity(strands.points.len());
+        for (i, p) in strands.points.iter().enumerate() {
+            index.entry(bits(*p)).or_insert(i as u32);
+        }
+        DrawnPoints { strands, index }
+    }
+
+    /// The strand of the drawn point at exactly `p` and its tangent, as
+    /// [`StrandPoints::fiber_at`], or `None` for a point that is not
+    /// drawn (a probe).
+    fn fiber(&self, p: Vec3) -> Option<(u32, Vec3)> {
+        let &i = self.index.get(&bits(p))?;
+        Some(self.strands.fiber_of(i as usize))
     }
 }
 

@@ -3,39 +3,23 @@
 //! known by hand.
 
 use glam::Vec3;
-use shadow::{Fiber, Light, MethodConfig, ShadowError, ShadowInput, ShadowMethod};
+use shadow::{Light, MethodConfig, ShadowError, ShadowMethod};
 use strands::Hair;
+
+mod common;
+use common::along_z;
 
 const W: f32 = 0.1;
 const ALPHA: f32 = 0.6;
 const CELLS: u32 = 16;
 
 fn map(hair: &Hair, light: &Light, contact: f32) -> ShadowMethod {
-    let fiber = Fiber::new(W, ALPHA).unwrap();
-    let mut m = ShadowMethod::new(&MethodConfig::DensityMap {
+    let config = MethodConfig::DensityMap {
         cells: CELLS,
         filter: true,
         contact,
-    })
-    .unwrap();
-    m.density(&ShadowInput {
-        light,
-        hair,
-        fiber: &fiber,
-        occluders: &[],
-        extent: None,
-    })
-    .unwrap();
-    m.transmittance();
-    m
-}
-
-/// A straight strand along z at `(x, y)`, 9 points over 2 units.
-fn along_z(hair: &mut Hair, x: f32, y: f32) {
-    let pts: Vec<Vec3> = (0..9)
-        .map(|i| Vec3::new(x, y, -1.0 + 0.25 * i as f32))
-        .collect();
-    hair.push_strand(&pts).unwrap();
+    };
+    common::built(&config, hair, light, W, ALPHA)
 }
 
 /// Transmittance at every drawn point, by strand: `t[strand][point]`.

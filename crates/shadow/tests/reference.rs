@@ -6,30 +6,14 @@ use glam::Vec3;
 use shadow::{Fiber, Light, MethodConfig, ShadowInput, ShadowMethod};
 use strands::Hair;
 
+mod common;
+use common::along_z;
+
 const W: f32 = 0.1;
 const ALPHA: f32 = 0.6;
 
 fn reference(hair: &Hair, light: &Light, rays: u32) -> ShadowMethod {
-    let fiber = Fiber::new(W, ALPHA).unwrap();
-    let mut m = ShadowMethod::new(&MethodConfig::Reference { rays }).unwrap();
-    m.density(&ShadowInput {
-        light,
-        hair,
-        fiber: &fiber,
-        occluders: &[],
-        extent: None,
-    })
-    .unwrap();
-    m.transmittance();
-    m
-}
-
-/// A straight strand along z at `(x, y)`, 9 points over 2 units.
-fn along_z(hair: &mut Hair, x: f32, y: f32) {
-    let pts: Vec<Vec3> = (0..9)
-        .map(|i| Vec3::new(x, y, -1.0 + 0.25 * i as f32))
-        .collect();
-    hair.push_strand(&pts).unwrap();
+    common::built(&MethodConfig::Reference { rays }, hair, light, W, ALPHA)
 }
 
 fn close(a: f32, b: f32) -> bool {

@@ -1,13 +1,49 @@
-//! Hair with a known answer, shared by the physics and method tests.
+//! Hair with a known answer, shared by the physics, method, reference
+//! and contact tests.
 
 use glam::Vec3;
+use shadow::{Fiber, Light, MethodConfig, ShadowInput, ShadowMethod};
 use strands::{Hair, Rng};
+
+/// A straight strand along z at `(x, y)`, 9 points over 2 units.
+#[allow(dead_code)]
+pub fn along_z(hair: &mut Hair, x: f32, y: f32) {
+    let pts: Vec<Vec3> = (0..9)
+        .map(|i| Vec3::new(x, y, -1.0 + 0.25 * i as f32))
+        .collect();
+    hair.push_strand(&pts).unwrap();
+}
+
+/// The method `config` built on `hair` under `light`, fibers `w` wide of
+/// opacity `alpha`, no head: ready for lookups.
+#[allow(dead_code)]
+pub fn built(
+    config: &MethodConfig,
+    hair: &Hair,
+    light: &Light,
+    w: f32,
+    alpha: f32,
+) -> ShadowMethod {
+    let fiber = Fiber::new(w, alpha).unwrap();
+    let mut m = ShadowMethod::new(config).unwrap();
+    m.density(&ShadowInput {
+        light,
+        hair,
+        fiber: &fiber,
+        occluders: &[],
+        extent: None,
+    })
+    .unwrap();
+    m.transmittance();
+    m
+}
 
 /// A box `[-s, s] x [0, h] x [-s, s]` filled with straight fibers along
 /// `dir`, `n` of them per unit area across the fibers, each clipped to the
 /// box. The fibers sit on a square lattice across `dir`, jittered by a
 /// quarter of its spacing (seeded): evenly spread, like combed hair, so
 /// that a cell-sized column sees the mean density rather than Poisson noise.
+#[allow(dead_code)]
 pub fn fiber_slab(dir: Vec3, n: f32, s: f32, h: f32, seed: u64) -> Hair {
     let dir = dir.normalize();
     let (u, v) = dir.any_orthonormal_pair();
