@@ -530,6 +530,28 @@ fn contact_shadows_draw_on_the_coordinator_with_the_same_bytes() {
 }
 
 #[test]
+fn simplified_thin_hair_drawn_on_three_workers_is_the_local_animation() {
+    // Strands about a tenth of a pixel wide, every other one drawn: each
+    // worker draws the strands of its share that one process draws.
+    let thin = |simplify: &str| {
+        let text = DANCE.replace(
+            "height = 90\n",
+            &format!("height = 90\nsimplify = {simplify}\n"),
+        ) + "\n[fiber]\nwidth = 0.05\n";
+        Scene::from_toml_str(&text, std::path::Path::new("thin.toml")).unwrap()
+    };
+    let scene = thin("0.5");
+    let want = local_frames(&scene, 3);
+    assert!(
+        want[2] != local_frames(&thin("0"), 3)[2],
+        "simplified, the picture changes"
+    );
+    let addrs: Vec<String> = (0..3).map(|_| start_worker().to_string()).collect();
+    let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::Workers, 20)).unwrap();
+    assert_frames(&scene, remote, &want);
+}
+
+#[test]
 fn rigid_hair_drawn_on_workers_is_the_local_animation() {
     let text = format!("{DANCE}\n[effects]\ndynamics = false\n");
     let scene = Scene::from_toml_str(&text, std::path::Path::new("rigid.toml")).unwrap();

@@ -284,13 +284,15 @@ impl HairPart {
 
     /// Bins `hair` for drawing on `canvas` with the colours of the last
     /// [`Self::shade`], in groups `groups` (strand boundaries, see
-    /// [`Canvas::draw_hair`]).
+    /// [`Canvas::draw_hair`]); `first_strand` is the index of `hair`'s
+    /// first strand in the whole hair.
     pub fn draw(
         &self,
         hair: &Hair,
         camera: &Camera,
         look: &HairLook,
         groups: &[u32],
+        first_strand: u32,
         canvas: &mut Canvas,
     ) {
         assert_eq!(
@@ -305,6 +307,7 @@ impl HairPart {
             &self.colors,
             look,
             groups,
+            first_strand,
         );
     }
 }

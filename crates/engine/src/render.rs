@@ -269,6 +269,7 @@ impl Renderer {
             fiber_width: self.scene.fiber.width(),
             opacity: self.scene.render.hair_alpha,
             depth_ref: view.depth_ref,
+            simplify: self.scene.render.simplify,
         }
     }
 
@@ -351,7 +352,7 @@ impl Renderer {
         let look = self.look(&view);
         let canvas = self.canvas.as_mut().expect("made above");
         self.part
-            .draw(hair, &view.camera, &look, &self.groups, canvas);
+            .draw(hair, &view.camera, &look, &self.groups, 0, canvas);
         Ok(canvas)
     }
 

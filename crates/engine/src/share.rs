@@ -533,8 +533,9 @@ impl Share {
             draw_head(canvas, camera, head, shade);
         }
         let groups = self.anim.groups().within(self.groups.clone());
+        let first = self.anim.groups().strand_range(self.groups.clone()).start as u32;
         self.part
-            .draw(hair, &job.camera, &job.look, &groups, canvas);
+            .draw(hair, &job.camera, &job.look, &groups, first, canvas);
         times.raster_ms = ms(t);
         Ok((canvas, times))
     }

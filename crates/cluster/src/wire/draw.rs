@@ -231,6 +231,7 @@ pub(crate) fn job_to_pb(j: &DrawJob) -> pb::DrawJob {
         fiber_width: j.look.fiber_width,
         hair_alpha: j.look.opacity,
         depth_ref: j.look.depth_ref,
+        simplify: j.look.simplify,
         shading: {
             let (s, c) = (&j.shading, j.shading.specular_color);
             vec![s.ambient, s.diffuse, s.specular, s.shininess, c.x, c.y, c.z]
@@ -353,6 +354,13 @@ pub(crate) fn job_from_pb(j: &pb::DrawJob) -> Result<DrawJob, Malformed> {
     if look.iter().any(|v| !v.is_finite() || *v < 0.0) {
         return Err(bad(format!("hair look {look:?}")));
     }
+    if !(0.0..=HairLook::MAX_SIMPLIFY).contains(&j.simplify) {
+        return Err(bad(format!(
+            "simplify {} outside 0..={} pixels",
+            j.simplify,
+            HairLook::MAX_SIMPLIFY
+        )));
+    }
     let lights = lights_from_floats(&j.lights)?;
     Ok(DrawJob {
         version: j.version,
@@ -361,6 +369,7 @@ pub(crate) fn job_from_pb(j: &pb::DrawJob) -> Result<DrawJob, Malformed> {
             fiber_width: j.fiber_width,
             opacity: j.hair_alpha,
             depth_ref: j.depth_ref,
+            simplify: j.simplify,
         },
         shading: Shading {
             ambient,

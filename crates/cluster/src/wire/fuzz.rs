@@ -231,9 +231,9 @@ proptest! {
         let draw = draw_columns(0, &f, &[swept], None).remove(0);
         let mut layer_canvas = raster::Canvas::new(8, 8).unwrap();
         let cam = raster::Camera::new(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, 40.0, 8, 8).unwrap();
-        let look = raster::HairLook { fiber_width: 0.1, opacity: 0.8, depth_ref: 5.0 };
+        let look = raster::HairLook { fiber_width: 0.1, opacity: 0.8, depth_ref: 5.0, simplify: 0.0 };
         let pts = [Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 0.0)];
-        layer_canvas.draw_hair(&cam, &pts, &[0, 2], &[Vec3::ONE; 2], &look, &[]);
+        layer_canvas.draw_hair(&cam, &pts, &[0, 2], &[Vec3::ONE; 2], &look, &[], 0);
         let layer = layer_chunks(&layer_canvas.layer(), &engine::DrawTimes::default()).remove(0);
         let rows = layer_canvas.resolve(Vec3::ZERO);
         let band = band_chunks(8, 8, 0, &rows, [0, 0, 0]).remove(0);

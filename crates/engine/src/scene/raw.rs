@@ -56,6 +56,7 @@ pub(super) struct RawRender {
     pub(super) background: Option<[f32; 3]>,
     pub(super) hair_alpha: Option<f32>,
     pub(super) nearest: Option<i64>,
+    pub(super) simplify: Option<f32>,
 }
 
 #[derive(Debug, Default, Deserialize)]

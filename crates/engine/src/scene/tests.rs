@@ -591,6 +591,13 @@ fn method_settings_parse_and_settings_of_other_methods_are_refused() {
         ),
         ("[shadow]\ncontact = 17.0\n", "shadow.contact", "0..=16"),
         (
+            "[render]\nsimplify = 4.5\n",
+            "render.simplify",
+            "[0, 4] pixels",
+        ),
+        ("[render]\nsimplify = -0.5\n", "render.simplify", "0: off"),
+        ("[render]\nsimplify = nan\n", "render.simplify", "[0, 4]"),
+        (
             "[shadow]\nmethod = \"reference\"\ncontact = 2.0\n",
             "shadow.contact",
             "density-map",

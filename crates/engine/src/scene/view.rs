@@ -82,6 +82,10 @@ pub struct RenderSettings {
     /// Fragments of each pixel composited front to back, the rest blended
     /// order-independently (0: all blended).
     pub nearest: u32,
+    /// Stochastic simplification, pixels (0: off): strands narrower than
+    /// this on screen are drawn as a seeded share of them, each wider
+    /// (see `raster::HairLook::simplify`).
+    pub simplify: f32,
 }
 
 impl Validator<'_> {
@@ -180,12 +184,24 @@ impl Validator<'_> {
             DEFAULT_NEAREST,
             0..=raster::MAX_NEAREST as u32,
         )?;
+        let simplify = r.simplify.unwrap_or(0.0);
+        if !(0.0..=raster::HairLook::MAX_SIMPLIFY).contains(&simplify) {
+            return Err(self.invalid(
+                "render.simplify",
+                simplify,
+                format!(
+                    "must be in [0, {}] pixels (0: off)",
+                    raster::HairLook::MAX_SIMPLIFY
+                ),
+            ));
+        }
         let render = RenderSettings {
             width,
             height,
             background,
             hair_alpha,
             nearest,
+            simplify,
         };
         Ok(render)
     }

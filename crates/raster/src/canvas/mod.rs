@@ -19,6 +19,7 @@
 mod front;
 mod layer;
 mod line;
+mod look;
 mod opaque;
 mod scratch;
 mod srgb;
@@ -26,6 +27,7 @@ mod sums;
 
 pub use front::{Fragment, MAX_NEAREST};
 pub use layer::HairLayer;
+pub use look::HairLook;
 pub use opaque::Sphere;
 pub use srgb::to_srgb8;
 pub use sums::Sums;
@@ -35,6 +37,7 @@ use rayon::prelude::*;
 
 use crate::{Camera, RasterError};
 use line::{ScreenVertex, Steps, is_steep, line_steps};
+use look::{Look, Projected, strand_drawn};
 use scratch::{NO_SLOT, Scratch};
 
 /// The largest image side, in pixels.
@@ -65,18 +68,6 @@ const DENSE: f64 = 1.0;
 /// `BAND_STEP..=MAX_BAND`.
 fn whole_band(rows: usize) -> usize {
     (rows / BAND_STEP * BAND_STEP).clamp(BAND_STEP, MAX_BAND)
-}
-
-/// How drawn strands look.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct HairLook {
-    /// Strand width, scene units (projected to pixels by the camera).
-    pub fiber_width: f32,
-    /// Opacity where a strand covers a whole pixel.
-    pub opacity: f32,
-    /// Distance from the camera (scene units) that sets the depth
-    /// weighting: fragments nearer count more, farther less.
-    pub depth_ref: f32,
 }
 
 /// One band pixel while a group is rasterized: the group's hair sums
@@ -150,48 +141,6 @@ pub struct Canvas {
     /// Image rows per band: bands are drawn in parallel, each by one
     /// thread ([`Canvas::band_rows_for`]).
     band: usize,
-}
-
-/// A projected hair vertex as kept for the whole picture: pixel position
-/// and view depth (a NaN depth: behind the camera), and linear colour.
-/// Its width and depth weight follow from its depth and its look
-/// ([`Look::vertex`]): 24 bytes where they would make 36, as a band fetches
-/// the ends of its segments from all over the picture's vertices.
-#[derive(Debug, Clone, Copy)]
-struct Projected {
-    p: Vec3,
-    color: Vec3,
-}
-
-/// A [`HairLook`] on the camera it was drawn with.
-#[derive(Debug, Clone, Copy)]
-struct Look {
-    look: HairLook,
-    /// Fiber width times the camera's focal length: the projected width
-    /// times the depth, pixels times scene units.
-    width_z: f32,
-}
-
-impl Look {
-    /// The screen vertex of `v`, if it is in front of the camera.
-    #[inline]
-    fn vertex(&self, v: Projected) -> Option<ScreenVertex> {
-        let z = v.p.z;
-        if z.is_nan() {
-            return None;
-        }
-        Some(ScreenVertex {
-            p: v.p,
-            color: v.color,
-            // Projected width: w * focal / z pixels, at least a hair's
-            // breadth so that distant hair still covers something.
-            width: (self.width_z / z).clamp(0.05, 8.0),
-            // The depth weight at the ends, interpolated along a segment
-            // (which spans a few pixels; the weight changes little along
-            // it).
-            weight: (self.look.depth_ref / z).powi(6).clamp(1e-3, 1e3),
-        })
-    }
 }
 
 /// A segment binned for drawing: the index in `verts` of its first end
@@ -285,8 +234,12 @@ impl Canvas {
     /// `offsets[s]..offsets[s + 1]`) with per-vertex linear `colors`, looking
     /// as `look` says, in groups of strands: group `g` is strands
     /// `groups[g]..groups[g + 1]` (`groups` ascending from 0 to the strand
-    /// count; empty for one group of all). The strips are projected and
+    /// count; empty for one group of all). `first_strand` is the index of
+    /// the first of these strands in the whole hair, which decides the
+    /// strands a [simplified](HairLook::simplify) look draws whatever
+    /// share of the hair a canvas draws. The strips are projected and
     /// binned here, and rasterized by [`Self::resolve`] or [`Self::layer`].
+    #[allow(clippy::too_many_arguments)]
     pub fn draw_hair(
         &mut self,
         camera: &Camera,
@@ -295,6 +248,7 @@ impl Canvas {
         colors: &[Vec3],
         look: &HairLook,
         groups: &[u32],
+        first_strand: u32,
     ) {
         assert_eq!(points.len(), colors.len());
         let strands = offsets.len().saturating_sub(1);
@@ -355,6 +309,14 @@ impl Canvas {
                             continue;
                         };
                         let i = j - 1;
+                        // Simplified: drawn where its strand is among the
+                        // share drawn at the segment's mean width.
+                        if look.look.simplify > 0.0 {
+                            let c = 0.5 * (look.width_at(a.p.z) + look.width_at(b.p.z));
+                            if !strand_drawn(first_strand + s as u32, look.share_level(c)) {
+                                continue;
+                            }
+                        }
                         let pad = a.width.max(b.width) + 2.0;
                         let lo = (a.p.y.min(b.p.y) - pad).max(0.0);
                         let hi = (a.p.y.max(b.p.y) + pad).min(h as f32);

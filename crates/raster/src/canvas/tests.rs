@@ -1,3 +1,4 @@
+use super::look::MAX_SHARE_LEVEL;
 use super::*;
 use crate::srgb8_to_linear;
 
@@ -51,8 +52,10 @@ fn thread_count_does_not_change_a_single_byte_and_draw_order_only_rounding() {
                 fiber_width: 0.05,
                 opacity: 0.6,
                 depth_ref: 10.0,
+                simplify: 0.0,
             },
             &[],
+            0,
         );
         c.resolve(Vec3::splat(0.1)).into_raw()
     };
@@ -81,11 +84,14 @@ fn groups_split_across_canvases_composite_to_the_same_bytes() {
     // Blended alone, and with the 2 and the 8 nearest fragments of each
     // pixel composited front to back.
     for nearest in [0, 2, 8] {
-        split_groups_composite_to_the_same_bytes(nearest);
+        split_groups_composite_to_the_same_bytes(nearest, 0.0);
     }
+    // Simplified (strands about 0.45 pixels wide, a quarter of them drawn
+    // at simplify = 2): each canvas draws the same strands of its share.
+    split_groups_composite_to_the_same_bytes(4, 2.0);
 }
 
-fn split_groups_composite_to_the_same_bytes(nearest: usize) {
+fn split_groups_composite_to_the_same_bytes(nearest: usize, simplify: f32) {
     let cam = Camera::new(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, 40.0, 80, 56).unwrap();
     let (mut pts, mut cols, mut offsets) = (Vec::new(), Vec::new(), vec![0u32]);
     for s in 0..60 {
@@ -101,6 +107,7 @@ fn split_groups_composite_to_the_same_bytes(nearest: usize) {
         fiber_width: 0.04,
         opacity: 0.7,
         depth_ref: 10.0,
+        simplify,
     };
     let head = Sphere {
         center: Vec3::new(0.5, 0.0, -0.5),
@@ -128,7 +135,15 @@ fn split_groups_composite_to_the_same_bytes(nearest: usize) {
             .chain([&offsets[strands.end]])
             .map(|&o| o - p0 as u32)
             .collect();
-        c.draw_hair(&cam, &pts[p0..p1], &off, &cols[p0..p1], &look, &g);
+        c.draw_hair(
+            &cam,
+            &pts[p0..p1],
+            &off,
+            &cols[p0..p1],
+            &look,
+            &g,
+            strands.start as u32,
+        );
         c
     };
     let canvas = |strands| canvas_in(strands, 16);
@@ -245,6 +260,7 @@ fn the_nearest_fragments_hide_what_is_behind_them() {
         fiber_width: 0.6,
         opacity: 0.5,
         depth_ref: 10.0,
+        simplify: 0.0,
     };
     let centre = |nearest: usize, strands: &[([Vec3; 2], Vec3)]| {
         let mut c = Canvas::new(32, 32).unwrap();
@@ -252,7 +268,7 @@ fn the_nearest_fragments_hide_what_is_behind_them() {
         let pts: Vec<Vec3> = strands.iter().flat_map(|s| s.0).collect();
         let cols: Vec<Vec3> = strands.iter().flat_map(|s| [s.1, s.1]).collect();
         let offsets: Vec<u32> = (0..=strands.len() as u32).map(|i| 2 * i).collect();
-        c.draw_hair(&cam, &pts, &offsets, &cols, &look, &[]);
+        c.draw_hair(&cam, &pts, &offsets, &cols, &look, &[], 0);
         let p = c.resolve(Vec3::ZERO).get_pixel(16, 16).0;
         (srgb8_to_linear(p[0]), srgb8_to_linear(p[1]))
     };
@@ -361,4 +377,70 @@ fn a_mesh_part_wound_inwards_is_shaded_from_the_side_the_camera_sees() {
     let inwards = lit(Vec3::NEG_Z, &[[0, 2, 1], [0, 3, 2]]);
     assert!(outwards[0] > 200, "{outwards:?}");
     assert_eq!(outwards, inwards);
+}
+
+/// Stochastic simplification draws a share of thin strands, each wider:
+/// a region of many strands keeps its brightness, strands at least as
+/// wide as the threshold are drawn as before, and the share is the one
+/// asked for.
+#[test]
+fn simplified_thin_strands_cover_as_all_of_them_would() {
+    let cam = Camera::new(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, 40.0, 96, 64).unwrap();
+    // 800 slanted strands across the view, 0.02 wide: about 0.26 pixels.
+    let (mut pts, mut cols) = (Vec::new(), Vec::new());
+    let mut seed = 7u32;
+    let mut next = || {
+        seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+        (seed >> 8) as f32 / (1u32 << 24) as f32
+    };
+    for _ in 0..800 {
+        let (x, z, tint) = (-2.4 + 4.8 * next(), next() - 0.5, next());
+        pts.extend([Vec3::new(x, 1.5, z), Vec3::new(x + 0.4, -1.5, z)]);
+        cols.extend([Vec3::new(0.8, 0.5 + 0.3 * tint, 0.2); 2]);
+    }
+    let offsets: Vec<u32> = (0..=800).map(|s| 2 * s).collect();
+    let draw = |simplify: f32, width: f32| {
+        let mut c = Canvas::new(96, 64).unwrap();
+        let look = HairLook {
+            fiber_width: width,
+            opacity: 0.9,
+            depth_ref: 10.0,
+            simplify,
+        };
+        c.draw_hair(&cam, &pts, &offsets, &cols, &look, &[], 0);
+        c.resolve(Vec3::ZERO)
+    };
+    // The mean linear red of the middle, where strands cross every pixel.
+    let mean = |img: &image::RgbImage| {
+        let mut sum = 0.0;
+        for y in 16..48 {
+            for x in 24..72 {
+                sum += srgb8_to_linear(img.get_pixel(x, y)[0]);
+            }
+        }
+        sum / (32.0 * 48.0)
+    };
+    let all = draw(0.0, 0.02);
+    let m = mean(&all);
+    assert!(m > 0.2, "the strands cover the middle: {m}");
+    // Every 2nd, 4th and 8th strand drawn (0.26 px against 0.6, 1.2 and
+    // 2.4): within 3 % of all of them, and not the same picture.
+    for simplify in [0.6, 1.2, 2.4] {
+        let some = draw(simplify, 0.02);
+        let ms = mean(&some);
+        assert!(
+            (ms / m - 1.0).abs() < 0.03,
+            "simplify {simplify}: mean {ms} against {m}"
+        );
+        assert!(some != all, "simplify {simplify} drew every strand");
+    }
+    // Strands wider than the threshold: every one drawn, as they were.
+    assert!(draw(0.2, 0.02) == all, "simplify below the strands' width");
+    // The shares: about 2^-level of many strands, nested.
+    for level in 1..=MAX_SHARE_LEVEL {
+        let n = (0..40_000).filter(|&s| strand_drawn(s, level)).count();
+        let want = 40_000.0 / f64::from(1u32 << level);
+        assert!((n as f64 / want - 1.0).abs() < 0.05, "level {level}: {n}");
+        assert!((0..2000).all(|s| !strand_drawn(s, level) || strand_drawn(s, level - 1)));
+    }
 }

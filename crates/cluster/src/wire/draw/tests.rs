@@ -38,6 +38,7 @@ fn pose_plans_reports_and_jobs_round_trip_exactly() {
             fiber_width: 0.1,
             opacity: 0.85,
             depth_ref: 90.0,
+            simplify: 0.5,
         },
         shading: Shading::default(),
         lights: vec![
@@ -57,6 +58,12 @@ fn pose_plans_reports_and_jobs_round_trip_exactly() {
         job_from_pb(&bad).is_err(),
         "more nearest fragments than a pixel keeps"
     );
+    for simplify in [-1.0, 4.5, f32::NAN] {
+        let mut bad = job_to_pb(&job);
+        bad.simplify = simplify;
+        let e = job_from_pb(&bad).unwrap_err().to_string();
+        assert!(e.contains("simplify"), "{e}");
+    }
     // A camera with its own up comes back the same.
     let tilted = DrawJob {
         camera: camera.with_up(Vec3::new(0.3, 0.2, 1.0)).unwrap(),
