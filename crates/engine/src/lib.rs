@@ -40,7 +40,7 @@ pub use export::{CYCLES_FORMAT, CYCLES_SCRIPT, CyclesExport, cycles_export};
 pub use frames::Sequence;
 pub use hair::{MAX_SEGMENTS, build_hair, drawn_segments};
 pub use head::Head;
-pub use part::{HairPart, draw_head};
+pub use part::{HairPart, Seen, draw_head};
 pub use pipeline::ShadowPipeline;
 pub use render::{Composite, DEFAULT_HAIR_COLOR, Renderer, view_direction};
 pub use scene::{

@@ -70,7 +70,8 @@ impl HairPart {
     }
 
     /// Shading at every vertex of `hair` with its strand's colour, seen
-    /// from `eye`, lit by `lights` (each from its direction at the vertex,
+    /// as `seen` says (strands a simplified look leaves out of the picture
+    /// get no colour: black), lit by `lights` (each from its direction at the vertex,
     /// scaled by its falloff there, [`Light::falloff`]) through the
     /// transmittance of the last [`Self::filter`] (`shadows`) or by full
     /// light: Kajiya-Kay, or a physically based fiber (its
@@ -79,11 +80,12 @@ impl HairPart {
     pub fn shade(
         &mut self,
         hair: &Hair,
-        eye: Vec3,
+        seen: Seen<'_>,
         shading: &Shading,
         lights: &[Light],
         shadows: bool,
     ) {
+        let eye = seen.camera.position;
         let points = hair.points();
         if shadows {
             assert!(
@@ -141,6 +143,11 @@ impl HairPart {
             .for_each(|(si, out)| {
                 let base = offsets[si] as usize;
                 let pts = &points[base..base + out.len()];
+                let strand = seen.first_strand + si as u32;
+                if !seen.look.may_draw_strand(seen.camera, pts, strand) {
+                    out.fill(Vec3::ZERO);
+                    return;
+                }
                 let strand_color = strand_colors.map_or(DEFAULT_HAIR_COLOR, |c| c[si]);
                 let table = fiber
                     .as_ref()
@@ -312,6 +319,19 @@ impl HairPart {
     }
 }
 
+/// The picture a part is shaded for: the camera, the look (a simplified
+/// look leaves strands out) and the index of the part's first strand in
+/// the whole hair.
+#[derive(Debug, Clone, Copy)]
+pub struct Seen<'a> {
+    /// The camera (its position is the eye).
+    pub camera: &'a Camera,
+    /// How the strands are drawn.
+    pub look: &'a HairLook,
+    /// The index of the part's first strand in the whole hair.
+    pub first_strand: u32,
+}
+
 /// The head's colour at a surface point `p` of unit normal `n`: Lambert
 /// under the hair's shadow,
 ///
@@ -391,12 +411,23 @@ mod tests {
             },
             ..Shading::default()
         };
-        let eye = Vec3::new(0.0, 1.0, 10.0);
+        let camera = Camera::new(Vec3::new(0.0, 1.0, 10.0), Vec3::ZERO, 30.0, 64, 48).unwrap();
+        let look = HairLook {
+            fiber_width: 0.1,
+            opacity: 0.85,
+            depth_ref: 10.0,
+            simplify: 0.0,
+        };
+        let seen = Seen {
+            camera: &camera,
+            look: &look,
+            first_strand: 0,
+        };
         let lights = [Light::directional(-Vec3::new(1.0, 0.2, 0.1)).unwrap()];
         let shaded = |multiple, shadows| {
             let mut part = HairPart::default();
             part.filter(&hair, 1, |_, _, t| t.fill(0.2));
-            part.shade(&hair, eye, &shading(multiple), &lights, shadows);
+            part.shade(&hair, seen, &shading(multiple), &lights, shadows);
             let duals = part.tables.iter().filter(|(_, t)| t.dual.is_some()).count();
             (part.colors().to_vec(), duals)
         };

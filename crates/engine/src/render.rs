@@ -6,7 +6,7 @@ use glam::{Affine3A, Vec3};
 use raster::{Camera, Canvas, HairLayer, ShadingModel};
 use strands::{Bounds, Hair};
 
-use crate::part::{draw_head, head_lambert};
+use crate::part::{Seen, draw_head, head_lambert};
 use crate::{
     DrawJob, DrawReport, Drawn, EngineError, HairPart, PendingPicture, Scene, ShadowPipeline,
 };
@@ -237,10 +237,15 @@ impl Renderer {
     /// lit by the transmittance of the last [`Self::filter`] (`shadows`) or
     /// by full light.
     pub fn shade(&mut self, hair: &Hair, shadows: bool) -> Result<(), EngineError> {
-        let eye = self.view(hair)?.camera.position;
-        let lights = self.lights();
+        let view = self.view(hair)?;
+        let (lights, look) = (self.lights(), self.look(&view));
+        let seen = Seen {
+            camera: &view.camera,
+            look: &look,
+            first_strand: 0,
+        };
         self.part
-            .shade(hair, eye, &self.scene.shading, &lights, shadows);
+            .shade(hair, seen, &self.scene.shading, &lights, shadows);
         Ok(())
     }
 

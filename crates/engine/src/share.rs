@@ -11,7 +11,7 @@ use raster::{Canvas, HairLayer};
 use shadow::{DensityMap, Fiber, FillStats, LightFrame, Transmittance};
 use strands::Hair;
 
-use crate::part::{draw_head, head_lambert};
+use crate::part::{Seen, draw_head, head_lambert};
 use crate::pipeline::off_surface;
 use crate::{
     Animator, DrawJob, EngineError, FrameStats, HairPart, Head, PosePlan, PoseReport, Scene,
@@ -233,6 +233,11 @@ impl Share {
     /// The share's groups.
     pub fn groups(&self) -> Range<usize> {
         self.groups.clone()
+    }
+
+    /// The index of the share's first strand in the whole hair.
+    fn first_strand(&self) -> u32 {
+        self.anim.groups().strand_range(self.groups.clone()).start as u32
     }
 
     /// The share's wisps (empty for hair that is not simulated).
@@ -460,6 +465,7 @@ impl Share {
         shaded: Option<&BandPlan>,
     ) -> Result<(&Canvas, DrawTimes), EngineError> {
         let mut times = DrawTimes::default();
+        let first_strand = self.first_strand();
         let hair = match &self.posed {
             Some((v, hair)) if *v == job.version => hair,
             _ => {
@@ -484,13 +490,13 @@ impl Share {
             times.filter_ms = ms(t);
         }
         let t = Instant::now();
-        self.part.shade(
-            hair,
-            job.camera.position,
-            &job.shading,
-            &job.lights,
-            job.shadows,
-        );
+        let seen = Seen {
+            camera: &job.camera,
+            look: &job.look,
+            first_strand,
+        };
+        self.part
+            .shade(hair, seen, &job.shading, &job.lights, job.shadows);
         times.shade_ms = ms(t);
         let t = Instant::now();
         let (w, h) = (job.camera.width(), job.camera.height());
@@ -533,9 +539,8 @@ impl Share {
             draw_head(canvas, camera, head, shade);
         }
         let groups = self.anim.groups().within(self.groups.clone());
-        let first = self.anim.groups().strand_range(self.groups.clone()).start as u32;
         self.part
-            .draw(hair, &job.camera, &job.look, &groups, first, canvas);
+            .draw(hair, &job.camera, &job.look, &groups, first_strand, canvas);
         times.raster_ms = ms(t);
         Ok((canvas, times))
     }

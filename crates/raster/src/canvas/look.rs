@@ -5,6 +5,7 @@
 use glam::Vec3;
 
 use super::line::ScreenVertex;
+use crate::Camera;
 
 /// How drawn strands look.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -29,6 +30,30 @@ pub struct HairLook {
 impl HairLook {
     /// The largest [`HairLook::simplify`], pixels.
     pub const MAX_SIMPLIFY: f32 = 4.0;
+
+    /// Whether [`Canvas::draw_hair`](super::Canvas::draw_hair) may draw a
+    /// segment of the strand through `points` (strand `strand` of the
+    /// whole hair) seen by `camera`: false only where simplification
+    /// leaves every segment of it out, so that its colours need not be
+    /// shaded. A segment is drawn at the share of its mean width, which is
+    /// no larger than the strand's widest vertex's: the shares are nested,
+    /// so the share at the widest vertex (the nearest in front of the
+    /// camera) decides.
+    pub fn may_draw_strand(&self, camera: &Camera, points: &[Vec3], strand: u32) -> bool {
+        if self.simplify <= 0.0 {
+            return true;
+        }
+        let look = Look {
+            look: *self,
+            width_z: self.fiber_width * camera.focal(),
+        };
+        let nearest = points
+            .iter()
+            .filter_map(|&p| camera.project(p))
+            .map(|s| s.z)
+            .fold(f32::INFINITY, f32::min);
+        nearest.is_finite() && strand_drawn(strand, look.share_level(look.width_at(nearest)))
+    }
 }
 
 /// The fewest strands stochastic simplification draws: one in `2^4`.

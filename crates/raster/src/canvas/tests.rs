@@ -436,6 +436,26 @@ fn simplified_thin_strands_cover_as_all_of_them_would() {
     }
     // Strands wider than the threshold: every one drawn, as they were.
     assert!(draw(0.2, 0.02) == all, "simplify below the strands' width");
+    // A strand said to be left out draws nothing on its own (so its
+    // colours need no shading); about three in four are, at 1.2 pixels.
+    let look = HairLook {
+        fiber_width: 0.02,
+        opacity: 0.9,
+        depth_ref: 10.0,
+        simplify: 1.2,
+    };
+    let mut left_out = 0;
+    for s in 0..800u32 {
+        let pts = &pts[2 * s as usize..2 * s as usize + 2];
+        if look.may_draw_strand(&cam, pts, s) {
+            continue;
+        }
+        left_out += 1;
+        let mut c = Canvas::new(96, 64).unwrap();
+        c.draw_hair(&cam, pts, &[0, 2], &[Vec3::ONE; 2], &look, &[], s);
+        assert!(c.layer().pixels().is_empty(), "strand {s} was drawn");
+    }
+    assert!((500..700).contains(&left_out), "{left_out} of 800 left out");
     // The shares: about 2^-level of many strands, nested.
     for level in 1..=MAX_SHARE_LEVEL {
         let n = (0..40_000).filter(|&s| strand_drawn(s, level)).count();
