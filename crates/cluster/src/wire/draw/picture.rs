@@ -316,9 +316,14 @@ fn encode_pixels(
             let front = layer.front(i);
             c.fronts.push(front.len() as u8);
             for f in front {
-                for v in [f.z, f.color.x, f.color.y, f.color.z, f.alpha, f.weight] {
-                    c.fronts.extend_from_slice(&v.to_le_bytes());
+                let mut bytes = [0u8; 24];
+                for (b, v) in bytes
+                    .chunks_exact_mut(4)
+                    .zip([f.z, f.color.x, f.color.y, f.color.z, f.alpha, f.weight])
+                {
+                    b.copy_from_slice(&v.to_le_bytes());
                 }
+                c.fronts.extend_from_slice(&bytes);
             }
         }
     }
@@ -425,15 +430,14 @@ impl LayerReader {
                 return Err(bad("a partial picture's fragments end early"));
             }
             for f in rest[..need].chunks_exact(24) {
-                let v: Vec<f32> = f
-                    .chunks_exact(4)
-                    .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-                    .collect();
+                let v = |i: usize| {
+                    f32::from_le_bytes([f[4 * i], f[4 * i + 1], f[4 * i + 2], f[4 * i + 3]])
+                };
                 self.fronts.push(Fragment {
-                    z: v[0],
-                    color: glam::Vec3::new(v[1], v[2], v[3]),
-                    alpha: v[4],
-                    weight: v[5],
+                    z: v(0),
+                    color: glam::Vec3::new(v(1), v(2), v(3)),
+                    alpha: v(4),
+                    weight: v(5),
                 });
             }
             self.counts.push(n);
