@@ -289,32 +289,23 @@ impl HairPart {
         (tables, of_strand)
     }
 
-    /// Bins `hair` for drawing on `canvas` with the colours of the last
-    /// [`Self::shade`], in groups `groups` (strand boundaries, see
-    /// [`Canvas::draw_hair`]); `first_strand` is the index of `hair`'s
-    /// first strand in the whole hair.
-    pub fn draw(
-        &self,
-        hair: &Hair,
-        camera: &Camera,
-        look: &HairLook,
-        groups: &[u32],
-        first_strand: u32,
-        canvas: &mut Canvas,
-    ) {
+    /// Bins `hair` for drawing on `canvas` as `seen` says, with the
+    /// colours of the last [`Self::shade`], in groups `groups` (strand
+    /// boundaries, see [`Canvas::draw_hair`]).
+    pub fn draw(&self, hair: &Hair, seen: Seen<'_>, groups: &[u32], canvas: &mut Canvas) {
         assert_eq!(
             self.colors.len(),
             hair.point_count(),
             "shade runs before draw"
         );
         canvas.draw_hair(
-            camera,
+            seen.camera,
             hair.points(),
             hair.offsets(),
             &self.colors,
-            look,
+            seen.look,
             groups,
-            first_strand,
+            seen.first_strand,
         );
     }
 }

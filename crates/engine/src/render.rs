@@ -356,8 +356,12 @@ impl Renderer {
         let (view, _) = self.canvas_with_head(shadows, hair.segment_count())?;
         let look = self.look(&view);
         let canvas = self.canvas.as_mut().expect("made above");
-        self.part
-            .draw(hair, &view.camera, &look, &self.groups, 0, canvas);
+        let seen = Seen {
+            camera: &view.camera,
+            look: &look,
+            first_strand: 0,
+        };
+        self.part.draw(hair, seen, &self.groups, canvas);
         Ok(canvas)
     }
 

@@ -539,8 +539,7 @@ impl Share {
             draw_head(canvas, camera, head, shade);
         }
         let groups = self.anim.groups().within(self.groups.clone());
-        self.part
-            .draw(hair, &job.camera, &job.look, &groups, first_strand, canvas);
+        self.part.draw(hair, seen, &groups, canvas);
         times.raster_ms = ms(t);
         Ok((canvas, times))
     }

@@ -43,10 +43,7 @@ impl HairLook {
         if self.simplify <= 0.0 {
             return true;
         }
-        let look = Look {
-            look: *self,
-            width_z: self.fiber_width * camera.focal(),
-        };
+        let look = Look::new(self, camera);
         let nearest = points
             .iter()
             .filter_map(|&p| camera.project(p))
@@ -97,10 +94,31 @@ pub(super) struct Look {
 }
 
 impl Look {
+    /// `look` on `camera`.
+    pub(super) fn new(look: &HairLook, camera: &Camera) -> Look {
+        Look {
+            look: *look,
+            width_z: look.fiber_width * camera.focal(),
+        }
+    }
+
+    /// Whether the segment between view depths `za` and `zb` of strand
+    /// `strand` (its index in the whole hair) is drawn: always, unless
+    /// simplified, then where its strand is among the share drawn at the
+    /// segment's mean width.
+    #[inline]
+    pub(super) fn draws_segment(&self, za: f32, zb: f32, strand: u32) -> bool {
+        if self.look.simplify <= 0.0 {
+            return true;
+        }
+        let c = 0.5 * (self.width_at(za) + self.width_at(zb));
+        strand_drawn(strand, self.share_level(c))
+    }
+
     /// Projected width at view depth `z`: `w * focal / z` pixels, at
     /// least a hair's breadth so that distant hair still covers something.
     #[inline]
-    pub(super) fn width_at(&self, z: f32) -> f32 {
+    fn width_at(&self, z: f32) -> f32 {
         (self.width_z / z).clamp(0.05, 8.0)
     }
 
@@ -111,7 +129,7 @@ impl Look {
     /// with `f >= c / t` (at least `2^-4`). Powers of two keep the shares
     /// nested and the widening cheap ([`Self::widened`]).
     #[inline]
-    pub(super) fn share_level(&self, c: f32) -> u32 {
+    fn share_level(&self, c: f32) -> u32 {
         let t = self.look.simplify;
         if c >= t {
             return 0;

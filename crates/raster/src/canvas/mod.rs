@@ -37,7 +37,7 @@ use rayon::prelude::*;
 
 use crate::{Camera, RasterError};
 use line::{ScreenVertex, Steps, is_steep, line_steps};
-use look::{Look, Projected, strand_drawn};
+use look::{Look, Projected};
 use scratch::{NO_SLOT, Scratch};
 
 /// The largest image side, in pixels.
@@ -267,10 +267,7 @@ impl Canvas {
                 let p = camera.project(p).unwrap_or(Vec3::NAN);
                 Projected { p, color }
             }));
-        let look = Look {
-            look: *look,
-            width_z: look.fiber_width * camera.focal(),
-        };
+        let look = Look::new(look, camera);
         self.looks.push(look);
         let look_index = (self.looks.len() - 1) as u32;
         // Chunks of strands, none across a group's end.
@@ -309,13 +306,8 @@ impl Canvas {
                             continue;
                         };
                         let i = j - 1;
-                        // Simplified: drawn where its strand is among the
-                        // share drawn at the segment's mean width.
-                        if look.look.simplify > 0.0 {
-                            let c = 0.5 * (look.width_at(a.p.z) + look.width_at(b.p.z));
-                            if !strand_drawn(first_strand + s as u32, look.share_level(c)) {
-                                continue;
-                            }
+                        if !look.draws_segment(a.p.z, b.p.z, first_strand + s as u32) {
+                            continue;
                         }
                         let pad = a.width.max(b.width) + 2.0;
                         let lo = (a.p.y.min(b.p.y) - pad).max(0.0);

@@ -1,4 +1,4 @@
-use super::look::MAX_SHARE_LEVEL;
+use super::look::{MAX_SHARE_LEVEL, strand_drawn};
 use super::*;
 use crate::srgb8_to_linear;
 
