@@ -339,6 +339,15 @@ fn bench_scaling_reports_every_configuration_and_writes_its_plot() {
                 .all(|p| (1.0..4096.0).contains(&p.as_f64().unwrap())),
             "{peaks:?}"
         );
+        // Each worker's CPU time a frame, and the coordinator's.
+        let cpu = c["worker_cpu_ms_per_frame"].as_array().unwrap();
+        assert_eq!(cpu.len(), k);
+        assert!(
+            cpu.iter()
+                .chain([&c["coordinator_cpu_ms_per_frame"]])
+                .all(|ms| ms.as_f64().is_some_and(|ms| ms >= 0.0)),
+            "{cpu:?}"
+        );
         // The median frame's bytes by stage add up to its total; an
         // animated, self-shadowed frame steps wisps, fills and sweeps.
         let w = &c["wire_bytes_median_frame"];
@@ -403,6 +412,11 @@ fn bench_scaling_reports_every_configuration_and_writes_its_plot() {
             assert_eq!(part(k), 0, "{k} in {w}");
         }
     }
+    assert!(
+        j["single_process_cpu_ms_per_frame"]
+            .as_f64()
+            .is_some_and(|ms| ms >= 0.0)
+    );
     assert_eq!(
         j["cores"].as_u64().unwrap() as usize,
         std::thread::available_parallelism().unwrap().get()

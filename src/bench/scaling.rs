@@ -114,7 +114,31 @@ impl WorkerProcess {
     }
 }
 
+/// CPU time a process has used so far, all its threads (live and exited),
+/// user and system, ms: `utime + stime` of `/proc/PID/stat`, in clock ticks
+/// of 10 ms (Linux's `USER_HZ` is 100). `None` where the kernel does not
+/// say.
+fn cpu_ms(pid: &str) -> Option<f64> {
+    stat_cpu_ms(&std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?)
+}
+
+/// `utime + stime` of a `/proc/PID/stat` line, ms.
+fn stat_cpu_ms(stat: &str) -> Option<f64> {
+    // The command name (field 2) may hold spaces and parentheses; the
+    // fields after it start past its last closing parenthesis: state is
+    // field 3, utime 14, stime 15.
+    let rest = &stat[stat.rfind(')')? + 1..];
+    let mut f = rest.split_whitespace().skip(11);
+    let utime: f64 = f.next()?.parse().ok()?;
+    let stime: f64 = f.next()?.parse().ok()?;
+    Some((utime + stime) * 10.0)
+}
+
 impl WorkerProcess {
+    fn cpu_ms(&self) -> Option<f64> {
+        cpu_ms(&self.child.id().to_string())
+    }
+
     /// The most memory the worker has held resident so far, MB (`VmHWM`
     /// of `/proc/PID/status`; `ip netns exec` runs the worker in its own
     /// process): `None` where the kernel does not say.
@@ -170,6 +194,12 @@ struct Row {
     identical: bool,
     /// Each worker's peak resident memory at the run's end, MB.
     peak_mb: Vec<Option<f64>>,
+    /// CPU time a timed frame, ms (mean over the timed frames): this
+    /// process's, and each worker's.
+    cpu_ms: Option<f64>,
+    worker_cpu_ms: Vec<Option<f64>>,
+    /// The mean of the timed frames, ms: what the CPU times are shares of.
+    mean_frame_ms: f64,
 }
 
 impl Row {
@@ -193,6 +223,9 @@ impl Row {
             wire: cluster::Traffic::default(),
             identical: true,
             peak_mb: Vec::new(),
+            cpu_ms: None,
+            worker_cpu_ms: Vec::new(),
+            mean_frame_ms: frame_ms,
         }
     }
 }
@@ -246,7 +279,11 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
     seq.expect_frames(total);
     let mut pictures = Vec::new();
     let mut times = Vec::new();
+    let mut cpu0 = None;
     for f in 0..total {
+        if f == warm {
+            cpu0 = cpu_ms("self");
+        }
         let t = Instant::now();
         let (img, _) = seq.next_frame().context("cannot render")?;
         if f >= warm {
@@ -255,7 +292,10 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
         }
         bar.inc(1);
     }
+    let mean_ms = times.iter().sum::<f64>() / times.len() as f64;
     let mut rows = vec![Row::single(median(&mut times))];
+    rows[0].mean_frame_ms = mean_ms;
+    rows[0].cpu_ms = per_frame(cpu0, cpu_ms("self"), a.frames);
 
     for &draw in &schemes {
         for &k in &a.workers {
@@ -280,7 +320,12 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
             let mut v: [Vec<f64>; 12] = Default::default();
             let mut frames_traffic = Vec::new();
             let mut identical = true;
+            let (mut cpu0, mut worker_cpu0) = (None, Vec::new());
             for f in 0..total {
+                if f == warm {
+                    cpu0 = cpu_ms("self");
+                    worker_cpu0 = procs.iter().map(WorkerProcess::cpu_ms).collect();
+                }
                 let (b0, c0) = (*lock(&traffic)?, *lock(&timing)?);
                 let t = Instant::now();
                 let (img, _) = seq.next_frame().context("cannot render")?;
@@ -313,6 +358,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
                 }
                 bar.inc(1);
             }
+            let mean_ms = v[0].iter().sum::<f64>() / v[0].len() as f64;
             let m: Vec<f64> = v.iter_mut().map(|x| median(x)).collect();
             frames_traffic.sort_by_key(cluster::Traffic::total);
             let wire = frames_traffic
@@ -346,6 +392,13 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
                 wire,
                 identical,
                 peak_mb: procs.iter().map(WorkerProcess::peak_mb).collect(),
+                cpu_ms: per_frame(cpu0, cpu_ms("self"), a.frames),
+                worker_cpu_ms: procs
+                    .iter()
+                    .zip(&worker_cpu0)
+                    .map(|(p, &c0)| per_frame(c0, p.cpu_ms(), a.frames))
+                    .collect(),
+                mean_frame_ms: mean_ms,
             });
         }
     }
@@ -407,6 +460,35 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
     eprintln!(
         "bench scaling: medians per frame; step = wall time of the wisps' Step (or Pose) calls / the slowest worker's own compute; density = Density calls (with two workers or more drawing: the workers summing each other's columns) and merging the sums; transm = Transmittance calls and assembling the slabs (with two workers or more drawing: the coordinator's own sweep of its copy, the workers' swept columns being gathered among them; with one worker, the coordinator's sweep); draw = Draw calls, with the compositing (on the workers, or decoding partial pictures here) / the slowest worker's filter, shade and rasterization; wait/comp = compositing on the workers: the slowest worker's wait for the others' stripes of its band / its resolving of the band; coord = the rest of the frame on the coordinator (the self-collision field, and with the coordinator drawing, one worker included: posing, filtering, shading and drawing every strand, the next frame's step, density and transm running beside the drawing); MB = bytes on the wire per frame; same = pictures identical to one process"
     );
+    // How busy each node was: CPU time a frame against the cores it had.
+    let node_cores = a
+        .node_cpus
+        .filter(|_| nodes.cpu_limited())
+        .unwrap_or(cores as f64);
+    let busy = |cpu: Option<f64>, r: &Row| {
+        cpu.map_or("?".to_string(), |c| {
+            format!("{c:.1} ms ({:.2})", c / (r.mean_frame_ms * node_cores))
+        })
+    };
+    eprintln!(
+        "bench scaling: CPU time a frame (mean over the timed frames, and in brackets the share of the node's {node_cores} cores it kept busy): 1 process {}",
+        busy(rows[0].cpu_ms, &rows[0])
+    );
+    for r in rows.iter().skip(1) {
+        let each: Vec<String> = r.worker_cpu_ms.iter().map(|&c| busy(c, r)).collect();
+        let together: Option<f64> = r.worker_cpu_ms.iter().copied().sum();
+        eprintln!(
+            "bench scaling: {}, CPU time a frame: coordinator {}; each worker {}; the workers together {}",
+            r.label,
+            busy(r.cpu_ms, r),
+            each.join(", "),
+            match (together, rows[0].cpu_ms) {
+                (Some(t), Some(one)) if one > 0.0 =>
+                    format!("{t:.1} ms, {:.2}x one process's", t / one),
+                _ => "?".to_string(),
+            }
+        );
+    }
     for r in rows.iter().skip(1) {
         eprintln!(
             "bench scaling: {}, bytes of the median frame: {}",
@@ -472,6 +554,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
             "link_mbit": a.link_mbit.filter(|_| nodes.bandwidth_limited()),
             "limits": nodes.notes,
             "single_process_ms": single,
+            "single_process_cpu_ms_per_frame": rows[0].cpu_ms,
             "configs": rows.iter().skip(1).map(|r| serde_json::json!({
                 "workers": r.workers,
                 "draw": r.draw.map(cluster::DrawAt::name),
@@ -490,6 +573,8 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
                 "coordinator_ms": r.coordinator_ms,
                 "wire_mb_per_frame": r.wire_mb,
                 "worker_peak_mb": r.peak_mb,
+                "coordinator_cpu_ms_per_frame": r.cpu_ms,
+                "worker_cpu_ms_per_frame": r.worker_cpu_ms,
                 "wire_bytes_median_frame": {
                     "total": r.wire.total(),
                     "assign_sent": r.wire.assign_sent,
@@ -515,7 +600,29 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// CPU ms a frame between two readings `frames` frames apart.
+fn per_frame(before: Option<f64>, after: Option<f64>, frames: u64) -> Option<f64> {
+    Some((after? - before?) / frames as f64)
+}
+
 fn lock<T>(m: &std::sync::Mutex<T>) -> anyhow::Result<std::sync::MutexGuard<'_, T>> {
     m.lock()
         .map_err(|_| anyhow::anyhow!("a counter's lock was poisoned"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cpu_time_is_read_past_an_odd_command_name() {
+        // pid (comm) state ppid pgrp session tty tpgid flags minflt
+        // cminflt majflt cmajflt utime stime ...
+        let line = "4242 (a (b) c) S 1 2 3 0 -1 4194560 10 0 0 0 123 45 0 0 20 0 9 0";
+        assert_eq!(stat_cpu_ms(line), Some((123.0 + 45.0) * 10.0));
+        assert_eq!(stat_cpu_ms("4242 (cut short) S 1 2"), None);
+        assert_eq!(stat_cpu_ms("no parenthesis"), None);
+        // This process's own.
+        assert!(cpu_ms("self").is_some_and(|ms| ms >= 0.0));
+    }
 }
