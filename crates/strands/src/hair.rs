@@ -1,6 +1,6 @@
 //! The hair container: every strand's points in one array.
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 
 /// Hair as polylines: all points strand after strand, with strand `s`
 /// spanning `points[offsets[s]..offsets[s + 1]]`.
@@ -58,12 +58,32 @@ impl Bounds {
             max: Vec3::splat(f32::NEG_INFINITY),
         }
     }
-    /// The smallest box holding `points` (empty for none).
+    /// The smallest box holding `points` (empty for none). A coordinate
+    /// that is NaN is passed over, as [`Bounds::include`] does.
     pub fn of(points: &[Vec3]) -> Self {
-        points.iter().fold(Bounds::empty(), |mut b, &p| {
-            b.include(p);
-            b
-        })
+        // Four running boxes a lane wide (`Vec3A`: one SIMD min and max a
+        // point), so that the loop is not one chain of dependent min/max;
+        // `p.min(lo)` keeps `lo` where `p` is NaN. Min and max pick one
+        // of their inputs, so any grouping gives the same box.
+        let mut lo = [Vec3A::INFINITY; 4];
+        let mut hi = [Vec3A::NEG_INFINITY; 4];
+        let mut quads = points.chunks_exact(4);
+        for q in &mut quads {
+            for (i, &p) in q.iter().enumerate() {
+                let p = Vec3A::from(p);
+                lo[i] = p.min(lo[i]);
+                hi[i] = p.max(hi[i]);
+            }
+        }
+        for &p in quads.remainder() {
+            let p = Vec3A::from(p);
+            lo[0] = p.min(lo[0]);
+            hi[0] = p.max(hi[0]);
+        }
+        Bounds {
+            min: lo[0].min(lo[1]).min(lo[2].min(lo[3])).into(),
+            max: hi[0].max(hi[1]).max(hi[2].max(hi[3])).into(),
+        }
     }
     /// Whether nothing is inside.
     pub fn is_empty(&self) -> bool {
@@ -242,6 +262,48 @@ mod tests {
         assert_eq!(h.segment_count(), 2);
         assert_eq!(h.strand(1), &[Vec3::Z]);
         assert_eq!(h.max_strand_length(), 1.0 + 2f32.sqrt());
+    }
+
+    #[test]
+    fn bounds_hold_every_point_whatever_the_count() {
+        // Points on a known pattern: coordinate extremes land at every
+        // position modulo four, and in the remainder.
+        for n in 0..=11usize {
+            let pts: Vec<Vec3> = (0..n)
+                .map(|i| {
+                    let f = i as f32;
+                    Vec3::new(f - 5.0, (f * 7.0) % 5.0 - 2.0, -(f * f) + 3.0 * f)
+                })
+                .collect();
+            let b = Bounds::of(&pts);
+            if n == 0 {
+                assert!(b.is_empty());
+                continue;
+            }
+            // Each axis's extremes worked out one coordinate at a time.
+            let axis = |a: usize| {
+                let v = pts.iter().map(|p| p.to_array()[a]);
+                (
+                    v.clone().fold(f32::INFINITY, f32::min),
+                    v.fold(f32::NEG_INFINITY, f32::max),
+                )
+            };
+            for a in 0..3 {
+                assert_eq!(
+                    (b.min.to_array()[a], b.max.to_array()[a]),
+                    axis(a),
+                    "{n} points, axis {a}"
+                );
+            }
+        }
+        // A NaN coordinate is passed over, as `include` does.
+        let mut with_nan = vec![Vec3::ONE; 6];
+        with_nan[4] = Vec3::new(f32::NAN, 2.0, 0.0);
+        let b = Bounds::of(&with_nan);
+        assert_eq!(
+            (b.min, b.max),
+            (Vec3::new(1.0, 1.0, 0.0), Vec3::new(1.0, 2.0, 1.0))
+        );
     }
 
     #[test]
