@@ -112,16 +112,24 @@ impl Camera {
         self.fov_deg
     }
 
+    /// The view depth `z` of `p` that [`Self::project`] gives, or `None`
+    /// behind the camera (nearer than its near distance, or NaN).
+    #[inline]
+    pub fn depth(&self, p: Vec3) -> Option<f32> {
+        let z = (p - self.position).dot(self.forward);
+        if z.is_nan() || z < NEAR {
+            return None;
+        }
+        Some(z)
+    }
+
     /// Pixel coordinates `(x, y)` (x right, y down, pixel centres at
     /// half-integers) and view depth `z > 0` of `p`, or `None` behind the
     /// camera.
     #[inline]
     pub fn project(&self, p: Vec3) -> Option<Vec3> {
+        let z = self.depth(p)?;
         let q = p - self.position;
-        let z = q.dot(self.forward);
-        if z.is_nan() || z < NEAR {
-            return None;
-        }
         let x = 0.5 * self.width as f32 + self.focal * q.dot(self.right) / z;
         let y = 0.5 * self.height as f32 - self.focal * q.dot(self.up) / z;
         Some(Vec3::new(x, y, z))

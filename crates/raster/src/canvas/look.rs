@@ -46,8 +46,7 @@ impl HairLook {
         let look = Look::new(self, camera);
         let nearest = points
             .iter()
-            .filter_map(|&p| camera.project(p))
-            .map(|s| s.z)
+            .filter_map(|&p| camera.depth(p))
             .fold(f32::INFINITY, f32::min);
         nearest.is_finite() && strand_drawn(strand, look.share_level(look.width_at(nearest)))
     }
