@@ -347,7 +347,13 @@ fn joined<T>(
 
 /// Runs `call` on every worker at once, each bounded by `deadline`, and
 /// returns the results in worker order: the first error, if any, names
-/// its worker (without waiting for the calls after it).
+/// its worker.
+///
+/// It returns only when every call has ended, failed ones included. A
+/// call left running after the round failed would reach its worker after
+/// the coordinator's next move: a Step still in flight when the
+/// survivors are assigned their new shares would step their wisps once
+/// more, and the frame after a loss would differ from one process's.
 pub(crate) fn fan_out<R, T, F, Fut>(
     rt: &tokio::runtime::Runtime,
     requests: Vec<(Remote, R)>,
@@ -361,14 +367,9 @@ where
     F: Fn(Remote, R) -> Fut,
     Fut: std::future::Future<Output = Result<T, ClusterError>> + Send + 'static,
 {
-    rt.block_on(async {
-        let tasks = spawn_calls(requests, stage, deadline, call);
-        let mut out = Vec::with_capacity(tasks.len());
-        for t in tasks {
-            out.push(joined(t.await)?);
-        }
-        Ok(out)
-    })
+    fan_out_all(rt, requests, stage, deadline, call)
+        .into_iter()
+        .collect()
 }
 
 /// [`fan_out`], every call's result in worker order: the calls that
@@ -421,5 +422,59 @@ pub(crate) fn malformed(addr: &str, e: impl ToString) -> ClusterError {
     ClusterError::Malformed {
         addr: addr.to_string(),
         msg: e.to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, Ordering};
+
+    use super::*;
+
+    /// A worker nobody dials: the calls below never use the client.
+    fn remote(rt: &tokio::runtime::Runtime, addr: &str) -> Remote {
+        let _in = rt.enter();
+        let channel = Channel::from_static("http://127.0.0.1:9").connect_lazy();
+        Remote {
+            addr: addr.into(),
+            session: "s".into(),
+            client: WorkerClient::with_interceptor(channel, SessionHeader::hello(None)),
+        }
+    }
+
+    #[test]
+    fn a_failed_round_returns_only_when_every_call_has_ended() {
+        let rt = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(2)
+            .enable_all()
+            .build()
+            .unwrap();
+        let ended = Arc::new(AtomicBool::new(false));
+        let requests = vec![(remote(&rt, "a"), 0u64), (remote(&rt, "b"), 300)];
+        let seen = ended.clone();
+        let r = fan_out(
+            &rt,
+            requests,
+            "step",
+            Duration::from_secs(10),
+            move |w, ms| {
+                let ended = seen.clone();
+                async move {
+                    if ms == 0 {
+                        return Err(malformed(&w.addr, "lost"));
+                    }
+                    tokio::time::sleep(Duration::from_millis(ms)).await;
+                    ended.store(true, Ordering::SeqCst);
+                    Ok(())
+                }
+            },
+        );
+        // The first worker's error, in worker order, after the second's
+        // call ended (a call left running would reach its worker after
+        // the survivors were assigned their new shares).
+        let e = r.unwrap_err();
+        assert_eq!(e.worker(), Some("a"), "{e}");
+        assert!(ended.load(Ordering::SeqCst), "returned while a call ran");
     }
 }
