@@ -22,7 +22,7 @@ mod shade;
 
 pub use camera::Camera;
 pub use canvas::{
-    Canvas, Fragment, HairLayer, HairLook, MAX_NEAREST, MAX_PIXELS, Sphere, Sums, to_srgb8,
+    BandSegments, Canvas, Fragment, HairLayer, HairLook, MAX_NEAREST, MAX_PIXELS, Sphere, Sums, to_srgb8,
 };
 pub use fiber::{
     Chiang, DENSITY_BACK, DENSITY_FORWARD, DualTable, FarField, FiberOptics, FiberTable, MAX_DEPTH,
@@ -52,6 +52,9 @@ pub enum RasterError {
     /// A partial picture that does not fit the canvas or is malformed.
     #[error("partial picture: {0}")]
     Layer(String),
+    /// Segments of a band that are malformed.
+    #[error("band segments: {0}")]
+    Segments(String),
     /// A camera that cannot be made.
     #[error("camera: {0}")]
     Camera(String),

@@ -77,14 +77,14 @@ pub(super) fn strand_drawn(strand: u32, level: u32) -> bool {
 /// Its width and depth weight follow from its depth and its look
 /// ([`Look::vertex`]): 24 bytes where they would make 36, as a band fetches
 /// the ends of its segments from all over the picture's vertices.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct Projected {
     pub(super) p: Vec3,
     pub(super) color: Vec3,
 }
 
 /// A [`HairLook`] on the camera it was drawn with.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct Look {
     pub(super) look: HairLook,
     /// Fiber width times the camera's focal length: the projected width

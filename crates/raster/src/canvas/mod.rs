@@ -22,6 +22,7 @@ mod line;
 mod look;
 mod opaque;
 mod scratch;
+mod segments;
 mod srgb;
 mod sums;
 
@@ -29,6 +30,7 @@ pub use front::{Fragment, MAX_NEAREST};
 pub use layer::HairLayer;
 pub use look::HairLook;
 pub use opaque::Sphere;
+pub use segments::BandSegments;
 pub use srgb::to_srgb8;
 pub use sums::Sums;
 
@@ -209,6 +211,12 @@ impl Canvas {
                     c[x0..x1].fill(Vec3::ZERO);
                 });
         }
+        self.clear_hair();
+    }
+
+    /// Empties the canvas of hair, keeping its opaque layer (see
+    /// [`Self::draw_segments`]).
+    pub fn clear_hair(&mut self) {
         self.verts.clear();
         let used = self.chunk_group.len();
         for (chunk, reach) in self.bins[..used].iter_mut().zip(&mut self.reach) {
@@ -218,6 +226,108 @@ impl Canvas {
         self.chunk_group.clear();
         self.groups = 0;
         self.looks.clear();
+    }
+
+    /// The hair binned to rows `rows` (starting and ending on a multiple
+    /// of [`Self::band_rows`], or at the last row) as its segments, each
+    /// group in strand order, the groups numbered from `first_group` on
+    /// (the index of this canvas's first group among the whole hair's):
+    /// what [`Self::draw_segments`] draws on another canvas.
+    pub fn segments_rows(&self, rows: std::ops::Range<u32>, first_group: u32) -> BandSegments {
+        let (h, band_rows) = (self.height, self.band);
+        let end_row = (rows.end as usize).min(h);
+        let first = rows.start as usize / band_rows;
+        let end = end_row.div_ceil(band_rows).max(first);
+        let mut out = BandSegments::new(rows.start..end_row as u32, self.looks.clone());
+        let mut ids = Vec::new();
+        let mut chunks = self.bins.iter().zip(&self.chunk_group).peekable();
+        for g in 0..self.groups {
+            out.begin_group(first_group + g);
+            while let Some((bins, _)) = chunks.next_if(|c| *c.1 == g) {
+                // The segments of the rows' bands, each once, in strand
+                // order (ascending first vertex; one look a vertex).
+                ids.clear();
+                for bin in &bins[first..end] {
+                    ids.extend_from_slice(bin);
+                }
+                ids.sort_unstable();
+                ids.dedup();
+                // Runs of consecutive segments: segments `i` and `i + 1`
+                // both drawn are of one strand, and share vertex `i + 1`.
+                let mut k = 0;
+                while k < ids.len() {
+                    let (start, look) = ids[k];
+                    let mut n = 1;
+                    while k + n < ids.len() && ids[k + n] == (start + n as u32, look) {
+                        n += 1;
+                    }
+                    let at = start as usize;
+                    out.push_run(look, self.verts[at..at + n + 1].iter().copied());
+                    k += n;
+                }
+            }
+        }
+        out
+    }
+
+    /// Bins `segments` (see [`Self::segments_rows`]) as groups after those
+    /// drawn so far, each in its order, in the rows they were taken for
+    /// alone: drawn after the other shares' segments of those rows, in the
+    /// order of the groups, the rows resolve to the same bytes as all the
+    /// hair drawn here. Refuses segments of rows that do not start on one
+    /// of this canvas's bands.
+    pub fn draw_segments(&mut self, segments: &BandSegments) -> Result<(), RasterError> {
+        let (w, h, band_rows) = (self.width, self.height, self.band);
+        let rows = segments.rows();
+        if !(rows.start as usize).is_multiple_of(band_rows)
+            || rows.end as usize > h
+            || (rows.end as usize != h && !(rows.end as usize).is_multiple_of(band_rows))
+        {
+            return Err(RasterError::Segments(format!(
+                "rows {rows:?} do not cut a picture of {h} rows in its bands of {band_rows}"
+            )));
+        }
+        let (looks, groups) = segments.parts();
+        let look_base = self.looks.len() as u32;
+        self.looks.extend_from_slice(looks);
+        let bands = h.div_ceil(band_rows);
+        let (first, end) = (
+            rows.start as usize / band_rows,
+            (rows.end as usize).div_ceil(band_rows),
+        );
+        for runs in groups {
+            let chunk = self.chunk_group.len();
+            if self.bins.len() <= chunk {
+                self.bins.push(vec![Vec::new(); bands]);
+                self.reach.push(vec![NO_REACH; bands]);
+            }
+            self.chunk_group.push(self.groups);
+            self.groups += 1;
+            let (bins, reach) = (&mut self.bins[chunk], &mut self.reach[chunk]);
+            for (look, verts) in runs {
+                let at = &self.looks[(look_base + look) as usize];
+                let base = self.verts.len();
+                self.verts.extend_from_slice(verts);
+                let mut prev = None;
+                for (j, &v) in verts.iter().enumerate() {
+                    let end_v = at.vertex(v);
+                    let (Some(a), Some(b)) = (std::mem::replace(&mut prev, end_v), end_v) else {
+                        continue;
+                    };
+                    let Some((span, cols)) = footprint(a, b, w, h, band_rows) else {
+                        continue;
+                    };
+                    // Only the rows taken: a segment also reaching a band
+                    // of other rows comes with those rows' segments.
+                    let span = span.start.max(first)..span.end.min(end);
+                    for (bin, r) in bins[span.clone()].iter_mut().zip(&mut reach[span]) {
+                        bin.push(((base + j - 1) as u32, look_base + look));
+                        *r = [r[0].min(cols[0]), r[1].max(cols[1])];
+                    }
+                }
+            }
+        }
+        Ok(())
     }
 
     /// Canvas width, pixels.
@@ -290,7 +400,7 @@ impl Canvas {
             self.reach.resize_with(end_chunk, || vec![NO_REACH; bands]);
         }
         let verts = &self.verts;
-        let (w, h) = (self.width as f32, self.height);
+        let (w, h) = (self.width, self.height);
         self.bins[first_chunk..end_chunk]
             .par_iter_mut()
             .zip(&mut self.reach[first_chunk..end_chunk])
@@ -309,23 +419,12 @@ impl Canvas {
                         if !look.draws_segment(a.p.z, b.p.z, first_strand + s as u32) {
                             continue;
                         }
-                        let pad = a.width.max(b.width) + 2.0;
-                        let lo = (a.p.y.min(b.p.y) - pad).max(0.0);
-                        let hi = (a.p.y.max(b.p.y) + pad).min(h as f32);
-                        let (left, right) = (a.p.x.min(b.p.x) - pad, a.p.x.max(b.p.x) + pad);
-                        if lo >= hi || right < 0.0 || left > w {
+                        let Some((bands, cols)) = footprint(a, b, w, h, band_rows) else {
                             continue;
-                        }
-                        // Columns the segment's fragments can fall in.
-                        let (x0, x1) = (left.max(0.0) as u32, (right.min(w) as u32 + 1));
-                        let (first, last) = (
-                            lo as usize / band_rows,
-                            (hi as usize).min(h - 1) / band_rows,
-                        );
-                        for (bin, r) in bins[first..=last].iter_mut().zip(&mut reach[first..=last])
-                        {
+                        };
+                        for (bin, r) in bins[bands.clone()].iter_mut().zip(&mut reach[bands]) {
                             bin.push(((base + i) as u32, look_index));
-                            *r = [r[0].min(x0), r[1].max(x1)];
+                            *r = [r[0].min(cols[0]), r[1].max(cols[1])];
                         }
                     }
                 }
@@ -645,6 +744,35 @@ impl Canvas {
             }
         }
     }
+}
+
+/// The bands of `band_rows` rows (as indices `first..last + 1`) and the
+/// pixel columns `[x0, x1)` of a `w x h` picture that the fragments of the
+/// segment from `a` to `b` can reach (its ends' box, padded by its width
+/// and two pixels), or `None` when they reach no pixel.
+#[inline]
+fn footprint(
+    a: ScreenVertex,
+    b: ScreenVertex,
+    w: usize,
+    h: usize,
+    band_rows: usize,
+) -> Option<(std::ops::Range<usize>, [u32; 2])> {
+    let (wf, hf) = (w as f32, h as f32);
+    let pad = a.width.max(b.width) + 2.0;
+    let lo = (a.p.y.min(b.p.y) - pad).max(0.0);
+    let hi = (a.p.y.max(b.p.y) + pad).min(hf);
+    let (left, right) = (a.p.x.min(b.p.x) - pad, a.p.x.max(b.p.x) + pad);
+    if lo >= hi || right < 0.0 || left > wf {
+        return None;
+    }
+    // Columns the segment's fragments can fall in.
+    let cols = [left.max(0.0) as u32, (right.min(wf) as u32 + 1)];
+    let (first, last) = (
+        lo as usize / band_rows,
+        (hi as usize).min(h - 1) / band_rows,
+    );
+    Some((first..last + 1, cols))
 }
 
 /// A band's nearest fragments while a group is rasterized: the lists (`k`

@@ -228,6 +228,154 @@ fn split_groups_composite_to_the_same_bytes(nearest: usize, simplify: f32) {
     }
 }
 
+#[test]
+fn segments_sent_to_the_band_owner_resolve_to_the_same_bytes() {
+    for (nearest, simplify) in [(0, 0.0), (4, 0.0), (8, 0.0), (4, 2.0)] {
+        sort_middle_gives_the_same_bytes(nearest, simplify);
+    }
+}
+
+/// Sort-middle: shares of the groups, each binned on its own canvas,
+/// send each band owner their segments of its rows; the owner draws them
+/// in the order of the groups over its head and resolves its rows.
+fn sort_middle_gives_the_same_bytes(nearest: usize, simplify: f32) {
+    let (w, h) = (80u32, 72u32);
+    let cam = Camera::new(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, 40.0, w, h).unwrap();
+    let (mut pts, mut cols, mut offsets) = (Vec::new(), Vec::new(), vec![0u32]);
+    for s in 0..60 {
+        let f = s as f32 * 0.07;
+        for k in 0..7 {
+            let t = k as f32 / 6.0;
+            // Curls, so that strands leave and re-enter bands.
+            let curl = (6.0 * t + f).sin() * 0.4;
+            pts.push(Vec3::new(-2.5 + f + curl, 2.4 - 4.8 * t, 1.5 - f * 0.5 + curl));
+            cols.push(Vec3::new(0.2 + f / 8.0, 0.3 * t, 0.5));
+        }
+        offsets.push(pts.len() as u32);
+    }
+    let look = HairLook {
+        fiber_width: 0.04,
+        opacity: 0.7,
+        depth_ref: 10.0,
+        simplify,
+    };
+    let head = Sphere {
+        center: Vec3::new(0.5, 0.0, -0.5),
+        radius: 1.2,
+    };
+    let groups = [0usize, 7, 20, 21, 33, 60];
+    let with_head = |band: u32| {
+        let mut c = Canvas::new(w, h).unwrap();
+        c.set_band_rows(band);
+        c.set_nearest(nearest);
+        c.draw_sphere(&cam, &head, |_, _| Vec3::new(0.6, 0.4, 0.3));
+        c
+    };
+    // Groups `gs` of the hair on a canvas of their own.
+    let share = |gs: std::ops::Range<usize>, band: u32| {
+        let mut c = with_head(band);
+        let (s0, s1) = (groups[gs.start], groups[gs.end]);
+        let (p0, p1) = (offsets[s0] as usize, offsets[s1] as usize);
+        let off: Vec<u32> = offsets[s0..=s1].iter().map(|&o| o - p0 as u32).collect();
+        let g: Vec<u32> = groups[gs.start..=gs.end].iter().map(|&b| (b - s0) as u32).collect();
+        c.draw_hair(&cam, &pts[p0..p1], &off, &cols[p0..p1], &look, &g, s0 as u32);
+        c
+    };
+    let bg = Vec3::splat(0.05);
+    let whole = share(0..5, 16).resolve(bg);
+    let whole: &[u8] = &whole;
+    for (cuts, bands) in [
+        (vec![0, 5], [16, 16, 16]),
+        (vec![0, 2, 5], [16, 32, 16]),
+        (vec![0, 1, 3, 5], [32, 16, 48]),
+    ] {
+        let shares: Vec<Canvas> = cuts
+            .windows(2)
+            .zip(bands)
+            .map(|(c, band)| share(c[0]..c[1], band))
+            .collect();
+        // An owner's rows: whole bands of every share's canvas (48 rows
+        // divide by 16 and 48; the last band short).
+        for rows in [0..48u32, 48..72, 16..32, 32..72] {
+            let mut sent: Vec<BandSegments> = shares
+                .iter()
+                .zip(cuts.windows(2))
+                .map(|(c, g)| {
+                    let s = c.segments_rows(rows.clone(), g[0] as u32);
+                    // As the wire carries them.
+                    let mut bytes = Vec::new();
+                    s.encode(&mut bytes);
+                    assert_eq!(bytes.len(), s.encoded_len());
+                    let back = BandSegments::decode(&bytes, h).unwrap();
+                    assert_eq!(back, s);
+                    back
+                })
+                .collect();
+            assert!(sent.iter().any(|s| s.segment_count() > 0));
+            // Arriving in any order, drawn in the order of the groups.
+            sent.reverse();
+            sent.sort_by_key(|s| s.first_group());
+            let mut owner = with_head(16);
+            for s in &sent {
+                owner.draw_segments(s).unwrap();
+            }
+            let got = owner.resolve_rows(bg, &[], rows.clone());
+            let want = &whole[rows.start as usize * 3 * w as usize..rows.end as usize * 3 * w as usize];
+            assert!(
+                got == want,
+                "groups cut at {cuts:?}, rows {rows:?}, {nearest} nearest, simplify {simplify}"
+            );
+            // A canvas whose bands do not divide the rows refuses them.
+            if rows.start % 32 != 0 {
+                assert!(with_head(32).draw_segments(&sent[0]).is_err());
+            }
+        }
+    }
+}
+
+#[test]
+fn malformed_segments_are_refused_without_a_panic() {
+    let cam = Camera::new(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, 40.0, 32, 32).unwrap();
+    let mut c = Canvas::new(32, 32).unwrap();
+    let pts = [Vec3::new(-1.0, -1.0, 0.0), Vec3::ZERO, Vec3::new(1.0, 1.2, 0.0)];
+    let look = HairLook {
+        fiber_width: 0.05,
+        opacity: 0.6,
+        depth_ref: 10.0,
+        simplify: 0.0,
+    };
+    c.draw_hair(&cam, &pts, &[0, 3], &[Vec3::ONE; 3], &look, &[], 4);
+    let s = c.segments_rows(0..32, 4);
+    assert_eq!(s.segment_count(), 2);
+    assert_eq!((s.first_group(), s.last_group()), (Some(4), Some(4)));
+    let mut good = Vec::new();
+    s.encode(&mut good);
+    assert_eq!(BandSegments::decode(&good, 32).unwrap(), s);
+    // Every cut short, and a byte more.
+    for n in 0..good.len() {
+        assert!(BandSegments::decode(&good[..n], 32).is_err(), "{n} bytes");
+    }
+    let mut long = good.clone();
+    long.push(0);
+    assert!(BandSegments::decode(&long, 32).is_err());
+    // Rows past the picture; a NaN vertex; a look index out of range; a
+    // huge claimed count.
+    assert!(BandSegments::decode(&good, 16).is_err());
+    let vertex0 = 16 + 20 + 8 + 8;
+    let mut nan = good.clone();
+    nan[vertex0..vertex0 + 4].copy_from_slice(&f32::NAN.to_bits().to_le_bytes());
+    let e = BandSegments::decode(&nan, 32).unwrap_err().to_string();
+    assert!(e.contains("vertex"), "{e}");
+    let mut look = good.clone();
+    look[vertex0 - 8..vertex0 - 4].copy_from_slice(&7u32.to_le_bytes());
+    assert!(BandSegments::decode(&look, 32).is_err());
+    for at in [8, 32, 40, vertex0 - 4] {
+        let mut many = good.clone();
+        many[at..at + 4].copy_from_slice(&u32::MAX.to_le_bytes());
+        assert!(BandSegments::decode(&many, 32).is_err(), "a count at {at}");
+    }
+}
+
 fn split_sums_add_up(all: &HairLayer, canvas: &dyn Fn(std::ops::Range<usize>) -> Canvas) {
     assert!(all.sums().iter().all(|s| !s.is_zero()));
     let mut added = std::collections::BTreeMap::new();
