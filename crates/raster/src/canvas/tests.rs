@@ -330,6 +330,15 @@ fn sort_middle_gives_the_same_bytes(nearest: usize, simplify: f32) {
                 assert!(with_head(32).draw_segments(&sent[0]).is_err());
             }
         }
+        // One owner of two neighbouring row ranges: a segment that
+        // reaches both comes with each, and is drawn once in each.
+        let mut owner = with_head(16);
+        for rows in [48..72u32, 0..48] {
+            for (c, g) in shares.iter().zip(cuts.windows(2)) {
+                owner.draw_segments(&c.segments_rows(rows.clone(), g[0] as u32)).unwrap();
+            }
+        }
+        assert!(owner.resolve_rows(bg, &[], 0..72) == whole, "{cuts:?}, two ranges");
     }
 }
 
