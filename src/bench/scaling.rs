@@ -369,7 +369,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
                 label: format!(
                     "{k} worker{}{}",
                     if k == 1 { "" } else { "s" },
-                    if schemes.len() > 1 || draw != cluster::DrawAt::Workers {
+                    if schemes.len() > 1 || draw != cluster::DrawAt::SortLast {
                         format!(", {} draws", draw.name())
                     } else {
                         String::new()
@@ -507,12 +507,13 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
         );
     }
     // Short labels that fit under a bar: "1 proc", and the worker count
-    // with W (workers draw) or C (the coordinator draws).
+    // with L (sort-last), M (sort-middle) or C (the coordinator draws).
     let labels: Vec<String> = rows
         .iter()
         .map(|r| match r.draw {
             None => "1 proc".to_string(),
-            Some(cluster::DrawAt::Workers) => format!("{} W", r.workers),
+            Some(cluster::DrawAt::SortLast) => format!("{} L", r.workers),
+            Some(cluster::DrawAt::SortMiddle) => format!("{} M", r.workers),
             Some(cluster::DrawAt::Coordinator) => format!("{} C", r.workers),
         })
         .collect();

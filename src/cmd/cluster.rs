@@ -179,14 +179,22 @@ pub fn worker(args: WorkerArgs) -> anyhow::Result<()> {
 /// `--draw`: where the drawn hair is drawn.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum Draw {
-    Workers,
+    /// Each worker rasterizes its own strands; the workers composite
+    /// their partial pictures, each its own bands of rows.
+    #[value(alias = "workers")]
+    SortLast,
+    /// Each worker shades its own strands and sends their segments to the
+    /// worker that owns their rows, which rasterizes all of them.
+    SortMiddle,
+    /// The paper's scheme: the coordinator draws every strand.
     Coordinator,
 }
 
 impl From<Draw> for cluster::DrawAt {
     fn from(d: Draw) -> cluster::DrawAt {
         match d {
-            Draw::Workers => cluster::DrawAt::Workers,
+            Draw::SortLast => cluster::DrawAt::SortLast,
+            Draw::SortMiddle => cluster::DrawAt::SortMiddle,
             Draw::Coordinator => cluster::DrawAt::Coordinator,
         }
     }
@@ -224,7 +232,7 @@ pub struct CoordinatorArgs {
     /// addresses given) or `coordinator` (the paper's scheme: workers
     /// simulate, fill and sweep, the coordinator draws every strand).
     /// The pictures are the same bytes either way.
-    #[arg(long, value_enum, default_value_t = Draw::Workers, value_name = "WHERE")]
+    #[arg(long, value_enum, default_value_t = Draw::SortLast, value_name = "WHERE")]
     draw: Draw,
     #[command(flatten)]
     tls: ClientTlsArgs,

@@ -49,7 +49,7 @@ fn on_workers(scene: &Scene, addrs: &[String]) -> Sequence {
         connect_timeout: Duration::from_secs(5),
         tls: None,
         token: None,
-        draw: DrawAt::Workers,
+        draw: DrawAt::SortLast,
     };
     let remote = RemoteExecutor::connect(addrs, scene, &options).unwrap();
     let mut seq = Sequence::new(scene).unwrap();
@@ -275,7 +275,7 @@ fn a_worker_holds_at_most_its_sessions_and_ends_idle_ones() {
                     connect_timeout: Duration::from_secs(5),
                     tls: None,
                     token: None,
-                    draw: DrawAt::Workers,
+                    draw: DrawAt::SortLast,
                 },
             )
             .unwrap_err()
@@ -399,7 +399,7 @@ fn a_workers_refusal_reaches_the_frame_as_its_own_type() {
         connect_timeout: Duration::from_secs(5),
         tls: None,
         token: None,
-        draw: DrawAt::Workers,
+        draw: DrawAt::SortLast,
     };
     let err = match RemoteExecutor::connect(&[addr.to_string()], &scene, &options) {
         Err(e) => engine::EngineError::Executor(Box::new(e)),
@@ -456,7 +456,7 @@ fn a_worker_with_a_token_serves_only_coordinators_that_show_it() {
                 connect_timeout: Duration::from_secs(5),
                 tls: None,
                 token: token.map(|t| cluster::Token::new(t).unwrap()),
-                draw: DrawAt::Workers,
+                draw: DrawAt::SortLast,
             },
         )
     };

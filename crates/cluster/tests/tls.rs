@@ -117,7 +117,7 @@ fn drawn_over_tls(
         .map(|_| start_worker(worker.clone()).to_string())
         .collect();
     let mut o = options(Some(coordinator), 20);
-    o.draw = cluster::DrawAt::Workers;
+    o.draw = cluster::DrawAt::SortLast;
     let remote = RemoteExecutor::connect(&addrs, &scene, &o).unwrap();
     let (traffic, timing) = (remote.traffic(), remote.timing());
     let mut seq = engine::Sequence::new(&scene).unwrap();

@@ -148,7 +148,7 @@ fn a_worker_refuses_another_protocol_version_and_calls_before_hello() {
     let ok = RemoteExecutor::connect(
         &[addr.to_string()],
         &Scene::default(),
-        &options(DrawAt::Workers, 5),
+        &options(DrawAt::SortLast, 5),
     );
     assert!(ok.is_ok());
 }
@@ -422,7 +422,7 @@ fn a_worker_answers_health_checks_for_itself_and_the_server() {
 fn three_workers_give_the_local_animation_byte_for_byte_drawing_anywhere() {
     let scene = Scene::from_toml_str(DANCE, std::path::Path::new("dance.toml")).unwrap();
     let want = local_frames(&scene, 4);
-    for draw in [DrawAt::Workers, DrawAt::Coordinator] {
+    for draw in [DrawAt::SortLast, DrawAt::Coordinator] {
         let addrs: Vec<String> = (0..3).map(|_| start_worker().to_string()).collect();
         let remote = RemoteExecutor::connect(&addrs, &scene, &options(draw, 20)).unwrap();
         let (traffic, timing) = (remote.traffic(), remote.timing());
@@ -452,7 +452,7 @@ fn three_workers_give_the_local_animation_byte_for_byte_drawing_anywhere() {
         // Drawing on the workers, they composite among themselves: their
         // stripes go to each other and finished bands come back, no
         // partial picture.
-        let on_workers = draw == DrawAt::Workers;
+        let on_workers = draw == DrawAt::SortLast;
         assert_eq!(t.layers_received, 0, "{t:?}");
         assert_eq!(t.stripes_between_workers > 0, on_workers, "{t:?}");
         assert_eq!(t.bands_received > 0, on_workers, "{t:?}");
@@ -481,7 +481,7 @@ fn one_worker_steps_and_fills_while_the_coordinator_sweeps_and_draws_to_the_same
     let scene = Scene::from_toml_str(DANCE, std::path::Path::new("dance.toml")).unwrap();
     let want = local_frames(&scene, 4);
     let addrs = [start_worker().to_string()];
-    let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::Workers, 20)).unwrap();
+    let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::SortLast, 20)).unwrap();
     let traffic = remote.traffic();
     // The coordinator rasterizes each frame while the worker steps and
     // fills the next one.
@@ -505,7 +505,7 @@ fn another_shadow_method_draws_on_the_coordinator_with_the_same_bytes() {
     let scene = Scene::from_toml_str(&text, std::path::Path::new("osm.toml")).unwrap();
     let want = local_frames(&scene, 3);
     let addrs: Vec<String> = (0..2).map(|_| start_worker().to_string()).collect();
-    let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::Workers, 20)).unwrap();
+    let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::SortLast, 20)).unwrap();
     assert_frames(&scene, remote, &want);
 }
 
@@ -522,7 +522,7 @@ fn contact_shadows_draw_on_the_coordinator_with_the_same_bytes() {
     );
     assert_ne!(want, plain, "contact shadows change the picture");
     let addrs: Vec<String> = (0..2).map(|_| start_worker().to_string()).collect();
-    let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::Workers, 20)).unwrap();
+    let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::SortLast, 20)).unwrap();
     let traffic = remote.traffic();
     assert_frames(&scene, remote, &want);
     let t = *traffic.lock().unwrap();
@@ -547,7 +547,7 @@ fn simplified_thin_hair_drawn_on_three_workers_is_the_local_animation() {
         "simplified, the picture changes"
     );
     let addrs: Vec<String> = (0..3).map(|_| start_worker().to_string()).collect();
-    let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::Workers, 20)).unwrap();
+    let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::SortLast, 20)).unwrap();
     assert_frames(&scene, remote, &want);
 }
 
@@ -557,7 +557,7 @@ fn rigid_hair_drawn_on_workers_is_the_local_animation() {
     let scene = Scene::from_toml_str(&text, std::path::Path::new("rigid.toml")).unwrap();
     let want = local_frames(&scene, 3);
     let addrs: Vec<String> = (0..2).map(|_| start_worker().to_string()).collect();
-    let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::Workers, 20)).unwrap();
+    let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::SortLast, 20)).unwrap();
     let traffic = remote.traffic();
     assert_frames(&scene, remote, &want);
     let t = *traffic.lock().unwrap();
@@ -571,7 +571,7 @@ fn rigid_hair_drawn_on_workers_is_the_local_animation() {
 fn a_worker_lost_mid_animation_hands_its_work_to_the_survivors() {
     let scene = Scene::from_toml_str(DANCE, std::path::Path::new("dance.toml")).unwrap();
     let want = local_frames(&scene, 6);
-    for draw in [DrawAt::Workers, DrawAt::Coordinator] {
+    for draw in [DrawAt::SortLast, DrawAt::Coordinator] {
         let (a, _keep_a) = start_stoppable_worker();
         let (b, stop_b) = start_stoppable_worker();
         let (c, _keep_c) = start_stoppable_worker();
@@ -600,7 +600,7 @@ fn a_coordinator_with_no_worker_left_fails_naming_the_worker() {
     let scene = Scene::from_toml_str(DANCE, std::path::Path::new("dance.toml")).unwrap();
     let (a, stop) = start_stoppable_worker();
     let remote =
-        RemoteExecutor::connect(&[a.to_string()], &scene, &options(DrawAt::Workers, 5)).unwrap();
+        RemoteExecutor::connect(&[a.to_string()], &scene, &options(DrawAt::SortLast, 5)).unwrap();
     let mut seq = Sequence::new(&scene).unwrap();
     seq.set_executor(Box::new(remote)).unwrap();
     seq.next_frame().unwrap();
@@ -779,7 +779,7 @@ fn workers_silent_or_unreachable_at_startup_are_left_out_and_the_run_carries_on(
         unreachable.to_string(),
         start_worker().to_string(),
     ];
-    let mut o = options(DrawAt::Workers, 20);
+    let mut o = options(DrawAt::SortLast, 20);
     o.connect_timeout = Duration::from_secs(1);
     let t = std::time::Instant::now();
     let remote = RemoteExecutor::connect(&addrs, &scene, &o).unwrap();
@@ -806,7 +806,7 @@ fn workers_silent_or_unreachable_at_startup_are_left_out_and_the_run_carries_on(
 fn one_worker_given_twice_is_refused() {
     let scene = Scene::default();
     let a = start_worker();
-    let o = options(DrawAt::Workers, 5);
+    let o = options(DrawAt::SortLast, 5);
     for twice in [
         vec![a.to_string(), a.to_string()],
         vec![a.to_string(), format!("localhost:{}", a.port())],
@@ -1106,7 +1106,7 @@ fn a_picture_given_up_after_the_next_frames_stages_is_drawn_again_with_the_same_
     let scene = Scene::from_toml_str(DANCE, std::path::Path::new("dance.toml")).unwrap();
     let want = local_frames(&scene, 5);
     let addrs: Vec<String> = (0..3).map(|_| start_worker().to_string()).collect();
-    let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::Workers, 20)).unwrap();
+    let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::SortLast, 20)).unwrap();
     let timing = remote.timing();
     let gave_up = Arc::new(AtomicBool::new(false));
     let mut seq = Sequence::new(&scene).unwrap();
@@ -1141,7 +1141,7 @@ fn a_physically_based_fiber_draws_the_same_bytes_on_workers() {
         let scene = Scene::from_toml_str(&text, std::path::Path::new("fiber.toml")).unwrap();
         let want = local_frames(&scene, 2);
         let remote =
-            RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::Workers, 20)).unwrap();
+            RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::SortLast, 20)).unwrap();
         let mut seq = Sequence::new(&scene).unwrap();
         seq.set_executor(Box::new(remote)).unwrap();
         seq.expect_frames(want.len() as u64);
@@ -1169,7 +1169,7 @@ fn point_and_spot_lights_draw_the_same_bytes_on_workers() {
     let scene = Scene::from_toml_str(&text, std::path::Path::new("point.toml")).unwrap();
     let want = local_frames(&scene, 2);
     let addrs: Vec<String> = (0..3).map(|_| start_worker().to_string()).collect();
-    let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::Workers, 20)).unwrap();
+    let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::SortLast, 20)).unwrap();
     let timing = remote.timing();
     let mut seq = Sequence::new(&scene).unwrap();
     seq.set_executor(Box::new(remote)).unwrap();

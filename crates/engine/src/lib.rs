@@ -18,6 +18,7 @@
 #![warn(unreachable_pub, missing_docs)]
 
 mod animate;
+mod bands;
 mod collide;
 mod exec;
 mod export;
@@ -48,7 +49,8 @@ pub use scene::{
     HeadMesh, HeadSettings, Placement, RenderSettings, Scene, SceneError, SceneSource,
     ShadowSettings,
 };
-pub use share::{BandPlan, BandWork, DrawTimes, Share};
+pub use bands::{BandPlan, BandWork, Sort, Stripe};
+pub use share::{DrawTimes, Share};
 pub use stats::{FrameStats, Stage, StageRecord};
 
 /// Errors of the engine, each naming what is wrong and where.

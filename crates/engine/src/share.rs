@@ -8,6 +8,8 @@ use std::time::Instant;
 
 use glam::Vec3;
 use raster::{Canvas, HairLayer};
+
+use crate::bands::{BandPlan, BandWork, Own, Sort, Stripe};
 use shadow::{DensityMap, Fiber, FillStats, LightFrame, Transmittance};
 use strands::Hair;
 
@@ -33,150 +35,6 @@ pub struct Share {
     head_shadow: bool,
 }
 
-/// How the workers composite a frame's picture among themselves: its rows
-/// cut in bands, dealt out to the workers in turn (band `b` to worker
-/// `b % workers`, so that each gets about as much hair; sort-last
-/// compositing by direct send). Each sends the stripes of its partial
-/// picture in the others' bands to them, and resolves its own bands, with
-/// the head, from its own hair and the stripes the others sent.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct BandPlan {
-    /// Band `b` is rows `cuts[b]..cuts[b + 1]`: from 0 to the picture's
-    /// height, ascending, each on a multiple of [`Canvas::BAND_ROWS`]
-    /// (but the last).
-    pub cuts: Vec<u32>,
-    /// The workers the bands are dealt to.
-    pub workers: usize,
-    /// This share's worker.
-    pub own: usize,
-}
-
-impl BandPlan {
-    /// Bands of `rows` rows (rounded up to whole canvas bands) of a
-    /// picture of `height` rows, dealt to `workers` workers.
-    pub fn dealt(height: u32, rows: u32, workers: usize, own: usize) -> BandPlan {
-        let band = Canvas::BAND_ROWS;
-        let step = rows.max(1).div_ceil(band) * band;
-        let mut cuts: Vec<u32> = (0..height.div_ceil(step)).map(|i| i * step).collect();
-        cuts.push(height);
-        BandPlan { cuts, workers, own }
-    }
-
-    /// Rows of band `b`.
-    pub fn rows(&self, b: usize) -> Range<u32> {
-        self.cuts[b]..self.cuts[b + 1]
-    }
-
-    /// Bands.
-    pub fn bands(&self) -> usize {
-        self.cuts.len().saturating_sub(1)
-    }
-
-    /// The worker band `b` belongs to.
-    pub fn owner(&self, b: usize) -> usize {
-        b % self.workers.max(1)
-    }
-
-    /// The rows of each band of worker `w`, top to bottom.
-    pub fn rows_of(&self, w: usize) -> Vec<Range<u32>> {
-        (0..self.bands())
-            .filter(|&b| self.owner(b) == w)
-            .map(|b| self.rows(b))
-            .collect()
-    }
-
-    /// Whether row `row` lies in one of this share's bands.
-    pub fn owns_row(&self, row: u32) -> bool {
-        let b = self.cuts.partition_point(|&c| c <= row);
-        b >= 1 && b < self.cuts.len() && self.owner(b - 1) == self.own
-    }
-
-    /// The most rows, at most `rows`, of canvas bands that cut this plan's
-    /// bands whole ([`Canvas::set_band_rows`]).
-    pub fn band_rows_within(&self, rows: u32) -> u32 {
-        let step = Canvas::BAND_ROWS;
-        let divides = |r: u32| {
-            self.cuts[..self.cuts.len().saturating_sub(1)]
-                .iter()
-                .all(|c| c.is_multiple_of(r))
-        };
-        (1..=rows / step)
-            .rev()
-            .map(|m| m * step)
-            .find(|&r| divides(r))
-            .unwrap_or(step)
-    }
-
-    /// Checks the plan against a picture of `height` rows.
-    pub fn check(&self, height: u32) -> Result<(), EngineError> {
-        let band = Canvas::BAND_ROWS;
-        let ok = self.cuts.len() >= 2
-            && self.own < self.workers
-            && self.cuts.first() == Some(&0)
-            && self.cuts.last() == Some(&height)
-            && self.cuts.windows(2).all(|w| w[0] < w[1])
-            && self.cuts[..self.cuts.len() - 1]
-                .iter()
-                .all(|c| c.is_multiple_of(band));
-        if ok {
-            Ok(())
-        } else {
-            Err(EngineError::executor(format!(
-                "bands {:?} (worker {} of {}) do not cut a picture of {height} rows in whole bands of {band}",
-                self.cuts, self.own, self.workers
-            )))
-        }
-    }
-}
-
-/// A share's bands of a picture composited on the workers, rasterized and
-/// waiting for the other workers' stripes (see [`Share::draw_band`]).
-#[derive(Debug)]
-pub struct BandWork {
-    canvas: Canvas,
-    own: Vec<Range<u32>>,
-    /// This share's own hair in its bands.
-    mine: Option<HairLayer>,
-    background: Vec3,
-    /// The times so far: filter, shade, raster.
-    pub times: DrawTimes,
-}
-
-impl BandWork {
-    /// The canvas alone, when the work is given up.
-    pub fn into_canvas(self) -> Canvas {
-        self.canvas
-    }
-
-    /// The other shares' stripes of this share's bands, `others`, added to
-    /// its own hair over the head: each band, top to bottom, as its rows
-    /// and their finished 8-bit sRGB pixels (the same bytes as those rows
-    /// of the whole picture drawn in one process); the times, and the
-    /// canvas, to give back to the share.
-    #[allow(clippy::type_complexity)]
-    pub fn resolve(
-        self,
-        others: Vec<HairLayer>,
-    ) -> (Vec<(Range<u32>, Vec<u8>)>, DrawTimes, Canvas) {
-        let t = Instant::now();
-        let mut layers = others;
-        layers.extend(self.mine);
-        let out = self
-            .own
-            .into_iter()
-            .map(|rows| {
-                let rgb = self
-                    .canvas
-                    .resolve_layer_rows(self.background, &layers, rows.clone());
-                (rows, rgb)
-            })
-            .collect();
-        let mut times = self.times;
-        times.composite_ms = ms(t);
-        (out, times, self.canvas)
-    }
-}
-
 /// Milliseconds of the stages of one [`Share::draw`].
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct DrawTimes {
@@ -193,7 +51,7 @@ pub struct DrawTimes {
     pub composite_ms: f64,
 }
 
-fn ms(since: Instant) -> f64 {
+pub(crate) fn ms(since: Instant) -> f64 {
     since.elapsed().as_secs_f64() * 1e3
 }
 
@@ -392,26 +250,33 @@ impl Share {
         Ok(times)
     }
 
-    /// [`Self::draw`] composited on the workers, as `plan` says, up to the
-    /// compositing: the stripe of each other worker's band handed to
-    /// `send(worker, stripe)` as it is rasterized, top to bottom, then this
-    /// share's own bands rasterized; [`BandWork::resolve`] finishes them
-    /// with the others' stripes, away from the share (which may meanwhile
-    /// step and fill the next frame). The canvas goes with the work; hand
-    /// it back with [`Self::put_canvas`].
+    /// [`Self::draw`] drawn on the workers, as `plan` says, up to the
+    /// compositing: what this share drew of each other worker's band
+    /// handed to `send(worker, stripe)` as it is drawn, top to bottom (its
+    /// partial picture of those rows, sort-last, or its shaded segments
+    /// there, sort-middle), then this share's own bands drawn as far as
+    /// they can be alone; [`BandWork::resolve`] finishes them with what
+    /// the others sent, away from the share (which may meanwhile step and
+    /// fill the next frame). The canvas goes with the work; hand it back
+    /// with [`Self::put_canvas`].
     pub fn draw_band(
         &mut self,
         job: &DrawJob,
         maps: &[Transmittance],
         plan: &BandPlan,
-        mut send: impl FnMut(usize, HairLayer) -> Result<(), EngineError>,
+        mut send: impl FnMut(usize, Stripe) -> Result<(), EngineError>,
     ) -> Result<BandWork, EngineError> {
         let height = job.camera.height();
         plan.check(height)?;
         let own = plan.rows_of(plan.own);
         let background = self.background;
+        let first_group = self.groups.start as u32;
         let (_, mut times) = self.bin(job, maps, Some(plan))?;
         let canvas = self.canvas.take().expect("binned above");
+        let take = |rows: Range<u32>| match plan.sort {
+            Sort::Last => Stripe::Layer(canvas.layer_rows(rows)),
+            Sort::Middle => Stripe::Segments(canvas.segments_rows(rows, first_group)),
+        };
         let sent = (|| {
             for b in 0..plan.bands() {
                 let to = plan.owner(b);
@@ -419,7 +284,7 @@ impl Share {
                     continue;
                 }
                 let t = Instant::now();
-                let stripe = canvas.layer_rows(plan.rows(b));
+                let stripe = take(plan.rows(b));
                 times.raster_ms += ms(t);
                 send(to, stripe)?;
             }
@@ -431,20 +296,40 @@ impl Share {
         }
         // This share's own bands, while the others' stripes travel.
         let t = Instant::now();
-        let mut mine: Option<HairLayer> = None;
-        for rows in &own {
-            let l = canvas.layer_rows(rows.clone());
-            match &mut mine {
-                Some(all) => all.append_layer(l),
-                None => mine = Some(l),
+        let mine = match plan.sort {
+            Sort::Last => {
+                let mut mine: Option<HairLayer> = None;
+                for rows in &own {
+                    let l = canvas.layer_rows(rows.clone());
+                    match &mut mine {
+                        Some(all) => all.append_layer(l),
+                        None => mine = Some(l),
+                    }
+                }
+                Own::Layer(mine)
             }
-        }
+            Sort::Middle => Own::Segments(
+                own.iter()
+                    .map(|rows| canvas.segments_rows(rows.clone(), first_group))
+                    .collect(),
+            ),
+        };
         times.raster_ms += ms(t);
+        // Every strand of the bands, for sort-middle: bands as tall as the
+        // whole hair is dense (as one process draws it), whole in the plan's.
+        let (w, h) = (job.camera.width(), job.camera.height());
+        let groups = self.anim.groups();
+        let all_segments = groups.strand_range(0..groups.count()).len().max(1);
+        let share = groups.strand_range(self.groups.clone()).len().max(1);
+        let drawn = self.posed.as_ref().map_or(0, |(_, hair)| hair.segment_count());
+        let band_rows =
+            plan.band_rows_within(Canvas::band_rows_for(w, h, drawn * all_segments / share));
         Ok(BandWork {
             canvas,
             own,
             mine,
             background,
+            band_rows,
             times,
         })
     }

@@ -292,7 +292,7 @@ fn connect_to(workers: Vec<String>) -> viewer::Connect {
         connect_timeout: Duration::from_secs(10),
         tls: None,
         token: None,
-        draw: cluster::DrawAt::Workers,
+        draw: cluster::DrawAt::SortLast,
     };
     Box::new(move |scene: &engine::Scene| {
         let ex = cluster::RemoteExecutor::connect(&workers, scene, &options)

@@ -97,7 +97,7 @@ impl RemoteExecutor {
 
     /// Whether the next Draw is composited on the workers.
     pub(super) fn composites_now(&self) -> bool {
-        self.draw == DrawAt::Workers && self.composite.is_on() && self.workers.len() >= 2
+        self.draw.on_workers() && self.composite.is_on() && self.workers.len() >= 2
     }
 
     /// One Draw round composited on the workers (see [`wire::Bands`]): each
@@ -167,9 +167,11 @@ impl RemoteExecutor {
         let mut requests = Vec::with_capacity(n);
         let mut sent = 0u64;
         for (i, w) in self.workers.iter().enumerate() {
+            let mut plan = engine::BandPlan::dealt(height, BAND_ROWS, n, i);
+            plan.sort = self.draw.sort();
             let bands = wire::Bands {
                 round,
-                plan: engine::BandPlan::dealt(height, BAND_ROWS, n, i),
+                plan,
                 peers: peers.clone(),
                 wait: self.deadline / 2,
                 tls_domain: self.tls_domain.clone(),

@@ -258,7 +258,7 @@ impl RemoteExecutor {
         hair: Option<&Hair>,
         version: Option<u64>,
     ) -> Result<FillStats, ClusterError> {
-        if self.draw == DrawAt::Workers {
+        if self.draw.on_workers() {
             self.ensure_posed()?;
         }
         let id = version.unwrap_or_else(|| {
@@ -407,7 +407,7 @@ impl RemoteExecutor {
         // fit the spans the coordinator sent; `assemble` checks once more.
         let trans = Transmittance::assemble(frame, slabs.iter().cloned())
             .map_err(|e| malformed("workers", e))?;
-        if self.draw == DrawAt::Workers
+        if self.draw.on_workers()
             && let Some(s) = self.swept.get_mut(light)
         {
             *s = Some(Arc::new(SweptMap::of_slabs(frame, slabs)));

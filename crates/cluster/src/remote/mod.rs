@@ -5,7 +5,7 @@
 //! Each live worker owns a contiguous share of the hair's groups (whole
 //! wisps, weighted by their drawn strands) and, per sweep, a contiguous
 //! share of the columns (weighted by their occupied cells). With
-//! [`DrawAt::Workers`] (the default) a worker also poses, filters, shades
+//! [`DrawAt::SortLast`] (the default) a worker also poses, filters, shades
 //! and rasterizes its strands into a partial picture, and the workers
 //! composite the picture among themselves, each resolving bands of rows
 //! it owns from the others' stripes (one worker's, or a round that failed,
@@ -43,14 +43,23 @@ use crate::{ClusterError, Timing, Tls, Traffic, WorkerError, WorkerErrorKind, pb
 /// 15 bands.
 const BAND_ROWS: u32 = 48;
 
-/// Where the drawn hair is posed, filtered, shaded and rasterized.
+/// Where the drawn hair is posed, filtered, shaded and rasterized, and
+/// how the picture is put together (Molnar's classification of parallel
+/// rendering). Every scheme gives the same bytes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum DrawAt {
-    /// On the workers, each its own strands; with two or more, they
-    /// composite the picture among themselves (bands of rows dealt out),
-    /// otherwise the coordinator composites their partial pictures.
+    /// On the workers, each its own strands, each rasterizing them into
+    /// a partial picture; with two or more, each owns bands of rows and
+    /// composites the others' partial pictures of them (sort-last),
+    /// otherwise the coordinator composites.
     #[default]
-    Workers,
+    SortLast,
+    /// On the workers, each its own strands up to their shaded, projected
+    /// segments, sent to the worker that owns the rows they fall in,
+    /// which rasterizes every strand of its rows (sort-middle): each
+    /// pixel's work is done once, and the bytes sent grow with the drawn
+    /// segments. With one worker, as [`DrawAt::SortLast`].
+    SortMiddle,
     /// On the coordinator, every strand (the paper's scheme: workers
     /// simulate, fill and sweep).
     Coordinator,
@@ -60,8 +69,22 @@ impl DrawAt {
     /// The choice's name, as the command line spells it.
     pub fn name(self) -> &'static str {
         match self {
-            DrawAt::Workers => "workers",
+            DrawAt::SortLast => "sort-last",
+            DrawAt::SortMiddle => "sort-middle",
             DrawAt::Coordinator => "coordinator",
+        }
+    }
+
+    /// Whether the workers hold and draw the drawn hair.
+    pub(crate) fn on_workers(self) -> bool {
+        matches!(self, DrawAt::SortLast | DrawAt::SortMiddle)
+    }
+
+    /// What the workers send each other when they draw together.
+    pub(crate) fn sort(self) -> engine::Sort {
+        match self {
+            DrawAt::SortMiddle => engine::Sort::Middle,
+            DrawAt::SortLast | DrawAt::Coordinator => engine::Sort::Last,
         }
     }
 }
@@ -568,7 +591,7 @@ impl Executor for RemoteExecutor {
                 *x = None;
             }
         }
-        if self.draw == DrawAt::Workers
+        if self.draw.on_workers()
             && self.exchange.is_on()
             && self.sweeps_follow
             && version.is_some()
@@ -636,10 +659,7 @@ impl Executor for RemoteExecutor {
     /// (`bench scaling`, curly, 0.4 core a node: 420 ms a frame drawn on
     /// the worker against 288 drawn here, one process 299).
     fn drawing(&mut self) -> Option<&mut dyn Drawing> {
-        match self.draw {
-            DrawAt::Workers if self.workers.len() >= 2 => Some(self),
-            DrawAt::Workers | DrawAt::Coordinator => None,
-        }
+        (self.draw.on_workers() && self.workers.len() >= 2).then_some(self as &mut dyn Drawing)
     }
 }
 

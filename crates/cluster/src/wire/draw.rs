@@ -16,8 +16,10 @@ use super::{
 use crate::pb;
 
 mod picture;
+mod segments;
 
 pub(crate) use picture::*;
+pub(crate) use segments::*;
 
 /// The most lights one scene may have on the wire.
 pub(crate) const MAX_LIGHTS: usize = 64;
@@ -483,6 +485,7 @@ impl Bands {
             sessions: self.peers.iter().map(|p| p.1.clone()).collect(),
             wait_ms: self.wait.as_millis().min(u128::from(u32::MAX)) as u32,
             tls_domain: self.tls_domain.clone().unwrap_or_default(),
+            sort_middle: self.plan.sort == engine::Sort::Middle,
         }
     }
 
@@ -501,6 +504,11 @@ impl Bands {
             cuts: b.cuts.clone(),
             workers: n,
             own: b.own as usize,
+            sort: if b.sort_middle {
+                engine::Sort::Middle
+            } else {
+                engine::Sort::Last
+            },
         };
         plan.check(height).map_err(|e| bad(e.to_string()))?;
         let long = |v: &String| v.is_empty() || v.len() > MAX_ADDR_BYTES;

@@ -45,6 +45,7 @@ impl WorkerService {
                 height,
                 round: bands.round,
                 from: own as u32,
+                sort_middle: bands.plan.sort == engine::Sort::Middle,
                 ..Default::default()
             };
             tx.try_send(header)
@@ -92,7 +93,13 @@ impl WorkerService {
                     let work = on_pool(|| {
                         h.share.draw_band(&job, &maps, &bands.plan, |b, stripe| {
                             let to = senders[b].as_ref().expect("a call for each other worker");
-                            for c in encoders[b].chunks(&stripe) {
+                            let chunks = match &stripe {
+                                engine::Stripe::Layer(l) => encoders[b].chunks(l),
+                                engine::Stripe::Segments(s) => {
+                                    wire::segment_chunks(s, width, height)
+                                }
+                            };
+                            for c in chunks {
                                 stripes_sent += c.encoded_len() as u64;
                                 match send_within(&handle, to, c, bands.wait) {
                                     Ok(()) => {}
@@ -135,13 +142,19 @@ impl WorkerService {
                 let wait_ms = t.elapsed().as_secs_f64() * 1e3;
                 let gathered = match gathered {
                     // Their memory goes as it did: the resolve copies them.
-                    Ok(g) => g.into_iter().map(|(layer, _)| layer).collect(),
+                    Ok(g) => g.into_iter().flat_map(|(stripes, _)| stripes).collect(),
                     Err(e) => {
                         canvas = Some(work.into_canvas());
                         return Err(e.status());
                     }
                 };
-                let (bands_drawn, mut times, done) = work.resolve(gathered);
+                let (bands_drawn, mut times, done) = match work.resolve(gathered) {
+                    Ok(r) => r,
+                    Err((e, done)) => {
+                        canvas = Some(done);
+                        return Err(status(Kind::Invalid, e.to_string()));
+                    }
+                };
                 canvas = Some(done);
                 times.wait_ms = wait_ms;
                 let mut chunks = Vec::new();

@@ -582,20 +582,38 @@ impl Worker for WorkerService {
                     ),
                 ));
             }
-            let mut reader = wire::LayerReader::new(w, h);
             let mut grant = Grant::default();
-            let mut add = |c: &pb::LayerChunk| -> Result<(), Status> {
-                // The fragments take their own bytes again once read.
-                let bytes = u64::from(c.count) * STRIPE_PIXEL_BYTES + 2 * c.fronts.len() as u64;
-                memory.take(&mut grant, bytes, "a Composite call's stripes")?;
-                reader.add(c).map_err(invalid)
+            let stripes = if first.sort_middle {
+                // Shaded segments of this worker's bands (sort-middle).
+                let mut reader = wire::SegmentReader::new(w, h);
+                let mut add = |c: &pb::LayerChunk| -> Result<(), Status> {
+                    // The piece, and the band decoded from it.
+                    let bytes = 2 * c.segments.len() as u64;
+                    memory.take(&mut grant, bytes, "a Composite call's segments")?;
+                    reader.add(c).map_err(invalid)
+                };
+                add(&first)?;
+                while let Some(c) = stream.message().await? {
+                    add(&c)?;
+                }
+                let bands = reader.finish().map_err(invalid)?;
+                bands.into_iter().map(engine::Stripe::Segments).collect()
+            } else {
+                let mut reader = wire::LayerReader::new(w, h);
+                let mut add = |c: &pb::LayerChunk| -> Result<(), Status> {
+                    // The fragments take their own bytes again once read.
+                    let bytes =
+                        u64::from(c.count) * STRIPE_PIXEL_BYTES + 2 * c.fronts.len() as u64;
+                    memory.take(&mut grant, bytes, "a Composite call's stripes")?;
+                    reader.add(c).map_err(invalid)
+                };
+                add(&first)?;
+                while let Some(c) = stream.message().await? {
+                    add(&c)?;
+                }
+                vec![engine::Stripe::Layer(reader.finish().map_err(invalid)?)]
             };
-            add(&first)?;
-            while let Some(c) = stream.message().await? {
-                add(&c)?;
-            }
-            let layer = reader.finish().map_err(invalid)?;
-            session.inbox.deliver(round, from, layer, grant)?;
+            session.inbox.deliver(round, from, stripes, grant)?;
             Ok(Response::new(pb::CompositeReply {}))
         };
         logged(peer, "Composite", served.await)

@@ -36,7 +36,7 @@ pub(super) struct Session {
     /// The session's own memory budget.
     pub(super) memory: Memory,
     /// Other workers' stripes of this worker's band, by Draw round.
-    pub(super) inbox: Arc<Inbox<raster::HairLayer>>,
+    pub(super) inbox: Arc<Inbox<Vec<engine::Stripe>>>,
     /// Other workers' columns, by Density round (twice the round for
     /// density, and one more for swept columns).
     pub(super) exchange: Arc<Inbox<Exchanged>>,

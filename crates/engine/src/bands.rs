@@ -1,0 +1,278 @@
+//! How the workers draw a frame's picture among themselves: its rows cut
+//! in bands, each band owned by one worker ([`BandPlan`]), and what the
+//! others send a band's owner ([`Stripe`]): their partial picture of its
+//! rows (sort-last: every worker rasterizes its own strands) or their
+//! shaded segments of its rows (sort-middle: the owner rasterizes every
+//! strand of its rows, so each pixel's work is done once).
+
+use std::ops::Range;
+use std::time::Instant;
+
+use glam::Vec3;
+use raster::{BandSegments, Canvas, HairLayer};
+
+use crate::EngineError;
+use crate::share::{DrawTimes, ms};
+
+/// How the workers draw a frame's picture among themselves: its rows cut
+/// in bands, dealt out to the workers in turn (band `b` to worker
+/// `b % workers`, so that each gets about as much hair), by direct send.
+/// Each sends what it drew of the others' bands to them ([`Stripe`]),
+/// and resolves its own bands, with the head, from its own hair and what
+/// the others sent.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BandPlan {
+    /// Band `b` is rows `cuts[b]..cuts[b + 1]`: from 0 to the picture's
+    /// height, ascending, each on a multiple of [`Canvas::BAND_ROWS`]
+    /// (but the last).
+    pub cuts: Vec<u32>,
+    /// The workers the bands are dealt to.
+    pub workers: usize,
+    /// This share's worker.
+    pub own: usize,
+    /// What the workers send each other.
+    pub sort: Sort,
+}
+
+/// What the workers send the owner of a band (Molnar's classification of
+/// parallel rendering).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Sort {
+    /// Their partial picture of its rows: exact sums and nearest
+    /// fragments per pixel (each worker rasterizes its own strands).
+    #[default]
+    Last,
+    /// Their shaded segments of its rows: the owner rasterizes every
+    /// strand there, so a pixel's work is done once, and the bytes sent
+    /// grow with the drawn segments, not the pixels they cover.
+    Middle,
+}
+
+impl Sort {
+    /// The name the command line and reports use.
+    pub fn name(self) -> &'static str {
+        match self {
+            Sort::Last => "sort-last",
+            Sort::Middle => "sort-middle",
+        }
+    }
+}
+
+impl BandPlan {
+    /// Bands of `rows` rows (rounded up to whole canvas bands) of a
+    /// picture of `height` rows, dealt to `workers` workers.
+    pub fn dealt(height: u32, rows: u32, workers: usize, own: usize) -> BandPlan {
+        let band = Canvas::BAND_ROWS;
+        let step = rows.max(1).div_ceil(band) * band;
+        let mut cuts: Vec<u32> = (0..height.div_ceil(step)).map(|i| i * step).collect();
+        cuts.push(height);
+        BandPlan {
+            cuts,
+            workers,
+            own,
+            sort: Sort::Last,
+        }
+    }
+
+    /// Rows of band `b`.
+    pub fn rows(&self, b: usize) -> Range<u32> {
+        self.cuts[b]..self.cuts[b + 1]
+    }
+
+    /// Bands.
+    pub fn bands(&self) -> usize {
+        self.cuts.len().saturating_sub(1)
+    }
+
+    /// The worker band `b` belongs to.
+    pub fn owner(&self, b: usize) -> usize {
+        b % self.workers.max(1)
+    }
+
+    /// The rows of each band of worker `w`, top to bottom.
+    pub fn rows_of(&self, w: usize) -> Vec<Range<u32>> {
+        (0..self.bands())
+            .filter(|&b| self.owner(b) == w)
+            .map(|b| self.rows(b))
+            .collect()
+    }
+
+    /// Whether row `row` lies in one of this share's bands.
+    pub fn owns_row(&self, row: u32) -> bool {
+        let b = self.cuts.partition_point(|&c| c <= row);
+        b >= 1 && b < self.cuts.len() && self.owner(b - 1) == self.own
+    }
+
+    /// The most rows, at most `rows`, of canvas bands that cut this plan's
+    /// bands whole ([`Canvas::set_band_rows`]).
+    pub fn band_rows_within(&self, rows: u32) -> u32 {
+        let step = Canvas::BAND_ROWS;
+        let divides = |r: u32| {
+            self.cuts[..self.cuts.len().saturating_sub(1)]
+                .iter()
+                .all(|c| c.is_multiple_of(r))
+        };
+        (1..=rows / step)
+            .rev()
+            .map(|m| m * step)
+            .find(|&r| divides(r))
+            .unwrap_or(step)
+    }
+
+    /// Checks the plan against a picture of `height` rows.
+    pub fn check(&self, height: u32) -> Result<(), EngineError> {
+        let band = Canvas::BAND_ROWS;
+        let ok = self.cuts.len() >= 2
+            && self.own < self.workers
+            && self.cuts.first() == Some(&0)
+            && self.cuts.last() == Some(&height)
+            && self.cuts.windows(2).all(|w| w[0] < w[1])
+            && self.cuts[..self.cuts.len() - 1]
+                .iter()
+                .all(|c| c.is_multiple_of(band));
+        if ok {
+            Ok(())
+        } else {
+            Err(EngineError::executor(format!(
+                "bands {:?} (worker {} of {}) do not cut a picture of {height} rows in whole bands of {band}",
+                self.cuts, self.own, self.workers
+            )))
+        }
+    }
+}
+
+/// What a worker sends the owner of a band: see [`Sort`].
+#[derive(Debug, Clone, PartialEq)]
+pub enum Stripe {
+    /// A partial picture of the band's rows.
+    Layer(HairLayer),
+    /// Shaded segments of the band's rows.
+    Segments(BandSegments),
+}
+
+/// What a share drew of its own bands, waiting for the others'.
+#[derive(Debug)]
+pub(crate) enum Own {
+    /// Its partial picture of them.
+    Layer(Option<HairLayer>),
+    /// Its segments of each.
+    Segments(Vec<BandSegments>),
+}
+
+/// A share's bands of a picture drawn on the workers, rasterized (sort-last)
+/// or binned (sort-middle) and waiting for what the other workers send
+/// (see [`crate::Share::draw_band`]).
+#[derive(Debug)]
+pub struct BandWork {
+    pub(crate) canvas: Canvas,
+    pub(crate) own: Vec<Range<u32>>,
+    /// This share's own hair in its bands.
+    pub(crate) mine: Own,
+    pub(crate) background: Vec3,
+    /// The band rows that draw every strand of the bands fastest.
+    pub(crate) band_rows: u32,
+    /// The times so far: filter, shade, raster.
+    pub times: DrawTimes,
+}
+
+impl BandWork {
+    /// The canvas alone, when the work is given up.
+    pub fn into_canvas(self) -> Canvas {
+        self.canvas
+    }
+
+    /// The other shares' stripes of this share's bands, `others`, added to
+    /// its own hair over the head: each band, top to bottom, as its rows
+    /// and their finished 8-bit sRGB pixels (the same bytes as those rows
+    /// of the whole picture drawn in one process); the times, and the
+    /// canvas, to give back to the share. Refuses stripes of another kind
+    /// than the plan's, of rows that are not this share's bands, or that
+    /// bring one group of strands twice to a band.
+    #[allow(clippy::type_complexity)]
+    pub fn resolve(
+        self,
+        others: Vec<Stripe>,
+    ) -> Result<(Vec<(Range<u32>, Vec<u8>)>, DrawTimes, Canvas), (EngineError, Canvas)> {
+        let t = Instant::now();
+        let BandWork {
+            mut canvas,
+            own,
+            mine,
+            background,
+            band_rows,
+            mut times,
+        } = self;
+        let wrong = |what: &str| EngineError::executor(format!("a band's stripes: {what}"));
+        let layers = match mine {
+            Own::Layer(mine) => {
+                let mut layers = Vec::with_capacity(others.len() + 1);
+                for s in others {
+                    match s {
+                        Stripe::Layer(l) => layers.push(l),
+                        Stripe::Segments(_) => {
+                            return Err((wrong("segments in a sort-last round"), canvas));
+                        }
+                    }
+                }
+                layers.extend(mine);
+                Some(layers)
+            }
+            Own::Segments(mine) => {
+                let mut all = mine;
+                for s in others {
+                    match s {
+                        Stripe::Segments(s) => all.push(s),
+                        Stripe::Layer(_) => {
+                            return Err((wrong("a partial picture in a sort-middle round"), canvas));
+                        }
+                    }
+                }
+                if let Err(e) = check_segments(&all, &own) {
+                    return Err((wrong(&e), canvas));
+                }
+                // Every strand of the bands drawn here, group after group.
+                all.sort_by_key(|s| (s.first_group(), s.rows().start));
+                canvas.clear_hair();
+                canvas.set_band_rows(band_rows);
+                for s in &all {
+                    if let Err(e) = canvas.draw_segments(s) {
+                        return Err((EngineError::from(e), canvas));
+                    }
+                }
+                None
+            }
+        };
+        let out = own
+            .into_iter()
+            .map(|rows| {
+                let rgb = match &layers {
+                    Some(layers) => canvas.resolve_layer_rows(background, layers, rows.clone()),
+                    None => canvas.resolve_rows(background, &[], rows.clone()),
+                };
+                (rows, rgb)
+            })
+            .collect();
+        times.composite_ms = ms(t);
+        Ok((out, times, canvas))
+    }
+}
+
+/// Checks that segments `all` are of rows `own` alone, each group of
+/// strands at most once per band.
+fn check_segments(all: &[BandSegments], own: &[Range<u32>]) -> Result<(), String> {
+    for rows in own {
+        let mut groups: Vec<(u32, u32)> = all
+            .iter()
+            .filter(|s| s.rows() == *rows)
+            .filter_map(|s| Some((s.first_group()?, s.last_group()?)))
+            .collect();
+        groups.sort_unstable();
+        if groups.windows(2).any(|g| g[1].0 <= g[0].1) {
+            return Err(format!("groups of strands come twice to rows {rows:?}"));
+        }
+    }
+    match all.iter().find(|s| !own.contains(&s.rows())) {
+        Some(s) => Err(format!("segments of rows {:?}, not a band of this worker", s.rows())),
+        None => Ok(()),
+    }
+}
