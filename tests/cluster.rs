@@ -126,11 +126,14 @@ fn three_workers_render_the_same_bytes_as_one_process_and_stop_on_sigterm() {
     let workers: Vec<Worker> = (0..3).map(|_| Worker::start()).collect();
     let list = addr_list(&workers);
 
-    // A still (frame 0) and a short animation, drawn on the workers (the
-    // default) and on the coordinator (the paper's scheme).
+    // A still (frame 0) and a short animation, drawn on the workers
+    // (`auto`, the default, sort-middle and sort-last) and on the
+    // coordinator (the paper's scheme).
     for (frames, name, draw) in [
-        ("1", "still_%d.png", "workers"),
-        ("3", "anim_%d.png", "workers"),
+        ("1", "still_%d.png", "auto"),
+        ("3", "anim_%d.png", "auto"),
+        ("3", "middle_%d.png", "sort-middle"),
+        ("3", "last_%d.png", "sort-last"),
         ("3", "paper_%d.png", "coordinator"),
     ] {
         let local = dir.join(format!("local_{name}"));
@@ -375,7 +378,23 @@ fn bench_scaling_reports_every_configuration_and_writes_its_plot() {
         // density and sweeps the map itself; two sum and sweep the maps
         // among themselves, composite the picture, and send finished
         // bands.
-        assert_eq!(c["draw"], "workers");
+        assert_eq!(c["draw"], "auto");
+        // Auto measures each sort twice before it chooses: the two timed
+        // frames of two workers are both sort-last (sort-middle had the
+        // two untimed ones); one worker leaves the drawing to the
+        // coordinator.
+        let rounds = (
+            c["rounds_sort_middle"].as_u64(),
+            c["rounds_sort_last"].as_u64(),
+        );
+        assert_eq!(
+            rounds,
+            if k == 1 {
+                (Some(0), Some(0))
+            } else {
+                (Some(0), Some(2))
+            }
+        );
         let (drawn, none): (&[&str], &[&str]) = if k == 1 {
             // The coordinator sweeps and draws: no column goes out, no
             // slab or picture comes back.

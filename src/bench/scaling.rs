@@ -26,14 +26,19 @@ pub struct ScalingArgs {
     #[arg(long, default_value_t = 10, value_name = "N",
           value_parser = clap::value_parser!(u64).range(1..=10_000))]
     frames: u64,
-    /// Where the hair is drawn, comma-separated: `workers` (each worker
-    /// its own strands, the workers composite), `coordinator` (the
-    /// paper's scheme: the coordinator draws every strand), or both.
+    /// How the hair is drawn, comma-separated, each measured in turn:
+    /// `auto` (sort-middle or sort-last, chosen frame by frame by their
+    /// measured cost; the report says which it took and why),
+    /// `sort-middle` (each worker shades its strands and sends their
+    /// segments to the worker that owns their rows, which rasterizes
+    /// them), `sort-last` (each worker rasterizes its strands, the
+    /// workers composite their partial pictures), `coordinator` (the
+    /// paper's scheme: the coordinator draws every strand).
     #[arg(
         long,
         value_delimiter = ',',
-        default_value = "workers",
-        value_name = "WHERE,..."
+        default_value = "auto",
+        value_name = "SCHEME,..."
     )]
     draw: Vec<crate::cmd::cluster::Draw>,
     /// The plot of median frame times (PNG, and the same chart as SVG
@@ -200,6 +205,11 @@ struct Row {
     worker_cpu_ms: Vec<Option<f64>>,
     /// The mean of the timed frames, ms: what the CPU times are shares of.
     mean_frame_ms: f64,
+    /// Draw rounds on the workers of each sort (sort-middle, sort-last)
+    /// over the timed frames, and what `auto` estimated a round of each
+    /// to cost at the end, ms.
+    rounds: [u32; 2],
+    round_estimate_ms: [f64; 2],
 }
 
 impl Row {
@@ -226,6 +236,8 @@ impl Row {
             cpu_ms: None,
             worker_cpu_ms: Vec::new(),
             mean_frame_ms: frame_ms,
+            rounds: [0; 2],
+            round_estimate_ms: [0.0; 2],
         }
     }
 }
@@ -321,8 +333,10 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
             let mut frames_traffic = Vec::new();
             let mut identical = true;
             let (mut cpu0, mut worker_cpu0) = (None, Vec::new());
+            let mut rounds0 = [0; 2];
             for f in 0..total {
                 if f == warm {
+                    rounds0 = lock(&timing)?.rounds;
                     cpu0 = cpu_ms("self");
                     worker_cpu0 = procs.iter().map(WorkerProcess::cpu_ms).collect();
                 }
@@ -358,6 +372,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
                 }
                 bar.inc(1);
             }
+            let end = *lock(&timing)?;
             let mean_ms = v[0].iter().sum::<f64>() / v[0].len() as f64;
             let m: Vec<f64> = v.iter_mut().map(|x| median(x)).collect();
             frames_traffic.sort_by_key(cluster::Traffic::total);
@@ -369,7 +384,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
                 label: format!(
                     "{k} worker{}{}",
                     if k == 1 { "" } else { "s" },
-                    if schemes.len() > 1 || draw != cluster::DrawAt::SortLast {
+                    if schemes.len() > 1 || draw != cluster::DrawAt::Auto {
                         format!(", {} draws", draw.name())
                     } else {
                         String::new()
@@ -399,6 +414,8 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
                     .map(|(p, &c0)| per_frame(c0, p.cpu_ms(), a.frames))
                     .collect(),
                 mean_frame_ms: mean_ms,
+                rounds: [0, 1].map(|i| end.rounds[i] - rounds0[i]),
+                round_estimate_ms: end.round_estimate_ms,
             });
         }
     }
@@ -489,6 +506,23 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
             }
         );
     }
+    // How each configuration drew its timed frames, and why auto chose so.
+    for r in rows.iter().skip(1) {
+        let [middle, last] = r.rounds;
+        let how = if middle + last == 0 {
+            "every frame drawn on the coordinator (one worker, or the paper's scheme)".to_string()
+        } else {
+            format!("sort-middle in {middle} frames, sort-last in {last}")
+        };
+        let why = match (r.draw, r.round_estimate_ms) {
+            (Some(cluster::DrawAt::Auto), [m, l]) if m > 0.0 && l > 0.0 => format!(
+                "; auto's estimate of a frame's drawing on the workers (the least of the last three measured, the slowest worker's Draw): sort-middle {m:.1} ms, sort-last {l:.1} ms, so {}",
+                if m <= l { "sort-middle" } else { "sort-last" }
+            ),
+            _ => String::new(),
+        };
+        eprintln!("bench scaling: {}, drawn: {how}{why}", r.label);
+    }
     for r in rows.iter().skip(1) {
         eprintln!(
             "bench scaling: {}, bytes of the median frame: {}",
@@ -507,13 +541,15 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
         );
     }
     // Short labels that fit under a bar: "1 proc", and the worker count
-    // with L (sort-last), M (sort-middle) or C (the coordinator draws).
+    // with A (auto), L (sort-last), M (sort-middle) or C (the coordinator
+    // draws).
     let labels: Vec<String> = rows
         .iter()
         .map(|r| match r.draw {
             None => "1 proc".to_string(),
             Some(cluster::DrawAt::SortLast) => format!("{} L", r.workers),
             Some(cluster::DrawAt::SortMiddle) => format!("{} M", r.workers),
+            Some(cluster::DrawAt::Auto) => format!("{} A", r.workers),
             Some(cluster::DrawAt::Coordinator) => format!("{} C", r.workers),
         })
         .collect();
@@ -594,6 +630,12 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
                     "swept_between_workers": r.wire.swept_between_workers,
                 },
                 "identical": r.identical,
+                "rounds_sort_middle": r.rounds[0],
+                "rounds_sort_last": r.rounds[1],
+                "round_estimate_ms": {
+                    "sort_middle": r.round_estimate_ms[0],
+                    "sort_last": r.round_estimate_ms[1],
+                },
             })).collect::<Vec<_>>(),
         });
         println!("{j}");

@@ -179,6 +179,9 @@ pub fn worker(args: WorkerArgs) -> anyhow::Result<()> {
 /// `--draw`: where the drawn hair is drawn.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum Draw {
+    /// Sort-middle or sort-last, chosen frame by frame by what each cost
+    /// the frames before; with one worker, the coordinator draws.
+    Auto,
     /// Each worker rasterizes its own strands; the workers composite
     /// their partial pictures, each its own bands of rows.
     #[value(alias = "workers")]
@@ -193,6 +196,7 @@ pub enum Draw {
 impl From<Draw> for cluster::DrawAt {
     fn from(d: Draw) -> cluster::DrawAt {
         match d {
+            Draw::Auto => cluster::DrawAt::Auto,
             Draw::SortLast => cluster::DrawAt::SortLast,
             Draw::SortMiddle => cluster::DrawAt::SortMiddle,
             Draw::Coordinator => cluster::DrawAt::Coordinator,
@@ -232,7 +236,7 @@ pub struct CoordinatorArgs {
     /// addresses given) or `coordinator` (the paper's scheme: workers
     /// simulate, fill and sweep, the coordinator draws every strand).
     /// The pictures are the same bytes either way.
-    #[arg(long, value_enum, default_value_t = Draw::SortLast, value_name = "WHERE")]
+    #[arg(long, value_enum, default_value_t = Draw::Auto, value_name = "WHERE")]
     draw: Draw,
     #[command(flatten)]
     tls: ClientTlsArgs,

@@ -56,7 +56,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             connect_timeout: Duration::from_secs_f64(args.connect_timeout),
             tls: args.tls.load()?,
             token: args.token.load()?,
-            draw: cluster::DrawAt::SortLast,
+            draw: cluster::DrawAt::default(),
         };
         let workers = args.workers.clone();
         Some(Box::new(move |scene: &engine::Scene| {

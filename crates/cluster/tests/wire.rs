@@ -422,7 +422,7 @@ fn a_worker_answers_health_checks_for_itself_and_the_server() {
 fn three_workers_give_the_local_animation_byte_for_byte_drawing_anywhere() {
     let scene = Scene::from_toml_str(DANCE, std::path::Path::new("dance.toml")).unwrap();
     let want = local_frames(&scene, 4);
-    for draw in [DrawAt::SortLast, DrawAt::Coordinator] {
+    for draw in [DrawAt::SortLast, DrawAt::SortMiddle, DrawAt::Coordinator] {
         let addrs: Vec<String> = (0..3).map(|_| start_worker().to_string()).collect();
         let remote = RemoteExecutor::connect(&addrs, &scene, &options(draw, 20)).unwrap();
         let (traffic, timing) = (remote.traffic(), remote.timing());
@@ -450,9 +450,9 @@ fn three_workers_give_the_local_animation_byte_for_byte_drawing_anywhere() {
         assert!(t.strands_sent <= 3 * 3 * 400, "{t:?}");
         assert_eq!(t.assign_sent, 0, "assigned once: {t:?}");
         // Drawing on the workers, they composite among themselves: their
-        // stripes go to each other and finished bands come back, no
-        // partial picture.
-        let on_workers = draw == DrawAt::SortLast;
+        // stripes (partial pictures or segments) go to each other and
+        // finished bands come back, no partial picture.
+        let on_workers = draw != DrawAt::Coordinator;
         assert_eq!(t.layers_received, 0, "{t:?}");
         assert_eq!(t.stripes_between_workers > 0, on_workers, "{t:?}");
         assert_eq!(t.bands_received > 0, on_workers, "{t:?}");
@@ -546,9 +546,11 @@ fn simplified_thin_hair_drawn_on_three_workers_is_the_local_animation() {
         want[2] != local_frames(&thin("0"), 3)[2],
         "simplified, the picture changes"
     );
-    let addrs: Vec<String> = (0..3).map(|_| start_worker().to_string()).collect();
-    let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::SortLast, 20)).unwrap();
-    assert_frames(&scene, remote, &want);
+    for draw in [DrawAt::SortLast, DrawAt::SortMiddle] {
+        let addrs: Vec<String> = (0..3).map(|_| start_worker().to_string()).collect();
+        let remote = RemoteExecutor::connect(&addrs, &scene, &options(draw, 20)).unwrap();
+        assert_frames(&scene, remote, &want);
+    }
 }
 
 #[test]
@@ -571,7 +573,12 @@ fn rigid_hair_drawn_on_workers_is_the_local_animation() {
 fn a_worker_lost_mid_animation_hands_its_work_to_the_survivors() {
     let scene = Scene::from_toml_str(DANCE, std::path::Path::new("dance.toml")).unwrap();
     let want = local_frames(&scene, 6);
-    for draw in [DrawAt::SortLast, DrawAt::Coordinator] {
+    for draw in [
+        DrawAt::Auto,
+        DrawAt::SortLast,
+        DrawAt::SortMiddle,
+        DrawAt::Coordinator,
+    ] {
         let (a, _keep_a) = start_stoppable_worker();
         let (b, stop_b) = start_stoppable_worker();
         let (c, _keep_c) = start_stoppable_worker();

@@ -223,7 +223,10 @@ impl BandWork {
                     match s {
                         Stripe::Segments(s) => all.push(s),
                         Stripe::Layer(_) => {
-                            return Err((wrong("a partial picture in a sort-middle round"), canvas));
+                            return Err((
+                                wrong("a partial picture in a sort-middle round"),
+                                canvas,
+                            ));
                         }
                     }
                 }
@@ -272,7 +275,10 @@ fn check_segments(all: &[BandSegments], own: &[Range<u32>]) -> Result<(), String
         }
     }
     match all.iter().find(|s| !own.contains(&s.rows())) {
-        Some(s) => Err(format!("segments of rows {:?}, not a band of this worker", s.rows())),
+        Some(s) => Err(format!(
+            "segments of rows {:?}, not a band of this worker",
+            s.rows()
+        )),
         None => Ok(()),
     }
 }

@@ -33,6 +33,7 @@ mod share;
 mod stats;
 
 pub use animate::{Animator, GROUPS, Groups, split_by};
+pub use bands::{BandPlan, BandWork, Sort, Stripe};
 pub use exec::{
     DrawJob, DrawReport, Drawing, Drawn, Executor, LocalExecutor, PendingPicture, PosePlan,
     PoseReport, StepPlan, Strands, step_wisps, step_wisps_while,
@@ -49,7 +50,6 @@ pub use scene::{
     HeadMesh, HeadSettings, Placement, RenderSettings, Scene, SceneError, SceneSource,
     ShadowSettings,
 };
-pub use bands::{BandPlan, BandWork, Sort, Stripe};
 pub use share::{DrawTimes, Share};
 pub use stats::{FrameStats, Stage, StageRecord};
 

@@ -22,7 +22,8 @@ mod shade;
 
 pub use camera::Camera;
 pub use canvas::{
-    BandSegments, Canvas, Fragment, HairLayer, HairLook, MAX_NEAREST, MAX_PIXELS, Sphere, Sums, to_srgb8,
+    BandSegments, Canvas, Fragment, HairLayer, HairLook, MAX_NEAREST, MAX_PIXELS, Sphere, Sums,
+    to_srgb8,
 };
 pub use fiber::{
     Chiang, DENSITY_BACK, DENSITY_FORWARD, DualTable, FarField, FiberOptics, FiberTable, MAX_DEPTH,

@@ -164,11 +164,21 @@ impl RemoteExecutor {
         }
         let mut pb_job = wire::job_to_pb(job);
         pb_job.exchanged = exchanged;
+        // The one place a round's sort is decided.
+        let sort = match self.draw.sort() {
+            Some(sort) => sort,
+            None => self
+                .chooser
+                .lock()
+                .map(|mut c| c.next())
+                .unwrap_or(engine::Sort::Middle),
+        };
+        let auto = self.draw.sort().is_none();
         let mut requests = Vec::with_capacity(n);
         let mut sent = 0u64;
         for (i, w) in self.workers.iter().enumerate() {
             let mut plan = engine::BandPlan::dealt(height, BAND_ROWS, n, i);
-            plan.sort = self.draw.sort();
+            plan.sort = sort;
             let bands = wire::Bands {
                 round,
                 plan,
@@ -279,6 +289,8 @@ impl RemoteExecutor {
             height,
             traffic: self.traffic.clone(),
             timing: self.timing.clone(),
+            sort,
+            chooser: auto.then(|| self.chooser.clone()),
         };
         if words.iter().any(Option::is_none) {
             let e = round.finish().err().unwrap_or_else(|| {
@@ -403,6 +415,10 @@ pub(super) struct BandRound {
     pub(super) height: u32,
     pub(super) traffic: Arc<Mutex<Traffic>>,
     pub(super) timing: Arc<Mutex<Timing>>,
+    /// The round's sort.
+    pub(super) sort: engine::Sort,
+    /// Where its cost goes, with `--draw auto`.
+    pub(super) chooser: Option<Arc<Mutex<Chooser>>>,
 }
 
 impl BandRound {
@@ -427,6 +443,8 @@ impl BandRound {
         let mut img = image::RgbImage::new(self.width, self.height);
         let (mut received, mut stripes) = (0u64, 0u64);
         let (mut wait, mut composite) = (0.0f64, 0.0f64);
+        // The round's cost: the slowest worker's Draw.
+        let mut cost = 0.0f64;
         let mut first_error = None;
         for r in replies {
             match r {
@@ -441,6 +459,9 @@ impl BandRound {
                     stripes += reply.stripes;
                     wait = wait.max(reply.times.wait_ms);
                     composite = composite.max(reply.times.composite_ms);
+                    let t = &reply.times;
+                    cost = cost
+                        .max(t.filter_ms + t.shade_ms + t.raster_ms + t.wait_ms + t.composite_ms);
                 }
                 Err(e) => {
                     if first_error
@@ -459,9 +480,22 @@ impl BandRound {
         if let Some(e) = first_error {
             return Err(e);
         }
+        let sort = match self.sort {
+            engine::Sort::Middle => 0,
+            engine::Sort::Last => 1,
+        };
+        let estimates = self.chooser.and_then(|c| {
+            let mut c = c.lock().ok()?;
+            c.measured(self.sort, cost);
+            Some([engine::Sort::Middle, engine::Sort::Last].map(|s| c.estimate(s).unwrap_or(0.0)))
+        });
         if let Ok(mut t) = self.timing.lock() {
             t.band_wait_ms += wait;
             t.band_composite_ms += composite;
+            t.rounds[sort] += 1;
+            if let Some(e) = estimates {
+                t.round_estimate_ms = e;
+            }
         }
         Ok(img)
     }

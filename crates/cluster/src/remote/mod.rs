@@ -16,10 +16,12 @@
 //! state the coordinator gathered last, they pose it again, and the stage
 //! runs again, so the frame comes out the same.
 
+mod choose;
 mod draw;
 mod fill;
 mod step;
 
+use choose::Chooser;
 use draw::*;
 
 use std::ops::Range;
@@ -48,11 +50,16 @@ const BAND_ROWS: u32 = 48;
 /// rendering). Every scheme gives the same bytes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum DrawAt {
+    /// On the workers, sort-middle or sort-last, chosen round by round by
+    /// what the rounds before cost (each is measured twice first, then the
+    /// cheaper taken, the other measured again every 16 rounds); with one
+    /// worker, on the coordinator.
+    #[default]
+    Auto,
     /// On the workers, each its own strands, each rasterizing them into
     /// a partial picture; with two or more, each owns bands of rows and
     /// composites the others' partial pictures of them (sort-last),
-    /// otherwise the coordinator composites.
-    #[default]
+    /// with one the coordinator draws.
     SortLast,
     /// On the workers, each its own strands up to their shaded, projected
     /// segments, sent to the worker that owns the rows they fall in,
@@ -69,6 +76,7 @@ impl DrawAt {
     /// The choice's name, as the command line spells it.
     pub fn name(self) -> &'static str {
         match self {
+            DrawAt::Auto => "auto",
             DrawAt::SortLast => "sort-last",
             DrawAt::SortMiddle => "sort-middle",
             DrawAt::Coordinator => "coordinator",
@@ -77,14 +85,16 @@ impl DrawAt {
 
     /// Whether the workers hold and draw the drawn hair.
     pub(crate) fn on_workers(self) -> bool {
-        matches!(self, DrawAt::SortLast | DrawAt::SortMiddle)
+        !matches!(self, DrawAt::Coordinator)
     }
 
-    /// What the workers send each other when they draw together.
-    pub(crate) fn sort(self) -> engine::Sort {
+    /// What the workers send each other when they draw together, when
+    /// the choice says (not [`DrawAt::Auto`]).
+    pub(crate) fn sort(self) -> Option<engine::Sort> {
         match self {
-            DrawAt::SortMiddle => engine::Sort::Middle,
-            DrawAt::SortLast | DrawAt::Coordinator => engine::Sort::Last,
+            DrawAt::SortMiddle => Some(engine::Sort::Middle),
+            DrawAt::SortLast => Some(engine::Sort::Last),
+            DrawAt::Auto | DrawAt::Coordinator => None,
         }
     }
 }
@@ -179,6 +189,8 @@ pub struct RemoteExecutor {
     failure: Arc<Mutex<Option<ClusterError>>>,
     /// What the workers held when they drew the picture left to finish.
     drawn: Option<Snapshot>,
+    /// With [`DrawAt::Auto`], what the Draw rounds cost, per sort.
+    chooser: Arc<Mutex<Chooser>>,
 }
 
 /// A step the workers take among themselves (compositing the picture,
@@ -380,6 +392,7 @@ impl RemoteExecutor {
                 .and_then(|t| t.domain().map(str::to_string)),
             failure: Arc::default(),
             drawn: None,
+            chooser: Arc::default(),
             source: scene.source,
             hair: None,
             shares: None,

@@ -602,8 +602,7 @@ impl Worker for WorkerService {
                 let mut reader = wire::LayerReader::new(w, h);
                 let mut add = |c: &pb::LayerChunk| -> Result<(), Status> {
                     // The fragments take their own bytes again once read.
-                    let bytes =
-                        u64::from(c.count) * STRIPE_PIXEL_BYTES + 2 * c.fronts.len() as u64;
+                    let bytes = u64::from(c.count) * STRIPE_PIXEL_BYTES + 2 * c.fronts.len() as u64;
                     memory.take(&mut grant, bytes, "a Composite call's stripes")?;
                     reader.add(c).map_err(invalid)
                 };

@@ -166,9 +166,7 @@ impl BandSegments {
         let mut r = Reader { bytes, at: 0 };
         let rows = r.u32()?..r.u32()?;
         if rows.start >= rows.end || rows.end > height {
-            return Err(bad(format!(
-                "rows {rows:?} of a picture of {height} rows"
-            )));
+            return Err(bad(format!("rows {rows:?} of a picture of {height} rows")));
         }
         let n_looks = r.u32()? as usize;
         if n_looks > MAX_LOOKS || n_looks * LOOK_BYTES > r.left() {
@@ -202,7 +200,10 @@ impl BandSegments {
         for _ in 0..n_groups {
             let id = r.u32()?;
             if out.last_group().is_some_and(|last| id <= last) {
-                return Err(bad(format!("group {id} after group {:?}", out.last_group())));
+                return Err(bad(format!(
+                    "group {id} after group {:?}",
+                    out.last_group()
+                )));
             }
             let n_runs = r.u32()? as usize;
             if n_runs * (8 + 2 * VERTEX_BYTES) > r.left() {

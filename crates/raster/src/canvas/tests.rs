@@ -248,7 +248,11 @@ fn sort_middle_gives_the_same_bytes(nearest: usize, simplify: f32) {
             let t = k as f32 / 6.0;
             // Curls, so that strands leave and re-enter bands.
             let curl = (6.0 * t + f).sin() * 0.4;
-            pts.push(Vec3::new(-2.5 + f + curl, 2.4 - 4.8 * t, 1.5 - f * 0.5 + curl));
+            pts.push(Vec3::new(
+                -2.5 + f + curl,
+                2.4 - 4.8 * t,
+                1.5 - f * 0.5 + curl,
+            ));
             cols.push(Vec3::new(0.2 + f / 8.0, 0.3 * t, 0.5));
         }
         offsets.push(pts.len() as u32);
@@ -277,8 +281,19 @@ fn sort_middle_gives_the_same_bytes(nearest: usize, simplify: f32) {
         let (s0, s1) = (groups[gs.start], groups[gs.end]);
         let (p0, p1) = (offsets[s0] as usize, offsets[s1] as usize);
         let off: Vec<u32> = offsets[s0..=s1].iter().map(|&o| o - p0 as u32).collect();
-        let g: Vec<u32> = groups[gs.start..=gs.end].iter().map(|&b| (b - s0) as u32).collect();
-        c.draw_hair(&cam, &pts[p0..p1], &off, &cols[p0..p1], &look, &g, s0 as u32);
+        let g: Vec<u32> = groups[gs.start..=gs.end]
+            .iter()
+            .map(|&b| (b - s0) as u32)
+            .collect();
+        c.draw_hair(
+            &cam,
+            &pts[p0..p1],
+            &off,
+            &cols[p0..p1],
+            &look,
+            &g,
+            s0 as u32,
+        );
         c
     };
     let bg = Vec3::splat(0.05);
@@ -320,7 +335,8 @@ fn sort_middle_gives_the_same_bytes(nearest: usize, simplify: f32) {
                 owner.draw_segments(s).unwrap();
             }
             let got = owner.resolve_rows(bg, &[], rows.clone());
-            let want = &whole[rows.start as usize * 3 * w as usize..rows.end as usize * 3 * w as usize];
+            let want =
+                &whole[rows.start as usize * 3 * w as usize..rows.end as usize * 3 * w as usize];
             assert!(
                 got == want,
                 "groups cut at {cuts:?}, rows {rows:?}, {nearest} nearest, simplify {simplify}"
@@ -335,10 +351,15 @@ fn sort_middle_gives_the_same_bytes(nearest: usize, simplify: f32) {
         let mut owner = with_head(16);
         for rows in [48..72u32, 0..48] {
             for (c, g) in shares.iter().zip(cuts.windows(2)) {
-                owner.draw_segments(&c.segments_rows(rows.clone(), g[0] as u32)).unwrap();
+                owner
+                    .draw_segments(&c.segments_rows(rows.clone(), g[0] as u32))
+                    .unwrap();
             }
         }
-        assert!(owner.resolve_rows(bg, &[], 0..72) == whole, "{cuts:?}, two ranges");
+        assert!(
+            owner.resolve_rows(bg, &[], 0..72) == whole,
+            "{cuts:?}, two ranges"
+        );
     }
 }
 
@@ -346,7 +367,11 @@ fn sort_middle_gives_the_same_bytes(nearest: usize, simplify: f32) {
 fn malformed_segments_are_refused_without_a_panic() {
     let cam = Camera::new(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, 40.0, 32, 32).unwrap();
     let mut c = Canvas::new(32, 32).unwrap();
-    let pts = [Vec3::new(-1.0, -1.0, 0.0), Vec3::ZERO, Vec3::new(1.0, 1.2, 0.0)];
+    let pts = [
+        Vec3::new(-1.0, -1.0, 0.0),
+        Vec3::ZERO,
+        Vec3::new(1.0, 1.2, 0.0),
+    ];
     let look = HairLook {
         fiber_width: 0.05,
         opacity: 0.6,

@@ -75,8 +75,8 @@ impl SegmentReader {
         }
         self.pending.extend_from_slice(&c.segments);
         if c.segments_end {
-            let band = BandSegments::decode(&self.pending, self.height)
-                .map_err(|e| bad(e.to_string()))?;
+            let band =
+                BandSegments::decode(&self.pending, self.height).map_err(|e| bad(e.to_string()))?;
             self.pending.clear();
             self.bands.push(band);
         }
