@@ -185,14 +185,17 @@ impl BandWork {
     /// its own hair over the head: each band, top to bottom, as its rows
     /// and their finished 8-bit sRGB pixels (the same bytes as those rows
     /// of the whole picture drawn in one process); the times, and the
-    /// canvas, to give back to the share. Refuses stripes of another kind
+    /// canvas, to give back to the share (whatever the outcome). Refuses stripes of another kind
     /// than the plan's, of rows that are not this share's bands, or that
     /// bring one group of strands twice to a band.
     #[allow(clippy::type_complexity)]
     pub fn resolve(
         self,
         others: Vec<Stripe>,
-    ) -> Result<(Vec<(Range<u32>, Vec<u8>)>, DrawTimes, Canvas), (EngineError, Canvas)> {
+    ) -> (
+        Result<(Vec<(Range<u32>, Vec<u8>)>, DrawTimes), EngineError>,
+        Canvas,
+    ) {
         let t = Instant::now();
         let BandWork {
             mut canvas,
@@ -210,7 +213,7 @@ impl BandWork {
                     match s {
                         Stripe::Layer(l) => layers.push(l),
                         Stripe::Segments(_) => {
-                            return Err((wrong("segments in a sort-last round"), canvas));
+                            return (Err(wrong("segments in a sort-last round")), canvas);
                         }
                     }
                 }
@@ -223,15 +226,15 @@ impl BandWork {
                     match s {
                         Stripe::Segments(s) => all.push(s),
                         Stripe::Layer(_) => {
-                            return Err((
-                                wrong("a partial picture in a sort-middle round"),
+                            return (
+                                Err(wrong("a partial picture in a sort-middle round")),
                                 canvas,
-                            ));
+                            );
                         }
                     }
                 }
                 if let Err(e) = check_segments(&all, &own) {
-                    return Err((wrong(&e), canvas));
+                    return (Err(wrong(&e)), canvas);
                 }
                 // Every strand of the bands drawn here, group after group.
                 all.sort_by_key(|s| (s.first_group(), s.rows().start));
@@ -239,7 +242,7 @@ impl BandWork {
                 canvas.set_band_rows(band_rows);
                 for s in &all {
                     if let Err(e) = canvas.draw_segments(s) {
-                        return Err((EngineError::from(e), canvas));
+                        return (Err(EngineError::from(e)), canvas);
                     }
                 }
                 None
@@ -256,7 +259,7 @@ impl BandWork {
             })
             .collect();
         times.composite_ms = ms(t);
-        Ok((out, times, canvas))
+        (Ok((out, times)), canvas)
     }
 }
 

@@ -148,14 +148,10 @@ impl WorkerService {
                         return Err(e.status());
                     }
                 };
-                let (bands_drawn, mut times, done) = match work.resolve(gathered) {
-                    Ok(r) => r,
-                    Err((e, done)) => {
-                        canvas = Some(done);
-                        return Err(status(Kind::Invalid, e.to_string()));
-                    }
-                };
+                let (resolved, done) = work.resolve(gathered);
                 canvas = Some(done);
+                let (bands_drawn, mut times) =
+                    resolved.map_err(|e| status(Kind::Invalid, e.to_string()))?;
                 times.wait_ms = wait_ms;
                 let mut chunks = Vec::new();
                 for (rows, rgb) in &bands_drawn {
