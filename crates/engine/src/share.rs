@@ -398,9 +398,18 @@ impl Share {
         let canvas = self.canvas.as_mut().expect("made above");
         canvas.clear();
         canvas.set_nearest(job.nearest as usize);
-        // Bands as tall as this share's hair is dense, whole in the plan's.
+        // Bands as tall as this share's hair is dense, whole in the plan's;
+        // sort-middle: the plan's own (its segments of a band are then one
+        // bin, in order), and the head in this share's bands alone (the
+        // only ones it rasterizes).
         let rows = Canvas::band_rows_for(w, h, hair.segment_count());
-        canvas.set_band_rows(shaded.map_or(rows, |plan| plan.band_rows_within(rows)));
+        let middle = shaded.filter(|plan| plan.sort == Sort::Middle);
+        canvas.set_band_rows(match (middle, shaded) {
+            (Some(plan), _) => plan.band_rows_within(64),
+            (None, Some(plan)) => plan.band_rows_within(rows),
+            (None, None) => rows,
+        });
+        canvas.set_opaque_rows(middle.map(|plan| plan.rows_of(plan.own)));
         // The head's depth hides the hair behind it; its colour matters
         // only in the rows `shaded` (a band this share resolves).
         if let Some(head) = &mut self.head {

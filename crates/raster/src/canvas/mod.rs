@@ -143,6 +143,8 @@ pub struct Canvas {
     /// Image rows per band: bands are drawn in parallel, each by one
     /// thread ([`Canvas::band_rows_for`]).
     band: usize,
+    /// The rows the opaque layer is drawn in (`None`: all).
+    opaque_only: Option<Vec<std::ops::Range<u32>>>,
 }
 
 /// A segment binned for drawing: the index in `verts` of its first end
@@ -184,6 +186,7 @@ impl Canvas {
             looks: Vec::new(),
             nearest: 0,
             band: BAND_STEP,
+            opaque_only: None,
         })
     }
 
@@ -250,8 +253,11 @@ impl Canvas {
                 for bin in &bins[first..end] {
                     ids.extend_from_slice(bin);
                 }
-                ids.sort_unstable();
-                ids.dedup();
+                // One bin is in order already, each segment once.
+                if end - first > 1 {
+                    ids.sort_unstable();
+                    ids.dedup();
+                }
                 // Runs of consecutive segments: segments `i` and `i + 1`
                 // both drawn are of one strand, and share vertex `i + 1`.
                 let mut k = 0;

@@ -90,11 +90,26 @@ impl Canvas {
     fn opaque_rows(&mut self, rect: [usize; 4], f: impl Fn(usize, &mut [f32], &mut [Vec3]) + Sync) {
         let (w, y0, y1) = (self.width, rect[2], rect[3]);
         self.dirty = Some(union(self.dirty, rect));
+        let only = &self.opaque_only;
         self.depth[y0 * w..y1 * w]
             .par_chunks_mut(w)
             .zip(self.opaque[y0 * w..y1 * w].par_chunks_mut(w))
             .enumerate()
-            .for_each(|(row, (depth, color))| f(y0 + row, depth, color));
+            .for_each(|(row, (depth, color))| {
+                let y = y0 + row;
+                if only
+                    .as_ref()
+                    .is_none_or(|o| o.iter().any(|r| r.contains(&(y as u32))))
+                {
+                    f(y, depth, color)
+                }
+            });
+    }
+
+    /// Draws the opaque layer in rows `rows` alone from now on (`None`:
+    /// every row): a canvas that resolves only those rows needs no more.
+    pub fn set_opaque_rows(&mut self, rows: Option<Vec<std::ops::Range<u32>>>) {
+        self.opaque_only = rows;
     }
 
     /// Draws an opaque sphere, one ray per pixel centre; `shade(point,
