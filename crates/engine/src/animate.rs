@@ -318,26 +318,54 @@ impl Animator {
     /// points [`Self::set_head`] (and [`Self::collide_drawn`]) give those
     /// strands, for a share of the hair posed away from the rest.
     pub fn pose_part(&mut self, groups: Range<usize>, head: Affine3A, bodies: &[Body]) -> Hair {
+        let mut out = Hair::new();
+        self.pose_part_into(groups, head, bodies, &mut out, &mut Hair::new());
+        out
+    }
+
+    /// [`Self::pose_part`] into `out`, with `control` the guides'
+    /// interpolated strands before resampling: both reuse their memory
+    /// when they hold these groups from an earlier pose (a share's next
+    /// frame), as [`Self::set_head`] does for the whole hair; otherwise
+    /// they are replaced. The same points.
+    pub fn pose_part_into(
+        &mut self,
+        groups: Range<usize>,
+        head: Affine3A,
+        bodies: &[Body],
+        out: &mut Hair,
+        control: &mut Hair,
+    ) {
         let strands = self.groups.strand_range(groups.clone());
         let wisps = self.groups.wisp_range(groups);
         match &mut self.source {
             Source::Rigid { rest } => {
                 let offsets = rest.offsets();
-                let mut hair = Hair::with_capacity(
-                    strands.len(),
-                    (offsets[strands.end] - offsets[strands.start]) as usize,
+                let (p0, p1) = (
+                    offsets[strands.start] as usize,
+                    offsets[strands.end] as usize,
                 );
-                let mut pts = Vec::new();
-                for s in strands.clone() {
-                    pts.clear();
-                    pts.extend(rest.strand(s).iter().map(|&p| head.transform_point3(p)));
-                    hair.push_strand(&pts)
-                        .expect("a rigid move of finite points is finite");
+                let same = out.strand_count() == strands.len() && out.point_count() == p1 - p0;
+                if !same {
+                    let mut hair = Hair::with_capacity(strands.len(), p1 - p0);
+                    for s in strands.clone() {
+                        hair.push_strand(rest.strand(s))
+                            .expect("the rest hair's points are finite");
+                    }
+                    if let Some(c) = rest.colors() {
+                        hair.set_colors(c[strands].to_vec());
+                    }
+                    *out = hair;
                 }
-                if let Some(c) = rest.colors() {
-                    hair.set_colors(c[strands].to_vec());
-                }
-                hair
+                // A rigid move of finite points is finite.
+                out.points_mut()
+                    .par_chunks_mut(4096)
+                    .zip(rest.points()[p0..p1].par_chunks(4096))
+                    .for_each(|(o, src)| {
+                        for (o, &p) in o.iter_mut().zip(src) {
+                            *o = head.transform_point3(p);
+                        }
+                    });
             }
             Source::Wisps {
                 model,
@@ -347,13 +375,14 @@ impl Animator {
             } => {
                 sim.write_guides(&mut model.guides);
                 let members = model.member_range(wisps);
-                let mut control = model.interpolate_members(members.clone());
-                control.set_colors(model.colors[members].to_vec());
-                let mut hair = strands::resample(&control, *subdivide);
-                if !bodies.is_empty() {
-                    push_out_all(&mut hair, bodies);
+                model.interpolate_members_into(members.clone(), control);
+                if control.colors().is_none() {
+                    control.set_colors(model.colors[members].to_vec());
                 }
-                hair
+                strands::resample_into(control, *subdivide, out);
+                if !bodies.is_empty() {
+                    push_out_all(out, bodies);
+                }
             }
         }
     }

@@ -28,6 +28,9 @@ pub struct Share {
     head: Option<Head>,
     /// The share's drawn strands as last posed, and that hair's version.
     posed: Option<(u64, Hair)>,
+    /// The guides' interpolated strands the last pose resampled (kept for
+    /// their memory).
+    control: Hair,
     part: HairPart,
     canvas: Option<Canvas>,
     /// What resolving a band of the picture needs of the scene.
@@ -76,6 +79,7 @@ impl Share {
             groups,
             head,
             posed: None,
+            control: Hair::new(),
             part: HairPart::default(),
             canvas: None,
             background: scene.render.background,
@@ -135,9 +139,16 @@ impl Share {
 
     /// Poses the share's strands as `plan` says and reports on them.
     pub fn pose(&mut self, plan: &PosePlan) -> PoseReport {
-        let hair = self
-            .anim
-            .pose_part(self.groups.clone(), plan.head, &plan.drawn_bodies);
+        // The last pose's memory, reused: a new pose of a large share
+        // would fault in tens of MB of fresh pages a frame.
+        let mut hair = self.posed.take().map(|(_, h)| h).unwrap_or_default();
+        self.anim.pose_part_into(
+            self.groups.clone(),
+            plan.head,
+            &plan.drawn_bodies,
+            &mut hair,
+            &mut self.control,
+        );
         let report = PoseReport::of(&hair, plan);
         self.posed = Some((plan.version, hair));
         report

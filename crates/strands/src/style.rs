@@ -152,6 +152,32 @@ impl WispModel {
         hair
     }
 
+    /// [`Self::interpolate_members`] into `out`, reusing its memory when it
+    /// holds those members already (the next frame of a share of the
+    /// wisps), otherwise replacing it: the same points, and no colours.
+    pub fn interpolate_members_into(&self, members: std::ops::Range<usize>, out: &mut Hair) {
+        let per = self.guides.strand(0).len();
+        if out.strand_count() != members.len() || out.point_count() != members.len() * per {
+            *out = self.interpolate_members(members);
+            return;
+        }
+        out.points_mut()
+            .par_chunks_mut(per)
+            .zip(&self.members[members])
+            .with_min_len(16)
+            .for_each(|(pts, m)| {
+                let g = m.wisp as usize * GUIDES_PER_WISP;
+                let (a, b, c) = (
+                    self.guides.strand(g),
+                    self.guides.strand(g + 1),
+                    self.guides.strand(g + 2),
+                );
+                for (k, p) in pts.iter_mut().enumerate() {
+                    *p = member_point(m, a[k], b[k], c[k]);
+                }
+            });
+    }
+
     /// [`Self::interpolate`] into `out`, which must be its earlier result
     /// (same members): the next frame's points without allocating.
     pub fn interpolate_into(&self, out: &mut Hair) {
