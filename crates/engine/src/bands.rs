@@ -74,6 +74,54 @@ impl BandPlan {
         }
     }
 
+    /// `bands` bands (or fewer, for a short picture) of about equal cost,
+    /// dealt to `workers` workers in turn, where `row_ms[r]` is what rows
+    /// `16 r .. 16 (r + 1)` of a picture of `height` rows cost to draw
+    /// last: cut on multiples of [`Canvas::BAND_ROWS`], each band at
+    /// least that tall. A row's cost counts at least a hundredth of the
+    /// mean, as even a row of background is written. `None` when the
+    /// costs do not fit the picture or are not finite.
+    pub fn weighted(
+        height: u32,
+        row_ms: &[f64],
+        bands: usize,
+        workers: usize,
+        own: usize,
+    ) -> Option<BandPlan> {
+        let step = Canvas::BAND_ROWS;
+        let units = height.div_ceil(step) as usize;
+        if row_ms.len() != units || bands == 0 || row_ms.iter().any(|c| !c.is_finite() || *c < 0.0)
+        {
+            return None;
+        }
+        let mean = row_ms.iter().sum::<f64>() / units as f64;
+        let floor = (mean / 100.0).max(f64::MIN_POSITIVE);
+        let cost: Vec<f64> = row_ms.iter().map(|c| c.max(floor)).collect();
+        let total: f64 = cost.iter().sum();
+        let bands = bands.min(units);
+        let mut cuts = vec![0u32];
+        let mut acc = 0.0;
+        for (u, c) in cost.iter().enumerate() {
+            let left_units = units - u;
+            let left_bands = bands - (cuts.len() - 1);
+            acc += c;
+            // Cut after this unit when its band has its share of the cost,
+            // or when every band left needs one of the units left.
+            let share = total * cuts.len() as f64 / bands as f64;
+            let must = left_units - 1 < left_bands;
+            if u + 1 < units && left_bands > 1 && (acc >= share || must) {
+                cuts.push((u as u32 + 1) * step);
+            }
+        }
+        cuts.push(height);
+        Some(BandPlan {
+            cuts,
+            workers,
+            own,
+            sort: Sort::Last,
+        })
+    }
+
     /// Rows of band `b`.
     pub fn rows(&self, b: usize) -> Range<u32> {
         self.cuts[b]..self.cuts[b + 1]
@@ -184,18 +232,16 @@ impl BandWork {
     /// The other shares' stripes of this share's bands, `others`, added to
     /// its own hair over the head: each band, top to bottom, as its rows
     /// and their finished 8-bit sRGB pixels (the same bytes as those rows
-    /// of the whole picture drawn in one process); the times, and the
-    /// canvas, to give back to the share (whatever the outcome). Refuses stripes of another kind
+    /// of the whole picture drawn in one process) with what drawing it
+    /// here took; the times, and the canvas, to give back to the share
+    /// (whatever the outcome). Refuses stripes of another kind
     /// than the plan's, of rows that are not this share's bands, or that
     /// bring one group of strands twice to a band.
     #[allow(clippy::type_complexity)]
     pub fn resolve(
         self,
         others: Vec<Stripe>,
-    ) -> (
-        Result<(Vec<(Range<u32>, Vec<u8>)>, DrawTimes), EngineError>,
-        Canvas,
-    ) {
+    ) -> (Result<(Vec<ResolvedBand>, DrawTimes), EngineError>, Canvas) {
         let t = Instant::now();
         let BandWork {
             mut canvas,
@@ -206,6 +252,7 @@ impl BandWork {
             mut times,
         } = self;
         let wrong = |what: &str| EngineError::executor(format!("a band's stripes: {what}"));
+        let mut binned = vec![0.0; own.len()];
         let layers = match mine {
             Own::Layer(mine) => {
                 let mut layers = Vec::with_capacity(others.len() + 1);
@@ -236,13 +283,18 @@ impl BandWork {
                 if let Err(e) = check_segments(&all, &own) {
                     return (Err(wrong(&e)), canvas);
                 }
-                // Every strand of the bands drawn here, group after group.
+                // Every strand of the bands drawn here, group after group;
+                // the binning counted to the band it is for.
                 all.sort_by_key(|s| (s.first_group(), s.rows().start));
                 canvas.clear_hair();
                 canvas.set_band_rows(band_rows);
                 for s in &all {
+                    let t = Instant::now();
                     if let Err(e) = canvas.draw_segments(s) {
                         return (Err(EngineError::from(e)), canvas);
+                    }
+                    if let Some(b) = own.iter().position(|r| *r == s.rows()) {
+                        binned[b] += ms(t);
                     }
                 }
                 None
@@ -250,17 +302,36 @@ impl BandWork {
         };
         let out = own
             .into_iter()
-            .map(|rows| {
+            .zip(binned)
+            .map(|(rows, binned)| {
+                let t = Instant::now();
                 let rgb = match &layers {
                     Some(layers) => canvas.resolve_layer_rows(background, layers, rows.clone()),
                     None => canvas.resolve_rows(background, &[], rows.clone()),
                 };
-                (rows, rgb)
+                ResolvedBand {
+                    rows,
+                    rgb,
+                    ms: binned + ms(t),
+                }
             })
             .collect();
         times.composite_ms = ms(t);
         (Ok((out, times)), canvas)
     }
+}
+
+/// A band of finished rows.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ResolvedBand {
+    /// Its rows.
+    pub rows: Range<u32>,
+    /// Their 8-bit sRGB pixels, row after row.
+    pub rgb: Vec<u8>,
+    /// What drawing the band here took, ms: binning what the others sent
+    /// of it and resolving it (the cost the next frame's bands are cut by,
+    /// [`BandPlan::weighted`]).
+    pub ms: f64,
 }
 
 /// Checks that segments `all` are of rows `own` alone, each group of
@@ -283,5 +354,41 @@ fn check_segments(all: &[BandSegments], own: &[Range<u32>]) -> Result<(), String
             s.rows()
         )),
         None => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn check(plan: &BandPlan, height: u32, bands: usize) {
+        assert_eq!(plan.bands(), bands, "{:?}", plan.cuts);
+        plan.check(height).unwrap();
+    }
+
+    #[test]
+    fn bands_cut_by_cost_share_it_evenly_on_whole_bands() {
+        // Even costs: the bands of 48 rows that dealing gives.
+        let even = BandPlan::weighted(720, &[1.0; 45], 15, 3, 0).unwrap();
+        check(&even, 720, 15);
+        assert_eq!(even.cuts, BandPlan::dealt(720, 48, 3, 0).cuts);
+        // Hair in rows 320..400 alone: thin bands there, wide elsewhere,
+        // every band's cost within one unit's of the mean.
+        let mut cost = vec![0.0; 45];
+        cost[20..25].iter_mut().for_each(|c| *c = 10.0);
+        let plan = BandPlan::weighted(720, &cost, 8, 2, 1).unwrap();
+        check(&plan, 720, 8);
+        let rows_in = |b: usize| plan.rows(b).len() as u32;
+        let narrow = (0..8).filter(|&b| plan.rows(b).start >= 320 && plan.rows(b).end <= 400);
+        assert!(narrow.clone().count() >= 4, "{:?}", plan.cuts);
+        assert!(narrow.map(rows_in).all(|r| r <= 32), "{:?}", plan.cuts);
+        // More bands than rows of 16: one each; a short last band.
+        let short = BandPlan::weighted(56, &[1.0, 0.0, 5.0, 1.0], 8, 3, 2).unwrap();
+        assert_eq!(short.cuts, vec![0, 16, 32, 48, 56]);
+        check(&short, 56, 4);
+        // Costs that do not fit the picture, or are not numbers.
+        assert!(BandPlan::weighted(720, &[1.0; 44], 15, 3, 0).is_none());
+        assert!(BandPlan::weighted(56, &[1.0, f64::NAN, 1.0, 1.0], 2, 2, 0).is_none());
+        assert!(BandPlan::weighted(56, &[1.0; 4], 0, 2, 0).is_none());
     }
 }

@@ -33,7 +33,7 @@ mod share;
 mod stats;
 
 pub use animate::{Animator, GROUPS, Groups, split_by};
-pub use bands::{BandPlan, BandWork, Sort, Stripe};
+pub use bands::{BandPlan, BandWork, ResolvedBand, Sort, Stripe};
 pub use exec::{
     DrawJob, DrawReport, Drawing, Drawn, Executor, LocalExecutor, PendingPicture, PosePlan,
     PoseReport, StepPlan, Strands, step_wisps, step_wisps_while,

@@ -176,8 +176,15 @@ impl RemoteExecutor {
         let auto = self.draw.sort().is_none();
         let mut requests = Vec::with_capacity(n);
         let mut sent = 0u64;
+        // Bands of about equal cost, by what the last round of this sort
+        // measured; until then, of equal rows.
+        let costs = self.row_costs.lock().ok().and_then(|c| c.get(sort, height));
+        let bands = height.div_ceil(BAND_ROWS).div_ceil(n as u32) as usize * n;
         for (i, w) in self.workers.iter().enumerate() {
-            let mut plan = engine::BandPlan::dealt(height, BAND_ROWS, n, i);
+            let mut plan = costs
+                .as_ref()
+                .and_then(|c| engine::BandPlan::weighted(height, c, bands, n, i))
+                .unwrap_or_else(|| engine::BandPlan::dealt(height, BAND_ROWS, n, i));
             plan.sort = sort;
             let bands = wire::Bands {
                 round,
@@ -245,9 +252,11 @@ impl RemoteExecutor {
                         reader.add(&c).map_err(|e| malformed(&w.addr, e))?;
                     }
                     let (times, stripes) = (reader.times, reader.stripes_sent);
+                    let band_ms = std::mem::take(&mut reader.band_ms);
                     let bands = reader.finish().map_err(|e| malformed(&w.addr, e))?;
                     Ok(BandReply {
                         bands,
+                        band_ms,
                         times,
                         bytes,
                         stripes,
@@ -291,6 +300,7 @@ impl RemoteExecutor {
             timing: self.timing.clone(),
             sort,
             chooser: auto.then(|| self.chooser.clone()),
+            row_costs: self.row_costs.clone(),
         };
         if words.iter().any(Option::is_none) {
             let e = round.finish().err().unwrap_or_else(|| {
@@ -401,6 +411,8 @@ impl RemoteExecutor {
 /// One worker's bands of a Draw round composited on the workers.
 pub(super) struct BandReply {
     pub(super) bands: Vec<(Range<u32>, Vec<u8>)>,
+    /// What drawing each band took on the worker, ms (empty: not said).
+    pub(super) band_ms: Vec<f64>,
     pub(super) times: engine::DrawTimes,
     pub(super) bytes: u64,
     pub(super) stripes: u64,
@@ -419,6 +431,8 @@ pub(super) struct BandRound {
     pub(super) sort: engine::Sort,
     /// Where its cost goes, with `--draw auto`.
     pub(super) chooser: Option<Arc<Mutex<Chooser>>>,
+    /// Where its bands' costs go, for the next round's cuts.
+    pub(super) row_costs: Arc<Mutex<RowCosts>>,
 }
 
 impl BandRound {
@@ -441,6 +455,7 @@ impl BandRound {
             out
         });
         let mut img = image::RgbImage::new(self.width, self.height);
+        let mut measured = RowCosts::units(self.height);
         let (mut received, mut stripes) = (0u64, 0u64);
         let (mut wait, mut composite) = (0.0f64, 0.0f64);
         // The round's cost: the slowest worker's Draw.
@@ -451,6 +466,11 @@ impl BandRound {
                 Ok(reply) => {
                     let row = 3 * self.width as usize;
                     let buf: &mut [u8] = &mut img;
+                    if reply.band_ms.len() == reply.bands.len() {
+                        for ((rows, _), &ms) in reply.bands.iter().zip(&reply.band_ms) {
+                            RowCosts::spread(&mut measured, rows.clone(), ms);
+                        }
+                    }
                     for (rows, rgb) in reply.bands {
                         let at = rows.start as usize * row;
                         buf[at..at + rgb.len()].copy_from_slice(&rgb);
@@ -489,6 +509,9 @@ impl BandRound {
             c.measured(self.sort, cost);
             Some([engine::Sort::Middle, engine::Sort::Last].map(|s| c.estimate(s).unwrap_or(0.0)))
         });
+        if let Ok(mut c) = self.row_costs.lock() {
+            c.set(self.sort, self.height, measured);
+        }
         if let Ok(mut t) = self.timing.lock() {
             t.band_wait_ms += wait;
             t.band_composite_ms += composite;
@@ -510,4 +533,77 @@ pub(super) struct Gathered {
     pub(super) out_of_map: u64,
     /// The columns its strands' lookups read, for posed strands.
     pub(super) read: Option<Vec<u64>>,
+}
+
+/// What drawing each 16 rows of the picture cost in the last round of
+/// each sort, ms: the next round of that sort cuts its bands by it.
+#[derive(Debug, Default)]
+pub(super) struct RowCosts {
+    /// Per sort (sort-middle, sort-last): the picture's height, and the
+    /// cost of each 16 rows.
+    of: [Option<(u32, Vec<f64>)>; 2],
+}
+
+impl RowCosts {
+    /// No cost yet for each 16 rows of a picture of `height` rows.
+    pub(super) fn units(height: u32) -> Vec<f64> {
+        vec![0.0; height.div_ceil(raster::Canvas::BAND_ROWS) as usize]
+    }
+
+    /// Spreads `ms`, the cost of rows `rows`, evenly over them.
+    pub(super) fn spread(units: &mut [f64], rows: Range<u32>, ms: f64) {
+        let step = raster::Canvas::BAND_ROWS;
+        let per_row = ms / rows.len().max(1) as f64;
+        for (u, c) in units.iter_mut().enumerate() {
+            let (a, b) = (u as u32 * step, (u as u32 + 1) * step);
+            let overlap = b.min(rows.end).saturating_sub(a.max(rows.start));
+            *c += per_row * f64::from(overlap);
+        }
+    }
+
+    fn index(sort: engine::Sort) -> usize {
+        match sort {
+            engine::Sort::Middle => 0,
+            engine::Sort::Last => 1,
+        }
+    }
+
+    /// The last costs of `sort` for a picture of `height` rows.
+    pub(super) fn get(&self, sort: engine::Sort, height: u32) -> Option<Vec<f64>> {
+        match &self.of[Self::index(sort)] {
+            Some((h, c)) if *h == height && c.iter().any(|&x| x > 0.0) => Some(c.clone()),
+            _ => None,
+        }
+    }
+
+    /// Keeps a round's costs.
+    pub(super) fn set(&mut self, sort: engine::Sort, height: u32, units: Vec<f64>) {
+        self.of[Self::index(sort)] = Some((height, units));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_bands_cost_is_spread_over_its_rows_and_kept_per_sort_and_height() {
+        let mut units = RowCosts::units(90);
+        assert_eq!(units.len(), 6);
+        // Rows 16..64 took 30 ms: 10 for each 16; rows 64..90, 13 ms.
+        RowCosts::spread(&mut units, 16..64, 30.0);
+        RowCosts::spread(&mut units, 64..90, 13.0);
+        let want = [0.0, 10.0, 10.0, 10.0, 8.0, 5.0];
+        assert!(
+            units.iter().zip(want).all(|(a, b)| (a - b).abs() < 1e-9),
+            "{units:?}"
+        );
+        let mut costs = RowCosts::default();
+        costs.set(engine::Sort::Middle, 90, units.clone());
+        assert_eq!(costs.get(engine::Sort::Middle, 90), Some(units));
+        assert_eq!(costs.get(engine::Sort::Last, 90), None, "another sort");
+        assert_eq!(costs.get(engine::Sort::Middle, 96), None, "another picture");
+        costs.set(engine::Sort::Last, 90, RowCosts::units(90));
+        assert_eq!(costs.get(engine::Sort::Last, 90), None, "nothing measured");
+    }
 }

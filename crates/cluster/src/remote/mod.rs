@@ -191,6 +191,9 @@ pub struct RemoteExecutor {
     drawn: Option<Snapshot>,
     /// With [`DrawAt::Auto`], what the Draw rounds cost, per sort.
     chooser: Arc<Mutex<Chooser>>,
+    /// What each 16 rows of the picture cost to draw in the last round of
+    /// each sort: the next round's bands are cut by it.
+    row_costs: Arc<Mutex<RowCosts>>,
 }
 
 /// A step the workers take among themselves (compositing the picture,
@@ -393,6 +396,7 @@ impl RemoteExecutor {
             failure: Arc::default(),
             drawn: None,
             chooser: Arc::default(),
+            row_costs: Arc::default(),
             source: scene.source,
             hair: None,
             shares: None,

@@ -154,13 +154,18 @@ impl WorkerService {
                     resolved.map_err(|e| status(Kind::Invalid, e.to_string()))?;
                 times.wait_ms = wait_ms;
                 let mut chunks = Vec::new();
-                for (rows, rgb) in &bands_drawn {
+                for b in &bands_drawn {
                     chunks.extend(wire::band_chunks(
-                        width, height, rows.start, rgb, background,
+                        width,
+                        height,
+                        b.rows.start,
+                        &b.rgb,
+                        background,
                     ));
                 }
                 let mut last = wire::StripeEncoder::new().last(width, height, &times);
                 last.stripes_sent = stripes_sent;
+                last.band_ms = bands_drawn.iter().map(|b| b.ms).collect();
                 chunks.push(last);
                 Ok(chunks)
             })();

@@ -163,6 +163,8 @@ pub(crate) struct BandReader {
     pub times: engine::DrawTimes,
     /// Bytes of stripes the worker sent the others, from the last chunk.
     pub stripes_sent: u64,
+    /// What drawing each band took on the worker, ms, from the last chunk.
+    pub band_ms: Vec<f64>,
 }
 
 impl BandReader {
@@ -176,6 +178,7 @@ impl BandReader {
             background: None,
             times: engine::DrawTimes::default(),
             stripes_sent: 0,
+            band_ms: Vec::new(),
         }
     }
 
@@ -210,6 +213,18 @@ impl BandReader {
             }
             if !c.drawn {
                 self.stripes_sent = c.stripes_sent;
+                if !c.band_ms.is_empty() {
+                    if c.band_ms.len() != self.bands.len()
+                        || c.band_ms.iter().any(|m| !m.is_finite() || *m < 0.0)
+                    {
+                        return Err(bad(format!(
+                            "{} band times for {} bands",
+                            c.band_ms.len(),
+                            self.bands.len()
+                        )));
+                    }
+                    self.band_ms = c.band_ms.clone();
+                }
             }
             return Ok(());
         }
