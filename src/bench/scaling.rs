@@ -516,7 +516,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
         };
         let why = match (r.draw, r.round_estimate_ms) {
             (Some(cluster::DrawAt::Auto), [m, l]) if m > 0.0 && l > 0.0 => format!(
-                "; auto's estimate of a frame's drawing on the workers (the least of the last three measured, the slowest worker's Draw): sort-middle {m:.1} ms, sort-last {l:.1} ms, so {}",
+                "; auto's estimate of a frame (the least of the last three measured of each sort: from a round's start to the next's): sort-middle {m:.1} ms, sort-last {l:.1} ms, so {}",
                 if m <= l { "sort-middle" } else { "sort-last" }
             ),
             _ => String::new(),

@@ -62,8 +62,8 @@ impl Chooser {
         sort
     }
 
-    /// A round of `sort` took `ms` (the slowest worker's Draw: filter,
-    /// shade, rasterize, wait for the others, composite).
+    /// A round of `sort` took `ms`: the frame from its start to the next
+    /// round's.
     pub(super) fn measured(&mut self, sort: Sort, ms: f64) {
         if !ms.is_finite() || ms < 0.0 {
             return;

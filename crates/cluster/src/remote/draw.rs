@@ -164,16 +164,27 @@ impl RemoteExecutor {
         }
         let mut pb_job = wire::job_to_pb(job);
         pb_job.exchanged = exchanged;
-        // The one place a round's sort is decided.
+        // The one place a round's sort is decided: with `--draw auto`,
+        // by what the frames since the last rounds of each took (a round's
+        // frame runs from its start to the next round's: its drawing, its
+        // bands finished on the workers, and the next frame's stages).
+        let now = Instant::now();
+        let last = self.last_round.take();
         let sort = match self.draw.sort() {
             Some(sort) => sort,
-            None => self
-                .chooser
-                .lock()
-                .map(|mut c| c.next())
-                .unwrap_or(engine::Sort::Middle),
+            None => {
+                if let Some((then, sort)) = last {
+                    self.chooser
+                        .measured(sort, (now - then).as_secs_f64() * 1e3);
+                }
+                let c = &self.chooser;
+                let estimates = [engine::Sort::Middle, engine::Sort::Last]
+                    .map(|s| c.estimate(s).unwrap_or(0.0));
+                self.clock(|t| t.round_estimate_ms = estimates);
+                self.chooser.next()
+            }
         };
-        let auto = self.draw.sort().is_none();
+        self.last_round = Some((now, sort));
         let mut requests = Vec::with_capacity(n);
         let mut sent = 0u64;
         // Bands of about equal cost, by what the last round of this sort
@@ -299,7 +310,6 @@ impl RemoteExecutor {
             traffic: self.traffic.clone(),
             timing: self.timing.clone(),
             sort,
-            chooser: auto.then(|| self.chooser.clone()),
             row_costs: self.row_costs.clone(),
         };
         if words.iter().any(Option::is_none) {
@@ -388,6 +398,8 @@ impl RemoteExecutor {
                 Err(e) => {
                     // The frame is composited here instead, with whichever
                     // workers answer; a worker that fails that is dropped.
+                    // The frame is no round's cost.
+                    self.last_round = None;
                     tracing::warn!(error = %e, "compositing on the workers failed; this frame is composited on the coordinator");
                     self.clock(|t| t.composite_fallbacks += 1);
                     let before = self.workers.len();
@@ -429,8 +441,6 @@ pub(super) struct BandRound {
     pub(super) timing: Arc<Mutex<Timing>>,
     /// The round's sort.
     pub(super) sort: engine::Sort,
-    /// Where its cost goes, with `--draw auto`.
-    pub(super) chooser: Option<Arc<Mutex<Chooser>>>,
     /// Where its bands' costs go, for the next round's cuts.
     pub(super) row_costs: Arc<Mutex<RowCosts>>,
 }
@@ -458,8 +468,6 @@ impl BandRound {
         let mut measured = RowCosts::units(self.height);
         let (mut received, mut stripes) = (0u64, 0u64);
         let (mut wait, mut composite) = (0.0f64, 0.0f64);
-        // The round's cost: the slowest worker's Draw.
-        let mut cost = 0.0f64;
         let mut first_error = None;
         for r in replies {
             match r {
@@ -479,9 +487,6 @@ impl BandRound {
                     stripes += reply.stripes;
                     wait = wait.max(reply.times.wait_ms);
                     composite = composite.max(reply.times.composite_ms);
-                    let t = &reply.times;
-                    cost = cost
-                        .max(t.filter_ms + t.shade_ms + t.raster_ms + t.wait_ms + t.composite_ms);
                 }
                 Err(e) => {
                     if first_error
@@ -504,11 +509,6 @@ impl BandRound {
             engine::Sort::Middle => 0,
             engine::Sort::Last => 1,
         };
-        let estimates = self.chooser.and_then(|c| {
-            let mut c = c.lock().ok()?;
-            c.measured(self.sort, cost);
-            Some([engine::Sort::Middle, engine::Sort::Last].map(|s| c.estimate(s).unwrap_or(0.0)))
-        });
         if let Ok(mut c) = self.row_costs.lock() {
             c.set(self.sort, self.height, measured);
         }
@@ -516,9 +516,6 @@ impl BandRound {
             t.band_wait_ms += wait;
             t.band_composite_ms += composite;
             t.rounds[sort] += 1;
-            if let Some(e) = estimates {
-                t.round_estimate_ms = e;
-            }
         }
         Ok(img)
     }

@@ -190,7 +190,9 @@ pub struct RemoteExecutor {
     /// What the workers held when they drew the picture left to finish.
     drawn: Option<Snapshot>,
     /// With [`DrawAt::Auto`], what the Draw rounds cost, per sort.
-    chooser: Arc<Mutex<Chooser>>,
+    chooser: Chooser,
+    /// When the last Draw round on the workers began, and its sort.
+    last_round: Option<(Instant, engine::Sort)>,
     /// What each 16 rows of the picture cost to draw in the last round of
     /// each sort: the next round's bands are cut by it.
     row_costs: Arc<Mutex<RowCosts>>,
@@ -395,7 +397,8 @@ impl RemoteExecutor {
                 .and_then(|t| t.domain().map(str::to_string)),
             failure: Arc::default(),
             drawn: None,
-            chooser: Arc::default(),
+            chooser: Chooser::default(),
+            last_round: None,
             row_costs: Arc::default(),
             source: scene.source,
             hair: None,
@@ -454,6 +457,7 @@ impl RemoteExecutor {
             return Err(e);
         }
         self.workers.remove(i);
+        self.last_round = None;
         self.shares = None;
         self.posed = None;
         self.reads.iter_mut().for_each(|r| *r = None);
