@@ -26,6 +26,11 @@ pub(super) struct Chooser {
     rounds: u64,
     /// Rounds planned with each sort.
     pub(super) chosen: [u32; 2],
+    /// The sort of the last round planned.
+    last: Option<Sort>,
+    /// Whether a round was measured yet: the first is not counted (it
+    /// pays for the run's warm-up, the workers dialling each other).
+    warm: bool,
 }
 
 fn index(sort: Sort) -> usize {
@@ -36,14 +41,23 @@ fn index(sort: Sort) -> usize {
 }
 
 impl Chooser {
-    /// The sort of the next round: each is measured twice first (the
-    /// first round of a run also pays for its warm-up); then the one whose
-    /// measured cost is least, but for every [`REVISIT`]th round, which
-    /// measures the other again.
+    /// The sort of the next round: each is measured twice first, in
+    /// turn (so that a machine growing busier weighs on both alike); then
+    /// the one whose measured cost is least, but for every [`REVISIT`]th
+    /// round, which measures the other again.
     pub(super) fn next(&mut self) -> Sort {
         self.rounds += 1;
-        let sort = match SORTS.iter().find(|&&s| self.costs[index(s)].len() < 2) {
-            Some(&untried) => untried,
+        let measured = |s: Sort| self.costs[index(s)].len();
+        let fewer = SORTS
+            .iter()
+            .copied()
+            .filter(|&s| measured(s) < 2)
+            .min_by_key(|&s| {
+                // The less measured first; of two alike, not the last one.
+                (measured(s), Some(s) == self.last)
+            });
+        let sort = match fewer {
+            Some(s) => s,
             None => {
                 let best = self.best().unwrap_or(Sort::Middle);
                 let other = if best == Sort::Middle {
@@ -59,13 +73,14 @@ impl Chooser {
             }
         };
         self.chosen[index(sort)] += 1;
+        self.last = Some(sort);
         sort
     }
 
     /// A round of `sort` took `ms`: the frame from its start to the next
     /// round's.
     pub(super) fn measured(&mut self, sort: Sort, ms: f64) {
-        if !ms.is_finite() || ms < 0.0 {
+        if !ms.is_finite() || ms < 0.0 || !std::mem::replace(&mut self.warm, true) {
             return;
         }
         let c = &mut self.costs[index(sort)];
@@ -93,7 +108,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn tries_each_sort_then_keeps_the_cheaper_and_looks_again_now_and_then() {
+    fn tries_each_sort_in_turn_then_keeps_the_cheaper_and_looks_again_now_and_then() {
         let mut c = Chooser::default();
         // Sort-last measures cheaper here.
         let cost = |s: Sort| if s == Sort::Middle { 90.0 } else { 60.0 };
@@ -103,24 +118,26 @@ mod tests {
             c.measured(s, cost(s));
             seen.push(s);
         }
-        assert_eq!(&seen[..2], &[Sort::Middle, Sort::Middle]);
-        assert_eq!(&seen[2..4], &[Sort::Last, Sort::Last]);
+        // The first round's measure is not counted; then each in turn
+        // until each has two.
+        use Sort::{Last, Middle};
+        assert_eq!(&seen[..5], &[Middle, Last, Middle, Last, Middle]);
         // Then sort-last, but for one look at sort-middle each 16 rounds.
-        let middle: Vec<usize> = (4..32).filter(|&i| seen[i] == Sort::Middle).collect();
+        let middle: Vec<usize> = (5..32).filter(|&i| seen[i] == Middle).collect();
         assert_eq!(middle, vec![15, 31], "rounds 16 and 32");
-        assert_eq!(c.chosen, [4, 28]);
+        assert_eq!(c.chosen, [5, 27]);
         // The hair changes: sort-middle is measured cheaper when looked at
         // again, and taken from then on.
-        c.measured(Sort::Middle, 30.0);
-        assert_eq!(c.next(), Sort::Middle);
+        c.measured(Middle, 30.0);
+        assert_eq!(c.next(), Middle);
         // One slow round does not turn the choice; an estimate keeps the
         // least of the last three.
-        c.measured(Sort::Middle, 500.0);
-        assert_eq!(c.estimate(Sort::Middle), Some(30.0));
-        assert_eq!(c.next(), Sort::Middle);
+        c.measured(Middle, 500.0);
+        assert_eq!(c.estimate(Middle), Some(30.0));
+        assert_eq!(c.next(), Middle);
         // Nonsense times are ignored.
-        c.measured(Sort::Last, f64::NAN);
-        c.measured(Sort::Last, -1.0);
-        assert_eq!(c.estimate(Sort::Last), Some(60.0));
+        c.measured(Last, f64::NAN);
+        c.measured(Last, -1.0);
+        assert_eq!(c.estimate(Last), Some(60.0));
     }
 }
