@@ -16,8 +16,8 @@ use std::ops::Range;
 
 use glam::Vec3;
 
-use super::HairLook;
 use super::look::{Look, Projected};
+use super::{Canvas, HairLook, NO_REACH, footprint};
 use crate::RasterError;
 
 /// The drawn segments of some groups of strands in some rows of a picture:
@@ -239,6 +239,115 @@ impl BandSegments {
             return Err(bad(format!("{} bytes after the last group", r.left())));
         }
         Ok(out)
+    }
+}
+
+/// Sort-middle on a canvas: its segments of some rows out, and another
+/// canvas's in.
+impl Canvas {
+    /// The hair binned to rows `rows` (starting and ending on a multiple
+    /// of [`Self::band_rows`], or at the last row) as its segments, each
+    /// group in strand order, the groups numbered from `first_group` on
+    /// (the index of this canvas's first group among the whole hair's):
+    /// what [`Self::draw_segments`] draws on another canvas.
+    pub fn segments_rows(&self, rows: std::ops::Range<u32>, first_group: u32) -> BandSegments {
+        let (h, band_rows) = (self.height, self.band);
+        let end_row = (rows.end as usize).min(h);
+        let first = rows.start as usize / band_rows;
+        let end = end_row.div_ceil(band_rows).max(first);
+        let mut out = BandSegments::new(rows.start..end_row as u32, self.looks.clone());
+        let mut ids = Vec::new();
+        let mut chunks = self.bins.iter().zip(&self.chunk_group).peekable();
+        for g in 0..self.groups {
+            out.begin_group(first_group + g);
+            while let Some((bins, _)) = chunks.next_if(|c| *c.1 == g) {
+                // The segments of the rows' bands, each once, in strand
+                // order (ascending first vertex; one look a vertex).
+                ids.clear();
+                for bin in &bins[first..end] {
+                    ids.extend_from_slice(bin);
+                }
+                // One bin is in order already, each segment once.
+                if end - first > 1 {
+                    ids.sort_unstable();
+                    ids.dedup();
+                }
+                // Runs of consecutive segments: segments `i` and `i + 1`
+                // both drawn are of one strand, and share vertex `i + 1`.
+                let mut k = 0;
+                while k < ids.len() {
+                    let (start, look) = ids[k];
+                    let mut n = 1;
+                    while k + n < ids.len() && ids[k + n] == (start + n as u32, look) {
+                        n += 1;
+                    }
+                    let at = start as usize;
+                    out.push_run(look, self.verts[at..at + n + 1].iter().copied());
+                    k += n;
+                }
+            }
+        }
+        out
+    }
+
+    /// Bins `segments` (see [`Self::segments_rows`]) as groups after those
+    /// drawn so far, each in its order, in the rows they were taken for
+    /// alone: drawn after the other shares' segments of those rows, in the
+    /// order of the groups, the rows resolve to the same bytes as all the
+    /// hair drawn here. Refuses segments of rows that do not start on one
+    /// of this canvas's bands.
+    pub fn draw_segments(&mut self, segments: &BandSegments) -> Result<(), RasterError> {
+        let (w, h, band_rows) = (self.width, self.height, self.band);
+        let rows = segments.rows();
+        if !(rows.start as usize).is_multiple_of(band_rows)
+            || rows.end as usize > h
+            || (rows.end as usize != h && !(rows.end as usize).is_multiple_of(band_rows))
+        {
+            return Err(RasterError::Segments(format!(
+                "rows {rows:?} do not cut a picture of {h} rows in its bands of {band_rows}"
+            )));
+        }
+        let (looks, groups) = segments.parts();
+        let look_base = self.looks.len() as u32;
+        self.looks.extend_from_slice(looks);
+        let bands = h.div_ceil(band_rows);
+        let (first, end) = (
+            rows.start as usize / band_rows,
+            (rows.end as usize).div_ceil(band_rows),
+        );
+        for runs in groups {
+            let chunk = self.chunk_group.len();
+            if self.bins.len() <= chunk {
+                self.bins.push(vec![Vec::new(); bands]);
+                self.reach.push(vec![NO_REACH; bands]);
+            }
+            self.chunk_group.push(self.groups);
+            self.groups += 1;
+            let (bins, reach) = (&mut self.bins[chunk], &mut self.reach[chunk]);
+            for (look, verts) in runs {
+                let at = &self.looks[(look_base + look) as usize];
+                let base = self.verts.len();
+                self.verts.extend_from_slice(verts);
+                let mut prev = None;
+                for (j, &v) in verts.iter().enumerate() {
+                    let end_v = at.vertex(v);
+                    let (Some(a), Some(b)) = (std::mem::replace(&mut prev, end_v), end_v) else {
+                        continue;
+                    };
+                    let Some((span, cols)) = footprint(a, b, w, h, band_rows) else {
+                        continue;
+                    };
+                    // Only the rows taken: a segment also reaching a band
+                    // of other rows comes with those rows' segments.
+                    let span = span.start.max(first)..span.end.min(end);
+                    for (bin, r) in bins[span.clone()].iter_mut().zip(&mut reach[span]) {
+                        bin.push(((base + j - 1) as u32, look_base + look));
+                        *r = [r[0].min(cols[0]), r[1].max(cols[1])];
+                    }
+                }
+            }
+        }
+        Ok(())
     }
 }
 
