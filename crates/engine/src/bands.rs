@@ -12,7 +12,7 @@ use glam::Vec3;
 use raster::{BandSegments, Canvas, HairLayer};
 
 use crate::EngineError;
-use crate::share::{DrawTimes, ms};
+use crate::stats::{DrawTimes, ms};
 
 /// How the workers draw a frame's picture among themselves: its rows cut
 /// in bands, dealt out to the workers in turn (band `b` to worker

@@ -50,8 +50,8 @@ pub use scene::{
     HeadMesh, HeadSettings, Placement, RenderSettings, Scene, SceneError, SceneSource,
     ShadowSettings,
 };
-pub use share::{DrawTimes, Share};
-pub use stats::{FrameStats, Stage, StageRecord};
+pub use share::Share;
+pub use stats::{DrawTimes, FrameStats, Stage, StageRecord};
 
 /// Errors of the engine, each naming what is wrong and where.
 #[derive(Debug, thiserror::Error)]

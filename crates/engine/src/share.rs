@@ -10,6 +10,7 @@ use glam::Vec3;
 use raster::{Canvas, HairLayer};
 
 use crate::bands::{BandPlan, BandWork, Own, Sort, Stripe};
+use crate::stats::{DrawTimes, ms};
 use shadow::{DensityMap, Fiber, FillStats, LightFrame, Transmittance};
 use strands::Hair;
 
@@ -36,26 +37,6 @@ pub struct Share {
     /// What resolving a band of the picture needs of the scene.
     background: Vec3,
     head_shadow: bool,
-}
-
-/// Milliseconds of the stages of one [`Share::draw`].
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct DrawTimes {
-    /// The filter stage, ms.
-    pub filter_ms: f64,
-    /// Shading, ms.
-    pub shade_ms: f64,
-    /// Rasterization, ms.
-    pub raster_ms: f64,
-    /// Compositing on the workers: waiting for the others' stripes of
-    /// this share's band, then resolving it.
-    pub wait_ms: f64,
-    /// Resolving the band, ms.
-    pub composite_ms: f64,
-}
-
-pub(crate) fn ms(since: Instant) -> f64 {
-    since.elapsed().as_secs_f64() * 1e3
 }
 
 impl Share {

@@ -167,3 +167,23 @@ impl serde::Serialize for FrameStats {
         f.end()
     }
 }
+
+/// Milliseconds of the stages of one [`crate::Share::draw`].
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct DrawTimes {
+    /// The filter stage, ms.
+    pub filter_ms: f64,
+    /// Shading, ms.
+    pub shade_ms: f64,
+    /// Rasterization, ms.
+    pub raster_ms: f64,
+    /// Compositing on the workers: waiting for the others' stripes of
+    /// this share's band, then resolving it.
+    pub wait_ms: f64,
+    /// Resolving the band, ms.
+    pub composite_ms: f64,
+}
+
+pub(crate) fn ms(since: Instant) -> f64 {
+    since.elapsed().as_secs_f64() * 1e3
+}
