@@ -554,6 +554,29 @@ fn simplified_thin_hair_drawn_on_three_workers_is_the_local_animation() {
 }
 
 #[test]
+fn a_mesh_head_under_hair_drawn_on_three_workers_is_the_local_animation() {
+    // Each band's owner draws the head in its own bands alone with
+    // sort-middle, and the head's mesh hides the hair behind it there.
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
+    let text = format!("{DANCE}\n[head]\nmesh = \"head.obj\"\n");
+    let scene = Scene::from_toml_str(&text, &dir.join("mesh_head.toml")).unwrap();
+    let want = local_frames(&scene, 3);
+    for draw in [DrawAt::SortMiddle, DrawAt::SortLast] {
+        let addrs: Vec<String> = (0..3).map(|_| start_worker().to_string()).collect();
+        let remote = RemoteExecutor::connect(&addrs, &scene, &options(draw, 20)).unwrap();
+        let timing = remote.timing();
+        assert_frames(&scene, remote, &want);
+        let t = *timing.lock().unwrap();
+        assert_eq!(t.composite_fallbacks, 0, "{draw:?}");
+        assert_eq!(
+            t.rounds.iter().sum::<u32>(),
+            3,
+            "{draw:?}: every frame on the workers"
+        );
+    }
+}
+
+#[test]
 fn rigid_hair_drawn_on_workers_is_the_local_animation() {
     let text = format!("{DANCE}\n[effects]\ndynamics = false\n");
     let scene = Scene::from_toml_str(&text, std::path::Path::new("rigid.toml")).unwrap();
