@@ -230,13 +230,15 @@ pub struct CoordinatorArgs {
     /// carries on over the others.
     #[arg(long, default_value_t = 5.0, value_name = "SECONDS")]
     connect_timeout: f64,
-    /// Where the drawn hair is posed, filtered, shaded and rasterized:
-    /// `workers` (each its own strands; with two or more, they composite
-    /// the picture among themselves and must reach each other at the
-    /// addresses given) or `coordinator` (the paper's scheme: workers
-    /// simulate, fill and sweep, the coordinator draws every strand).
-    /// The pictures are the same bytes either way.
-    #[arg(long, value_enum, default_value_t = Draw::Auto, value_name = "WHERE")]
+    /// How the picture is drawn. On the workers (with two or more; they
+    /// must reach each other at the addresses given), each finishing its
+    /// own bands of rows from what the others send it: `sort-middle`
+    /// (their shaded segments there), `sort-last` (their partial
+    /// pictures), or `auto`, the cheaper of the two as measured frame by
+    /// frame; or `coordinator` (the paper's scheme: workers simulate, fill
+    /// and sweep, the coordinator draws every strand). With one worker the
+    /// coordinator draws. The pictures are the same bytes whichever.
+    #[arg(long, value_enum, default_value_t = Draw::Auto, value_name = "SCHEME")]
     draw: Draw,
     #[command(flatten)]
     tls: ClientTlsArgs,
