@@ -161,21 +161,7 @@ impl WispModel {
             *out = self.interpolate_members(members);
             return;
         }
-        out.points_mut()
-            .par_chunks_mut(per)
-            .zip(&self.members[members])
-            .with_min_len(16)
-            .for_each(|(pts, m)| {
-                let g = m.wisp as usize * GUIDES_PER_WISP;
-                let (a, b, c) = (
-                    self.guides.strand(g),
-                    self.guides.strand(g + 1),
-                    self.guides.strand(g + 2),
-                );
-                for (k, p) in pts.iter_mut().enumerate() {
-                    *p = member_point(m, a[k], b[k], c[k]);
-                }
-            });
+        self.fill_members(&self.members[members], out.points_mut());
     }
 
     /// [`Self::interpolate`] into `out`, which must be its earlier result
@@ -187,9 +173,16 @@ impl WispModel {
             self.members.len() * per,
             "out comes from interpolate()"
         );
-        out.points_mut()
+        self.fill_members(&self.members, out.points_mut());
+    }
+
+    /// The points of `members`, strand after strand, into `points`;
+    /// strands in parallel.
+    fn fill_members(&self, members: &[Member], points: &mut [Vec3]) {
+        let per = self.guides.strand(0).len();
+        points
             .par_chunks_mut(per)
-            .zip(&self.members)
+            .zip(members)
             .with_min_len(16)
             .for_each(|(pts, m)| {
                 let g = m.wisp as usize * GUIDES_PER_WISP;
