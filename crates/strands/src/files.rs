@@ -81,20 +81,64 @@ pub enum MeshLoadError {
 /// ends (`/dev/zero`, a FIFO that keeps writing), is refused at the limit.
 pub const MAX_FILE_BYTES: u64 = 256 << 20;
 
+/// How long a file that is not a regular file (a FIFO, a device) is
+/// given to be opened and read whole: opening a FIFO waits for a writer,
+/// and reading it for its data.
+pub const SPECIAL_FILE_WAIT: std::time::Duration = std::time::Duration::from_secs(10);
+
 /// Reads `path` whole if it holds at most `cap` bytes. More is an error
 /// of kind [`std::io::ErrorKind::FileTooLarge`] once `cap + 1` bytes have
 /// been read, so that memory stays bounded whatever the file is (a device
-/// or a FIFO has no size to check first).
+/// or a FIFO has no size to check first); and a FIFO or a device not read
+/// whole within [`SPECIAL_FILE_WAIT`] is an error of kind
+/// [`std::io::ErrorKind::TimedOut`], so that time stays bounded too.
 pub fn read_capped(path: &Path, cap: u64) -> std::io::Result<Vec<u8>> {
-    use std::io::Read;
-    let file = std::fs::File::open(path)?;
-    let meta = file.metadata()?;
+    read_capped_within(path, cap, SPECIAL_FILE_WAIT)
+}
+
+/// [`read_capped`], a FIFO or a device given `wait`. Such a file is read
+/// on a thread of its own (the file's kind is checked first, which does
+/// not wait); past `wait` that thread is left to end when the file does
+/// (its writer comes, or goes) while the caller gets the error.
+pub fn read_capped_within(
+    path: &Path,
+    cap: u64,
+    wait: std::time::Duration,
+) -> std::io::Result<Vec<u8>> {
+    let meta = std::fs::metadata(path)?;
     if meta.is_dir() {
         return Err(std::io::Error::new(
             std::io::ErrorKind::IsADirectory,
             "a directory, not a file",
         ));
     }
+    if meta.is_file() {
+        return read_open(path, cap);
+    }
+    let (tx, rx) = std::sync::mpsc::channel();
+    let owned = path.to_owned();
+    std::thread::Builder::new()
+        .name("read-special-file".into())
+        .spawn(move || {
+            let _ = tx.send(read_open(&owned, cap));
+        })?;
+    rx.recv_timeout(wait).unwrap_or_else(|_| {
+        Err(std::io::Error::new(
+            std::io::ErrorKind::TimedOut,
+            format!(
+                "not read whole within {} s: not a regular file, but a FIFO with no writer, or \
+                 a FIFO or a device that stays silent",
+                wait.as_secs_f64()
+            ),
+        ))
+    })
+}
+
+/// Opens and reads `path` whole, at most `cap` bytes.
+fn read_open(path: &Path, cap: u64) -> std::io::Result<Vec<u8>> {
+    use std::io::Read;
+    let file = std::fs::File::open(path)?;
+    let meta = file.metadata()?;
     if meta.is_file() && meta.len() > cap {
         return Err(too_large(meta.len(), cap));
     }
@@ -234,6 +278,66 @@ pub fn load_obj_bytes(path: &Path, bytes: &[u8]) -> Result<Mesh, MeshLoadError> 
         path: path.to_owned(),
         cause,
     })
+}
+
+#[cfg(test)]
+mod special_file_tests {
+    use super::*;
+    use std::time::{Duration, Instant};
+
+    fn fifo(name: &str) -> PathBuf {
+        let dir =
+            std::env::temp_dir().join(format!("wisplight-fifo-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("f");
+        let made = std::process::Command::new("mkfifo")
+            .arg(&path)
+            .status()
+            .unwrap();
+        assert!(made.success());
+        path
+    }
+
+    #[test]
+    fn a_fifo_with_no_writer_or_a_silent_one_is_refused_in_time() {
+        let wait = Duration::from_millis(300);
+        // No writer: opening it would wait for ever.
+        let lonely = fifo("lonely");
+        let t = Instant::now();
+        let e = read_capped_within(&lonely, 1 << 20, wait).unwrap_err();
+        assert_eq!(e.kind(), std::io::ErrorKind::TimedOut, "{e}");
+        assert!(e.to_string().contains("a FIFO with no writer"), "{e}");
+        assert!(t.elapsed() < Duration::from_secs(5));
+        // A writer that says a little and then holds it open, silent.
+        let silent = fifo("silent");
+        let path = silent.clone();
+        let (hold, held) = std::sync::mpsc::channel::<()>();
+        let writer = std::thread::spawn(move || {
+            use std::io::Write;
+            let mut f = std::fs::OpenOptions::new().write(true).open(path).unwrap();
+            f.write_all(b"# a start\n").unwrap();
+            let _ = held.recv_timeout(Duration::from_secs(10));
+        });
+        let e = read_capped_within(&silent, 1 << 20, wait).unwrap_err();
+        assert_eq!(e.kind(), std::io::ErrorKind::TimedOut, "{e}");
+        drop(hold);
+        writer.join().unwrap();
+        // A FIFO whose writer says it all and goes is read whole.
+        let said = fifo("said");
+        let path = said.clone();
+        let writer = std::thread::spawn(move || std::fs::write(path, b"all of it").unwrap());
+        assert_eq!(
+            read_capped_within(&said, 1 << 20, Duration::from_secs(5)).unwrap(),
+            b"all of it"
+        );
+        writer.join().unwrap();
+        // The lonely FIFO's reader is still waiting for a writer: let it end.
+        let _ = std::fs::OpenOptions::new().write(true).open(&lonely);
+        for p in [lonely, silent, said] {
+            let _ = std::fs::remove_dir_all(p.parent().unwrap());
+        }
+    }
 }
 
 #[cfg(test)]
