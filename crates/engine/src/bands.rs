@@ -49,11 +49,15 @@ pub enum Sort {
 }
 
 impl Sort {
-    /// The name the command line and reports use.
-    pub fn name(self) -> &'static str {
+    /// Both sorts, in the order [`Self::index`] numbers them: what keeps
+    /// a figure per sort keeps it in this order.
+    pub const ALL: [Sort; 2] = [Sort::Middle, Sort::Last];
+
+    /// The sort's place in [`Self::ALL`].
+    pub fn index(self) -> usize {
         match self {
-            Sort::Last => "sort-last",
-            Sort::Middle => "sort-middle",
+            Sort::Middle => 0,
+            Sort::Last => 1,
         }
     }
 }

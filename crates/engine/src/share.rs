@@ -311,14 +311,17 @@ impl Share {
         // whole hair is dense (as one process draws it), whole in the plan's.
         let (w, h) = (job.camera.width(), job.camera.height());
         let groups = self.anim.groups();
-        let all_segments = groups.strand_range(0..groups.count()).len().max(1);
-        let share = groups.strand_range(self.groups.clone()).len().max(1);
+        let all_strands = groups.strand_range(0..groups.count()).len().max(1);
+        let own_strands = groups.strand_range(self.groups.clone()).len().max(1);
         let drawn = self
             .posed
             .as_ref()
             .map_or(0, |(_, hair)| hair.segment_count());
-        let band_rows =
-            plan.band_rows_within(Canvas::band_rows_for(w, h, drawn * all_segments / share));
+        let band_rows = plan.band_rows_within(Canvas::band_rows_for(
+            w,
+            h,
+            drawn * all_strands / own_strands,
+        ));
         Ok(BandWork {
             canvas,
             own,

@@ -14,13 +14,10 @@ const KEEP: usize = 3;
 /// camera moving closer).
 const REVISIT: u64 = 16;
 
-/// The sorts in the order they are first tried.
-const SORTS: [Sort; 2] = [Sort::Middle, Sort::Last];
-
 /// What the Draw rounds cost, per sort, and the choice that follows.
 #[derive(Debug, Clone, Default)]
 pub(super) struct Chooser {
-    /// Per sort of [`SORTS`], the last rounds' costs (ms), oldest first.
+    /// Per sort of [`Sort::ALL`], the last rounds' costs (ms), oldest first.
     costs: [Vec<f64>; 2],
     /// Rounds planned.
     rounds: u64,
@@ -33,13 +30,6 @@ pub(super) struct Chooser {
     warm: bool,
 }
 
-fn index(sort: Sort) -> usize {
-    match sort {
-        Sort::Middle => 0,
-        Sort::Last => 1,
-    }
-}
-
 impl Chooser {
     /// The sort of the next round: each is measured twice first, in
     /// turn (so that a machine growing busier weighs on both alike); then
@@ -47,8 +37,8 @@ impl Chooser {
     /// round, which measures the other again.
     pub(super) fn next(&mut self) -> Sort {
         self.rounds += 1;
-        let measured = |s: Sort| self.costs[index(s)].len();
-        let fewer = SORTS
+        let measured = |s: Sort| self.costs[s.index()].len();
+        let fewer = Sort::ALL
             .iter()
             .copied()
             .filter(|&s| measured(s) < 2)
@@ -72,7 +62,7 @@ impl Chooser {
                 }
             }
         };
-        self.chosen[index(sort)] += 1;
+        self.chosen[sort.index()] += 1;
         self.last = Some(sort);
         sort
     }
@@ -83,7 +73,7 @@ impl Chooser {
         if !ms.is_finite() || ms < 0.0 || !std::mem::replace(&mut self.warm, true) {
             return;
         }
-        let c = &mut self.costs[index(sort)];
+        let c = &mut self.costs[sort.index()];
         c.push(ms);
         if c.len() > KEEP {
             c.remove(0);
@@ -93,7 +83,7 @@ impl Chooser {
     /// The estimated cost of a round of `sort`, ms: the least of its last
     /// rounds.
     pub(super) fn estimate(&self, sort: Sort) -> Option<f64> {
-        self.costs[index(sort)].iter().copied().reduce(f64::min)
+        self.costs[sort.index()].iter().copied().reduce(f64::min)
     }
 
     /// The sort of least estimated cost, once both were measured.

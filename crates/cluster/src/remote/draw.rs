@@ -178,8 +178,7 @@ impl RemoteExecutor {
                         .measured(sort, (now - then).as_secs_f64() * 1e3);
                 }
                 let c = &self.chooser;
-                let estimates = [engine::Sort::Middle, engine::Sort::Last]
-                    .map(|s| c.estimate(s).unwrap_or(0.0));
+                let estimates = engine::Sort::ALL.map(|s| c.estimate(s).unwrap_or(0.0));
                 self.clock(|t| t.round_estimate_ms = estimates);
                 self.chooser.next()
             }
@@ -505,17 +504,13 @@ impl BandRound {
         if let Some(e) = first_error {
             return Err(e);
         }
-        let sort = match self.sort {
-            engine::Sort::Middle => 0,
-            engine::Sort::Last => 1,
-        };
         if let Ok(mut c) = self.row_costs.lock() {
             c.set(self.sort, self.height, measured);
         }
         if let Ok(mut t) = self.timing.lock() {
             t.band_wait_ms += wait;
             t.band_composite_ms += composite;
-            t.rounds[sort] += 1;
+            t.rounds[self.sort.index()] += 1;
         }
         Ok(img)
     }
@@ -536,7 +531,7 @@ pub(super) struct Gathered {
 /// each sort, ms: the next round of that sort cuts its bands by it.
 #[derive(Debug, Default)]
 pub(super) struct RowCosts {
-    /// Per sort (sort-middle, sort-last): the picture's height, and the
+    /// Per sort (in the order of [`engine::Sort::ALL`]): the picture's height, and the
     /// cost of each 16 rows.
     of: [Option<(u32, Vec<f64>)>; 2],
 }
@@ -558,16 +553,9 @@ impl RowCosts {
         }
     }
 
-    fn index(sort: engine::Sort) -> usize {
-        match sort {
-            engine::Sort::Middle => 0,
-            engine::Sort::Last => 1,
-        }
-    }
-
     /// The last costs of `sort` for a picture of `height` rows.
     pub(super) fn get(&self, sort: engine::Sort, height: u32) -> Option<Vec<f64>> {
-        match &self.of[Self::index(sort)] {
+        match &self.of[sort.index()] {
             Some((h, c)) if *h == height && c.iter().any(|&x| x > 0.0) => Some(c.clone()),
             _ => None,
         }
@@ -575,7 +563,7 @@ impl RowCosts {
 
     /// Keeps a round's costs.
     pub(super) fn set(&mut self, sort: engine::Sort, height: u32, units: Vec<f64>) {
-        self.of[Self::index(sort)] = Some((height, units));
+        self.of[sort.index()] = Some((height, units));
     }
 }
 

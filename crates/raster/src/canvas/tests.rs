@@ -91,6 +91,24 @@ fn groups_split_across_canvases_composite_to_the_same_bytes() {
     split_groups_composite_to_the_same_bytes(4, 2.0);
 }
 
+/// How the strands of the split tests look.
+fn split_look(simplify: f32) -> HairLook {
+    HairLook {
+        fiber_width: 0.04,
+        opacity: 0.7,
+        depth_ref: 10.0,
+        simplify,
+    }
+}
+
+/// The head of the split tests.
+fn split_head() -> Sphere {
+    Sphere {
+        center: Vec3::new(0.5, 0.0, -0.5),
+        radius: 1.2,
+    }
+}
+
 fn split_groups_composite_to_the_same_bytes(nearest: usize, simplify: f32) {
     let cam = Camera::new(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, 40.0, 80, 56).unwrap();
     let (mut pts, mut cols, mut offsets) = (Vec::new(), Vec::new(), vec![0u32]);
@@ -103,16 +121,7 @@ fn split_groups_composite_to_the_same_bytes(nearest: usize, simplify: f32) {
         }
         offsets.push(pts.len() as u32);
     }
-    let look = HairLook {
-        fiber_width: 0.04,
-        opacity: 0.7,
-        depth_ref: 10.0,
-        simplify,
-    };
-    let head = Sphere {
-        center: Vec3::new(0.5, 0.0, -0.5),
-        radius: 1.2,
-    };
+    let (look, head) = (split_look(simplify), split_head());
     let groups = [0, 7, 20, 21, 33, 60];
     // Drawn in bands of `band` rows.
     let canvas_in = |strands: std::ops::Range<usize>, band: usize| {
@@ -257,16 +266,7 @@ fn sort_middle_gives_the_same_bytes(nearest: usize, simplify: f32) {
         }
         offsets.push(pts.len() as u32);
     }
-    let look = HairLook {
-        fiber_width: 0.04,
-        opacity: 0.7,
-        depth_ref: 10.0,
-        simplify,
-    };
-    let head = Sphere {
-        center: Vec3::new(0.5, 0.0, -0.5),
-        radius: 1.2,
-    };
+    let (look, head) = (split_look(simplify), split_head());
     let groups = [0usize, 7, 20, 21, 33, 60];
     let with_head = |band: u32| {
         let mut c = Canvas::new(w, h).unwrap();
