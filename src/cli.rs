@@ -21,6 +21,8 @@ pub struct Cli {
 pub enum Command {
     /// Renders a self-shadowed picture of a scene (the built-in one without a file), or frames of its animation.
     Render(cmd::render::Args),
+    /// Simulates a scene's wisps and writes their state after each frame, one file a frame: a cache from which `render --cache` renders any chunk of frames alone.
+    Simulate(cmd::simulate::Args),
     /// Prints how much light reaches given points: CSV `x,y,z` in, `x,y,z,transmittance` out.
     Probe(cmd::probe::Args),
     /// Serves a coordinator (cluster mode): simulates a share of the wisps, fills their density, sweeps a share of the map's columns.
@@ -48,12 +50,16 @@ pub enum Command {
 pub fn run(cli: Cli) -> ExitCode {
     app::start(cli.log);
     // Commands that write pictures leave no partial file when stopped.
-    if matches!(cli.command, Command::Render(_) | Command::Coordinator(_)) {
+    if matches!(
+        cli.command,
+        Command::Render(_) | Command::Coordinator(_) | Command::Simulate(_)
+    ) {
         app::exit_cleanly_on_signals();
     }
     let threads = match &cli.command {
         Command::Render(a) => a.threads.threads,
         Command::Probe(a) => a.threads.threads,
+        Command::Simulate(a) => a.threads.threads,
         Command::Worker(a) => a.threads.threads,
         Command::Coordinator(a) => a.threads(),
         Command::View(a) => a.threads.threads,
@@ -63,6 +69,7 @@ pub fn run(cli: Cli) -> ExitCode {
     let result = app::init_threads(threads).and_then(|()| match cli.command {
         Command::Render(args) => cmd::render::run(args),
         Command::Probe(args) => cmd::probe::run(args),
+        Command::Simulate(args) => cmd::simulate::run(args),
         Command::Worker(args) => cmd::cluster::worker(args),
         Command::Coordinator(args) => cmd::cluster::coordinator(args),
         Command::Health(args) => cmd::cluster::health(args),

@@ -4,6 +4,7 @@ pub mod cluster;
 pub mod export;
 pub mod probe;
 pub mod render;
+pub mod simulate;
 pub mod view;
 
 use std::path::Path;
@@ -120,6 +121,60 @@ impl MethodArg {
     }
 }
 
+/// `--frames`: `N` for frames 0 to N-1, `A..B` for frames A to B-1, or
+/// `A..=B` for frames A to B.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FrameRange {
+    /// The first frame.
+    pub start: u64,
+    /// One past the last.
+    pub end: u64,
+}
+
+/// The most frames one run renders, and the last frame's index.
+pub const MAX_FRAMES: u64 = 1_000_000;
+
+impl FrameRange {
+    /// How many frames.
+    pub fn len(&self) -> u64 {
+        self.end - self.start
+    }
+
+    /// Parses `N`, `A..B` or `A..=B` (clap's value parser).
+    pub fn parse(s: &str) -> Result<FrameRange, String> {
+        let num = |t: &str| {
+            t.trim()
+                .parse::<u64>()
+                .map_err(|_| format!("{t:?} is not a frame number"))
+        };
+        let (start, end) = if let Some((a, b)) = s.split_once("..=") {
+            (num(a)?, num(b)?.saturating_add(1))
+        } else if let Some((a, b)) = s.split_once("..") {
+            (num(a)?, num(b)?)
+        } else {
+            (0, num(s)?)
+        };
+        if end <= start {
+            return Err(format!(
+                "{s}: no frames (give N, A..B for A to B-1, or A..=B)"
+            ));
+        }
+        if end - start > MAX_FRAMES || end > 100 * MAX_FRAMES {
+            return Err(format!(
+                "{s}: at most {MAX_FRAMES} frames a run, none past frame {}",
+                100 * MAX_FRAMES - 1
+            ));
+        }
+        Ok(FrameRange { start, end })
+    }
+}
+
+impl std::fmt::Display for FrameRange {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}..{}", self.start, self.end)
+    }
+}
+
 /// The median of `v` (the mean of the middle two for even lengths).
 pub fn median(v: &mut [f64]) -> f64 {
     if v.is_empty() {
@@ -173,6 +228,28 @@ pub fn run_bench(log: Log, args: Vec<std::ffi::OsString>) -> anyhow::Result<()> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn frame_ranges_parse_as_documented() {
+        let r = |a, b| Ok(FrameRange { start: a, end: b });
+        assert_eq!(FrameRange::parse("30"), r(0, 30));
+        assert_eq!(FrameRange::parse("100..120"), r(100, 120));
+        assert_eq!(FrameRange::parse("100..=120"), r(100, 121));
+        assert_eq!(FrameRange::parse("7..=7"), r(7, 8));
+        for bad in [
+            "0",
+            "5..5",
+            "9..3",
+            "a..3",
+            "..3",
+            "1..",
+            "-1",
+            "2000000",
+            "1..2000000",
+        ] {
+            assert!(FrameRange::parse(bad).is_err(), "{bad}");
+        }
+    }
 
     #[test]
     fn median_of_odd_and_even() {

@@ -23,10 +23,20 @@ pub struct Args {
     /// renamed: it appears whole or not at all.
     #[arg(short, long, value_name = "OUT")]
     output: Option<PathBuf>,
-    /// Frames to render, from time 0 at the scene's `animation.fps`.
-    #[arg(long, default_value_t = 1, value_name = "N",
-          value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
-    frames: u64,
+    /// Frames to render at the scene's `animation.fps`: `N` for frames 0
+    /// to N-1, `A..B` for A to B-1, `A..=B` for A to B. Frame k is the
+    /// same picture whatever range is rendered; without `--cache`, the
+    /// frames before A are simulated (not drawn) first.
+    #[arg(long, default_value = "1", value_name = "N|A..B",
+          value_parser = super::FrameRange::parse)]
+    frames: super::FrameRange,
+    /// A simulation cache (`wisplight simulate SCENE -o DIR`) of this
+    /// scene: the range starts from the wisps the cache holds for its
+    /// first frame, with no warm-up, and in one process each later frame
+    /// takes its wisps from the cache too. A cache of another scene or
+    /// another wisplight is refused.
+    #[arg(long, value_name = "DIR")]
+    cache: Option<PathBuf>,
     /// Write what every stage of every frame did, as JSON:
     /// {"frames": [{"index": 0, "stages": {"simulate": {"ran": true, "ms": 1.2}, ...}}]}.
     #[arg(long, value_name = "FILE.json")]
@@ -67,7 +77,8 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
     if args.no_shadow {
         scene.effects.self_shadow = false;
     }
-    let n = args.frames;
+    let range = args.frames;
+    let n = range.len();
     let out_path = args.output.clone().unwrap_or_else(|| {
         PathBuf::from(if n == 1 {
             "wisplight.png"
@@ -110,6 +121,23 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
     };
 
     let mut seq = Sequence::new(&scene).context("cannot set up the scene")?;
+    // The range's first wisps from the cache, before any executor takes
+    // them.
+    let cache = match &args.cache {
+        None => None,
+        Some(dir) => {
+            let Some(c) = super::simulate::CacheDir::new(dir, &seq) else {
+                return Err(super::usage(format!(
+                    "--cache {}: the scene's hair is not simulated; render any range without a cache",
+                    dir.display()
+                )));
+            };
+            let states = c.read(range.start)?;
+            seq.resume_at(range.start, states)
+                .context("cannot start from the cache")?;
+            Some(c)
+        }
+    };
     let mut traffic = None;
     let mut timing = None;
     let mut workers = 0;
@@ -130,6 +158,19 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
         seq.set_executor(Box::new(executor))
             .context("cannot start the cluster")?;
     }
+    if cache.is_none() && range.start > 0 {
+        // The frames before the range: their motion alone.
+        let bar = super::progress_bar(
+            range.start,
+            "{bar:30} simulating frame {pos}/{len} before the range [{elapsed} < {eta}]",
+        );
+        for frame in 0..range.start {
+            seq.skip_frame()
+                .with_context(|| format!("cannot simulate frame {frame}"))?;
+            bar.inc(1);
+        }
+        bar.finish_and_clear();
+    }
     // A progress bar on a terminal for more than one frame.
     let bar = if n > 1 {
         super::progress_bar(n, "{bar:30} frame {pos}/{len} [{elapsed} < {eta}]")
@@ -147,7 +188,19 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
     // Each frame's wall time: with the next frame's stages running beside
     // this one's drawing, the stages' own times add up to more.
     let mut frame_ms = Vec::with_capacity(n.min(100_000) as usize);
-    for _ in 0..n {
+    // In one process, every frame of the cache is read from it (nothing
+    // is simulated); on a cluster, whose workers hold the wisps, the
+    // frames after the first step on from it.
+    let from_cache = |frame: u64| {
+        cache
+            .as_ref()
+            .filter(|c| workers == 0 && frame > range.start && c.has(frame))
+    };
+    for frame in range.start..range.end {
+        if let Some(c) = from_cache(frame) {
+            seq.resume_at(frame, c.read(frame)?)
+                .context("cannot take the frame from the cache")?;
+        }
         let t = std::time::Instant::now();
         let (img, stats) = seq.next_frame().context("cannot render")?;
         frame_ms.push(t.elapsed().as_secs_f64() * 1e3);
@@ -188,8 +241,12 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
                 .context("cannot save the GIF")?;
             path.display().to_string()
         }
-        Output::Pngs(p) if n == 1 => p.path(0).display().to_string(),
-        Output::Pngs(p) => format!("{} .. {}", p.path(0).display(), p.path(n - 1).display()),
+        Output::Pngs(p) if n == 1 => p.path(range.start).display().to_string(),
+        Output::Pngs(p) => format!(
+            "{} .. {}",
+            p.path(range.start).display(),
+            p.path(range.end - 1).display()
+        ),
     };
     if let Some(path) = &args.stats {
         write_stats(path, &all)?;

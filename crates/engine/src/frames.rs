@@ -46,6 +46,9 @@ type Version = u64;
 pub struct Sequence {
     scene: Scene,
     anim: Animator,
+    /// The drawn hair's box at rest and a sample of its points (at most
+    /// about 16K, evenly): what the camera is framed on.
+    rest: (strands::Bounds, Vec<glam::Vec3>),
     renderer: Renderer,
     executor: Box<dyn Executor>,
     /// Self-collisions' own density map, when the shadows do not fill one
@@ -74,6 +77,9 @@ pub struct Sequence {
     expected: Option<u64>,
     /// The next frame is the last one again ([`Self::again`]): no motion.
     repeat: bool,
+    /// The next frame's wisps were given ([`Self::resume_at`]): it poses
+    /// them without stepping.
+    resumed: bool,
     /// The next frame's stages before its drawing, when they ran ahead.
     ahead: Option<Result<FrameStats, EngineError>>,
     /// Threads of their own for compositing while the next frame's stages
@@ -133,6 +139,15 @@ fn collision_map(scene: &Scene, anim: &Animator) -> Result<Option<DensityMapMeth
     )?))
 }
 
+/// The box of `hair` and a sample of its points, at most about 16K,
+/// evenly.
+fn rest_sample(hair: &Hair) -> (strands::Bounds, Vec<glam::Vec3>) {
+    let points = hair.points();
+    let stride = points.len().div_ceil(1 << 14).max(1);
+    let sample = points.iter().step_by(stride).copied().collect();
+    (hair.bounds(), sample)
+}
+
 /// The executor gave up its drawing part between two calls of a frame.
 fn no_drawing() -> EngineError {
     EngineError::executor("the executor stopped drawing in the middle of a frame")
@@ -161,6 +176,7 @@ impl Sequence {
         Ok(Sequence {
             scene: scene.clone(),
             posed_head: anim.head(),
+            rest: rest_sample(anim.hair()),
             anim,
             renderer,
             executor: Box::new(LocalExecutor),
@@ -176,6 +192,7 @@ impl Sequence {
             next: 0,
             expected: None,
             repeat: false,
+            resumed: false,
             ahead: None,
             compositor: None,
             drawer: None,
@@ -254,6 +271,84 @@ impl Sequence {
     /// Index of the next frame [`Self::next_frame`] renders.
     pub fn next_index(&self) -> u64 {
         self.next
+    }
+
+    /// Runs the next frame's motion alone, and nothing that only its
+    /// picture needs (no shadows but the self-collision map its steps
+    /// read, no shading, no drawing): what a run that renders a later
+    /// range, or writes a simulation cache, does with the frames before.
+    /// Hair that is not simulated has no motion to carry: its frames
+    /// follow from the head's transform alone, so nothing runs. The next
+    /// frame rendered is then the one after; its picture is the bytes a
+    /// run that rendered every frame gives.
+    pub fn skip_frame(&mut self) -> Result<FrameStats, EngineError> {
+        let index = self.next;
+        let mut stats = FrameStats::new(index, index as f32 * self.anim.frame_dt());
+        if self.ahead.is_some() {
+            return Err(EngineError::executor(
+                "a frame cannot be skipped once its stages ran ahead",
+            ));
+        }
+        if self.anim.simulates() || self.repeat || self.resumed {
+            let _span = tracing::warn_span!("frame", index).entered();
+            self.motion(index, &mut stats)?;
+        }
+        if let Some(n) = &mut self.expected {
+            *n = n.saturating_sub(1);
+        }
+        self.next += 1;
+        Ok(stats)
+    }
+
+    /// The state of every wisp, as the last frame's steps left it (`None`
+    /// for hair that is not simulated): what a simulation cache holds.
+    pub fn wisp_states(&self) -> Option<Vec<sim::WispState>> {
+        if !self.anim.simulates() {
+            return None;
+        }
+        (0..self.anim.wisp_count())
+            .map(|w| self.anim.wisp_state(w).cloned())
+            .collect()
+    }
+
+    /// Makes frame `index` the next, its wisps standing as `states` say
+    /// (as the steps up to that frame left them, read from a simulation
+    /// cache): it poses them without stepping, and the frames after it
+    /// step on from there. The executor is told the new state
+    /// ([`Executor::attach`]). Refused, leaving the sequence as it was,
+    /// for hair that is not simulated or states of another shape.
+    pub fn resume_at(
+        &mut self,
+        index: u64,
+        states: Vec<sim::WispState>,
+    ) -> Result<(), EngineError> {
+        if !self.anim.simulates() {
+            return Err(EngineError::Unchangeable(
+                "the scene's hair is not simulated: it has no wisps to resume",
+            ));
+        }
+        if states.len() != self.anim.wisp_count() {
+            return Err(EngineError::Sim(sim::SimError::Guides(format!(
+                "{} wisp states for a scene of {} wisps",
+                states.len(),
+                self.anim.wisp_count()
+            ))));
+        }
+        let before: Vec<sim::WispState> = self.wisp_states().unwrap_or_default();
+        for (w, state) in states.into_iter().enumerate() {
+            if let Err(e) = self.anim.set_wisp_state(w, state) {
+                for (w, old) in before.into_iter().enumerate() {
+                    let _ = self.anim.set_wisp_state(w, old);
+                }
+                return Err(e);
+            }
+        }
+        self.executor.attach(&self.anim)?;
+        self.invalidate();
+        self.next = index;
+        self.repeat = false;
+        self.resumed = true;
+        Ok(())
     }
 
     /// Forgets every result that depends on the scene's settings: the
@@ -341,8 +436,7 @@ impl Sequence {
         let version = self.version;
         if self.draws_elsewhere() {
             if self.picture.as_ref().is_none_or(|p| p.0 != version) {
-                let bounds = self.report(&mut stats)?.bounds;
-                self.frame_camera(index, bounds)?;
+                self.frame_camera()?;
                 let job = self.renderer.draw_job(version, fx.self_shadow)?;
                 let start = Instant::now();
                 let ex = self.executor.drawing().ok_or_else(no_drawing)?;
@@ -418,7 +512,7 @@ impl Sequence {
                 self.picture = Some((version, img));
             }
         } else {
-            self.frame_camera(index, self.anim.hair().bounds())?;
+            self.frame_camera()?;
             let hair = self.anim.hair();
             if self.shaded_at != Some(version) {
                 let r = &mut self.renderer;
@@ -501,39 +595,30 @@ impl Sequence {
         self.next_frame()
     }
 
-    /// Frames the camera, the first time, on hair with `bounds` at frame
-    /// `index` and the head, as the head's motion carries both through
-    /// the frames the caller said will follow ([`Self::expect_frames`]):
-    /// the whole animation stays in the picture, not only its first
-    /// frame (the swing of simulated hair beyond the head's motion aside).
-    fn frame_camera(&mut self, index: u64, bounds: strands::Bounds) -> Result<(), EngineError> {
-        self.frame_camera_over(index, bounds, self.expected)
-    }
-
-    /// [`Self::frame_camera`] over `expected` frames from this one (as
-    /// [`Self::expect_frames`] counts them once this frame is under way).
-    fn frame_camera_over(
-        &mut self,
-        index: u64,
-        bounds: strands::Bounds,
-        expected: Option<u64>,
-    ) -> Result<(), EngineError> {
+    /// Frames the camera, the first time, on the hair at rest and the
+    /// head as the head's motion carries both through the shot's frames
+    /// ([`crate::Animation::framing_last_frame`]): the scene's, not the
+    /// frames a run renders, so that frame `k` is the same picture
+    /// whatever range is rendered (the swing of simulated hair beyond the
+    /// head's motion aside).
+    fn frame_camera(&mut self) -> Result<(), EngineError> {
         if self.renderer.camera().is_some() {
             return Ok(());
         }
-        let frames = expected.unwrap_or(1).max(1);
-        // At most 512 samples of the motion, evenly over the later frames
-        // (the first is where the bounds are).
-        let samples = (frames - 1).min(512);
+        let last = self.scene.animation.framing_last_frame();
+        // At most 512 samples of the motion, evenly over frames 1..=last
+        // (frame 0 is where the bounds are).
+        let samples = last.min(512);
         let dt = self.anim.frame_dt();
-        let from = self.anim.head_at(index as f32 * dt).inverse();
+        let from = self.anim.head_at(0.0).inverse();
         let moves: Vec<Affine3A> = (1..=samples)
             .map(|k| {
-                let f = index + k * (frames - 1) / samples;
+                let f = k * last / samples;
                 self.anim.head_at(f as f32 * dt) * from
             })
             .collect();
-        self.renderer.frame_on_motion(bounds, &moves)
+        let (bounds, sample) = &self.rest;
+        self.renderer.frame_on_motion(*bounds, sample, &moves)
     }
 
     /// Frame `index`'s stages before its drawing: the motion (simulated
@@ -545,53 +630,7 @@ impl Sequence {
         let mut stats = FrameStats::new(index, t);
         let fx = self.scene.effects;
         let elsewhere = self.draws_elsewhere();
-
-        // Motion: simulated steps, or a rigid move of the head.
-        let head = self.anim.head_at(t);
-        if std::mem::take(&mut self.repeat) {
-            // The frame rendered again: the hair stays where it is.
-        } else if self.anim.simulates() {
-            let n = self.anim.substeps() as usize;
-            let drawn = if fx.body_collision {
-                self.bodies(&head)
-            } else {
-                Vec::new()
-            };
-            if index == 0 {
-                // Settle at the first pose: frames' worth of steps, the
-                // collision map refreshed once per such frame.
-                let settle = self.anim.settle_frames();
-                for f in 0..settle {
-                    let last = f + 1 == settle;
-                    let d = if last { drawn.clone() } else { Vec::new() };
-                    self.advance(&mut stats, vec![head; n], head, d)?;
-                }
-                if settle == 0 {
-                    self.pose(&mut stats, head, drawn)?;
-                }
-            } else {
-                let (t0, dt) = (t - self.anim.frame_dt(), self.anim.frame_dt());
-                let anim = &self.anim;
-                let heads: Vec<Affine3A> = (1..=n)
-                    .map(|s| anim.head_at(t0 + dt * s as f32 / n as f32))
-                    .collect();
-                self.advance(&mut stats, heads, head, drawn)?;
-            }
-        } else if head != self.posed_head || (elsewhere && self.report.is_none()) {
-            self.pose(&mut stats, head, Vec::new())?;
-        }
-        if !elsewhere && self.stale_here {
-            // Posed elsewhere until a change of settings brought the
-            // drawing here: posed here as it was there.
-            let plan = self.pose_again();
-            self.posed(&mut stats, &plan)?;
-        }
-        self.renderer.set_head_pose(head);
-        // Hair held elsewhere whose report was forgotten (new lights)
-        // reports again before its version is read.
-        if elsewhere && self.report.is_none() {
-            self.report(&mut stats)?;
-        }
+        self.motion(index, &mut stats)?;
 
         // Shadows, only when the hair moved since the last result.
         let version = self.version;
@@ -612,10 +651,8 @@ impl Sequence {
             })?;
             if !elsewhere {
                 // The camera first: the exact reference looks at each
-                // fiber from the side it sees. Framed as it would be once
-                // this frame is under way (its own frame counted off).
-                let expected = self.expected.map(|n| n.saturating_sub(1));
-                self.frame_camera_over(index, self.anim.hair().bounds(), expected)?;
+                // fiber from the side it sees.
+                self.frame_camera()?;
                 let (r, hair) = (&mut self.renderer, self.anim.hair());
                 stats.time(Stage::Filter, || r.filter(hair));
             }
@@ -625,6 +662,69 @@ impl Sequence {
             }
         }
         Ok(stats)
+    }
+
+    /// Frame `index`'s motion: simulated steps (or, for the frame the
+    /// sequence [resumed at](Self::resume_at), the pose of the wisps it
+    /// was given), or a rigid move of the head; then the pose, when the
+    /// hair moved.
+    fn motion(&mut self, index: u64, stats: &mut FrameStats) -> Result<(), EngineError> {
+        let t = index as f32 * self.anim.frame_dt();
+        let fx = self.scene.effects;
+        let elsewhere = self.draws_elsewhere();
+        let head = self.anim.head_at(t);
+        let drawn = |seq: &Self| {
+            if fx.body_collision && seq.anim.simulates() {
+                seq.bodies(&head)
+            } else {
+                Vec::new()
+            }
+        };
+        if std::mem::take(&mut self.repeat) {
+            // The frame rendered again: the hair stays where it is.
+        } else if std::mem::take(&mut self.resumed) {
+            // The wisps stand where this frame's steps left them.
+            let d = drawn(self);
+            self.pose(stats, head, d)?;
+        } else if self.anim.simulates() {
+            let n = self.anim.substeps() as usize;
+            let drawn = drawn(self);
+            if index == 0 {
+                // Settle at the first pose: frames' worth of steps, the
+                // collision map refreshed once per such frame.
+                let settle = self.anim.settle_frames();
+                for f in 0..settle {
+                    let last = f + 1 == settle;
+                    let d = if last { drawn.clone() } else { Vec::new() };
+                    self.advance(stats, vec![head; n], head, d)?;
+                }
+                if settle == 0 {
+                    self.pose(stats, head, drawn)?;
+                }
+            } else {
+                let (t0, dt) = (t - self.anim.frame_dt(), self.anim.frame_dt());
+                let anim = &self.anim;
+                let heads: Vec<Affine3A> = (1..=n)
+                    .map(|s| anim.head_at(t0 + dt * s as f32 / n as f32))
+                    .collect();
+                self.advance(stats, heads, head, drawn)?;
+            }
+        } else if head != self.posed_head || (elsewhere && self.report.is_none()) {
+            self.pose(stats, head, Vec::new())?;
+        }
+        if !elsewhere && self.stale_here {
+            // Posed elsewhere until a change of settings brought the
+            // drawing here: posed here as it was there.
+            let plan = self.pose_again();
+            self.posed(stats, &plan)?;
+        }
+        self.renderer.set_head_pose(head);
+        // Hair held elsewhere whose report was forgotten (new lights)
+        // reports again before its version is read.
+        if elsewhere && self.report.is_none() {
+            self.report(stats)?;
+        }
+        Ok(())
     }
 
     /// What the drawn hair's last pose reported: measured here the first

@@ -19,6 +19,7 @@
 
 mod animate;
 mod bands;
+pub mod cache;
 mod collide;
 mod exec;
 mod export;

@@ -84,6 +84,18 @@ impl Motion {
         }
     }
 
+    /// Seconds after which the motion holds or repeats: every pose it
+    /// takes is taken in `0..=span`. Still: 0. The dance: 6 s, the least
+    /// common multiple of its periods (2, 1, 1.5 and 3 s). Keyframes: the
+    /// last key's time (held after it; before time 0 is never rendered).
+    pub fn span(&self) -> f32 {
+        match self {
+            Motion::Still => 0.0,
+            Motion::Dance { .. } => 6.0,
+            Motion::Keyframes(keys) => keys.last().map_or(0.0, |k| k.time.max(0.0)),
+        }
+    }
+
     /// The head's transform at time `t` (seconds), rotating about `pivot`
     /// (the head's centre at rest).
     pub fn at(&self, t: f32, pivot: Vec3) -> Affine3A {
@@ -180,5 +192,22 @@ mod tests {
         assert!(Motion::Dance { amplitude: 0.0 }.is_still());
         assert_eq!(m.at(0.0, pivot), Affine3A::IDENTITY, "at rest at time 0");
         assert!(!m.is_still());
+    }
+
+    #[test]
+    fn the_dance_repeats_after_its_span() {
+        let pivot = Vec3::new(0.0, 2.0, 0.0);
+        let m = Motion::Dance { amplitude: 1.0 };
+        let span = m.span();
+        for t in [0.1f32, 0.77, 1.9, 4.4] {
+            let (a, b) = (m.at(t, pivot), m.at(t + span, pivot));
+            assert!(a.abs_diff_eq(b, 1e-4), "{t}: {a:?} != {b:?}");
+        }
+        // Not before: half the span is not a period (the sway's is 3 s,
+        // the shake's 2 s).
+        assert!(
+            !m.at(0.5, pivot)
+                .abs_diff_eq(m.at(0.5 + span / 4.0, pivot), 1e-3)
+        );
     }
 }

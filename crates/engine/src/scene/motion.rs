@@ -19,12 +19,17 @@ pub(super) struct RawEffects {
     multiple_scattering: Option<bool>,
 }
 
+/// The most frames a shot may declare (`animation.frames`), as many as
+/// one run renders.
+const MAX_FRAMES: i64 = 1_000_000;
+
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(super) struct RawAnimation {
     motion: Option<String>,
     amplitude: Option<f32>,
     fps: Option<f32>,
+    frames: Option<i64>,
     key: Option<Vec<RawKey>>,
 }
 
@@ -96,6 +101,22 @@ pub struct Animation {
     pub motion: Motion,
     /// Frames per second of a rendered sequence.
     pub fps: f32,
+    /// The shot's frames, `0..frames`, when the scene says
+    /// (`animation.frames`): the camera is framed on the head's motion
+    /// over them. Otherwise over the motion's whole span
+    /// ([`Motion::span`]). Never the frames a run renders, so that frame
+    /// `k` is the same picture whatever range is rendered.
+    pub frames: Option<u64>,
+}
+
+impl Animation {
+    /// The frames the camera is framed over: `0..=last`.
+    pub fn framing_last_frame(&self) -> u64 {
+        match self.frames {
+            Some(n) => n.saturating_sub(1),
+            None => (f64::from(self.motion.span()) * f64::from(self.fps)).ceil() as u64,
+        }
+    }
 }
 
 /// The wisp simulation's settings.
@@ -253,7 +274,22 @@ impl Validator<'_> {
                 ));
             }
         };
-        Ok(Animation { motion, fps })
+        let frames = match a.frames {
+            None => None,
+            Some(n) if (1..=MAX_FRAMES).contains(&n) => Some(n as u64),
+            Some(n) => {
+                return Err(self.invalid(
+                    "animation.frames",
+                    n,
+                    format!("must be in 1..={}", MAX_FRAMES),
+                ));
+            }
+        };
+        Ok(Animation {
+            motion,
+            fps,
+            frames,
+        })
     }
 
     pub(super) fn dynamics(&self, d: RawDynamics) -> Result<Dynamics, SceneError> {
