@@ -209,7 +209,7 @@ impl Renderer {
         &self,
         hair_bounds: Bounds,
         b: Bounds,
-        points: Option<&dyn Fn(&mut dyn FnMut(Vec3))>,
+        points: Option<&VisitPoints<'_>>,
     ) -> Result<View, EngineError> {
         let s = &self.scene;
         let (center, size) = if b.is_empty() {
@@ -564,6 +564,10 @@ pub fn view_direction(hair: Bounds, view: crate::CameraView) -> Vec3 {
     };
     Vec3::new(x, 0.15, z).normalize()
 }
+
+/// Calls its argument with every point of a set (the points a camera
+/// keeps in view).
+type VisitPoints<'a> = dyn Fn(&mut dyn FnMut(Vec3)) + 'a;
 
 /// A frame's head and the partial pictures of its hair, not yet
 /// composited (or its finished picture, or the promise of it): see
