@@ -136,7 +136,7 @@ pub const MAX_FRAMES: u64 = 1_000_000;
 
 impl FrameRange {
     /// How many frames.
-    pub fn len(&self) -> u64 {
+    pub fn count(&self) -> u64 {
         self.end - self.start
     }
 

@@ -78,7 +78,7 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
         scene.effects.self_shadow = false;
     }
     let range = args.frames;
-    let n = range.len();
+    let n = range.count();
     let out_path = args.output.clone().unwrap_or_else(|| {
         PathBuf::from(if n == 1 {
             "wisplight.png"

@@ -72,17 +72,31 @@ impl CacheDir {
     /// Frame `frame`'s wisps, checked whole; the error names the file.
     pub fn read(&self, frame: u64) -> anyhow::Result<Vec<sim::WispState>> {
         let path = self.path(frame);
-        // The file's size follows from the scene: a larger one is not read.
+        let cannot = || format!("{}: cannot use this cache file", path.display());
+        // The file's size follows from the scene: a larger one is not read
+        // whole, but its header may say why it is larger (another scene).
         let cap = (self.wisps * self.per * 24 + 4096) as u64;
-        let bytes = strands::read_capped(&path, cap).with_context(|| {
-            format!(
-                "cannot read the simulation cache's frame {frame}, {} (`wisplight simulate` \
-                 writes it)",
-                path.display()
-            )
-        })?;
-        cache::decode(&bytes, self.hash, frame, self.wisps, self.per)
-            .with_context(|| format!("{}: cannot use this cache file", path.display()))
+        let bytes = match strands::read_capped(&path, cap) {
+            Ok(b) => b,
+            Err(e) => {
+                if let Some(head) = file_head(&path)
+                    && let Err(
+                        why @ (cache::CacheError::Version { .. }
+                        | cache::CacheError::Scene { .. }
+                        | cache::CacheError::Frame { .. }
+                        | cache::CacheError::Shape { .. }),
+                    ) = cache::decode(&head, self.hash, frame, self.wisps, self.per)
+                {
+                    return Err(anyhow::Error::new(why).context(cannot()));
+                }
+                return Err(anyhow::Error::new(e).context(format!(
+                    "cannot read the simulation cache's frame {frame}, {} (`wisplight \
+                     simulate` writes it)",
+                    path.display()
+                )));
+            }
+        };
+        cache::decode(&bytes, self.hash, frame, self.wisps, self.per).with_context(cannot)
     }
 
     /// Writes frame `frame`'s wisps, whole or not at all.
@@ -92,6 +106,18 @@ impl CacheDir {
             .context("cannot write the simulation cache")?;
         Ok(bytes.len() as u64)
     }
+}
+
+/// The first 4 KiB of the regular file at `path`, if it is one.
+fn file_head(path: &Path) -> Option<Vec<u8>> {
+    use std::io::Read;
+    let file = std::fs::File::open(path).ok()?;
+    if !file.metadata().ok()?.is_file() {
+        return None;
+    }
+    let mut head = Vec::with_capacity(4096);
+    file.take(4096).read_to_end(&mut head).ok()?;
+    Some(head)
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -131,7 +157,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
          simulated, {:.0} ms in all)",
         dir.path(range.start).display(),
         dir.path(range.end - 1).display(),
-        range.len(),
+        range.count(),
         dir.wisps,
         bytes as f64 / 1024.0,
         super::median(&mut sim_ms),

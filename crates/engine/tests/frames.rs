@@ -534,3 +534,99 @@ fn stages_elsewhere_run_the_next_frame_while_this_one_is_drawn_here_to_the_same_
         assert_eq!(ahead, [true, true, true, false], "{extra:?}");
     }
 }
+
+/// Frames `from..to` of `scene` as a run that renders only them draws
+/// them: the frames before simulated, not drawn, and `expect_frames`
+/// told the range's length (as `render --frames A..B` does).
+fn run_range(scene: &Scene, from: u64, to: u64) -> Vec<image::RgbImage> {
+    let mut seq = Sequence::new(scene).unwrap();
+    for _ in 0..from {
+        seq.skip_frame().unwrap();
+    }
+    seq.expect_frames(to - from);
+    (from..to)
+        .map(|k| {
+            let (img, s) = seq.next_frame().unwrap();
+            assert_eq!(s.index, k);
+            img.clone()
+        })
+        .collect()
+}
+
+#[test]
+fn frame_k_is_the_same_whatever_range_is_rendered() {
+    // Simulated and rigid hair, with the camera framed by the scene (the
+    // dance's span) and by a declared shot.
+    for extra in [
+        "[animation]\nmotion = \"dance\"\n",
+        "[animation]\nmotion = \"dance\"\nframes = 40\n",
+        "[animation]\nmotion = \"dance\"\n[effects]\ndynamics = false\n",
+    ] {
+        let s = scene(extra);
+        let all = run_range(&s, 0, 8);
+        assert_eq!(run_range(&s, 0, 3)[..], all[..3], "{extra}: 0..3");
+        assert_eq!(run_range(&s, 5, 8)[..], all[5..], "{extra}: 5..8");
+        assert_eq!(run_range(&s, 6, 7)[0], all[6], "{extra}: 6 alone");
+        assert_ne!(all[0], all[7], "{extra}: the head moved");
+    }
+}
+
+#[test]
+fn a_run_resumed_from_saved_wisps_gives_the_same_frames() {
+    let s = scene("[animation]\nmotion = \"dance\"\n");
+    let mut seq = Sequence::new(&s).unwrap();
+    let mut saved = Vec::new();
+    let mut all = Vec::new();
+    for _ in 0..7 {
+        all.push(seq.next_frame().unwrap().0.clone());
+        saved.push(seq.wisp_states().expect("simulated"));
+    }
+    // From frame 4's wisps: frame 4 posed as it was, 5 and 6 stepped on.
+    let mut resumed = Sequence::new(&s).unwrap();
+    resumed.resume_at(4, saved[4].clone()).unwrap();
+    for k in 4..7 {
+        let (img, stats) = resumed.next_frame().unwrap();
+        assert_eq!(stats.index, k);
+        assert_eq!(*img, all[k as usize], "frame {k}");
+        assert_eq!(stats.stage(Stage::Simulate).ran, k > 4, "frame {k}");
+        assert_eq!(
+            resumed.wisp_states().unwrap(),
+            saved[k as usize],
+            "frame {k}"
+        );
+    }
+    // Wisps of another shape are refused and change nothing.
+    let mut other = saved[2].clone();
+    other.pop();
+    assert!(resumed.resume_at(2, other).is_err());
+    assert_eq!(resumed.next_index(), 7);
+    // Rigid hair has no wisps to save or resume.
+    let rigid = scene("[animation]\nmotion = \"dance\"\n[effects]\ndynamics = false\n");
+    let mut seq = Sequence::new(&rigid).unwrap();
+    assert!(seq.wisp_states().is_none());
+    assert!(seq.resume_at(1, saved[1].clone()).is_err());
+}
+
+#[test]
+fn the_camera_keeps_the_whole_dance_in_the_picture() {
+    // Every frame of a dance's span: hair in every frame, none of it on
+    // the picture's edge (the camera is framed on all of them).
+    let s = scene("[animation]\nmotion = \"dance\"\nfps = 4\n[effects]\ndynamics = false\n");
+    let bg = |p: &image::Rgb<u8>, img: &image::RgbImage| *p == *img.get_pixel(0, 0);
+    for (k, img) in run_range(&s, 0, 25).iter().enumerate() {
+        let (w, h) = img.dimensions();
+        let edge = (0..w)
+            .flat_map(|x| [(x, 0), (x, h - 1)])
+            .chain((0..h).flat_map(|y| [(0, y), (w - 1, y)]));
+        for (x, y) in edge {
+            assert!(
+                bg(img.get_pixel(x, y), img),
+                "frame {k}: hair or head at ({x}, {y})"
+            );
+        }
+        assert!(
+            img.pixels().any(|p| !bg(p, img)),
+            "frame {k}: nothing drawn"
+        );
+    }
+}
