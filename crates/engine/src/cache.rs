@@ -47,8 +47,8 @@ pub enum CacheError {
     },
     /// Written for another scene.
     #[error(
-        "written for another scene (hash {found:016x}, this scene's {expected:016x}): \
-         simulate this scene again"
+        "written for another scene (hash {found:016x}, this scene's {expected:016x}; \
+         flags such as --no-shadow and --method count): simulate this scene again"
     )]
     Scene {
         /// The file's scene hash.
