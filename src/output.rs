@@ -66,6 +66,13 @@ impl AtomicFile {
             if meta.is_dir() {
                 anyhow::bail!("{}: is a directory", cannot());
             }
+            if meta.is_file() && meta.permissions().readonly() {
+                anyhow::bail!(
+                    "{}: the file is read-only, so it is not replaced (make it writable, or \
+                     write elsewhere)",
+                    cannot()
+                );
+            }
             if !meta.is_file() {
                 let file = std::fs::OpenOptions::new()
                     .write(true)

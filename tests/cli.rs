@@ -1278,7 +1278,8 @@ fn view_refuses_a_bad_scene_an_address_in_use_and_unreachable_workers() {
     let o = wisplight(&["view", &scene, "--listen", &addr]);
     assert_eq!(o.status.code(), Some(1));
     assert!(
-        stderr(&o).contains(&format!("cannot listen on {addr}")),
+        stderr(&o).contains(&format!("cannot listen on {addr}"))
+            && stderr(&o).contains("--listen 127.0.0.1:0 for a free one"),
         "{}",
         stderr(&o)
     );
@@ -1332,4 +1333,56 @@ fn bench_runs_the_benchmark_program_and_says_how_to_get_it_when_it_is_missing() 
         e.contains("wisplight-bench") && e.contains("cargo install --path ."),
         "{e}"
     );
+}
+
+#[test]
+fn first_hour_mistakes_get_a_message_that_says_what_to_do() {
+    let dir = scratch("first-hour");
+    let d = |name: &str| dir.join(name).display().to_string();
+    // A string where a number goes: said in words, not as a Rust type.
+    let scene = write(&dir, "s.toml", "[shadow]\ncells = \"64\"\n");
+    let o = wisplight(&["render", &scene, "-o", &d("x.png")]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(
+        e.contains("shadow.cells") && e.contains("expected an integer"),
+        "{e}"
+    );
+    assert!(!e.contains("i64"), "{e}");
+    // A mesh, an Alembic or USD groom, even empty, given as the scene:
+    // named for what it is, and nothing rendered.
+    write(&dir, "head.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    write(&dir, "groom.abc", "");
+    write(&dir, "groom.usda", "#usda 1.0\n");
+    for (file, says) in [
+        ("head.obj", "a mesh"),
+        ("groom.abc", "Alembic"),
+        ("groom.usda", "USD"),
+    ] {
+        let o = wisplight(&["render", &d(file), "-o", &d("x.png")]);
+        assert_eq!(o.status.code(), Some(1), "{file}");
+        let e = stderr(&o);
+        assert!(e.contains(file) && e.contains(says), "{file}: {e}");
+        assert!(!e.contains("TOML parse error"), "{file}: {e}");
+    }
+    assert!(!dir.join("x.png").exists());
+    // A file where the output's folder should be.
+    let small = write(&dir, "small.toml", SMALL);
+    write(&dir, "afile", "not a folder");
+    let o = wisplight(&["render", &small, "-o", &d("afile/x.png")]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = stderr(&o);
+    assert!(
+        e.contains("afile is a file, not a folder") && !e.contains("File exists"),
+        "{e}"
+    );
+    // A read-only output is kept, and said before any work.
+    let ro = write(&dir, "ro.png", "keep me");
+    let mut perm = std::fs::metadata(&ro).unwrap().permissions();
+    perm.set_readonly(true);
+    std::fs::set_permissions(&ro, perm).unwrap();
+    let o = wisplight(&["render", &small, "-o", &ro]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("read-only"), "{}", stderr(&o));
+    assert_eq!(std::fs::read_to_string(&ro).unwrap(), "keep me");
 }

@@ -96,6 +96,62 @@ pub fn progress_bar(len: u64, template: &str) -> indicatif::ProgressBar {
     bar
 }
 
+/// A spinner on a terminal, from one second on, naming the stage the
+/// frame runs ([`engine::running_stage`]) until dropped: a single long
+/// frame (the production groom's first, about 10 s) says what it does.
+#[derive(Debug)]
+pub struct StageSpinner {
+    stop: Option<std::sync::mpsc::Sender<()>>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl StageSpinner {
+    /// Starts it (nothing at all when stderr is not a terminal).
+    pub fn start() -> StageSpinner {
+        if !std::io::IsTerminal::is_terminal(&std::io::stderr()) || quiet() {
+            return StageSpinner {
+                stop: None,
+                thread: None,
+            };
+        }
+        let (stop, stopped) = std::sync::mpsc::channel::<()>();
+        let thread = std::thread::spawn(move || {
+            use std::sync::mpsc::RecvTimeoutError::Timeout;
+            if stopped.recv_timeout(std::time::Duration::from_secs(1)) != Err(Timeout) {
+                return;
+            }
+            let bar = indicatif::ProgressBar::new_spinner();
+            bar.set_style(
+                indicatif::ProgressStyle::with_template("{spinner} {msg} [{elapsed}]")
+                    .expect("a valid template"),
+            );
+            // Between two stages, the last one's name stays.
+            let mut shown = "setting up";
+            while stopped.recv_timeout(std::time::Duration::from_millis(100)) == Err(Timeout) {
+                if let Some(s) = engine::running_stage() {
+                    shown = s.name();
+                }
+                bar.set_message(shown);
+                bar.tick();
+            }
+            bar.finish_and_clear();
+        });
+        StageSpinner {
+            stop: Some(stop),
+            thread: Some(thread),
+        }
+    }
+}
+
+impl Drop for StageSpinner {
+    fn drop(&mut self) {
+        drop(self.stop.take());
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
 /// Builds the scene's hair, with the scene file named in any error.
 pub fn build_hair(scene: &Scene) -> anyhow::Result<strands::Hair> {
     engine::build_hair(scene).context("cannot build the hair")

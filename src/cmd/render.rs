@@ -72,6 +72,9 @@ pub struct Remote {
 /// and swept by cluster workers (the coordinator).
 pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
     let start = Instant::now();
+    // A single frame says what it does once it takes a second; frames
+    // have their progress bar.
+    let spinner = (args.frames.count() == 1).then(super::StageSpinner::start);
     let mut scene = super::load_scene(args.scene.as_deref())?;
     args.method.apply(&mut scene);
     if args.no_shadow {
@@ -233,6 +236,7 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
         bar.inc(1);
     }
     bar.finish_and_clear();
+    drop(spinner);
     let written = match output {
         Output::Gif(w, path) => {
             w.finish()
@@ -457,6 +461,24 @@ fn ready_folder(out: &Path) -> anyhow::Result<()> {
         .parent()
         .filter(|d| !d.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
+    // A read-only output is not replaced: said before the render, not
+    // after it.
+    if std::fs::metadata(out).is_ok_and(|m| m.is_file() && m.permissions().readonly()) {
+        return Err(super::usage(format!(
+            "-o {}: the file is read-only, so it is not replaced (make it writable, or write \
+             elsewhere)",
+            out.display()
+        )));
+    }
+    // A file where a folder of the path should be: said as such, not as
+    // the system's "File exists".
+    if let Some(file) = dir.ancestors().find(|a| a.is_file()) {
+        return Err(super::usage(format!(
+            "-o {}: {} is a file, not a folder",
+            out.display(),
+            file.display()
+        )));
+    }
     std::fs::create_dir_all(dir).with_context(|| {
         format!(
             "-o {}: cannot create the folder {}",

@@ -6,7 +6,7 @@ use std::net::SocketAddr;
 #[derive(Debug, Clone, thiserror::Error)]
 pub enum ClusterError {
     /// An address the worker cannot listen on.
-    #[error("cannot listen on {0}: {1}")]
+    #[error("cannot listen on {0}: {1}{hint}", hint = busy_hint(.1))]
     Bind(SocketAddr, std::sync::Arc<std::io::Error>),
     /// The runtime or a server cannot be set up.
     #[error("{0}")]
@@ -218,6 +218,16 @@ impl From<tonic::Status> for WorkerError {
             .and_then(|v| v.to_str().ok())
             .and_then(|v| v.parse().ok());
         e
+    }
+}
+
+/// What to do when the address to listen on is taken.
+fn busy_hint(error: &std::io::Error) -> &'static str {
+    if error.kind() == std::io::ErrorKind::AddrInUse {
+        " (another program holds this port: give --listen 127.0.0.1:0 for a free one, or \
+         another port)"
+    } else {
+        ""
     }
 }
 

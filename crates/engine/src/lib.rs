@@ -52,7 +52,7 @@ pub use scene::{
     ShadowSettings,
 };
 pub use share::Share;
-pub use stats::{DrawTimes, FrameStats, Stage, StageRecord};
+pub use stats::{DrawTimes, FrameStats, Stage, StageRecord, running_stage};
 
 /// Errors of the engine, each naming what is wrong and where.
 #[derive(Debug, thiserror::Error)]

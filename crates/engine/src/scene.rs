@@ -44,6 +44,7 @@
 //!
 //! docs/scene.md lists every key with its default and unit.
 
+mod file;
 mod hair;
 mod lights;
 mod motion;
@@ -349,30 +350,7 @@ impl Scene {
         if strands::is_groom_path(path) {
             return Scene::for_groom(path);
         }
-        let bytes = strands::read_capped(path, MAX_SCENE_BYTES as u64).map_err(|cause| {
-            if cause.kind() == std::io::ErrorKind::FileTooLarge {
-                SceneError::Parse {
-                    path: path.to_owned(),
-                    message: format!(
-                        "{cause}: a scene file is text of at most 16 MiB (strands go in a groom \
-                         file, hair.file)"
-                    ),
-                }
-            } else {
-                SceneError::Io {
-                    path: path.to_owned(),
-                    cause,
-                }
-            }
-        })?;
-        let text = String::from_utf8(bytes).map_err(|e| SceneError::Parse {
-            path: path.to_owned(),
-            message: format!(
-                "not text (byte {} is not UTF-8): a scene is a TOML file; a groom file is \
-                 rendered by its extension (.hair, .tfx, .data, .bin or .ply)",
-                e.utf8_error().valid_up_to()
-            ),
-        })?;
+        let text = file::read_text(path)?;
         Scene::from_toml_str(&text, path)
     }
 

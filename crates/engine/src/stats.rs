@@ -1,6 +1,19 @@
 //! What each stage of a frame did: whether it ran and how long it took.
 
+use std::sync::atomic::{AtomicU8, Ordering};
 use std::time::Instant;
+
+/// The stage this process runs now ([`Stage::ALL`]'s index; past its end:
+/// none), for a progress display.
+static RUNNING: AtomicU8 = AtomicU8::new(u8::MAX);
+
+/// The stage a [`FrameStats::time`] of this process runs now, if any: what
+/// a progress display names while a long frame renders.
+pub fn running_stage() -> Option<Stage> {
+    Stage::ALL
+        .get(RUNNING.load(Ordering::Relaxed) as usize)
+        .copied()
+}
 
 /// A stage of a frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -125,7 +138,9 @@ impl FrameStats {
     /// Runs `f` as stage `s`, adding its time.
     pub fn time<T>(&mut self, s: Stage, f: impl FnOnce() -> T) -> T {
         let t = Instant::now();
+        let before = RUNNING.swap(s.index() as u8, Ordering::Relaxed);
         let out = f();
+        RUNNING.store(before, Ordering::Relaxed);
         let r = &mut self.stages[s.index()];
         r.ran = true;
         r.ms += t.elapsed().as_secs_f64() * 1e3;

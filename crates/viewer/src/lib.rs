@@ -40,7 +40,7 @@ pub enum ViewerError {
     #[error(transparent)]
     Raster(#[from] raster::RasterError),
     /// The address cannot be listened on.
-    #[error("cannot listen on {addr}: {error}")]
+    #[error("cannot listen on {addr}: {error}{}", busy_hint(error))]
     Listen {
         /// The address.
         addr: std::net::SocketAddr,
@@ -53,4 +53,14 @@ pub enum ViewerError {
     /// No access token could be made.
     #[error("no randomness for the access token: {0}")]
     Token(String),
+}
+
+/// What to do when the address is taken.
+fn busy_hint(error: &std::io::Error) -> &'static str {
+    if error.kind() == std::io::ErrorKind::AddrInUse {
+        " (another program holds this port: give --listen 127.0.0.1:0 for a free one, or \
+         another port)"
+    } else {
+        ""
+    }
 }

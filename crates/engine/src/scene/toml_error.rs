@@ -42,11 +42,32 @@ pub(super) fn one_line(message: &str) -> String {
         .trim_end_matches(':')
         .to_string();
     let rest: Vec<&str> = parts.collect();
-    if rest.is_empty() {
+    let line = if rest.is_empty() {
         head
     } else {
         format!("{head}: {}", rest.join("; "))
+    };
+    plain_types(&line)
+}
+
+/// serde's names of types ("expected i64") in words ("expected an
+/// integer").
+fn plain_types(message: &str) -> String {
+    let mut out = message.to_string();
+    for (rust, plain) in [
+        ("i64", "an integer"),
+        ("i32", "an integer"),
+        ("u64", "a whole number >= 0"),
+        ("u32", "a whole number >= 0"),
+        ("u16", "a whole number >= 0"),
+        ("u8", "a whole number >= 0"),
+        ("usize", "a whole number >= 0"),
+        ("f32", "a number"),
+        ("f64", "a number"),
+    ] {
+        out = out.replace(&format!("expected {rust}"), &format!("expected {plain}"));
     }
+    out
 }
 
 #[cfg(test)]
@@ -64,5 +85,14 @@ mod tests {
         // A header or a line that assigns nothing names no key.
         assert_eq!(field_at("[light\n", 1), None);
         assert_eq!(field_at("width = 3", 9).as_deref(), Some("width"));
+    }
+
+    #[test]
+    fn type_names_are_said_in_words() {
+        assert_eq!(
+            one_line("invalid type: string \"64\", expected i64"),
+            "invalid type: string \"64\", expected an integer"
+        );
+        assert_eq!(one_line("expected f32"), "expected a number");
     }
 }
