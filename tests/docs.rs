@@ -258,3 +258,64 @@ fn the_docs_command_reader_splits_as_a_shell_does() {
         ["wisplight", "render", "a b.toml", "-o", "x y.png", "c d"]
     );
 }
+
+/// Every `wisplight render ... -o docs/NAME` command the docs show
+/// ([`documented_commands`]): its arguments but the output, and NAME.
+fn picture_commands() -> Vec<(Vec<String>, String)> {
+    let mut out: Vec<(Vec<String>, String)> = documented_commands()
+        .into_iter()
+        .filter_map(|(_, words)| {
+            let args = &words[1..];
+            let o = args.iter().position(|a| a == "-o")?;
+            let target = args.get(o + 1)?.strip_prefix("docs/")?.to_string();
+            let rest = args[..o].iter().chain(&args[o + 2..]).cloned().collect();
+            (args.first()? == "render").then_some((rest, target))
+        })
+        .collect();
+    out.sort();
+    out.dedup();
+    out
+}
+
+#[test]
+fn every_doc_picture_is_what_its_command_makes() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let commands = picture_commands();
+    let names: Vec<&str> = commands.iter().map(|(_, t)| t.as_str()).collect();
+    for expected in [
+        "render.png",
+        "render-no-shadow.png",
+        "light-point.png",
+        "dance.gif",
+    ] {
+        assert!(
+            names.contains(&expected),
+            "{expected} not found among {names:?}"
+        );
+    }
+    let dir = std::env::temp_dir().join(format!("wisplight-docs-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for (args, target) in &commands {
+        let made = dir.join(target);
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_wisplight"))
+            .current_dir(root)
+            .args(args)
+            .arg("-o")
+            .arg(&made)
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let committed = std::fs::read(root.join("docs").join(target)).unwrap();
+        assert!(
+            std::fs::read(&made).unwrap() == committed,
+            "docs/{target} is not what `wisplight {} -o docs/{target}` makes now: run \
+             docs/make-pictures, look at the pictures, commit them",
+            args.join(" ")
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
