@@ -1330,7 +1330,7 @@ fn bench_runs_the_benchmark_program_and_says_how_to_get_it_when_it_is_missing() 
     let e = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{e}");
     assert!(
-        e.contains("wisplight-bench") && e.contains("cargo install --path ."),
+        e.contains("wisplight-bench") && e.contains("cargo install --path . --locked"),
         "{e}"
     );
 }

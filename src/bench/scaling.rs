@@ -74,7 +74,7 @@ fn wisplight_program() -> anyhow::Result<std::path::PathBuf> {
     } else {
         Err(crate::cmd::usage(format!(
             "bench scaling starts `wisplight worker` processes: no wisplight beside {} \
-             (`cargo install --path .` installs both programs, `cargo build --release` \
+             (`cargo install --path . --locked` installs both programs, `cargo build --release` \
              builds both into target/release)",
             me.display()
         )))

@@ -272,7 +272,7 @@ pub fn run_bench(log: Log, args: Vec<std::ffi::OsString>) -> anyhow::Result<()> 
         },
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => Err(usage(format!(
             "`wisplight bench` runs {NAME}, found neither beside {} nor on PATH: \
-             `cargo install --path .` installs both programs, `cargo build --release` \
+             `cargo install --path . --locked` installs both programs, `cargo build --release` \
              builds both into target/release",
             std::env::current_exe()
                 .map_or_else(|_| "wisplight".into(), |p| p.display().to_string())
