@@ -61,6 +61,19 @@ pub enum ClusterError {
         /// What is wrong with it.
         msg: String,
     },
+    /// A worker ended this coordinator's session for going unused longer
+    /// than it allows: the coordinator was stopped or stalled, not the
+    /// worker.
+    #[error(
+        "worker {addr} ended this coordinator's session ({msg}): this coordinator went \
+         unused longer than the workers allow (worker --session-idle); render again"
+    )]
+    Expired {
+        /// The worker.
+        addr: String,
+        /// Its reason.
+        msg: String,
+    },
     /// A round of compositing on the workers that failed as a whole.
     #[error("compositing on the workers failed: {0}")]
     Composite(String),
@@ -77,7 +90,8 @@ impl ClusterError {
             | ClusterError::Refused { addr, .. }
             | ClusterError::Call { addr, .. }
             | ClusterError::Deadline { addr, .. }
-            | ClusterError::Malformed { addr, .. } => Some(addr),
+            | ClusterError::Malformed { addr, .. }
+            | ClusterError::Expired { addr, .. } => Some(addr),
             _ => None,
         }
     }
@@ -172,10 +186,16 @@ pub struct WorkerError {
     /// plan), when that is why the call failed: the worker at fault is
     /// that one (the `wisplight-waited-for` metadata).
     pub waited_for: Option<u32>,
+    /// The call named a session the worker ended for going unused (the
+    /// `wisplight-session-expired` metadata): the coordinator, not the
+    /// worker, stopped.
+    pub expired: bool,
 }
 
 /// The metadata key of [`WorkerError::waited_for`].
 const WAITED_FOR_KEY: &str = "wisplight-waited-for";
+/// The metadata key of [`WorkerError::expired`].
+const EXPIRED_KEY: &str = "wisplight-session-expired";
 
 impl WorkerError {
     /// A failure of `kind` for `message`.
@@ -184,6 +204,7 @@ impl WorkerError {
             kind,
             message: message.into(),
             waited_for: None,
+            expired: false,
         }
     }
 
@@ -199,6 +220,10 @@ impl From<WorkerError> for tonic::Status {
         if let Some(b) = e.waited_for {
             s.metadata_mut()
                 .insert(WAITED_FOR_KEY, b.to_string().parse().expect("digits"));
+        }
+        if e.expired {
+            s.metadata_mut()
+                .insert(EXPIRED_KEY, "1".parse().expect("a digit"));
         }
         s
     }
@@ -217,6 +242,7 @@ impl From<tonic::Status> for WorkerError {
             .get(WAITED_FOR_KEY)
             .and_then(|v| v.to_str().ok())
             .and_then(|v| v.parse().ok());
+        e.expired = s.metadata().get(EXPIRED_KEY).is_some();
         e
     }
 }

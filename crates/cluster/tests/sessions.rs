@@ -315,10 +315,41 @@ fn a_worker_holds_at_most_its_sessions_and_ends_idle_ones() {
         .step(pb::StepRequest::default())
         .await
         .unwrap_err();
-        assert!(named.message().contains("not open"), "{}", named.message());
+        // Said as expired, with why, and marked for the coordinator.
+        assert_eq!(named.code(), tonic::Code::FailedPrecondition);
+        assert!(
+            named.message().contains("expired on this worker")
+                && named.message().contains("--session-idle"),
+            "{}",
+            named.message()
+        );
+        assert!(cluster::WorkerError::from(named).expired);
         c.hello(hello(0.1)).await.unwrap();
         c.hello(hello(0.1)).await.unwrap();
     });
+}
+
+#[test]
+fn a_coordinator_stalled_past_the_idle_limit_says_its_session_expired_and_drops_no_worker() {
+    let limits = SessionLimits {
+        idle: Duration::from_millis(400),
+        ..SessionLimits::default()
+    };
+    let a = common::start_service(WorkerService::new(limits), Listen::default());
+    let b = common::start_service(WorkerService::new(limits), Listen::default());
+    let s = scene(DANCE);
+    let mut seq = on_workers(&s, &[a.0.to_string(), b.0.to_string()]);
+    seq.next_frame().unwrap();
+    // The coordinator stalls (stopped, a laptop asleep): both sessions end.
+    std::thread::sleep(Duration::from_millis(1200));
+    let e = seq.next_frame().unwrap_err().to_string();
+    assert!(
+        e.contains("ended this coordinator's session")
+            && e.contains("expired on this worker")
+            && e.contains("--session-idle"),
+        "{e}"
+    );
+    assert!(!e.contains("lost"), "{e}");
 }
 
 #[test]

@@ -904,7 +904,8 @@ fn a_step_asking_more_work_than_the_cap_is_refused_before_any_step() {
         // The whole hair.
         let (points, head, pose) = assign_at_rest(&mut c, None).await;
         // Just past the cap: within MAX_STEPS, but too much work.
-        let steps = (protocol::MAX_STEP_WORK / (points as u64 + 1) + 1) as usize;
+        let steps =
+            (protocol::MAX_STEP_WORK / protocol::step_work(points as u64, 1, 0) + 1) as usize;
         assert!(
             steps <= protocol::MAX_STEPS,
             "{points} points: the cap is not what stops it"
@@ -1277,4 +1278,202 @@ fn a_plan_naming_a_worker_outside_the_session_is_refused_and_never_dialled() {
         stray.accept().map(|_| ()).map_err(|e| e.kind()),
         Err(std::io::ErrorKind::WouldBlock)
     );
+}
+
+#[test]
+fn a_draw_of_another_size_than_the_sessions_scene_is_refused_before_anything_is_kept() {
+    let addr = start_worker();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let scene = Scene::from_toml_str(DANCE, std::path::Path::new("dance.toml")).unwrap();
+        let anim = engine::Animator::new(&scene).unwrap();
+        let mut r = engine::Renderer::new(&scene).unwrap();
+        r.frame_on(anim.hair().bounds()).unwrap();
+        let job = r.draw_job(1, false).unwrap();
+        let (w, h) = (scene.render.width, scene.render.height);
+        let sized = |width: u32, height: u32| {
+            let c = &job.camera;
+            let mut j = job.clone();
+            j.camera =
+                raster::Camera::new(c.position, c.look_at(), c.fov_deg(), width, height).unwrap();
+            vec![pb::DrawChunk {
+                job: Some(protocol::job_to_pb(&j)),
+                ..Default::default()
+            }]
+        };
+        let mut c = greeted_client(addr).await;
+        // Before any Assign: no scene, no size.
+        let e = match c.draw(tokio_stream::iter(sized(w, h))).await {
+            Err(e) => e,
+            Ok(_) => panic!("a Draw before any Assign was taken"),
+        };
+        assert_eq!(e.code(), tonic::Code::FailedPrecondition, "{}", e.message());
+        let (_, _, pose) = assign_at_rest(&mut c, None).await;
+        c.pose(pose).await.unwrap();
+        // The largest picture the protocol allows, for a scene of 96x64.
+        let e = match c.draw(tokio_stream::iter(sized(6324, 6324))).await {
+            Err(e) => e,
+            Ok(_) => panic!("a Draw of another size was taken"),
+        };
+        assert_eq!(e.code(), tonic::Code::InvalidArgument, "{}", e.message());
+        assert!(
+            e.message()
+                .contains(&format!("6324x6324 picture for a scene of {w}x{h}")),
+            "{}",
+            e.message()
+        );
+        // The scene's own size is drawn.
+        let drawn = c.draw(tokio_stream::iter(sized(w, h))).await;
+        assert!(drawn.is_ok(), "{:?}", drawn.err());
+    });
+}
+
+#[test]
+fn the_peers_of_a_refused_assign_are_not_kept_nor_those_before_it() {
+    // The stray address: a listener that would see any connection.
+    let stray = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    stray.set_nonblocking(true).unwrap();
+    let stray_addr = stray.local_addr().unwrap().to_string();
+    let addr = start_worker();
+    let other = start_worker().to_string();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let mut c = greeted_client(addr).await;
+        let peers = vec![addr.to_string(), other.clone()];
+        let (_, _, pose) = assign_at_rest_with_peers(&mut c, None, peers).await;
+        c.pose(pose).await.unwrap();
+        // An Assign naming the stray peer, refused on its second chunk
+        // (file data before any file's path): the share stays.
+        let refused = c
+            .assign(tokio_stream::iter(vec![
+                pb::AssignChunk {
+                    scene_toml: DANCE.to_string(),
+                    scene_path: "dance.toml".into(),
+                    first_group: 0,
+                    end_group: 6,
+                    peers: vec![addr.to_string(), stray_addr.clone()],
+                    ..Default::default()
+                },
+                pb::AssignChunk {
+                    file_data: vec![1, 2, 3],
+                    ..Default::default()
+                },
+            ]))
+            .await;
+        assert_eq!(refused.unwrap_err().code(), tonic::Code::InvalidArgument);
+        // A plan naming either peer is refused now, and none is dialled.
+        let light = Light::directional(Vec3::NEG_Y).unwrap();
+        let frame = LightFrame::centered(&light, Vec3::ZERO, 80.0, 8).unwrap();
+        let columns = frame.columns() as u32;
+        for peer in [&stray_addr, &other] {
+            let plan = pb::DensityChunk {
+                map: Some(protocol::frame_to_pb(&frame)),
+                posed: true,
+                version: 1,
+                columns: Some(pb::ColumnPlan {
+                    round: 1,
+                    cuts: vec![0, columns / 2, columns],
+                    own: 0,
+                    peers: vec![addr.to_string(), peer.clone()],
+                    sessions: vec!["a".repeat(32), "b".repeat(32)],
+                    wait_ms: 500,
+                    ..Default::default()
+                }),
+                ..Default::default()
+            };
+            let e = match c.density(tokio_stream::iter(vec![plan])).await {
+                Err(e) => e,
+                Ok(_) => panic!("a plan naming {peer} was taken"),
+            };
+            assert_eq!(
+                e.code(),
+                tonic::Code::InvalidArgument,
+                "{peer}: {}",
+                e.message()
+            );
+            assert!(e.message().contains("peer 1"), "{peer}: {}", e.message());
+        }
+    });
+    std::thread::sleep(Duration::from_millis(200));
+    assert_eq!(
+        stray.accept().map(|_| ()).map_err(|e| e.kind()),
+        Err(std::io::ErrorKind::WouldBlock),
+        "the stray peer was dialled"
+    );
+}
+
+#[test]
+fn a_failed_dial_answers_one_message_whatever_the_cause() {
+    // Three peers that are not workers: a closed port, a listener that
+    // stays silent, and an HTTP/1.1 server.
+    let closed = {
+        let l = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        l.local_addr().unwrap().to_string()
+    };
+    let silent = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let http = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let http_addr = http.local_addr().unwrap().to_string();
+    std::thread::spawn(move || {
+        use std::io::{Read, Write};
+        for s in http.incoming().flatten() {
+            let mut s = s;
+            let mut buf = [0u8; 1024];
+            let _ = s.read(&mut buf);
+            let _ = s.write_all(b"HTTP/1.1 404 Not Found\r\ncontent-length: 0\r\n\r\n");
+        }
+    });
+    let strays = [closed, silent.local_addr().unwrap().to_string(), http_addr];
+    let addr = start_worker();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let answers: Vec<(tonic::Code, String)> = strays
+        .iter()
+        .map(|stray| {
+            rt.block_on(async {
+                let mut c = greeted_client(addr).await;
+                let peers = vec![addr.to_string(), stray.clone()];
+                let (_, _, pose) = assign_at_rest_with_peers(&mut c, None, peers.clone()).await;
+                c.pose(pose).await.unwrap();
+                let light = Light::directional(Vec3::NEG_Y).unwrap();
+                let frame = LightFrame::centered(&light, Vec3::ZERO, 80.0, 8).unwrap();
+                let columns = frame.columns() as u32;
+                let plan = pb::DensityChunk {
+                    map: Some(protocol::frame_to_pb(&frame)),
+                    posed: true,
+                    version: 1,
+                    columns: Some(pb::ColumnPlan {
+                        round: 1,
+                        cuts: vec![0, columns / 2, columns],
+                        own: 0,
+                        peers,
+                        sessions: vec!["a".repeat(32), "b".repeat(32)],
+                        wait_ms: 500,
+                        ..Default::default()
+                    }),
+                    ..Default::default()
+                };
+                let e = match c.density(tokio_stream::iter(vec![plan])).await {
+                    Err(e) => e,
+                    Ok(r) => match r.into_inner().message().await {
+                        Err(e) => e,
+                        Ok(m) => {
+                            panic!("{stray}: a round with a peer that is no worker gave {m:?}")
+                        }
+                    },
+                };
+                (e.code(), e.message().to_string())
+            })
+        })
+        .collect();
+    for (stray, a) in strays.iter().zip(&answers) {
+        assert_eq!(
+            *a, answers[0],
+            "{stray} answered otherwise than {}",
+            strays[0]
+        );
+        assert!(
+            !a.1.contains(stray.rsplit(':').next().unwrap()),
+            "{stray}: {a:?}"
+        );
+    }
+    assert_eq!(answers[0].1, "worker 1 of the round took no part in it");
 }

@@ -37,6 +37,9 @@ pub struct Share {
     /// What resolving a band of the picture needs of the scene.
     background: Vec3,
     head_shadow: bool,
+    /// The scene's picture, width and height in pixels: the only size a
+    /// Draw of it may ask for.
+    picture: (u32, u32),
 }
 
 impl Share {
@@ -65,7 +68,13 @@ impl Share {
             canvas: None,
             background: scene.render.background,
             head_shadow: scene.effects.head_shadow,
+            picture: (scene.render.width, scene.render.height),
         })
+    }
+
+    /// The scene's picture size, pixels: width and height.
+    pub fn picture_size(&self) -> (u32, u32) {
+        self.picture
     }
 
     /// The scene's background colour (linear RGB).

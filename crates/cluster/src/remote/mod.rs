@@ -446,6 +446,16 @@ impl RemoteExecutor {
     /// returns Ok so the caller runs its stage again on the survivors;
     /// otherwise returns `e`.
     fn lose_worker(&mut self, e: ClusterError) -> Result<(), ClusterError> {
+        // A session the worker ended for going unused: this coordinator
+        // stalled (the others have ended theirs too), no worker is lost.
+        if let ClusterError::Call { addr, error, .. } = &e
+            && error.expired
+        {
+            return Err(ClusterError::Expired {
+                addr: addr.clone(),
+                msg: error.message.clone(),
+            });
+        }
         let e = self.at_fault(e);
         let Some(addr) = e.worker() else {
             return Err(e);

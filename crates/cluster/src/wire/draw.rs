@@ -217,7 +217,7 @@ pub(crate) fn columns_from_pb(bytes: &[u8], columns: usize) -> Result<Vec<u64>, 
 }
 
 /// A draw job as sent.
-pub(crate) fn job_to_pb(j: &DrawJob) -> pb::DrawJob {
+pub fn job_to_pb(j: &DrawJob) -> pb::DrawJob {
     let c = &j.camera;
     pb::DrawJob {
         version: j.version,

@@ -1,6 +1,6 @@
 //! Draw rounds with a band plan: the band this worker composites from the other workers' stripes.
 
-use super::inbox::{SendFailed, send_within, stalled};
+use super::inbox::{SendFailed, no_part, send_within, stalled};
 use super::memory::Grant;
 use super::session::{Session, on_pool};
 use super::status::{cancelled, poisoned, status};
@@ -57,11 +57,12 @@ impl WorkerService {
                 if let Err(s) = client.composite(stream).await
                     && let Ok(mut f) = failed.lock()
                 {
-                    f.get_or_insert(format!(
-                        "the worker of band {b} ({addr}) did not take this worker's stripes: {:?}: {}",
-                        s.code(),
-                        s.message()
-                    ));
+                    // One answer whatever the cause (a closed port, a
+                    // silent one, another server): the caller learns
+                    // nothing of the address but that it did not take
+                    // part. The cause is in this worker's log.
+                    tracing::warn!(band = b, %addr, code = ?s.code(), message = s.message(), "a peer did not take this worker's stripes");
+                    f.get_or_insert(no_part(b));
                 }
             });
         }
@@ -109,9 +110,7 @@ impl WorkerService {
                                     }
                                     Err(SendFailed::Ended) => {
                                         return Err(engine::EngineError::executor(
-                                            peer_failed().unwrap_or_else(|| {
-                                                format!("the call to worker {b} of the round ended")
-                                            }),
+                                            peer_failed().unwrap_or_else(|| no_part(b)),
                                         ));
                                     }
                                 }
@@ -120,7 +119,7 @@ impl WorkerService {
                         })
                     })
                     .map_err(|e| match stalled_peer {
-                        Some(b) => stalled(b, bands.wait),
+                        Some(b) => stalled(b),
                         None => status(Kind::Aborted, e.to_string()),
                     })?;
                     (work, background)

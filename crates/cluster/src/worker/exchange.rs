@@ -62,11 +62,9 @@ impl WorkerService {
                     if let Err(s) = client.exchange(stream).await
                         && let Ok(mut f) = failed.lock()
                     {
-                        f.get_or_insert(format!(
-                            "worker {b} ({addr}) did not take this worker's columns: {:?}: {}",
-                            s.code(),
-                            s.message()
-                        ));
+                        // One answer whatever the cause (see the Draw's).
+                        tracing::warn!(worker = b, %addr, code = ?s.code(), message = s.message(), "a peer did not take this worker's columns");
+                        f.get_or_insert(super::inbox::no_part(b));
                     }
                 });
                 if swept {
@@ -232,7 +230,7 @@ impl ExchangeSends {
         let bytes = c.encoded_len() as u64;
         send_within(&self.handle, to, c, self.wait).map_err(|f| {
             if f == SendFailed::Stalled {
-                return stalled(b, self.wait);
+                return stalled(b);
             }
             status(
                 Kind::Aborted,

@@ -123,10 +123,7 @@ impl<T> Inbox<T> {
             let now = Instant::now();
             if now >= until {
                 return Err(Gather {
-                    message: format!(
-                        "nothing from workers {missing:?} of the round within {} ms",
-                        wait.as_millis()
-                    ),
+                    message: no_part(missing[0] as usize),
                     missing: missing.first().copied(),
                 });
             }
@@ -197,13 +194,18 @@ pub(super) fn send_within<T>(
     })
 }
 
+/// Why a round failed for peer `b`, whatever happened to it (it refused
+/// the connection, stayed silent, took nothing, or is not a worker at
+/// all): one answer, so that the caller learns nothing more of the
+/// address it named. What happened is in this worker's log.
+pub(super) fn no_part(b: usize) -> String {
+    format!("worker {b} of the round took no part in it")
+}
+
 /// The status of a call that gave up on peer `b`, which stalled.
-pub(super) fn stalled(b: usize, wait: Duration) -> Status {
+pub(super) fn stalled(b: usize) -> Status {
     Gather {
-        message: format!(
-            "worker {b} of the round took nothing for {} ms",
-            wait.as_millis()
-        ),
+        message: no_part(b),
         missing: Some(b as u32),
     }
     .status()

@@ -107,6 +107,9 @@ pub struct WorkerService {
     connections: Arc<connections::Connections>,
     /// Connections to other workers, by address and expected name.
     peers: Mutex<HashMap<(String, Option<String>), tonic::transport::Channel>>,
+    /// The sessions last ended for going unused, and why, so that a call
+    /// naming one says so ([`session::EXPIRED_KEPT`] of them).
+    expired: Mutex<std::collections::VecDeque<(String, String)>>,
 }
 
 impl Default for WorkerService {
@@ -168,6 +171,7 @@ impl Worker for WorkerService {
                         exchange: Arc::default(),
                         swept: Arc::default(),
                         peers: Mutex::default(),
+                        picture: Mutex::default(),
                         origin: peer,
                     }),
                 );
@@ -188,7 +192,7 @@ impl Worker for WorkerService {
             let id = named_session(req.metadata())?;
             tls::request_may_call(&req, Caller::Coordinator)?;
             let mut sessions = self.sessions.lock().map_err(poisoned)?;
-            sessions.remove(id).ok_or_else(|| not_open(id))?;
+            sessions.remove(id).ok_or_else(|| self.not_open(id))?;
             tracing::info!(session = %&id[..id.len().min(8)], sessions = sessions.len(), "session ended");
             Ok(Response::new(pb::EndReply {}))
         };
@@ -227,7 +231,12 @@ impl Worker for WorkerService {
                     ),
                 ));
             }
-            *session.peers.lock().map_err(poisoned)? = first.peers.clone();
+            // The peers of the Assign before are forgotten, and this one's
+            // are kept only once its share is made: a refused Assign names
+            // no one this worker will call.
+            session.peers.lock().map_err(poisoned)?.clear();
+            *session.picture.lock().map_err(poisoned)? = None;
+            let peers = first.peers.clone();
             let mut text = String::new();
             let mut states: Vec<pb::WispChunk> = Vec::new();
             let mut files: Vec<(String, Vec<u8>)> = Vec::new();
@@ -307,6 +316,7 @@ impl Worker for WorkerService {
                 let h = build_share(slot.take(), source, groups, &states, &memory, received)?;
                 let anim = h.share.animator();
                 let wisps = h.share.wisps();
+                let picture = h.share.picture_size();
                 let reply = pb::AssignReply {
                     points_per_wisp: anim.points_per_wisp() as u32,
                     groups: anim.groups().count() as u32,
@@ -315,10 +325,13 @@ impl Worker for WorkerService {
                 };
                 tracing::info!(groups = ?h.share.groups(), wisps = ?wisps, "share assigned");
                 *slot = Some(h);
-                Ok::<_, Status>(reply)
+                Ok::<_, Status>((reply, picture))
             })
             .await
             .map_err(|e| status(Kind::Internal, format!("assign task failed: {e}")))??;
+            let (reply, picture) = reply;
+            *session.peers.lock().map_err(poisoned)? = peers;
+            *session.picture.lock().map_err(poisoned)? = Some(picture);
             Ok(Response::new(reply))
         };
         logged(peer, "Assign", served.await)
@@ -447,6 +460,22 @@ impl Worker for WorkerService {
             })?;
             let exchanged = job.exchanged;
             let job = wire::job_from_pb(job).map_err(invalid)?;
+            // The picture's size follows from the session's own scene:
+            // checked before anything is allocated for it.
+            let asked = (job.camera.width(), job.camera.height());
+            match *session.picture.lock().map_err(poisoned)? {
+                Some(size) if size == asked => {}
+                Some((w, h)) => {
+                    return Err(status(
+                        Kind::Invalid,
+                        format!(
+                            "a Draw of a {}x{} picture for a scene of {w}x{h}",
+                            asked.0, asked.1
+                        ),
+                    ));
+                }
+                None => return Err(no_share()),
+            }
             let bands = first
                 .bands
                 .as_ref()
@@ -689,4 +718,12 @@ impl Worker for WorkerService {
         };
         logged(peer, "Exchange", served.await)
     }
+}
+
+/// A call that needs the session's share before any Assign made one.
+pub(super) fn no_share() -> Status {
+    status(
+        Kind::Precondition,
+        "no share of the hair here: call Assign first",
+    )
 }

@@ -2,7 +2,7 @@
 
 use super::inbox::Inbox;
 use super::memory::{Budget, Grant, Memory};
-use super::status::{named_session, not_open, poisoned, status};
+use super::status::{expired, named_session, not_open, poisoned, status};
 use super::swept::SweptStore;
 use crate::error::WorkerErrorKind as Kind;
 use crate::tls::{Caller, request_may_call};
@@ -45,6 +45,9 @@ pub(super) struct Session {
     /// The workers this session's last Assign named: the only peers its
     /// plans may make this worker call.
     pub(super) peers: Mutex<Vec<String>>,
+    /// The picture size of the scene its last Assign made a share of: the
+    /// only size its Draws may ask for (none before an Assign).
+    pub(super) picture: Mutex<Option<(u32, u32)>>,
     /// The client address the Hello came from.
     pub(super) origin: Option<SocketAddr>,
 }
@@ -90,6 +93,9 @@ pub(super) struct Held {
     pub(super) _memory: Grant,
 }
 
+/// How many ended sessions a worker remembers the reason of.
+pub(super) const EXPIRED_KEPT: usize = 64;
+
 impl WorkerService {
     /// A worker holding at most `limits` sessions.
     pub fn new(limits: SessionLimits) -> WorkerService {
@@ -101,6 +107,7 @@ impl WorkerService {
             peer_token: None,
             connections: Arc::default(),
             peers: Mutex::default(),
+            expired: Mutex::default(),
         }
     }
 
@@ -161,9 +168,23 @@ impl WorkerService {
         request_may_call(req, caller)?;
         let id = named_session(req.metadata())?;
         let sessions = self.sessions.lock().map_err(poisoned)?;
-        let s = sessions.get(id).cloned().ok_or_else(|| not_open(id))?;
+        let s = sessions.get(id).cloned().ok_or_else(|| self.not_open(id))?;
         *s.last_used.lock().map_err(poisoned)? = Instant::now();
         Ok(s)
+    }
+
+    /// The answer to a call naming session `id`, which is not open: why,
+    /// when this worker ended it for going unused.
+    pub(super) fn not_open(&self, id: &str) -> Status {
+        let why = self
+            .expired
+            .lock()
+            .ok()
+            .and_then(|e| e.iter().find(|(x, _)| x == id).map(|(_, why)| why.clone()));
+        match why {
+            Some(why) => expired(id, &why),
+            None => not_open(id),
+        }
     }
 
     /// Ends the sessions unused for longer than the idle limit; how many.
@@ -174,15 +195,32 @@ impl WorkerService {
         let idle = self.limits.idle;
         let orphaned = self.limits.orphaned.min(idle);
         let before = sessions.len();
-        sessions.retain(|_, s| {
+        let mut ended = Vec::new();
+        sessions.retain(|id, s| {
             let unused = match s.last_used.lock() {
                 Ok(t) => t.elapsed(),
                 Err(_) => return false,
             };
             // Its coordinator's connection closed and nobody came back.
             let gone = s.origin.is_some_and(|a| !self.connections.is_open(a));
-            unused < idle && !(gone && unused >= orphaned)
+            let why = if unused >= idle {
+                format!("unused for more than {idle:?} (this worker's --session-idle)")
+            } else if gone && unused >= orphaned {
+                format!("its coordinator's connection closed and it went unused for {orphaned:?}")
+            } else {
+                return true;
+            };
+            ended.push((id.clone(), why));
+            false
         });
+        if let Ok(mut e) = self.expired.lock() {
+            for x in ended {
+                if e.len() == EXPIRED_KEPT {
+                    e.pop_front();
+                }
+                e.push_back(x);
+            }
+        }
         let ended = before - sessions.len();
         if ended > 0 {
             tracing::info!(ended, left = sessions.len(), "idle sessions ended");

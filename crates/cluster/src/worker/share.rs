@@ -128,15 +128,16 @@ pub(super) fn step_plan(
         })
         .collect();
     let points = share.wisps().len() * share.animator().points_per_wisp();
-    // The work the call asks for: every guide point of the share and
-    // every body, at every time step.
-    let work = heads.len() as u64 * (points as u64 + total / heads.len().max(1) as u64 + 1);
+    // The work the call asks for: every guide point of the share at
+    // every time step, against every body.
+    let work = wire::step_work(points as u64, heads.len() as u64, total);
     if work > wire::MAX_STEP_WORK {
         return Err(wire::Malformed(format!(
-            "{} time steps of {points} guide points and {total} bodies: more than {} \
-             point-steps in one call (wire::MAX_STEP_WORK; a frame has at most 1000 steps)",
+            "{} time steps of {points} guide points and {total} bodies: about {:.0} s of one \
+             core, more than the {:.0} s one call may take (wire::MAX_STEP_WORK)",
             heads.len(),
-            wire::MAX_STEP_WORK
+            work as f64 * 1e-9,
+            wire::MAX_STEP_WORK as f64 * 1e-9
         )));
     }
     let accel = if r.has_accel {

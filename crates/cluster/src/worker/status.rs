@@ -96,10 +96,19 @@ pub(super) fn named_session(meta: &tonic::metadata::MetadataMap) -> Result<&str,
 pub(super) fn not_open(id: &str) -> Status {
     status(
         Kind::Precondition,
-        format!(
-            "session {id:.8}... is not open on this worker (ended, idle too long, or never opened)"
-        ),
+        format!("session {id:.8}... is not open on this worker (ended, or never opened)"),
     )
+}
+
+/// A call naming a session this worker ended for going unused: said so,
+/// with why, and marked ([`WorkerError::expired`]) for its coordinator.
+pub(super) fn expired(id: &str, why: &str) -> Status {
+    let mut e = WorkerError::new(
+        Kind::Precondition,
+        format!("session {id:.8}... expired on this worker: {why}"),
+    );
+    e.expired = true;
+    e.into()
 }
 
 /// The first message of a client stream; a stream of none is refused.
