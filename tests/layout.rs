@@ -3,7 +3,8 @@
 //! sibling modules of any crate.
 //!
 //! A module's imports are the `crate::` and `super::` paths its code (not
-//! its comments or unit tests) names. A path to a name the crate root
+//! its comments or unit tests) names, whole: the deepest module each
+//! names. A path to a name the crate root
 //! re-exports counts as a path to the module the name comes from. An import
 //! from inside sibling `a` into sibling `b` (or anything inside `b`) is an
 //! edge `a -> b`; a child naming its parent's items is not an edge, but a
@@ -83,33 +84,71 @@ fn is_ident(c: char) -> bool {
     c.is_ascii_alphanumeric() || c == '_'
 }
 
-/// The first segment of every path that follows `prefix` (`crate::` or
-/// `super::`), looking into `{a, b::c}` groups.
-fn first_segments(code: &str, prefix: &str) -> BTreeSet<String> {
-    let mut out = BTreeSet::new();
+/// Every whole path that follows `prefix` (`crate::` or `super::`), its
+/// segments, looking into `{a, b::{c, d}}` groups at any depth:
+/// `crate::m::{x::X, y}` gives `[m, x, X]` and `[m, y]`.
+fn paths_after(code: &str, prefix: &str) -> Vec<Vec<String>> {
+    let mut out = Vec::new();
     let mut rest = code;
     while let Some(i) = rest.find(prefix) {
         let before_ok = i == 0 || !rest[..i].ends_with(is_ident);
         rest = &rest[i + prefix.len()..];
-        if !before_ok {
-            continue;
-        }
-        if let Some(group) = rest.strip_prefix('{') {
-            let end = group.find('}').unwrap_or(group.len());
-            for part in group[..end].split(',') {
-                let name: String = part.trim().chars().take_while(|&c| is_ident(c)).collect();
-                if !name.is_empty() {
-                    out.insert(name);
-                }
-            }
-        } else {
-            let name: String = rest.chars().take_while(|&c| is_ident(c)).collect();
-            if !name.is_empty() {
-                out.insert(name);
-            }
+        if before_ok {
+            use_tree(rest, Vec::new(), &mut out);
         }
     }
     out
+}
+
+/// The paths of the use tree `text` begins with, each after `head`.
+fn use_tree(text: &str, head: Vec<String>, out: &mut Vec<Vec<String>>) {
+    let text = text.trim_start();
+    if let Some(group) = text.strip_prefix('{') {
+        // The group's parts, split at its top-level commas.
+        let (mut depth, mut start) = (0usize, 0usize);
+        for (i, c) in group.char_indices() {
+            match c {
+                '{' => depth += 1,
+                '}' if depth == 0 => {
+                    use_tree(&group[start..i], head.clone(), out);
+                    return;
+                }
+                '}' => depth -= 1,
+                ',' if depth == 0 => {
+                    use_tree(&group[start..i], head.clone(), out);
+                    start = i + 1;
+                }
+                _ => {}
+            }
+        }
+        return;
+    }
+    let name: String = text.chars().take_while(|&c| is_ident(c)).collect();
+    if name.is_empty() {
+        if !head.is_empty() {
+            out.push(head);
+        }
+        return;
+    }
+    let mut path = head;
+    path.push(name.clone());
+    match text[name.len()..].strip_prefix("::") {
+        Some(more) => use_tree(more, path, out),
+        None => out.push(path),
+    }
+}
+
+/// The longest prefix of `path` (after `base`) that is one of `modules`.
+fn module_in(
+    modules: &BTreeMap<Module, PathBuf>,
+    base: &[String],
+    path: &[String],
+) -> Option<Module> {
+    (1..=path.len()).rev().find_map(|n| {
+        let mut m = base.to_vec();
+        m.extend_from_slice(&path[..n]);
+        modules.contains_key(&m).then_some(m)
+    })
 }
 
 /// The names the crate root re-exports (`pub use m::{A, B};`), by module.
@@ -193,10 +232,10 @@ fn sibling_edges(src: &Path, root_file: &Path) -> BTreeMap<Module, BTreeSet<Modu
         }
         let c = code(&std::fs::read_to_string(file).unwrap());
         let mut targets: BTreeSet<Module> = BTreeSet::new();
-        for name in first_segments(&c, "crate::") {
-            if modules.contains_key(&vec![name.clone()]) {
-                targets.insert(vec![name]);
-            } else if let Some(module) = exported.get(&name) {
+        for path in paths_after(&c, "crate::") {
+            if let Some(t) = module_in(&modules, &[], &path) {
+                targets.insert(t);
+            } else if let Some(module) = exported.get(&path[0]) {
                 targets.insert(vec![module.clone()]);
             }
         }
@@ -212,11 +251,9 @@ fn sibling_edges(src: &Path, root_file: &Path) -> BTreeMap<Module, BTreeSet<Modu
                 }
             }
         }
-        for name in first_segments(&c, "super::") {
-            let mut sibling = parent.to_vec();
-            sibling.push(name);
-            if modules.contains_key(&sibling) {
-                targets.insert(sibling);
+        for path in paths_after(&c, "super::") {
+            if let Some(t) = module_in(&modules, parent, &path) {
+                targets.insert(t);
             }
         }
         for t in targets {
@@ -315,6 +352,24 @@ fn the_checker_sees_a_cycle() {
         cycle_from(&sibling_edges(&src, &src.join("lib.rs")), &x),
         None
     );
+    // A cycle through whole paths: each child names the other's item by
+    // its path from the crate's root, through groups.
+    std::fs::write(m.join("mod.rs"), "mod x;\nmod y;\n").unwrap();
+    std::fs::write(m.join("x.rs"), "use crate::m::y::Y;\npub struct X(Y);\n").unwrap();
+    std::fs::write(
+        m.join("y.rs"),
+        "use crate::{m::{x::X}, other};\npub struct Y(X);\n",
+    )
+    .unwrap();
+    assert_eq!(
+        cycle_from(&sibling_edges(&src, &src.join("lib.rs")), &x),
+        Some(vec![x.clone(), y.clone()])
+    );
+    std::fs::write(m.join("y.rs"), "pub struct Y;\n").unwrap();
+    assert_eq!(
+        cycle_from(&sibling_edges(&src, &src.join("lib.rs")), &x),
+        None
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -338,5 +393,91 @@ fn no_library_source_file_is_over_800_lines() {
         long.is_empty(),
         "over {MAX_LINES} lines: {}",
         long.join(", ")
+    );
+}
+
+/// The `.rs` names ARCHITECTURE.md's code map gives under each crate's
+/// heading (`### crates/NAME: ...` or `### src: ...`): the source folder,
+/// and the names (a path from it, or a bare file name after a path in the
+/// same cell, `scene/hair.rs`, `lights.rs`, taken in that folder).
+fn code_map() -> Vec<(PathBuf, Vec<String>)> {
+    let text = std::fs::read_to_string(root().join("ARCHITECTURE.md")).unwrap();
+    let mut out: Vec<(PathBuf, Vec<String>)> = Vec::new();
+    for line in text.lines() {
+        if let Some(h) = line.strip_prefix("### ") {
+            let dir = h.split(':').next().unwrap().trim();
+            let src = if dir == "src" {
+                root().join("src")
+            } else {
+                root().join(dir).join("src")
+            };
+            out.push((src, Vec::new()));
+            continue;
+        }
+        if line.starts_with("## ") && !out.is_empty() {
+            break;
+        }
+        let Some((_, names)) = out.last_mut() else {
+            continue;
+        };
+        // A table row's first cell: a bare name follows the folder of the
+        // path before it.
+        if !line.starts_with('|') {
+            continue;
+        }
+        if let Some(cell) = line.split('|').nth(1) {
+            let mut folder = String::new();
+            for span in cell.split('`').skip(1).step_by(2) {
+                for word in span.split([',', ' ']) {
+                    let word = word.trim();
+                    if !word.ends_with(".rs") {
+                        continue;
+                    }
+                    if let Some((dir, _)) = word.rsplit_once('/') {
+                        folder = format!("{dir}/");
+                        names.push(word.to_string());
+                    } else {
+                        names.push(format!("{folder}{word}"));
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn the_code_map_names_every_source_file_and_only_files_that_exist() {
+    let map = code_map();
+    assert!(map.len() >= 8, "crate headings found: {}", map.len());
+    let (mut missing, mut unnamed) = (Vec::new(), Vec::new());
+    for (src, names) in &map {
+        for n in names {
+            // A crate's build script stands beside its src.
+            if !src.join(n).is_file() && !src.join("..").join(n).is_file() {
+                missing.push(format!("{}/{n}", src.display()));
+            }
+        }
+        let mut files = Vec::new();
+        rust_files(src, &mut files);
+        if src == &root().join("src") {
+            files.push(root().join("src/main.rs"));
+            files.push(root().join("src/bin/wisplight-bench.rs"));
+        }
+        for f in files {
+            let rel = f.strip_prefix(src).unwrap().display().to_string();
+            // Unit tests beside the code are named by their module, and a
+            // crate's root by its heading.
+            if rel.ends_with("tests.rs") || rel.contains("/tests/") || rel == "lib.rs" {
+                continue;
+            }
+            if !names.contains(&rel) {
+                unnamed.push(format!("{}/{rel}", src.display()));
+            }
+        }
+    }
+    assert!(
+        missing.is_empty() && unnamed.is_empty(),
+        "ARCHITECTURE.md names files that do not exist: {missing:#?}\nand does not name: {unnamed:#?}"
     );
 }
