@@ -5,6 +5,9 @@
 //! (`bench`), and `wisplight bench ...` runs it.
 
 #![recursion_limit = "256"]
+// The programs' modules are public only for their two binaries: their
+// users' documentation is each command's --help, not rustdoc.
+#![allow(missing_docs)]
 
 pub mod app;
 pub mod bench;

@@ -5,7 +5,6 @@
 //! densities, hands out columns and slabs, and composites. The only crate
 //! that knows protobuf, tonic and tokio.
 
-#![warn(unreachable_pub, missing_docs)]
 
 pub mod pb {
     //! Code generated from `proto/wisplight/v1/worker.proto`.

@@ -15,7 +15,6 @@
 //!
 //! The crate knows nothing of cameras, shading, files or networks.
 
-#![warn(unreachable_pub, missing_docs)]
 
 mod bins;
 mod config;

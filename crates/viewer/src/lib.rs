@@ -13,7 +13,6 @@
 //! stalled page misses frames and slows nobody. This crate and the
 //! cluster crate are the only ones that know networking.
 
-#![warn(unreachable_pub, missing_docs)]
 
 mod control;
 mod server;

@@ -8,7 +8,7 @@ use engine::{Scene, Sequence};
 
 /// A small simulated scene: the smooth style, thinned, on a dancing head.
 #[allow(dead_code)]
-pub const DANCE: &str = r#"
+pub(crate) const DANCE: &str = r#"
 [hair]
 style = "smooth"
 strands_per_wisp = 4
@@ -27,7 +27,7 @@ settle = 0.1
 
 /// `frames` pictures of `scene` in one process, as `render --frames` makes them.
 #[allow(dead_code)]
-pub fn local_frames(scene: &Scene, frames: usize) -> Vec<image::RgbImage> {
+pub(crate) fn local_frames(scene: &Scene, frames: usize) -> Vec<image::RgbImage> {
     let mut seq = Sequence::new(scene).unwrap();
     // As `render --frames` does: the camera frames all of them.
     seq.expect_frames(frames as u64);
@@ -40,13 +40,13 @@ pub fn local_frames(scene: &Scene, frames: usize) -> Vec<image::RgbImage> {
 /// `listen` says, and a switch that stops it (the server closes; calls in
 /// flight finish, new ones find no server). A dropped switch never stops
 /// the worker.
-pub fn start_worker_with(listen: Listen) -> (SocketAddr, tokio::sync::oneshot::Sender<()>) {
+pub(crate) fn start_worker_with(listen: Listen) -> (SocketAddr, tokio::sync::oneshot::Sender<()>) {
     start_service(cluster::WorkerService::default(), listen)
 }
 
 /// [`start_worker_with`] for `service`.
 #[allow(dead_code)]
-pub fn start_service(
+pub(crate) fn start_service(
     service: cluster::WorkerService,
     listen: Listen,
 ) -> (SocketAddr, tokio::sync::oneshot::Sender<()>) {
@@ -77,7 +77,7 @@ pub fn start_service(
 /// A client of the worker at `addr` that has said Hello, naming the
 /// session it opened in every call.
 #[allow(dead_code)]
-pub async fn greeted_client(addr: SocketAddr) -> cluster::SessionClient {
+pub(crate) async fn greeted_client(addr: SocketAddr) -> cluster::SessionClient {
     let channel = tonic::transport::Endpoint::from_shared(format!("http://{addr}"))
         .unwrap()
         .connect()

@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 /// The `.toml` files of `dir` (relative to the repository root), sorted.
-pub fn scene_files(dir: &str) -> Vec<PathBuf> {
+pub(crate) fn scene_files(dir: &str) -> Vec<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../..")
         .join(dir);

@@ -7,7 +7,7 @@ use strands::{Hair, Rng};
 
 /// A straight strand along z at `(x, y)`, 9 points over 2 units.
 #[allow(dead_code)]
-pub fn along_z(hair: &mut Hair, x: f32, y: f32) {
+pub(crate) fn along_z(hair: &mut Hair, x: f32, y: f32) {
     let pts: Vec<Vec3> = (0..9)
         .map(|i| Vec3::new(x, y, -1.0 + 0.25 * i as f32))
         .collect();
@@ -17,7 +17,7 @@ pub fn along_z(hair: &mut Hair, x: f32, y: f32) {
 /// The method `config` built on `hair` under `light`, fibers `w` wide of
 /// opacity `alpha`, no head: ready for lookups.
 #[allow(dead_code)]
-pub fn built(
+pub(crate) fn built(
     config: &MethodConfig,
     hair: &Hair,
     light: &Light,
@@ -44,7 +44,7 @@ pub fn built(
 /// quarter of its spacing (seeded): evenly spread, like combed hair, so
 /// that a cell-sized column sees the mean density rather than Poisson noise.
 #[allow(dead_code)]
-pub fn fiber_slab(dir: Vec3, n: f32, s: f32, h: f32, seed: u64) -> Hair {
+pub(crate) fn fiber_slab(dir: Vec3, n: f32, s: f32, h: f32, seed: u64) -> Hair {
     let dir = dir.normalize();
     let (u, v) = dir.any_orthonormal_pair();
     let centre = Vec3::new(0.0, 0.5 * h, 0.0);

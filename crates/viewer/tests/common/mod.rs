@@ -11,7 +11,7 @@ use tokio_tungstenite::tungstenite::Message;
 
 /// A small scene: the smooth style dancing, few strands, a small picture,
 /// a head that casts and takes shadow.
-pub const SCENE: &str = r#"
+pub(crate) const SCENE: &str = r#"
 [hair]
 style = "smooth"
 strands_per_wisp = 4
@@ -34,12 +34,12 @@ fps = 30
 settle = 0.1
 "#;
 
-pub fn scene() -> engine::Scene {
+pub(crate) fn scene() -> engine::Scene {
     engine::Scene::from_toml_str(SCENE, Path::new("viewer-test.toml")).unwrap()
 }
 
 /// A running viewer and the switch that stops it.
-pub struct Viewer {
+pub(crate) struct Viewer {
     pub bound: viewer::Bound,
     stop: Option<tokio::sync::oneshot::Sender<()>>,
 }
@@ -53,7 +53,7 @@ impl Drop for Viewer {
 }
 
 /// Serves `scene` on `listen`, through `connect` (workers) or here.
-pub fn start(scene: engine::Scene, connect: Option<viewer::Connect>, listen: &str) -> Viewer {
+pub(crate) fn start(scene: engine::Scene, connect: Option<viewer::Connect>, listen: &str) -> Viewer {
     let (tx, rx) = std::sync::mpsc::channel();
     let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
     let listen: SocketAddr = listen.parse().unwrap();
@@ -86,13 +86,13 @@ pub fn start(scene: engine::Scene, connect: Option<viewer::Connect>, listen: &st
 
 /// One frame as a page receives it.
 #[derive(Debug, Clone)]
-pub struct Frame {
+pub(crate) struct Frame {
     pub header: serde_json::Value,
     pub jpeg: Vec<u8>,
 }
 
 impl Frame {
-    pub fn parse(bytes: &[u8]) -> Frame {
+    pub(crate) fn parse(bytes: &[u8]) -> Frame {
         let n = u32::from_le_bytes(bytes[..4].try_into().unwrap()) as usize;
         let header = serde_json::from_slice(&bytes[4..4 + n]).unwrap();
         Frame {
@@ -101,25 +101,25 @@ impl Frame {
         }
     }
 
-    pub fn index(&self) -> u64 {
+    pub(crate) fn index(&self) -> u64 {
         self.header["stats"]["index"].as_u64().unwrap()
     }
 
-    pub fn ran(&self, stage: &str) -> bool {
+    pub(crate) fn ran(&self, stage: &str) -> bool {
         self.header["stats"]["stages"][stage]["ran"]
             .as_bool()
             .unwrap_or_else(|| panic!("no stage {stage} in {}", self.header))
     }
 
     /// The stages that ran, in the order a frame runs them.
-    pub fn stages_run(&self) -> Vec<String> {
+    pub(crate) fn stages_run(&self) -> Vec<String> {
         self.stage_names()
             .into_iter()
             .filter(|n| self.ran(n))
             .collect()
     }
 
-    pub fn stage_names(&self) -> Vec<String> {
+    pub(crate) fn stage_names(&self) -> Vec<String> {
         self.header["stage_names"]
             .as_array()
             .unwrap()
@@ -128,14 +128,14 @@ impl Frame {
             .collect()
     }
 
-    pub fn image(&self) -> image::RgbImage {
+    pub(crate) fn image(&self) -> image::RgbImage {
         image::load_from_memory_with_format(&self.jpeg, image::ImageFormat::Jpeg)
             .unwrap()
             .to_rgb8()
     }
 
     /// Mean luminance of the picture, 0 to 255.
-    pub fn mean(&self) -> f64 {
+    pub(crate) fn mean(&self) -> f64 {
         let img = self.image();
         let sum: f64 = img
             .pixels()
@@ -149,13 +149,13 @@ type Socket =
     tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
 
 /// A page: its socket, on a runtime of its own.
-pub struct Page {
+pub(crate) struct Page {
     rt: tokio::runtime::Runtime,
     ws: Socket,
 }
 
 impl Page {
-    pub fn open(v: &Viewer) -> Page {
+    pub(crate) fn open(v: &Viewer) -> Page {
         let url = match &v.bound.token {
             Some(t) => format!("ws://127.0.0.1:{}/ws?token={t}", v.bound.addr.port()),
             None => format!("ws://{}/ws", v.bound.addr),
@@ -163,7 +163,7 @@ impl Page {
         Page::open_url(&url).unwrap()
     }
 
-    pub fn open_url(url: &str) -> Result<Page, tokio_tungstenite::tungstenite::Error> {
+    pub(crate) fn open_url(url: &str) -> Result<Page, tokio_tungstenite::tungstenite::Error> {
         let rt = tokio::runtime::Builder::new_current_thread()
             .enable_all()
             .build()
@@ -172,18 +172,18 @@ impl Page {
         Ok(Page { rt, ws })
     }
 
-    pub fn send(&mut self, json: &str) {
+    pub(crate) fn send(&mut self, json: &str) {
         self.rt
             .block_on(self.ws.send(Message::Text(json.into())))
             .unwrap();
     }
 
-    pub fn send_message(&mut self, m: Message) {
+    pub(crate) fn send_message(&mut self, m: Message) {
         self.rt.block_on(self.ws.send(m)).unwrap();
     }
 
     /// The next message, text or frame; `None` once the socket closed.
-    pub fn next(&mut self) -> Option<Result<Frame, serde_json::Value>> {
+    pub(crate) fn next(&mut self) -> Option<Result<Frame, serde_json::Value>> {
         loop {
             let m = self
                 .rt
@@ -200,7 +200,7 @@ impl Page {
         }
     }
 
-    pub fn frame(&mut self) -> Frame {
+    pub(crate) fn frame(&mut self) -> Frame {
         match self.next().expect("the socket is open") {
             Ok(f) => f,
             Err(e) => panic!("an error instead of a frame: {e}"),
@@ -208,7 +208,7 @@ impl Page {
     }
 
     /// The first frame whose header satisfies `pred`.
-    pub fn frame_where(&mut self, pred: impl Fn(&Frame) -> bool) -> Frame {
+    pub(crate) fn frame_where(&mut self, pred: impl Fn(&Frame) -> bool) -> Frame {
         loop {
             let f = self.frame();
             if pred(&f) {
@@ -218,7 +218,7 @@ impl Page {
     }
 
     /// The next error message, skipping frames.
-    pub fn error(&mut self) -> String {
+    pub(crate) fn error(&mut self) -> String {
         loop {
             match self.next().expect("the socket is open") {
                 Ok(_) => continue,
@@ -231,7 +231,7 @@ impl Page {
     }
 
     /// Pauses and gives the frame the pause settled on.
-    pub fn pause(&mut self) -> Frame {
+    pub(crate) fn pause(&mut self) -> Frame {
         self.send(r#"{"type":"pause"}"#);
         self.frame_where(|f| f.header["playing"] == false)
     }
