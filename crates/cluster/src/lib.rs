@@ -5,7 +5,6 @@
 //! densities, hands out columns and slabs, and composites. The only crate
 //! that knows protobuf, tonic and tokio.
 
-
 pub mod pb {
     //! Code generated from `proto/wisplight/v1/worker.proto`.
     #![allow(missing_debug_implementations, missing_docs, clippy::all)]

@@ -15,7 +15,6 @@
 //! The engine is synchronous and deterministic: it does no networking, and
 //! does not print; the binary decides what the user sees.
 
-
 mod animate;
 mod bands;
 pub mod cache;

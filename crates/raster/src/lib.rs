@@ -10,7 +10,6 @@
 //! ([`HairLayer`]) are composited together: each group's fragments are
 //! summed in floating point, the groups' sums in exact integers.
 
-
 mod camera;
 mod canvas;
 mod fiber;

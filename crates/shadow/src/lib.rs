@@ -15,7 +15,6 @@
 //!
 //! The crate knows nothing of cameras, shading, files or networks.
 
-
 mod bins;
 mod config;
 mod contact;

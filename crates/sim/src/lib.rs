@@ -7,7 +7,6 @@
 //! state and its inputs, so any split of wisps over threads or machines
 //! gives the same bytes. Knows nothing of light, pictures or files.
 
-
 mod dynamics;
 mod motion;
 

@@ -11,7 +11,6 @@
 //! It knows nothing of light, shadows, cameras or simulation, and does no I/O
 //! beyond reading the one file a loader is given.
 
-
 mod catmull_rom;
 mod files;
 mod follow;

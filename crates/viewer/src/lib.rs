@@ -13,7 +13,6 @@
 //! stalled page misses frames and slows nobody. This crate and the
 //! cluster crate are the only ones that know networking.
 
-
 mod control;
 mod server;
 mod session;

@@ -4,15 +4,16 @@ use super::STRIPES_IN_FLIGHT;
 use super::inbox::{Gather, Inbox, SendFailed, send_within, stalled};
 use super::memory::{Budget, Grant};
 use super::session::{Exchanged, Session, on_pool};
-use super::status::{cancelled, refused, status};
+use super::status::{cancelled, first_message, invalid, logged, refused, status};
 use crate::error::WorkerErrorKind as Kind;
+use crate::tls::Caller;
 use crate::{WorkerService, pb, wire};
 use engine::Share;
 use prost::Message;
 use shadow::{DensityMap, Fiber, LightFrame};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
-use tonic::Status;
+use tonic::{Request, Response, Status, Streaming};
 
 /// The calls carrying this worker's columns to each other worker of a
 /// column plan: per worker (none for this one), a sender of the density
@@ -303,5 +304,79 @@ impl SweptRound {
             )
             .map_err(|s| s.message().to_string())?;
         Ok((trans, kept))
+    }
+}
+
+impl WorkerService {
+    pub(super) async fn exchange_call(
+        &self,
+        req: Request<Streaming<pb::ExchangeChunk>>,
+    ) -> Result<Response<pb::ExchangeReply>, Status> {
+        let peer = req.remote_addr();
+        let served = async move {
+            let session = self.session(&req, Caller::Peer)?;
+            let memory = self.budget(&session);
+            let mut stream = req.into_inner();
+            let first = first_message(&mut stream, "Exchange").await?;
+            let (round, from, swept) = (first.round, first.from, first.swept);
+            if from as usize >= wire::MAX_WORKERS || round >= u64::MAX / 2 {
+                return Err(status(
+                    Kind::Invalid,
+                    format!(
+                        "columns from worker {from} of round {round} (at most {} workers)",
+                        wire::MAX_WORKERS
+                    ),
+                ));
+            }
+            let frame = if swept {
+                None
+            } else {
+                Some(wire::frame_from_pb(first.map.as_ref()).map_err(invalid)?)
+            };
+            let mut grant = Grant::default();
+            let (mut density, mut columns) = (Vec::new(), Vec::new());
+            let mut add = |c: pb::ExchangeChunk| -> Result<(), Status> {
+                match (swept, c.density, c.columns) {
+                    (false, Some(d), None) => {
+                        // The cells unpacked, and the chunk as it came.
+                        let cells: u64 =
+                            d.lo.iter()
+                                .zip(&d.hi)
+                                .map(|(&lo, &hi)| u64::from(hi.saturating_sub(lo)) + 1)
+                                .sum();
+                        let bytes = cells * 4 + d.encoded_len() as u64;
+                        memory.take(&mut grant, bytes, "an Exchange call's density")?;
+                        density.push(d);
+                    }
+                    (true, None, Some(col)) => {
+                        let bytes =
+                            wire::ColumnsReader::bytes_to_add(&col) + col.encoded_len() as u64;
+                        memory.take(&mut grant, bytes, "an Exchange call's swept columns")?;
+                        columns.push(col);
+                    }
+                    (_, None, None) => {}
+                    _ => {
+                        return Err(status(
+                            Kind::Invalid,
+                            "an Exchange chunk carries what its call does not (density in a call of swept columns, or the reverse, or both)",
+                        ));
+                    }
+                }
+                Ok(())
+            };
+            add(first)?;
+            while let Some(c) = stream.message().await? {
+                add(c)?;
+            }
+            let item = match frame {
+                Some(f) => Exchanged::Density(f, density),
+                None => Exchanged::Swept(columns),
+            };
+            session
+                .exchange
+                .deliver(2 * round + u64::from(swept), from, item, grant)?;
+            Ok(Response::new(pb::ExchangeReply {}))
+        };
+        logged(peer, "Exchange", served.await)
     }
 }

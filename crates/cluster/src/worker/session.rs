@@ -2,17 +2,17 @@
 
 use super::inbox::Inbox;
 use super::memory::{Budget, Grant, Memory};
-use super::status::{expired, named_session, not_open, poisoned, status};
+use super::status::{expired, logged, named_session, not_open, poisoned, session_id, status};
 use super::swept::SweptStore;
 use crate::error::WorkerErrorKind as Kind;
-use crate::tls::{Caller, request_may_call};
+use crate::tls::{self, Caller, request_may_call};
 use crate::{SessionLimits, WorkerService, pb, wire};
 use engine::{SceneSource, Share};
 use shadow::{DensityMap, Fiber, LightFrame};
 use std::net::SocketAddr;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
-use tonic::{Request, Status};
+use tonic::{Request, Response, Status};
 
 /// The most cells a map kept between calls (a session's pool) may have:
 /// 2^22 (16 MiB of quanta); larger maps are dropped after their call.
@@ -282,6 +282,90 @@ pub(super) async fn with_share<T: Send + 'static>(
     })
     .await
     .map_err(|e| status(Kind::Internal, format!("worker task failed: {e}")))?
+}
+
+impl WorkerService {
+    pub(super) async fn hello_call(
+        &self,
+        req: Request<pb::HelloRequest>,
+    ) -> Result<Response<pb::HelloReply>, Status> {
+        let peer = req.remote_addr();
+        let served = async move {
+            tls::request_may_call(&req, Caller::Coordinator)?;
+            let r = req.into_inner();
+            if r.protocol_version != wire::PROTOCOL_VERSION {
+                return Err(status(
+                    Kind::Precondition,
+                    format!(
+                        "this worker speaks wisplight protocol version {}, the coordinator version {}",
+                        wire::PROTOCOL_VERSION,
+                        r.protocol_version
+                    ),
+                ));
+            }
+            let fiber = Fiber::new(r.fiber_width, r.fiber_opacity)
+                .map_err(|e| status(Kind::Invalid, e.to_string()))?;
+            self.end_idle();
+            let id = session_id()?;
+            {
+                let mut sessions = self.sessions.lock().map_err(poisoned)?;
+                if sessions.len() >= self.limits.max_sessions {
+                    return Err(status(
+                        Kind::Exhausted,
+                        format!(
+                            "this worker already holds {} sessions, its limit (--max-sessions); \
+                         one ends when its coordinator finishes or after {} s unused",
+                            sessions.len(),
+                            self.limits.idle.as_secs()
+                        ),
+                    ));
+                }
+                sessions.insert(
+                    id.clone(),
+                    Arc::new(Session {
+                        fiber,
+                        maps: Arc::default(),
+                        held: Arc::default(),
+                        last_used: Mutex::new(Instant::now()),
+                        memory: Memory::new(
+                            self.limits.max_session_memory,
+                            "this session's",
+                            "--max-session-memory-mib",
+                        ),
+                        inbox: Arc::default(),
+                        exchange: Arc::default(),
+                        swept: Arc::default(),
+                        peers: Mutex::default(),
+                        picture: Mutex::default(),
+                        origin: peer,
+                    }),
+                );
+                tracing::info!(session = %&id[..8], sessions = sessions.len(), "session opened");
+            }
+            Ok(Response::new(pb::HelloReply {
+                protocol_version: wire::PROTOCOL_VERSION,
+                worker: format!("wisplight-worker {}", env!("CARGO_PKG_VERSION")),
+                session: id,
+            }))
+        };
+        logged(peer, "Hello", served.await)
+    }
+
+    pub(super) async fn end_call(
+        &self,
+        req: Request<pb::EndRequest>,
+    ) -> Result<Response<pb::EndReply>, Status> {
+        let peer = req.remote_addr();
+        let served = async move {
+            let id = named_session(req.metadata())?;
+            tls::request_may_call(&req, Caller::Coordinator)?;
+            let mut sessions = self.sessions.lock().map_err(poisoned)?;
+            sessions.remove(id).ok_or_else(|| self.not_open(id))?;
+            tracing::info!(session = %&id[..id.len().min(8)], sessions = sessions.len(), "session ended");
+            Ok(Response::new(pb::EndReply {}))
+        };
+        logged(peer, "End", served.await)
+    }
 }
 
 #[cfg(test)]

@@ -53,7 +53,11 @@ impl Drop for Viewer {
 }
 
 /// Serves `scene` on `listen`, through `connect` (workers) or here.
-pub(crate) fn start(scene: engine::Scene, connect: Option<viewer::Connect>, listen: &str) -> Viewer {
+pub(crate) fn start(
+    scene: engine::Scene,
+    connect: Option<viewer::Connect>,
+    listen: &str,
+) -> Viewer {
     let (tx, rx) = std::sync::mpsc::channel();
     let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
     let listen: SocketAddr = listen.parse().unwrap();
