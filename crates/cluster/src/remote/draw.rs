@@ -20,15 +20,16 @@ impl RemoteExecutor {
         for (i, w) in self.workers.iter().enumerate() {
             let mut chunks = vec![first.clone()];
             if job.shadows {
-                for (l, swept) in self.swept.iter().enumerate() {
-                    let (frame, slabs) = swept
+                for (l, state) in self.lights.iter().enumerate() {
+                    let (frame, slabs) = state
+                        .swept
                         .as_ref()
                         .ok_or_else(|| {
                             ClusterError::Setup(format!("light {l} was not swept before drawing"))
                         })?
                         .get();
                     // The columns this worker reads; all of them after a loss.
-                    let keep = self.reads[l].as_ref().and_then(|r| r.get(i));
+                    let keep = state.reads.as_ref().and_then(|r| r.get(i));
                     chunks.extend(wire::draw_columns(
                         l as u32,
                         frame,
@@ -129,17 +130,20 @@ impl RemoteExecutor {
         let exchanged = job.shadows
             && self.posed == Some(job.version)
             && self
-                .swept_on_workers
+                .lights
                 .iter()
-                .all(|x| *x == Some(job.version));
+                .all(|l| l.swept_on_workers == Some(job.version));
         // The workers' columns go with this Draw.
-        self.swept_on_workers.iter_mut().for_each(|x| *x = None);
+        self.lights
+            .iter_mut()
+            .for_each(|l| l.swept_on_workers = None);
         // Band owners shade the head under the hair's shadow: every column.
         let all_columns = job.shadows && self.head_shadow;
         let mut shared = Vec::new();
         let columns = |ex: &Self, i: usize, out: &mut Vec<pb::DrawChunk>| {
-            for (l, swept) in ex.swept.iter().enumerate() {
-                let (frame, slabs) = swept
+            for (l, state) in ex.lights.iter().enumerate() {
+                let (frame, slabs) = state
+                    .swept
                     .as_ref()
                     .ok_or_else(|| {
                         ClusterError::Setup(format!("light {l} was not swept before drawing"))
@@ -148,7 +152,7 @@ impl RemoteExecutor {
                 let keep = if all_columns {
                     None
                 } else {
-                    ex.reads[l].as_ref().and_then(|r| r.get(i))
+                    state.reads.as_ref().and_then(|r| r.get(i))
                 };
                 out.extend(wire::draw_columns(
                     l as u32,
@@ -352,8 +356,7 @@ impl RemoteExecutor {
                 .map(|h| h.states.clone())
                 .unwrap_or_default(),
             pose: self.last_pose.clone(),
-            swept: self.swept.clone(),
-            reads: self.reads.clone(),
+            lights: self.lights.clone(),
             workers: self.addrs(),
         }
     }
@@ -365,14 +368,14 @@ impl RemoteExecutor {
             h.states = to.states;
         }
         self.last_pose = to.pose;
-        self.swept = to.swept;
-        self.exchanged.iter_mut().for_each(|x| *x = None);
-        self.swept_on_workers.iter_mut().for_each(|x| *x = None);
-        self.reads = if self.addrs() == to.workers {
-            to.reads
-        } else {
-            vec![None; self.swept.len()]
-        };
+        // The snapshot's sweeps, and its reads when the workers are the
+        // same; the columns' weights stay the latest.
+        let same_workers = self.addrs() == to.workers;
+        for (l, then) in self.lights.iter_mut().zip(to.lights) {
+            l.forget_workers();
+            l.swept = then.swept;
+            l.reads = then.reads.filter(|_| same_workers);
+        }
         self.shares = None;
         self.posed = None;
     }
@@ -514,17 +517,6 @@ impl BandRound {
         }
         Ok(img)
     }
-}
-
-/// What one worker's Density reply held, decoded and checked.
-#[derive(Default)]
-pub(super) struct Gathered {
-    pub(super) columns: Vec<wire::Columns>,
-    pub(super) bytes: u64,
-    pub(super) samples: u64,
-    pub(super) out_of_map: u64,
-    /// The columns its strands' lookups read, for posed strands.
-    pub(super) read: Option<Vec<u64>>,
 }
 
 /// What drawing each 16 rows of the picture cost in the last round of

@@ -2,6 +2,17 @@
 
 use super::*;
 
+/// What one worker's Density reply held, decoded and checked.
+#[derive(Default)]
+pub(super) struct Gathered {
+    pub(super) columns: Vec<wire::Columns>,
+    pub(super) bytes: u64,
+    pub(super) samples: u64,
+    pub(super) out_of_map: u64,
+    /// The columns its strands' lookups read, for posed strands.
+    pub(super) read: Option<Vec<u64>>,
+}
+
 impl RemoteExecutor {
     /// The Density requests of one fill: the workers' posed strands when
     /// they hold hair `version`, else shares of `hair`'s strands; `None`
@@ -67,9 +78,9 @@ impl RemoteExecutor {
         let n = self.workers.len();
         let columns = frame.columns();
         let weights = self
-            .column_weights
+            .lights
             .get(light)
-            .and_then(|w| w.as_ref())
+            .and_then(|l| l.column_weights.as_ref())
             .filter(|w| w.len() == columns);
         let cuts = wire::ColumnPlan::cuts(columns, n, |c| weights.map_or(1, |w| u64::from(w[c])));
         let head = if self.head_shadow {
@@ -193,8 +204,8 @@ impl RemoteExecutor {
             }
         }
         // The next map's columns are cut by this one's.
-        if let Some(w) = self.column_weights.get_mut(light) {
-            *w = Some(
+        if let Some(l) = self.lights.get_mut(light) {
+            l.column_weights = Some(
                 (0..columns)
                     .map(|c| {
                         let m = map.meta(c);
@@ -206,12 +217,8 @@ impl RemoteExecutor {
                     })
                     .collect(),
             );
-        }
-        if let Some(x) = self.exchanged.get_mut(light) {
-            *x = Some(version);
-        }
-        if let Some(r) = self.reads.get_mut(light) {
-            *r = None;
+            l.exchanged = Some(version);
+            l.reads = None;
         }
         tracing::debug!(
             frame_id = version,
@@ -240,11 +247,9 @@ impl RemoteExecutor {
     ) -> Result<Transmittance, ClusterError> {
         let t = Instant::now();
         let trans = Transmittance::compute(map);
-        if let Some(s) = self.swept.get_mut(light) {
-            *s = Some(Arc::new(SweptMap::of_map(map.clone())));
-        }
-        if let Some(x) = self.swept_on_workers.get_mut(light) {
-            *x = self.exchanged.get(light).copied().flatten();
+        if let Some(l) = self.lights.get_mut(light) {
+            l.swept = Some(Arc::new(SweptMap::of_map(map.clone())));
+            l.swept_on_workers = l.exchanged;
         }
         let ms = t.elapsed().as_secs_f64() * 1e3;
         self.clock(|x| x.transmittance_ms += ms);
@@ -333,8 +338,8 @@ impl RemoteExecutor {
         for d in &decoded {
             wire::add_columns(map, d);
         }
-        if let Some(r) = self.reads.get_mut(light) {
-            *r = posed.then_some(reads);
+        if let Some(l) = self.lights.get_mut(light) {
+            l.reads = posed.then_some(reads);
         }
         tracing::debug!(frame_id = id, light, posed, "density gathered");
         self.count(|t| {
@@ -408,9 +413,9 @@ impl RemoteExecutor {
         let trans = Transmittance::assemble(frame, slabs.iter().cloned())
             .map_err(|e| malformed("workers", e))?;
         if self.draw.on_workers()
-            && let Some(s) = self.swept.get_mut(light)
+            && let Some(l) = self.lights.get_mut(light)
         {
-            *s = Some(Arc::new(SweptMap::of_slabs(frame, slabs)));
+            l.swept = Some(Arc::new(SweptMap::of_slabs(frame, slabs)));
         }
         let ms = t.elapsed().as_secs_f64() * 1e3;
         self.count(|x| {

@@ -152,11 +152,8 @@ pub struct RemoteExecutor {
     posed: Option<u64>,
     last_pose: Option<PosePlan>,
     report: Option<PoseReport>,
-    /// Per light, the columns each live worker's lookups read (from its
-    /// last posed Density), in worker order.
-    reads: Vec<Option<Vec<Vec<u64>>>>,
-    /// Per light, the frame and slabs of its last sweep.
-    swept: Vec<Option<Swept>>,
+    /// What is kept of each light's map, light by light.
+    lights: Vec<LightState>,
     /// Whether the workers composite the picture among themselves (two
     /// or more drawing).
     composite: Collective,
@@ -167,16 +164,6 @@ pub struct RemoteExecutor {
     /// density-map method, self-shadowing on); otherwise a fill is the
     /// self-collisions' alone, and the workers need not sweep it.
     sweeps_follow: bool,
-    /// Per light, the hair version whose map the live workers last summed
-    /// and swept among themselves (each holding every column for its Draw).
-    exchanged: Vec<Option<u64>>,
-    /// Per light, the hair version whose map's transmittance came from the
-    /// workers' own sweep (the frame's shadow map, not another map filled
-    /// on the workers such as a separate self-collision map).
-    swept_on_workers: Vec<Option<u64>>,
-    /// Per light, each column's weight in the last map (its occupied
-    /// cells), for cutting the next map's columns among the workers.
-    column_weights: Vec<Option<Vec<u32>>>,
     /// Whether the head is shadowed by the hair (the workers resolving
     /// bands shade it: they get every swept column); also whether the
     /// head is in the maps, as an occluder.
@@ -246,6 +233,36 @@ impl Collective {
 /// A light's last sweep: its frame and slabs.
 type Swept = Arc<SweptMap>;
 
+/// What the coordinator keeps of one light's map between calls.
+#[derive(Debug, Clone, Default)]
+struct LightState {
+    /// The columns each live worker's lookups read (from its last posed
+    /// Density), in worker order.
+    reads: Option<Vec<Vec<u64>>>,
+    /// The frame and slabs of its last sweep.
+    swept: Option<Swept>,
+    /// The hair version whose map the live workers last summed and swept
+    /// among themselves (each holding every column for its Draw).
+    exchanged: Option<u64>,
+    /// The hair version whose map's transmittance came from the workers'
+    /// own sweep (the frame's shadow map, not another map filled on the
+    /// workers such as a separate self-collision map).
+    swept_on_workers: Option<u64>,
+    /// Each column's weight in the last map (its occupied cells), for
+    /// cutting the next map's columns among the workers.
+    column_weights: Option<Vec<u32>>,
+}
+
+impl LightState {
+    /// Forgets what depended on the workers as they were (after a loss
+    /// or a restore): where their columns are.
+    fn forget_workers(&mut self) {
+        self.reads = None;
+        self.exchanged = None;
+        self.swept_on_workers = None;
+    }
+}
+
 /// A light's last sweep: its frame and slabs, or (when the workers summed
 /// and swept it among themselves) the summed map, swept here only if a
 /// frame must be drawn from it through the coordinator.
@@ -290,8 +307,7 @@ struct Snapshot {
     version: u64,
     states: Vec<WispState>,
     pose: Option<PosePlan>,
-    swept: Vec<Option<Swept>>,
-    reads: Vec<Option<Vec<Vec<u64>>>>,
+    lights: Vec<LightState>,
     workers: Vec<String>,
 }
 
@@ -381,15 +397,11 @@ impl RemoteExecutor {
             traffic: Arc::new(Mutex::new(Traffic::default())),
             timing: Arc::new(Mutex::new(Timing::default())),
             filter: scene.shadow.method.filter(),
-            reads: vec![None; scene.lights.len()],
-            swept: vec![None; scene.lights.len()],
+            lights: vec![LightState::default(); scene.lights.len()],
             composite: Collective::default(),
             exchange: Collective::default(),
             sweeps_follow: scene.effects.self_shadow
                 && matches!(scene.shadow.method, shadow::MethodConfig::DensityMap { .. }),
-            exchanged: vec![None; scene.lights.len()],
-            swept_on_workers: vec![None; scene.lights.len()],
-            column_weights: vec![None; scene.lights.len()],
             head_shadow: scene.head.is_some() && scene.effects.head_shadow,
             tls_domain: options
                 .tls
@@ -470,9 +482,7 @@ impl RemoteExecutor {
         self.last_round = None;
         self.shares = None;
         self.posed = None;
-        self.reads.iter_mut().for_each(|r| *r = None);
-        self.exchanged.iter_mut().for_each(|x| *x = None);
-        self.swept_on_workers.iter_mut().for_each(|x| *x = None);
+        self.lights.iter_mut().for_each(LightState::forget_workers);
         self.clock(|t| t.workers_lost += 1);
         tracing::warn!(
             error = %e,
@@ -617,10 +627,9 @@ impl Executor for RemoteExecutor {
             Strands::Here { hair, posed } => (Some(hair), posed),
             Strands::Held { posed } => (None, Some(posed)),
         };
-        for x in [&mut self.exchanged, &mut self.swept_on_workers] {
-            if let Some(x) = x.get_mut(light) {
-                *x = None;
-            }
+        if let Some(l) = self.lights.get_mut(light) {
+            l.exchanged = None;
+            l.swept_on_workers = None;
         }
         if self.draw.on_workers()
             && self.exchange.is_on()
@@ -673,7 +682,7 @@ impl Executor for RemoteExecutor {
         // than sweeping here (curly, one core a node: 7 ms a frame and 1
         // MB on the wire, against 1.5 ms here).
         let exchanged =
-            self.posed.is_some() && self.exchanged.get(light).copied().flatten() == self.posed;
+            self.posed.is_some() && self.lights.get(light).and_then(|l| l.exchanged) == self.posed;
         if exchanged || self.workers.len() == 1 {
             return self.sweep_here(light, map).map_err(engine_error);
         }
