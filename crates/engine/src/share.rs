@@ -431,7 +431,7 @@ impl Share {
                 head_lambert(color, shading, &job.lights, p, n, |l| {
                     if head_shadow {
                         let m = &maps[l];
-                        m.transmittance_at(off_surface(m.frame(), p, n, 1.0), job.trilinear)
+                        m.transmittance_at_drawn(off_surface(m.frame(), p, n, 1.0), job.trilinear)
                     } else {
                         1.0
                     }

@@ -155,6 +155,17 @@ impl ShadowMethod {
         each!(self, m => m.transmittance_at(p))
     }
 
+    /// [`Self::transmittance_at`] a point on a drawn surface (the head's,
+    /// moved off it by the caller): the density map reads it as it reads
+    /// drawn fibers ([`crate::LIT_EDGE_OFFSET`] nearer the light); the
+    /// other methods as any point.
+    pub fn transmittance_at_surface(&self, p: Vec3) -> f32 {
+        match self {
+            ShadowMethod::DensityMap(m) => m.transmittance_at_surface(p),
+            _ => self.transmittance_at(p),
+        }
+    }
+
     /// Stage 3, filter: `T` at many points, in parallel; the same values
     /// as [`Self::transmittance_at`] one by one, except for the density
     /// map's contact shadows, which take the `i`-th point to be the `i`-th
@@ -345,6 +356,18 @@ impl DensityMapMethod {
         }
     }
 
+    /// [`ShadowMethod::transmittance_at_surface`].
+    fn transmittance_at_surface(&self, p: Vec3) -> f32 {
+        let trans = self
+            .trans
+            .as_ref()
+            .expect("the transmittance stage runs before lookups");
+        match &self.near {
+            Some(c) => c.at(p, |q| trans.transmittance_at_drawn(q, self.filter)),
+            None => trans.transmittance_at_drawn(p, self.filter),
+        }
+    }
+
     fn filter(&self, points: &[Vec3], out: &mut [f32]) {
         let trans = self
             .trans
@@ -360,7 +383,7 @@ impl DensityMapMethod {
             .for_each(|(c, (o, p))| {
                 for (i, (o, &p)) in o.iter_mut().zip(p).enumerate() {
                     *o = near.at_drawn(c * CHUNK + i, p, self.eye, |q| {
-                        trans.transmittance_at(q, self.filter)
+                        trans.transmittance_at_drawn(q, self.filter)
                     });
                 }
             });

@@ -7,7 +7,10 @@ use rayon::prelude::*;
 
 use crate::{DEPTH_QUANTUM, DensityMap, LightFrame, ShadowError};
 
-/// Lookups read the map this many cells nearer the light than the point.
+/// Lookups at drawn fiber points read the map this many cells nearer the
+/// light than the point ([`Transmittance::filter`],
+/// [`Transmittance::transmittance_at_drawn`]); a point in free space is
+/// read where it is ([`Transmittance::transmittance_at`]).
 ///
 /// Why: a drawn point lies in the cell its own fiber and clump were
 /// deposited in, so the depth at the point itself counts about half a
@@ -574,13 +577,14 @@ impl Transmittance {
     #[inline(always)]
     pub fn optical_depth(&self, p: Vec3, filter: bool) -> f32 {
         debug_assert!(p.is_finite());
-        self.depth_in_cells(self.frame.to_cells(p), filter)
+        self.depth_in_cells(self.frame.to_cells(p), filter, 0.0)
     }
 
-    /// [`Self::optical_depth`] at map coordinates `c` (cells).
+    /// [`Self::optical_depth`] at map coordinates `c` (cells), read
+    /// `towards_light` cells nearer the light.
     #[inline(always)]
-    fn depth_in_cells(&self, c: Vec3, filter: bool) -> f32 {
-        let c = Vec3::new(c.x - LIT_EDGE_OFFSET, c.y, c.z);
+    fn depth_in_cells(&self, c: Vec3, filter: bool, towards_light: f32) -> f32 {
+        let c = Vec3::new(c.x - towards_light, c.y, c.z);
         let at = Lookup::of_cells(&self.frame, c, filter);
         let (j, k, x) = (at.j, at.k, at.x);
         if filter {
@@ -605,14 +609,26 @@ impl Transmittance {
         }
     }
 
-    /// Transmittance `T(p) = exp(-D(p'))` in [0, 1], `p'` being `p`
-    /// moved [`LIT_EDGE_OFFSET`] cells towards the light.
+    /// Transmittance `T(p) = exp(-D(p))` in [0, 1] at a point in free
+    /// space (a probe): the light that reaches `p` through the map.
     #[inline]
     pub fn transmittance_at(&self, p: Vec3, filter: bool) -> f32 {
         (-self.optical_depth(p, filter)).exp()
     }
 
-    /// Transmittance at every point (the filtering stage), in parallel.
+    /// Transmittance `T(p) = exp(-D(p'))` in [0, 1] at a drawn point (of a
+    /// fiber, or on the head's surface), `p'` being `p` moved
+    /// [`LIT_EDGE_OFFSET`] cells towards the light: what [`Self::filter`]
+    /// gives each point.
+    #[inline]
+    pub fn transmittance_at_drawn(&self, p: Vec3, filter: bool) -> f32 {
+        debug_assert!(p.is_finite());
+        let c = self.frame.to_cells(p);
+        (-self.depth_in_cells(c, filter, LIT_EDGE_OFFSET)).exp()
+    }
+
+    /// Transmittance at every drawn point (the filtering stage), in
+    /// parallel: [`Self::transmittance_at_drawn`] of each.
     pub fn filter(&self, points: &[Vec3], filter: bool, out: &mut [f32]) {
         assert_eq!(points.len(), out.len());
         out.par_chunks_mut(4096)
@@ -622,11 +638,11 @@ impl Transmittance {
                 if self.frame.fan.is_none() {
                     for (o, &p) in o.iter_mut().zip(p) {
                         let c = self.frame.to_cells_parallel(p);
-                        *o = (-self.depth_in_cells(c, filter)).exp();
+                        *o = (-self.depth_in_cells(c, filter, LIT_EDGE_OFFSET)).exp();
                     }
                 } else {
                     for (o, &p) in o.iter_mut().zip(p) {
-                        *o = self.transmittance_at(p, filter);
+                        *o = self.transmittance_at_drawn(p, filter);
                     }
                 }
             });

@@ -147,10 +147,20 @@ fn lookups_anywhere_around_the_map_read_the_nearest_edge_column_or_nothing() {
                     if c.x <= 1.0 {
                         // In front of all hair: nothing at all.
                         assert_eq!(d, 0.0, "in front at {c}");
-                    } else if c.x >= 2.0 + LIT_EDGE_OFFSET && inside_across && !filter {
-                        // Behind the hair (read half a cell nearer the
-                        // light), within the map's columns.
+                    } else if c.x >= 2.0 && inside_across && !filter {
+                        // Behind the hair, within the map's columns.
                         assert!((d - total).abs() < 1e-6, "behind at {c}: {d}");
+                    }
+                    // A drawn point reads half a cell nearer the light.
+                    let drawn = -t.transmittance_at_drawn(p, filter).ln();
+                    if c.x >= 2.0 + LIT_EDGE_OFFSET && inside_across && !filter {
+                        assert!(
+                            (drawn - total).abs() < 1e-5,
+                            "drawn, behind at {c}: {drawn}"
+                        );
+                    }
+                    if c.x <= 1.0 + LIT_EDGE_OFFSET {
+                        assert_eq!(drawn, 0.0, "drawn, in front at {c}");
                     }
                     if !(-2.5..6.5).contains(&c.y) || !(-2.5..6.5).contains(&c.z) {
                         // Clamped two cells beyond the map: no column there.
