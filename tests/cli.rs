@@ -1370,7 +1370,7 @@ fn first_hour_mistakes_get_a_message_that_says_what_to_do() {
     let small = write(&dir, "small.toml", SMALL);
     write(&dir, "afile", "not a folder");
     let o = wisplight(&["render", &small, "-o", &d("afile/x.png")]);
-    assert_eq!(o.status.code(), Some(2));
+    assert_eq!(o.status.code(), Some(1));
     let e = stderr(&o);
     assert!(
         e.contains("afile is a file, not a folder") && !e.contains("File exists"),
@@ -1382,7 +1382,7 @@ fn first_hour_mistakes_get_a_message_that_says_what_to_do() {
     perm.set_readonly(true);
     std::fs::set_permissions(&ro, perm).unwrap();
     let o = wisplight(&["render", &small, "-o", &ro]);
-    assert_eq!(o.status.code(), Some(2));
+    assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("read-only"), "{}", stderr(&o));
     assert_eq!(std::fs::read_to_string(&ro).unwrap(), "keep me");
 }

@@ -464,20 +464,21 @@ fn ready_folder(out: &Path) -> anyhow::Result<()> {
     // A read-only output is not replaced: said before the render, not
     // after it.
     if std::fs::metadata(out).is_ok_and(|m| m.is_file() && m.permissions().readonly()) {
-        return Err(super::usage(format!(
+        anyhow::bail!(
             "-o {}: the file is read-only, so it is not replaced (make it writable, or write \
              elsewhere)",
             out.display()
-        )));
+        );
     }
     // A file where a folder of the path should be: said as such, not as
     // the system's "File exists".
     if let Some(file) = dir.ancestors().find(|a| a.is_file()) {
-        return Err(super::usage(format!(
-            "-o {}: {} is a file, not a folder",
+        anyhow::bail!(
+            "-o {}: cannot create the folder {}: {} is a file, not a folder",
             out.display(),
+            dir.display(),
             file.display()
-        )));
+        );
     }
     std::fs::create_dir_all(dir).with_context(|| {
         format!(
