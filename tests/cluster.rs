@@ -3,60 +3,15 @@
 //! when a worker dies mid-animation, and two coordinators sharing workers
 //! (and a silent address) each get their own pictures.
 
-use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 
+mod common;
+
+use common::Worker;
+
 fn bin() -> &'static str {
     env!("CARGO_BIN_EXE_wisplight")
-}
-
-/// A worker process and the address it printed first.
-struct Worker {
-    child: Child,
-    addr: String,
-}
-
-impl Worker {
-    fn start() -> Worker {
-        Worker::start_with(&[])
-    }
-
-    fn start_with(extra: &[&str]) -> Worker {
-        let mut child = Command::new(bin())
-            .args(["worker", "--listen", "127.0.0.1:0"])
-            .args(extra)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("the worker starts");
-        let mut line = String::new();
-        BufReader::new(child.stdout.take().unwrap())
-            .read_line(&mut line)
-            .unwrap();
-        let addr = line
-            .trim()
-            .strip_prefix("listening on ")
-            .unwrap_or_else(|| panic!("first line {line:?}"))
-            .to_string();
-        Worker { child, addr }
-    }
-
-    /// SIGTERM, then the exit status.
-    fn stop(mut self) -> std::process::ExitStatus {
-        Command::new("kill")
-            .args(["-TERM", &self.child.id().to_string()])
-            .status()
-            .unwrap();
-        self.child.wait().unwrap()
-    }
-}
-
-impl Drop for Worker {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
 }
 
 /// The workers' addresses, comma-separated, for `--workers`.

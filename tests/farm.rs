@@ -4,9 +4,12 @@
 //! does not fit is refused by name, and a chunk killed on the way leaves
 //! only whole frames.
 
-use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
+
+mod common;
+
+use common::Worker;
 
 fn bin() -> &'static str {
     env!("CARGO_BIN_EXE_wisplight")
@@ -270,40 +273,6 @@ fn a_chunk_killed_on_the_way_leaves_whole_frames_and_runs_again() {
         &format!("{}/f_%04d.png", s(&check)),
     ]));
     assert!(frame(&check, 39) == frame(&out, 39));
-}
-
-/// A worker process and the address it printed first.
-struct Worker {
-    child: Child,
-    addr: String,
-}
-
-impl Worker {
-    fn start() -> Worker {
-        let mut child = Command::new(bin())
-            .args(["worker", "--listen", "127.0.0.1:0"])
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("the worker starts");
-        let mut line = String::new();
-        BufReader::new(child.stdout.take().unwrap())
-            .read_line(&mut line)
-            .unwrap();
-        let addr = line
-            .trim()
-            .strip_prefix("listening on ")
-            .unwrap_or_else(|| panic!("first line {line:?}"))
-            .to_string();
-        Worker { child, addr }
-    }
-}
-
-impl Drop for Worker {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
 }
 
 #[test]

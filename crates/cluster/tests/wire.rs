@@ -1215,6 +1215,29 @@ fn point_and_spot_lights_draw_the_same_bytes_on_workers() {
     assert!(local_frames(&sun, 1)[0] != want[0]);
 }
 
+/// A Density round of hair version 1 in a map of a light straight down,
+/// its columns cut in two between worker 0 and `peers[1]`, waiting 500 ms.
+fn two_worker_round(peers: Vec<String>) -> pb::DensityChunk {
+    let light = Light::directional(Vec3::NEG_Y).unwrap();
+    let frame = LightFrame::centered(&light, Vec3::ZERO, 80.0, 8).unwrap();
+    let columns = frame.columns() as u32;
+    pb::DensityChunk {
+        map: Some(protocol::frame_to_pb(&frame)),
+        posed: true,
+        version: 1,
+        columns: Some(pb::ColumnPlan {
+            round: 1,
+            cuts: vec![0, columns / 2, columns],
+            own: 0,
+            peers,
+            sessions: vec!["a".repeat(32), "b".repeat(32)],
+            wait_ms: 500,
+            ..Default::default()
+        }),
+        ..Default::default()
+    }
+}
+
 #[test]
 fn a_plan_naming_a_worker_outside_the_session_is_refused_and_never_dialled() {
     // The stray address: a listener that would see any connection.
@@ -1230,24 +1253,7 @@ fn a_plan_naming_a_worker_outside_the_session_is_refused_and_never_dialled() {
         let peers = vec![addr.to_string(), other.clone()];
         let (_, _, pose) = assign_at_rest_with_peers(&mut c, None, peers).await;
         c.pose(pose).await.unwrap();
-        let light = Light::directional(Vec3::NEG_Y).unwrap();
-        let frame = LightFrame::centered(&light, Vec3::ZERO, 80.0, 8).unwrap();
-        let columns = frame.columns() as u32;
-        let round = |peer: &str| pb::DensityChunk {
-            map: Some(protocol::frame_to_pb(&frame)),
-            posed: true,
-            version: 1,
-            columns: Some(pb::ColumnPlan {
-                round: 1,
-                cuts: vec![0, columns / 2, columns],
-                own: 0,
-                peers: vec![addr.to_string(), peer.to_string()],
-                sessions: vec!["a".repeat(32), "b".repeat(32)],
-                wait_ms: 500,
-                ..Default::default()
-            }),
-            ..Default::default()
-        };
+        let round = |peer: &str| two_worker_round(vec![addr.to_string(), peer.to_string()]);
         let refused = |r: Result<_, tonic::Status>| match r {
             Err(e) => e,
             Ok(_) => panic!("a plan naming {stray_addr} was taken"),
@@ -1362,25 +1368,8 @@ fn the_peers_of_a_refused_assign_are_not_kept_nor_those_before_it() {
             .await;
         assert_eq!(refused.unwrap_err().code(), tonic::Code::InvalidArgument);
         // A plan naming either peer is refused now, and none is dialled.
-        let light = Light::directional(Vec3::NEG_Y).unwrap();
-        let frame = LightFrame::centered(&light, Vec3::ZERO, 80.0, 8).unwrap();
-        let columns = frame.columns() as u32;
         for peer in [&stray_addr, &other] {
-            let plan = pb::DensityChunk {
-                map: Some(protocol::frame_to_pb(&frame)),
-                posed: true,
-                version: 1,
-                columns: Some(pb::ColumnPlan {
-                    round: 1,
-                    cuts: vec![0, columns / 2, columns],
-                    own: 0,
-                    peers: vec![addr.to_string(), peer.clone()],
-                    sessions: vec!["a".repeat(32), "b".repeat(32)],
-                    wait_ms: 500,
-                    ..Default::default()
-                }),
-                ..Default::default()
-            };
+            let plan = two_worker_round(vec![addr.to_string(), peer.clone()]);
             let e = match c.density(tokio_stream::iter(vec![plan])).await {
                 Err(e) => e,
                 Ok(_) => panic!("a plan naming {peer} was taken"),
@@ -1433,24 +1422,7 @@ fn a_failed_dial_answers_one_message_whatever_the_cause() {
                 let peers = vec![addr.to_string(), stray.clone()];
                 let (_, _, pose) = assign_at_rest_with_peers(&mut c, None, peers.clone()).await;
                 c.pose(pose).await.unwrap();
-                let light = Light::directional(Vec3::NEG_Y).unwrap();
-                let frame = LightFrame::centered(&light, Vec3::ZERO, 80.0, 8).unwrap();
-                let columns = frame.columns() as u32;
-                let plan = pb::DensityChunk {
-                    map: Some(protocol::frame_to_pb(&frame)),
-                    posed: true,
-                    version: 1,
-                    columns: Some(pb::ColumnPlan {
-                        round: 1,
-                        cuts: vec![0, columns / 2, columns],
-                        own: 0,
-                        peers,
-                        sessions: vec!["a".repeat(32), "b".repeat(32)],
-                        wait_ms: 500,
-                        ..Default::default()
-                    }),
-                    ..Default::default()
-                };
+                let plan = two_worker_round(peers);
                 let e = match c.density(tokio_stream::iter(vec![plan])).await {
                     Err(e) => e,
                     Ok(r) => match r.into_inner().message().await {

@@ -6,7 +6,8 @@ use super::memory::{Grant, POINT_BYTES, STRAND_BYTES};
 use super::session::with_share;
 use super::share::deposit_reply;
 use super::status::{
-    cancelled, first_message, invalid, logged, poisoned, refused, status, stop_switch, stream_of,
+    cancelled, first_message, invalid, logged, no_share, poisoned, refused, status, stop_switch,
+    stream_of,
 };
 use super::{Chunks, STRIPES_IN_FLIGHT};
 use crate::error::WorkerErrorKind as Kind;
@@ -87,12 +88,7 @@ impl WorkerService {
                     let go = || !tx.is_closed();
                     let summed = (|| {
                         let mut slot = held.lock().map_err(poisoned)?;
-                        let h = slot.as_mut().ok_or_else(|| {
-                            status(
-                                Kind::Precondition,
-                                "no share of the hair here: call Assign first",
-                            )
-                        })?;
+                        let h = slot.as_mut().ok_or_else(no_share)?;
                         round.sum(&mut h.share, &maps, &fiber, &inbox, go)
                     })();
                     drop(budget);

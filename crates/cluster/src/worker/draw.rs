@@ -3,8 +3,10 @@
 use super::inbox::{STRIPE_PIXEL_BYTES, SendFailed, no_part, send_within, stalled};
 use super::memory::Grant;
 use super::session::{Session, on_pool};
-use super::status::{cancelled, first_message, invalid, logged, poisoned, refused, status};
-use super::{Chunks, STRIPE_ROWS, STRIPES_IN_FLIGHT, no_share};
+use super::status::{
+    cancelled, first_message, invalid, logged, no_share, poisoned, refused, status,
+};
+use super::{Chunks, STRIPE_ROWS, STRIPES_IN_FLIGHT};
 use crate::error::WorkerErrorKind as Kind;
 use crate::tls::Caller;
 use crate::{WorkerService, pb, wire};
@@ -81,12 +83,7 @@ impl WorkerService {
                 // free for the next frame's calls while this one composites.
                 let (work, background) = {
                     let mut slot = held.lock().map_err(poisoned)?;
-                    let h = slot.as_mut().ok_or_else(|| {
-                        status(
-                            Kind::Precondition,
-                            "no share of the hair here: call Assign first",
-                        )
-                    })?;
+                    let h = slot.as_mut().ok_or_else(no_share)?;
                     let background = raster::to_srgb8(h.share.background());
                     let mut encoders: Vec<wire::StripeEncoder> =
                         (0..n).map(|_| wire::StripeEncoder::new()).collect();
@@ -290,12 +287,7 @@ impl WorkerService {
                 let send = |c: Result<pb::LayerChunk, Status>| tx.blocking_send(c).is_ok();
                 let drawn = (|| {
                     let mut slot = held.lock().map_err(poisoned)?;
-                    let h = slot.as_mut().ok_or_else(|| {
-                        status(
-                            Kind::Precondition,
-                            "no share of the hair here: call Assign first",
-                        )
-                    })?;
+                    let h = slot.as_mut().ok_or_else(no_share)?;
                     let mut encoder = wire::StripeEncoder::new();
                     let times = h
                         .share

@@ -29,7 +29,6 @@ mod swept;
 pub use listen::{Bound, Listen, run_worker, serve_worker};
 use memory::*;
 use session::*;
-use status::*;
 
 use std::collections::HashMap;
 use std::pin::Pin;
@@ -40,7 +39,6 @@ use shadow::DensityMap;
 use tokio_stream::Stream;
 use tonic::{Request, Response, Status, Streaming};
 
-use crate::error::WorkerErrorKind as Kind;
 use crate::pb::worker_server::Worker;
 use crate::{Tls, pb};
 
@@ -195,12 +193,4 @@ impl Worker for WorkerService {
     ) -> Result<Response<pb::ExchangeReply>, Status> {
         self.exchange_call(req).await
     }
-}
-
-/// A call that needs the session's share before any Assign made one.
-pub(super) fn no_share() -> Status {
-    status(
-        Kind::Precondition,
-        "no share of the hair here: call Assign first",
-    )
 }

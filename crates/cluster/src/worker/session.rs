@@ -2,7 +2,9 @@
 
 use super::inbox::Inbox;
 use super::memory::{Budget, Grant, Memory};
-use super::status::{expired, logged, named_session, not_open, poisoned, session_id, status};
+use super::status::{
+    expired, logged, named_session, no_share, not_open, poisoned, session_id, status,
+};
 use super::swept::SweptStore;
 use crate::error::WorkerErrorKind as Kind;
 use crate::tls::{self, Caller, request_may_call};
@@ -272,12 +274,7 @@ pub(super) async fn with_share<T: Send + 'static>(
     let held = held.clone();
     tokio::task::spawn_blocking(move || {
         let mut slot = held.lock().map_err(poisoned)?;
-        let h = slot.as_mut().ok_or_else(|| {
-            status(
-                Kind::Precondition,
-                "no share of the hair here: call Assign first",
-            )
-        })?;
+        let h = slot.as_mut().ok_or_else(no_share)?;
         on_pool(|| f(&mut h.share))
     })
     .await

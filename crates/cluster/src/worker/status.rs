@@ -19,6 +19,14 @@ pub(super) fn invalid(e: wire::Malformed) -> Status {
     status(Kind::Invalid, e.to_string())
 }
 
+/// A call that needs the session's share before any Assign made one.
+pub(super) fn no_share() -> Status {
+    status(
+        Kind::Precondition,
+        "no share of the hair here: call Assign first",
+    )
+}
+
 /// An engine error of a call about the share (a hair version it does not
 /// hold, say): the coordinator asked for something this worker lacks.
 pub(super) fn refused(e: engine::EngineError) -> Status {
