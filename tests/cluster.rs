@@ -269,8 +269,10 @@ fn bench_scaling_reports_every_configuration_and_writes_its_plot() {
         s(&scene),
         "--workers",
         "1,2",
+        "--draw",
+        "sort-middle",
         "--frames",
-        "2",
+        "3",
         "--plot",
         s(&plot),
         "--json",
@@ -327,23 +329,16 @@ fn bench_scaling_reports_every_configuration_and_writes_its_plot() {
             "swept_between_workers",
         ];
         assert_eq!(parts.iter().map(|k| part(k)).sum::<u64>(), part("total"));
-        // Drawing on the workers (the default): one worker leaves the
-        // drawing to the coordinator (its partial picture would only
-        // cross the wire to be composited there), which gathers its
-        // density and sweeps the map itself; two sum and sweep the maps
-        // among themselves, composite the picture, and send finished
-        // bands.
-        assert_eq!(c["draw"], "auto");
-        // Auto measures each sort in turn before it chooses: the two
-        // timed frames of two workers (after sort-middle, then sort-last,
-        // untimed) are one of each; one worker leaves the drawing to the
-        // coordinator.
-        let rounds = (
-            c["rounds_sort_middle"].as_u64(),
-            c["rounds_sort_last"].as_u64(),
-        );
-        let want = if k == 1 { (0, 0) } else { (1, 1) };
-        assert_eq!(rounds, (Some(want.0), Some(want.1)));
+        // Drawing on the workers: one worker leaves the drawing to the
+        // coordinator (its partial picture would only cross the wire to
+        // be composited there), which gathers its density and sweeps the
+        // map itself; two sum and sweep the maps among themselves,
+        // composite the picture, and send finished bands.
+        assert_eq!(c["draw"], "sort-middle");
+        let frames = ["sort_middle", "sort_last", "coordinator"]
+            .map(|s| c[format!("frames_{s}").as_str()].as_u64());
+        let want = if k == 1 { [0, 0, 3] } else { [3, 0, 0] };
+        assert_eq!(frames, want.map(Some));
         let (drawn, none): (&[&str], &[&str]) = if k == 1 {
             // The coordinator sweeps and draws: no column goes out, no
             // slab or picture comes back.
@@ -570,34 +565,53 @@ fn with_mutual_tls_only_the_clusters_coordinator_gets_work_done() {
     assert!(w.stop().success());
 }
 
+/// Runs of [`a_stopped_worker_is_the_one_dropped_whichever_it_is`]: each
+/// worker stopped in turn, then two at once, on rigid and on simulated
+/// hair, `WISPLIGHT_STOP_CYCLES` times over (1 by default: 8 runs).
+fn stop_cycles() -> usize {
+    std::env::var("WISPLIGHT_STOP_CYCLES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(1)
+}
+
 #[test]
 fn a_stopped_worker_is_the_one_dropped_whichever_it_is() {
     let dir = scratch("sigstop");
-    let scene = dir.join("scene.toml");
     // Rigid hair: no Step calls, so the stop lands in a stage where the
-    // workers wait on each other (summing the maps, compositing).
-    // A map and a picture large enough that a stopped peer's calls fill up
-    // and block the others' sends.
-    std::fs::write(
-        &scene,
-        "[hair]\nstyle = \"smooth\"\nstrands_per_wisp = 4\n\n[render]\nwidth = 640\nheight = 360\n\n\
-         [shadow]\ncells = 128\n\n[animation]\nmotion = \"dance\"\n\n[effects]\ndynamics = false\n",
-    )
-    .unwrap();
+    // workers wait on each other (summing the maps, compositing);
+    // simulated hair: it may land in a Step too. A map and a picture
+    // large enough that a stopped peer's calls fill up and block the
+    // others' sends.
+    let base = "[hair]\nstyle = \"smooth\"\nstrands_per_wisp = 4\n\n[render]\nwidth = 640\nheight = 360\n\n\
+         [shadow]\ncells = 128\n\n[animation]\nmotion = \"dance\"\n";
     let (frames, n) = ("8", 8);
-    let local = dir.join("local_%d.png");
-    let o = run(&["render", s(&scene), "--frames", frames, "-o", s(&local)]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    for stopped in 0..3 {
+    let mut scenes = Vec::new();
+    for (name, effects) in [
+        ("rigid", "\n[effects]\ndynamics = false\n"),
+        ("simulated", ""),
+    ] {
+        let scene = dir.join(format!("{name}.toml"));
+        std::fs::write(&scene, format!("{base}{effects}")).unwrap();
+        let local = dir.join(format!("{name}_local_%d.png"));
+        let o = run(&["render", s(&scene), "--frames", frames, "-o", s(&local)]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        scenes.push((name, scene, local));
+    }
+    let cases: [&[usize]; 4] = [&[0], &[1], &[2], &[0, 2]];
+    let runs = (0..stop_cycles())
+        .flat_map(|_| &scenes)
+        .flat_map(|sc| cases.map(|c| (sc, c)));
+    for (run_index, ((name, scene, local), stopped)) in runs.enumerate() {
         // The workers compose and sum among themselves, so the healthy
-        // ones wait on the stopped one: they must not be blamed for it.
+        // ones wait on the stopped ones: they must not be blamed for it.
         let workers = [Worker::start(), Worker::start(), Worker::start()];
         let list = addr_list(&workers);
-        let remote = dir.join(format!("remote{stopped}_%d.png"));
+        let remote = dir.join(format!("remote{run_index}_%d.png"));
         let coordinator = Command::new(bin())
             .args([
                 "coordinator",
-                s(&scene),
+                s(scene),
                 "--workers",
                 &list,
                 "--deadline",
@@ -609,7 +623,7 @@ fn a_stopped_worker_is_the_one_dropped_whichever_it_is() {
             .stderr(Stdio::piped())
             .spawn()
             .unwrap();
-        let second = dir.join(format!("remote{stopped}_1.png"));
+        let second = dir.join(format!("remote{run_index}_1.png"));
         for _ in 0..3000 {
             if second.exists() {
                 break;
@@ -617,23 +631,34 @@ fn a_stopped_worker_is_the_one_dropped_whichever_it_is() {
             std::thread::sleep(std::time::Duration::from_millis(10));
         }
         assert!(second.exists(), "the coordinator wrote its second frame");
-        let pid = workers[stopped].child.id().to_string();
-        Command::new("kill").args(["-STOP", &pid]).status().unwrap();
+        let pids: Vec<String> = stopped
+            .iter()
+            .map(|&w| workers[w].child.id().to_string())
+            .collect();
+        let signal = |sig: &str| {
+            for pid in &pids {
+                Command::new("kill").args([sig, pid]).status().unwrap();
+            }
+        };
+        signal("-STOP");
         let o = coordinator.wait_with_output().unwrap();
-        Command::new("kill").args(["-CONT", &pid]).status().unwrap();
+        signal("-CONT");
         let e = String::from_utf8_lossy(&o.stderr);
-        assert!(o.status.success(), "{e}");
+        let case = format!("run {run_index}, {name} hair, workers {stopped:?} stopped");
+        assert!(o.status.success(), "{case}: {e}");
         let lost: Vec<&str> = e.lines().filter(|l| l.contains("worker lost")).collect();
-        assert_eq!(lost.len(), 1, "worker {stopped} stopped; lost: {lost:#?}");
-        let blamed = &workers[stopped].addr;
-        assert!(
-            lost[0].contains(&format!("worker {blamed} ")),
-            "worker {stopped} ({blamed}) stopped, another dropped: {}",
-            lost[0]
-        );
+        assert_eq!(lost.len(), stopped.len(), "{case}; lost: {lost:#?}");
+        for &w in stopped {
+            let blamed = &workers[w].addr;
+            assert!(
+                lost.iter()
+                    .any(|l| l.contains(&format!("worker {blamed} "))),
+                "{case}: worker {w} ({blamed}) not the one dropped: {lost:#?}"
+            );
+        }
         for i in 0..n {
-            let (a, b) = (frame_bytes(&local, i), frame_bytes(&remote, i));
-            assert!(a == b, "frame {i} differs after worker {stopped} stopped");
+            let (a, b) = (frame_bytes(local, i), frame_bytes(&remote, i));
+            assert!(a == b, "{case}: frame {i} differs from one process");
         }
     }
 }

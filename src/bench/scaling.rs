@@ -27,8 +27,9 @@ pub struct ScalingArgs {
           value_parser = clap::value_parser!(u64).range(1..=10_000))]
     frames: u64,
     /// How the hair is drawn, comma-separated, each measured in turn:
-    /// `auto` (sort-middle or sort-last, chosen frame by frame by their
-    /// measured cost; the report says which it took and why),
+    /// `auto` (sort-middle, sort-last or the coordinator's draw, chosen
+    /// frame by frame by their measured cost; the report says which it
+    /// took and why),
     /// `sort-middle` (each worker shades its strands and sends their
     /// segments to the worker that owns their rows, which rasterizes
     /// them), `sort-last` (each worker rasterizes its strands, the
@@ -205,11 +206,11 @@ struct Row {
     worker_cpu_ms: Vec<Option<f64>>,
     /// The mean of the timed frames, ms: what the CPU times are shares of.
     mean_frame_ms: f64,
-    /// Draw rounds on the workers of each sort (sort-middle, sort-last)
-    /// over the timed frames, and what `auto` estimated a round of each
-    /// to cost at the end, ms.
-    rounds: [u32; 2],
-    round_estimate_ms: [f64; 2],
+    /// Timed frames drawn with each scheme (sort-middle, sort-last, the
+    /// coordinator's draw), and what `auto` estimated a frame of each to
+    /// cost at the end, ms.
+    frames: [u32; 3],
+    estimate_ms: [f64; 3],
 }
 
 impl Row {
@@ -236,8 +237,8 @@ impl Row {
             cpu_ms: None,
             worker_cpu_ms: Vec::new(),
             mean_frame_ms: frame_ms,
-            rounds: [0; 2],
-            round_estimate_ms: [0.0; 2],
+            frames: [0; 3],
+            estimate_ms: [0.0; 3],
         }
     }
 }
@@ -333,10 +334,14 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
             let mut frames_traffic = Vec::new();
             let mut identical = true;
             let (mut cpu0, mut worker_cpu0) = (None, Vec::new());
-            let mut rounds0 = [0; 2];
+            let mut frames0 = [0; 3];
             for f in 0..total {
+                // A frame is planned in the frame before's call (its
+                // stages run beside that frame's picture).
+                if f + 1 == warm {
+                    frames0 = lock(&timing)?.frames;
+                }
                 if f == warm {
-                    rounds0 = lock(&timing)?.rounds;
                     cpu0 = cpu_ms("self");
                     worker_cpu0 = procs.iter().map(WorkerProcess::cpu_ms).collect();
                 }
@@ -414,8 +419,8 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
                     .map(|(p, &c0)| per_frame(c0, p.cpu_ms(), a.frames))
                     .collect(),
                 mean_frame_ms: mean_ms,
-                rounds: [0, 1].map(|i| end.rounds[i] - rounds0[i]),
-                round_estimate_ms: end.round_estimate_ms,
+                frames: [0, 1, 2].map(|i| end.frames[i] - frames0[i]),
+                estimate_ms: end.estimate_ms,
             });
         }
     }
@@ -508,17 +513,34 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
     }
     // How each configuration drew its timed frames, and why auto chose so.
     for r in rows.iter().skip(1) {
-        let [middle, last] = r.rounds;
+        let [middle, last, coordinator] = r.frames;
         let how = if middle + last == 0 {
             "every frame drawn on the coordinator (one worker, or the paper's scheme)".to_string()
         } else {
-            format!("sort-middle in {middle} frames, sort-last in {last}")
+            format!(
+                "sort-middle in {middle} frames, sort-last in {last}, on the coordinator in {coordinator}"
+            )
         };
-        let why = match (r.draw, r.round_estimate_ms) {
-            (Some(cluster::DrawAt::Auto), [m, l]) if m > 0.0 && l > 0.0 => format!(
-                "; auto's estimate of a frame (the least of the last three measured of each sort: from a round's start to the next's): sort-middle {m:.1} ms, sort-last {l:.1} ms, so {}",
-                if m <= l { "sort-middle" } else { "sort-last" }
-            ),
+        let measured: Vec<(cluster::Scheme, f64)> = cluster::Scheme::ALL
+            .into_iter()
+            .zip(r.estimate_ms)
+            .filter(|(_, ms)| *ms > 0.0)
+            .collect();
+        let why = match r.draw {
+            Some(cluster::DrawAt::Auto) if !measured.is_empty() => {
+                let best = measured
+                    .iter()
+                    .min_by(|a, b| a.1.total_cmp(&b.1))
+                    .map_or("?", |(s, _)| s.name());
+                let each: Vec<String> = measured
+                    .iter()
+                    .map(|(s, ms)| format!("{} {ms:.1} ms", s.name()))
+                    .collect();
+                format!(
+                    "; auto's estimate of a frame (the least of the last three measured of each scheme: from a frame's plan to the next's): {}, so {best}",
+                    each.join(", ")
+                )
+            }
             _ => String::new(),
         };
         eprintln!("bench scaling: {}, drawn: {how}{why}", r.label);
@@ -630,11 +652,13 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
                     "swept_between_workers": r.wire.swept_between_workers,
                 },
                 "identical": r.identical,
-                "rounds_sort_middle": r.rounds[0],
-                "rounds_sort_last": r.rounds[1],
-                "round_estimate_ms": {
-                    "sort_middle": r.round_estimate_ms[0],
-                    "sort_last": r.round_estimate_ms[1],
+                "frames_sort_middle": r.frames[0],
+                "frames_sort_last": r.frames[1],
+                "frames_coordinator": r.frames[2],
+                "estimate_ms": {
+                    "sort_middle": r.estimate_ms[0],
+                    "sort_last": r.estimate_ms[1],
+                    "coordinator": r.estimate_ms[2],
                 },
             })).collect::<Vec<_>>(),
         });

@@ -179,8 +179,9 @@ pub fn worker(args: WorkerArgs) -> anyhow::Result<()> {
 /// `--draw`: where the drawn hair is drawn.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum Draw {
-    /// Sort-middle or sort-last, chosen frame by frame by what each cost
-    /// the frames before; with one worker, the coordinator draws.
+    /// Sort-middle, sort-last or the coordinator's draw, chosen frame by
+    /// frame by what each cost the frames before; with one worker, the
+    /// coordinator draws.
     Auto,
     /// Each worker rasterizes its own strands; the workers composite
     /// their partial pictures, each its own bands of rows.

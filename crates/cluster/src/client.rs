@@ -147,12 +147,14 @@ pub struct Timing {
     pub exchange_fallbacks: u32,
     /// Workers lost and their work handed to the survivors.
     pub workers_lost: u32,
-    /// Draw rounds on the workers of each sort: sort-middle, sort-last.
-    pub rounds: [u32; 2],
-    /// With `--draw auto`, what a round of each sort (sort-middle,
-    /// sort-last) was last estimated to cost, ms (the least of its last
-    /// measured rounds; 0 until measured).
-    pub round_estimate_ms: [f64; 2],
+    /// Frames planned with each scheme, in the order of
+    /// [`crate::Scheme::ALL`]: sort-middle, sort-last, the coordinator's
+    /// draw.
+    pub frames: [u32; 3],
+    /// With `--draw auto`, what a frame of each scheme (same order) was
+    /// last estimated to cost, ms (the least of its last measured frames;
+    /// 0 until measured).
+    pub estimate_ms: [f64; 3],
 }
 
 /// Names a session in the metadata of every call (see

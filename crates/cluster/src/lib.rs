@@ -38,7 +38,7 @@ pub mod protocol {
 
 pub use client::{SessionClient, SessionHeader, Timing, Traffic};
 pub use error::{ClusterError, WorkerError, WorkerErrorKind};
-pub use remote::{DrawAt, Options, RemoteExecutor};
+pub use remote::{DrawAt, Options, RemoteExecutor, Scheme};
 pub use tls::{COORDINATOR_NAME, Pki, Tls};
 pub use token::{MIN_TOKEN_LEN, Token};
 pub use worker::{

@@ -568,11 +568,8 @@ fn a_mesh_head_under_hair_drawn_on_three_workers_is_the_local_animation() {
         assert_frames(&scene, remote, &want);
         let t = *timing.lock().unwrap();
         assert_eq!(t.composite_fallbacks, 0, "{draw:?}");
-        assert_eq!(
-            t.rounds.iter().sum::<u32>(),
-            3,
-            "{draw:?}: every frame on the workers"
-        );
+        assert_eq!(t.frames[2], 0, "{draw:?}: every frame on the workers");
+        assert_eq!(t.frames.iter().sum::<u32>(), 3, "{draw:?}");
     }
 }
 
@@ -622,6 +619,118 @@ fn a_worker_lost_mid_animation_hands_its_work_to_the_survivors() {
             assert!(img == w, "{draw:?}: frame {i} differs from one process");
         }
         assert_eq!(timing.lock().unwrap().workers_lost, 1, "{draw:?}");
+    }
+}
+
+#[test]
+fn auto_draws_with_every_scheme_in_turn_and_every_frame_is_the_local_one() {
+    // Auto measures each scheme before it chooses: frames drawn on the
+    // workers (sort-middle, sort-last) and on the coordinator follow one
+    // another, the hair held and posed in one place, then the other.
+    let scene = Scene::from_toml_str(DANCE, std::path::Path::new("dance.toml")).unwrap();
+    let want = local_frames(&scene, 8);
+    let addrs: Vec<String> = (0..3).map(|_| start_worker().to_string()).collect();
+    let remote = RemoteExecutor::connect(&addrs, &scene, &options(DrawAt::Auto, 20)).unwrap();
+    let timing = remote.timing();
+    assert_frames(&scene, remote, &want);
+    let t = *timing.lock().unwrap();
+    assert!(t.frames.iter().all(|&n| n > 0), "{:?}", t.frames);
+    assert_eq!(t.frames.iter().sum::<u32>(), 8);
+    assert_eq!(t.composite_fallbacks, 0);
+}
+
+/// Workers of which one is stopped in the middle of a frame: the first
+/// frame from frame `at` on planned on the workers, after its plan and
+/// before its Step.
+#[derive(Debug)]
+struct StopsMidFrame {
+    inner: RemoteExecutor,
+    at: u64,
+    planned: u64,
+    armed: bool,
+    stop: Option<tokio::sync::oneshot::Sender<()>>,
+}
+
+impl Executor for StopsMidFrame {
+    fn attach(&mut self, anim: &engine::Animator) -> Result<(), EngineError> {
+        self.inner.attach(anim)
+    }
+    fn simulate(
+        &mut self,
+        anim: &mut engine::Animator,
+        plan: &engine::StepPlan,
+        stats: &mut engine::FrameStats,
+    ) -> Result<(), EngineError> {
+        if self.armed
+            && let Some(stop) = self.stop.take()
+        {
+            stop.send(()).unwrap();
+            std::thread::sleep(Duration::from_millis(300));
+        }
+        self.inner.simulate(anim, plan, stats)
+    }
+    fn density(
+        &mut self,
+        light: usize,
+        map: &mut shadow::DensityMap,
+        strands: engine::Strands<'_>,
+        fiber: &shadow::Fiber,
+    ) -> Result<shadow::FillStats, EngineError> {
+        self.inner.density(light, map, strands, fiber)
+    }
+    fn transmittance(
+        &mut self,
+        light: usize,
+        map: &shadow::DensityMap,
+    ) -> Result<shadow::Transmittance, EngineError> {
+        self.inner.transmittance(light, map)
+    }
+    fn runs_elsewhere(&self) -> bool {
+        true
+    }
+    fn plan_frame(&mut self, needs: engine::FrameNeeds) -> engine::Site {
+        let site = self.inner.plan_frame(needs);
+        self.armed = self.planned >= self.at && site == engine::Site::Elsewhere;
+        self.planned += 1;
+        site
+    }
+    fn drawing(&mut self) -> Option<&mut dyn Drawing> {
+        self.inner.drawing()
+    }
+}
+
+#[test]
+fn the_last_but_one_worker_lost_mid_frame_leaves_the_frame_where_it_was_planned() {
+    // Two workers: a frame planned on the workers loses one before its
+    // Step and is finished on the one left (posed, filled and drawn
+    // there); the frames after are planned on the coordinator. No frame
+    // fails, and each is the local one.
+    let scene = Scene::from_toml_str(DANCE, std::path::Path::new("dance.toml")).unwrap();
+    let want = local_frames(&scene, 6);
+    for draw in [DrawAt::Auto, DrawAt::SortMiddle, DrawAt::SortLast] {
+        let (a, _keep_a) = start_stoppable_worker();
+        let (b, stop_b) = start_stoppable_worker();
+        let addrs = [a.to_string(), b.to_string()];
+        let remote = RemoteExecutor::connect(&addrs, &scene, &options(draw, 20)).unwrap();
+        let timing = remote.timing();
+        let mut seq = Sequence::new(&scene).unwrap();
+        seq.set_executor(Box::new(StopsMidFrame {
+            inner: remote,
+            at: 2,
+            planned: 0,
+            armed: false,
+            stop: Some(stop_b),
+        }))
+        .unwrap();
+        seq.expect_frames(want.len() as u64);
+        for (i, w) in want.iter().enumerate() {
+            let (img, _) = seq.next_frame().unwrap();
+            assert!(img == w, "{draw:?}: frame {i} differs from one process");
+        }
+        let t = *timing.lock().unwrap();
+        assert_eq!(t.workers_lost, 1, "{draw:?}");
+        // The frames after the loss on the coordinator, one worker left.
+        assert!(t.frames[2] >= 2, "{draw:?}: {:?}", t.frames);
     }
 }
 
@@ -1097,6 +1206,9 @@ impl Executor for GivesUp {
         map: &shadow::DensityMap,
     ) -> Result<shadow::Transmittance, EngineError> {
         self.inner.transmittance(light, map)
+    }
+    fn plan_frame(&mut self, needs: engine::FrameNeeds) -> engine::Site {
+        self.inner.plan_frame(needs)
     }
     fn drawing(&mut self) -> Option<&mut dyn Drawing> {
         Some(self)

@@ -206,9 +206,46 @@ pub enum Strands<'a> {
     },
 }
 
+/// Where a frame's drawn hair is posed, filtered, shaded and rasterized:
+/// decided once, at the start of the frame ([`Executor::plan_frame`]), and
+/// held by every stage of it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Site {
+    /// In this process: the frame poses the drawn hair here and draws it.
+    #[default]
+    Here,
+    /// Where the executor's [`Drawing`] part holds the hair.
+    Elsewhere,
+}
+
+/// What a frame being planned asks of its executor.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FrameNeeds {
+    /// The frame makes a picture; `false`: its motion alone (a frame
+    /// skipped before a range), whose time says nothing of a scheme's.
+    pub picture: bool,
+    /// The drawn hair may be held elsewhere: no shadow method needs all
+    /// of it in this process ([`shadow::MethodConfig::needs_all_hair`]).
+    pub may_draw_elsewhere: bool,
+}
+
 /// Where the stages that grow with the hair run. Implementations must give
 /// exactly the results of [`LocalExecutor`] and the frame's own stages.
 pub trait Executor: Send + Sync + std::fmt::Debug {
+    /// Plans the next frame: where its drawn hair is held and drawn. Asked
+    /// once at the start of each frame; the executor holds to the answer
+    /// until it is asked again (a cluster that loses a worker in the middle
+    /// of a frame finishes the frame where it was planned, and plans the
+    /// next one anew). A [`Site::Elsewhere`] answer needs a
+    /// [`Self::drawing`] part. The default: elsewhere whenever the
+    /// executor has a drawing part and the frame may.
+    fn plan_frame(&mut self, needs: FrameNeeds) -> Site {
+        if needs.may_draw_elsewhere && self.drawing().is_some() {
+            Site::Elsewhere
+        } else {
+            Site::Here
+        }
+    }
     /// Learns the scene's hair before any frame: its groups and the state
     /// of its wisps (an executor that holds shares of the hair elsewhere
     /// hands them out from these).
@@ -247,9 +284,10 @@ pub trait Executor: Send + Sync + std::fmt::Debug {
     fn runs_elsewhere(&self) -> bool {
         false
     }
-    /// The executor's drawing part, when it holds the drawn hair and
-    /// poses, filters, shades and rasterizes it where it is; `None` (the
-    /// default): the frame does, in this process.
+    /// The executor's drawing part, when it can hold the drawn hair and
+    /// pose, filter, shade and rasterize it where it is; `None` (the
+    /// default): the frame does, in this process. Used by frames planned
+    /// [`Site::Elsewhere`] alone (and to draw such a frame again).
     fn drawing(&mut self) -> Option<&mut dyn Drawing> {
         None
     }

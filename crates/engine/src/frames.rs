@@ -26,8 +26,8 @@ use strands::Hair;
 
 use crate::animate::Animator;
 use crate::{
-    Composite, Drawn, EngineError, Executor, FrameStats, LocalExecutor, PosePlan, PoseReport,
-    Renderer, Scene, Stage, Strands,
+    Composite, Drawn, EngineError, Executor, FrameNeeds, FrameStats, LocalExecutor, PosePlan,
+    PoseReport, Renderer, Scene, Site, Stage, Strands,
 };
 
 /// Which hair a map or result was computed from: the pose counter.
@@ -51,6 +51,9 @@ pub struct Sequence {
     rest: (strands::Bounds, Vec<glam::Vec3>),
     renderer: Renderer,
     executor: Box<dyn Executor>,
+    /// Where the frame being prepared draws its hair, as planned at its
+    /// start ([`Self::plan`]); every stage of the frame takes it.
+    site: Site,
     /// Self-collisions' own density map, when the shadows do not fill one
     /// (self-shadowing off, or another shadow method).
     collision_map: Option<DensityMapMethod>,
@@ -80,8 +83,9 @@ pub struct Sequence {
     /// The next frame's wisps were given ([`Self::resume_at`]): it poses
     /// them without stepping.
     resumed: bool,
-    /// The next frame's stages before its drawing, when they ran ahead.
-    ahead: Option<Result<FrameStats, EngineError>>,
+    /// The next frame's stages before its drawing, and its site, when
+    /// they ran ahead.
+    ahead: Option<Result<(FrameStats, Site), EngineError>>,
     /// Threads of their own for compositing while the next frame's stages
     /// run (on the global pool's threads, which would otherwise wait for
     /// the compositing to finish).
@@ -148,21 +152,21 @@ fn rest_sample(hair: &Hair) -> (strands::Bounds, Vec<glam::Vec3>) {
     (hair.bounds(), sample)
 }
 
-/// The executor gave up its drawing part between two calls of a frame.
-fn no_drawing() -> EngineError {
-    EngineError::executor("the executor stopped drawing in the middle of a frame")
+/// `executor`'s drawing part, for a frame planned [`Site::Elsewhere`]: a
+/// typed failure when it gave it up.
+fn drawing(executor: &mut dyn Executor) -> Result<&mut dyn crate::Drawing, EngineError> {
+    executor.drawing().ok_or(EngineError::SiteLost)
 }
 
 /// The hair a frame's maps are filled from, at pose counter `version`:
-/// the executor's when it draws elsewhere, else `hair`, here.
-fn strands_of(elsewhere: bool, hair: &Hair, version: Version) -> Strands<'_> {
-    if elsewhere {
-        Strands::Held { posed: version }
-    } else {
-        Strands::Here {
+/// the executor's when the frame draws elsewhere, else `hair`, here.
+fn strands_of(site: Site, hair: &Hair, version: Version) -> Strands<'_> {
+    match site {
+        Site::Elsewhere => Strands::Held { posed: version },
+        Site::Here => Strands::Here {
             hair,
             posed: Some(version),
-        }
+        },
     }
 }
 
@@ -180,6 +184,7 @@ impl Sequence {
             anim,
             renderer,
             executor: Box::new(LocalExecutor),
+            site: Site::Here,
             collision_map,
             version: 0,
             report: None,
@@ -302,13 +307,18 @@ impl Sequence {
         &self.renderer
     }
 
-    /// Whether the drawn hair is posed, filtered, shaded and rasterized by
-    /// the executor, elsewhere: it holds it, and no shadow method needs all
-    /// of it here ([`MethodConfig::needs_all_hair`]).
-    /// The one place that decides where the hair is drawn.
-    fn draws_elsewhere(&mut self) -> bool {
+    /// Plans the frame about to run, once: where its drawn hair is posed,
+    /// filtered, shaded and rasterized ([`Executor::plan_frame`]: elsewhere
+    /// only when the executor can hold it and no shadow method needs all
+    /// of it here, [`MethodConfig::needs_all_hair`]). The one place that
+    /// decides; every stage of the frame reads `self.site`.
+    fn plan(&mut self, picture: bool) -> Site {
         let all_here = self.scene.effects.self_shadow && self.scene.shadow.method.needs_all_hair();
-        !all_here && self.executor.drawing().is_some()
+        self.site = self.executor.plan_frame(FrameNeeds {
+            picture,
+            may_draw_elsewhere: !all_here,
+        });
+        self.site
     }
 
     /// Says that the caller will ask for `frames` more frames (and no
@@ -343,7 +353,7 @@ impl Sequence {
 
     fn render_next(&mut self) -> Result<FrameStats, EngineError> {
         let index = self.next;
-        let mut stats = match self.ahead.take() {
+        let (mut stats, site) = match self.ahead.take() {
             Some(ahead) => ahead?,
             None => self.before_draw(index)?,
         };
@@ -356,12 +366,12 @@ impl Sequence {
         }
         let fx = self.scene.effects;
         let version = self.version;
-        if self.draws_elsewhere() {
+        if site == Site::Elsewhere {
             if self.picture.as_ref().is_none_or(|p| p.0 != version) {
                 self.frame_camera()?;
                 let job = self.renderer.draw_job(version, fx.self_shadow)?;
                 let start = Instant::now();
-                let ex = self.executor.drawing().ok_or_else(no_drawing)?;
+                let ex = drawing(self.executor.as_mut())?;
                 // Ahead of the next frame, the head is drawn here too (while
                 // the hair's call waits): if the picture finished elsewhere
                 // fails once this frame's stages are gone, the frame drawn
@@ -397,11 +407,7 @@ impl Sequence {
                     Err((mut composite, e)) => {
                         let _span = tracing::warn_span!("frame", index).entered();
                         tracing::warn!(error = %e, "the picture finished elsewhere failed; the frame is drawn again");
-                        let again = self
-                            .executor
-                            .drawing()
-                            .ok_or_else(no_drawing)?
-                            .redraw(&job)?;
+                        let again = drawing(self.executor.as_mut())?.redraw(&job)?;
                         let t = Instant::now();
                         let again = match again.drawn {
                             Drawn::Picture(img) => Ok((None, img)),
@@ -546,12 +552,14 @@ impl Sequence {
     /// Frame `index`'s stages before its drawing: the motion (simulated
     /// steps, or a rigid move of the head), the pose and the shadows, each
     /// only when its inputs changed.
-    fn before_draw(&mut self, index: u64) -> Result<FrameStats, EngineError> {
+    /// The frame is planned first ([`Self::plan`]); its site comes back
+    /// with its stats.
+    fn before_draw(&mut self, index: u64) -> Result<(FrameStats, Site), EngineError> {
         let _span = tracing::warn_span!("frame", index).entered();
         let t = index as f32 * self.anim.frame_dt();
         let mut stats = FrameStats::new(index, t);
         let fx = self.scene.effects;
-        let elsewhere = self.draws_elsewhere();
+        let site = self.plan(true);
         self.motion(index, &mut stats)?;
 
         // Shadows, only when the hair moved since the last result.
@@ -560,7 +568,7 @@ impl Sequence {
             let report = self.report(&mut stats)?.clone();
             let anchor = self.anim.anchor_at(&self.posed_head);
             let hair = self.anim.hair();
-            let strands = strands_of(elsewhere, hair, version);
+            let strands = strands_of(site, hair, version);
             let (r, ex) = (&mut self.renderer, self.executor.as_mut());
             let extents = Some((anchor, &report.extents[..]));
             stats.samples = stats
@@ -571,7 +579,7 @@ impl Sequence {
             stats.time(Stage::Transmittance, || {
                 r.shadows_mut().transmittance_with(ex)
             })?;
-            if !elsewhere {
+            if site == Site::Here {
                 // The camera first: the exact reference looks at each
                 // fiber from the side it sees.
                 self.frame_camera()?;
@@ -583,6 +591,6 @@ impl Sequence {
                 self.collision_at = Some(version);
             }
         }
-        Ok(stats)
+        Ok((stats, site))
     }
 }

@@ -34,8 +34,8 @@ mod stats;
 pub use animate::{Animator, GROUPS, Groups, split_by};
 pub use bands::{BandPlan, BandWork, ResolvedBand, Sort, Stripe};
 pub use exec::{
-    DrawJob, DrawReport, Drawing, Drawn, Executor, LocalExecutor, PendingPicture, PosePlan,
-    PoseReport, StepPlan, Strands, step_wisps, step_wisps_while,
+    DrawJob, DrawReport, Drawing, Drawn, Executor, FrameNeeds, LocalExecutor, PendingPicture,
+    PosePlan, PoseReport, Site, StepPlan, Strands, step_wisps, step_wisps_while,
 };
 pub use export::{CYCLES_FORMAT, CYCLES_SCRIPT, CyclesExport, cycles_export};
 pub use frames::Sequence;
@@ -91,6 +91,11 @@ pub enum EngineError {
     /// A change a running sequence cannot take.
     #[error("{0}")]
     Unchangeable(&'static str),
+    /// The executor gave up the drawing part a frame was planned to be
+    /// drawn with ([`Site::Elsewhere`]): the frame failed, and the next
+    /// attempt is planned anew.
+    #[error("the executor can no longer draw where the frame was planned to be drawn")]
+    SiteLost,
     /// An executor that runs stages elsewhere (cluster mode) failed: its
     /// own error, kept whole (a `cluster::ClusterError` there, which a
     /// caller may downcast to), or what went wrong in handing stages to it.

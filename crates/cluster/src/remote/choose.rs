@@ -1,126 +1,265 @@
-//! `--draw auto`: which sort each Draw round on the workers uses,
-//! sort-middle or sort-last, chosen by what the rounds before measured.
-//! Either gives the same bytes, so trying one costs time alone.
+//! `--draw auto`: how each frame is drawn, sort-middle, sort-last or on
+//! the coordinator (the paper's scheme), chosen by what the frames before
+//! measured. Every scheme gives the same bytes, so trying one costs time
+//! alone.
 
-use engine::Sort;
+use std::time::Instant;
 
-/// Measured rounds kept per sort: the estimate is the least of them, so
-/// that one round slowed by something else (a busy machine) does not
-/// turn the choice.
+use engine::{FrameNeeds, Site, Sort};
+
+use super::RemoteExecutor;
+
+/// How a frame's drawn hair is posed, filtered, shaded and rasterized
+/// with two or more workers (Molnar's classification of parallel
+/// rendering).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Scheme {
+    /// On the workers, each band's owner rasterizing every strand's
+    /// segments of its rows.
+    Middle,
+    /// On the workers, each band's owner compositing every worker's
+    /// partial picture of its rows.
+    Last,
+    /// On the coordinator, every strand (the paper's scheme): the workers
+    /// step, fill and sweep.
+    Coordinator,
+}
+
+impl Scheme {
+    /// Every scheme, in the order [`Self::index`] numbers them: what keeps
+    /// a figure per scheme keeps it in this order.
+    pub const ALL: [Scheme; 3] = [Scheme::Middle, Scheme::Last, Scheme::Coordinator];
+
+    /// The scheme's place in [`Self::ALL`].
+    pub fn index(self) -> usize {
+        match self {
+            Scheme::Middle => 0,
+            Scheme::Last => 1,
+            Scheme::Coordinator => 2,
+        }
+    }
+
+    /// What the workers send a band's owner, when they draw.
+    pub fn sort(self) -> Option<Sort> {
+        match self {
+            Scheme::Middle => Some(Sort::Middle),
+            Scheme::Last => Some(Sort::Last),
+            Scheme::Coordinator => None,
+        }
+    }
+
+    /// The scheme's name, as `--draw` spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Scheme::Middle => "sort-middle",
+            Scheme::Last => "sort-last",
+            Scheme::Coordinator => "coordinator",
+        }
+    }
+}
+
+impl From<Sort> for Scheme {
+    fn from(s: Sort) -> Scheme {
+        match s {
+            Sort::Middle => Scheme::Middle,
+            Sort::Last => Scheme::Last,
+        }
+    }
+}
+
+impl RemoteExecutor {
+    /// The one place a frame's scheme is decided. With one worker the
+    /// coordinator draws: a lone worker's partial picture would cross the
+    /// wire only to be composited here (`bench scaling`, curly, 0.4 core a
+    /// node: 420 ms a frame drawn on the worker against 288 drawn here,
+    /// one process 299). With [`DrawAt::Auto`], the scheme whose frames
+    /// measured cheapest ([`Chooser`]): a frame runs from its plan to the
+    /// next (its stages, its drawing, and whatever of the next frame ran
+    /// beside its picture). A worker lost in the frame leaves the scheme
+    /// as planned: the survivors finish it.
+    pub(super) fn plan(&mut self, needs: FrameNeeds) -> Site {
+        let now = Instant::now();
+        if let Some((then, scheme)) = self.frame_start.take()
+            && needs.picture
+        {
+            self.chooser
+                .measured(scheme, (now - then).as_secs_f64() * 1e3);
+        }
+        let choice = needs.may_draw_elsewhere && self.draw.on_workers() && self.workers.len() >= 2;
+        self.scheme = match (choice, self.draw.sort()) {
+            (false, _) => Scheme::Coordinator,
+            (true, Some(sort)) => Scheme::from(sort),
+            (true, None) => {
+                let s = self.chooser.next();
+                if needs.picture {
+                    self.frame_start = Some((now, s));
+                }
+                s
+            }
+        };
+        if needs.picture {
+            let (scheme, c) = (self.scheme, &self.chooser);
+            let estimates = Scheme::ALL.map(|s| c.estimate(s).unwrap_or(0.0));
+            self.clock(|t| {
+                t.frames[scheme.index()] += 1;
+                t.estimate_ms = estimates;
+            });
+        }
+        match self.scheme {
+            Scheme::Coordinator => Site::Here,
+            Scheme::Middle | Scheme::Last => Site::Elsewhere,
+        }
+    }
+}
+
+/// Measured frames kept per scheme: the estimate is the least of them, so
+/// that one frame slowed by something else (a busy machine) does not turn
+/// the choice.
 const KEEP: usize = 3;
 
-/// Every this many rounds the sort not chosen is measured again, so that
-/// the choice follows the hair (a groom growing denser on screen, a
-/// camera moving closer).
+/// Every this many frames a scheme not chosen is measured again (each in
+/// turn), so that the choice follows the hair (a groom growing denser on
+/// screen, a camera moving closer).
 const REVISIT: u64 = 16;
 
-/// What the Draw rounds cost, per sort, and the choice that follows.
+/// A scheme whose first frame cost more than this many times the best
+/// estimate is not measured a second time before the choice.
+const HOPELESS: f64 = 1.5;
+
+/// What the frames cost, per scheme, and the choice that follows.
 #[derive(Debug, Clone, Default)]
 pub(super) struct Chooser {
-    /// Per sort of [`Sort::ALL`], the last rounds' costs (ms), oldest first.
-    costs: [Vec<f64>; 2],
-    /// Rounds planned.
-    rounds: u64,
-    /// Rounds planned with each sort.
-    pub(super) chosen: [u32; 2],
-    /// The sort of the last round planned.
-    last: Option<Sort>,
-    /// Whether a round was measured yet: the first is not counted (it
+    /// Per scheme of [`Scheme::ALL`], the last frames' costs (ms), oldest
+    /// first.
+    costs: [Vec<f64>; 3],
+    /// Frames planned.
+    frames: u64,
+    /// Revisits so far: which scheme not chosen is measured next.
+    revisits: usize,
+    /// The scheme of the last frame planned.
+    last: Option<Scheme>,
+    /// Whether a frame was measured yet: the first is not counted (it
     /// pays for the run's warm-up, the workers dialling each other).
     warm: bool,
 }
 
 impl Chooser {
-    /// The sort of the next round: each is measured twice first, in
-    /// turn (so that a machine growing busier weighs on both alike); then
-    /// the one whose measured cost is least, but for every [`REVISIT`]th
-    /// round, which measures the other again.
-    pub(super) fn next(&mut self) -> Sort {
-        self.rounds += 1;
-        let measured = |s: Sort| self.costs[s.index()].len();
-        let fewer = Sort::ALL
+    /// The scheme of the next frame: each is measured twice first, in
+    /// turn (so that a machine growing busier weighs on all alike), but a
+    /// scheme whose first frame cost [`HOPELESS`] times the best estimate
+    /// once; then the one whose measured cost is least, but for every
+    /// [`REVISIT`]th frame, which measures another again.
+    pub(super) fn next(&mut self) -> Scheme {
+        self.frames += 1;
+        let best = self.best();
+        let wanted = |s: Scheme| -> usize {
+            let n = self.costs[s.index()].len();
+            let hopeless = match (self.estimate(s), best.and_then(|b| self.estimate(b))) {
+                (Some(mine), Some(least)) => mine > HOPELESS * least,
+                _ => false,
+            };
+            let want: usize = if hopeless { 1 } else { 2 };
+            want.saturating_sub(n)
+        };
+        let fewer = Scheme::ALL
             .iter()
             .copied()
-            .filter(|&s| measured(s) < 2)
+            .filter(|&s| wanted(s) > 0)
             .min_by_key(|&s| {
-                // The less measured first; of two alike, not the last one.
-                (measured(s), Some(s) == self.last)
+                // The less measured first; of two alike, not the last one,
+                // then in the order of ALL.
+                (self.costs[s.index()].len(), Some(s) == self.last)
             });
-        let sort = match fewer {
-            Some(s) => s,
-            None => {
-                let best = self.best().unwrap_or(Sort::Middle);
-                let other = if best == Sort::Middle {
-                    Sort::Last
-                } else {
-                    Sort::Middle
-                };
-                if self.rounds.is_multiple_of(REVISIT) {
-                    other
+        let scheme = match (fewer, best) {
+            (Some(s), _) => s,
+            (None, None) => Scheme::ALL[0],
+            (None, Some(best)) => {
+                if self.frames.is_multiple_of(REVISIT) {
+                    let others: Vec<Scheme> =
+                        Scheme::ALL.into_iter().filter(|&s| s != best).collect();
+                    self.revisits += 1;
+                    others[(self.revisits - 1) % others.len()]
                 } else {
                     best
                 }
             }
         };
-        self.chosen[sort.index()] += 1;
-        self.last = Some(sort);
-        sort
+        self.last = Some(scheme);
+        scheme
     }
 
-    /// A round of `sort` took `ms`: the frame from its start to the next
-    /// round's.
-    pub(super) fn measured(&mut self, sort: Sort, ms: f64) {
+    /// A frame drawn with `scheme` took `ms`: from its start to the next
+    /// frame's.
+    pub(super) fn measured(&mut self, scheme: Scheme, ms: f64) {
         if !ms.is_finite() || ms < 0.0 || !std::mem::replace(&mut self.warm, true) {
             return;
         }
-        let c = &mut self.costs[sort.index()];
+        let c = &mut self.costs[scheme.index()];
         c.push(ms);
         if c.len() > KEEP {
             c.remove(0);
         }
     }
 
-    /// The estimated cost of a round of `sort`, ms: the least of its last
-    /// rounds.
-    pub(super) fn estimate(&self, sort: Sort) -> Option<f64> {
-        self.costs[sort.index()].iter().copied().reduce(f64::min)
+    /// The estimated cost of a frame drawn with `scheme`, ms: the least of
+    /// its last frames.
+    pub(super) fn estimate(&self, scheme: Scheme) -> Option<f64> {
+        self.costs[scheme.index()].iter().copied().reduce(f64::min)
     }
 
-    /// The sort of least estimated cost, once both were measured.
-    fn best(&self) -> Option<Sort> {
-        let (m, l) = (self.estimate(Sort::Middle)?, self.estimate(Sort::Last)?);
-        Some(if m <= l { Sort::Middle } else { Sort::Last })
+    /// The scheme of least estimated cost, of those measured.
+    pub(super) fn best(&self) -> Option<Scheme> {
+        Scheme::ALL
+            .into_iter()
+            .filter_map(|s| Some((s, self.estimate(s)?)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(s, _)| s)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use Scheme::{Coordinator, Last, Middle};
+
+    fn run(c: &mut Chooser, frames: usize, cost: impl Fn(Scheme) -> f64) -> Vec<Scheme> {
+        (0..frames)
+            .map(|_| {
+                let s = c.next();
+                c.measured(s, cost(s));
+                s
+            })
+            .collect()
+    }
 
     #[test]
-    fn tries_each_sort_in_turn_then_keeps_the_cheaper_and_looks_again_now_and_then() {
+    fn tries_each_scheme_in_turn_then_keeps_the_cheapest_and_looks_again_now_and_then() {
         let mut c = Chooser::default();
-        // Sort-last measures cheaper here.
-        let cost = |s: Sort| if s == Sort::Middle { 90.0 } else { 60.0 };
-        let mut seen = Vec::new();
-        for _ in 0..32 {
-            let s = c.next();
-            c.measured(s, cost(s));
-            seen.push(s);
-        }
-        // The first round's measure is not counted; then each in turn
-        // until each has two.
-        use Sort::{Last, Middle};
-        assert_eq!(&seen[..5], &[Middle, Last, Middle, Last, Middle]);
-        // Then sort-last, but for one look at sort-middle each 16 rounds.
-        let middle: Vec<usize> = (5..32).filter(|&i| seen[i] == Middle).collect();
-        assert_eq!(middle, vec![15, 31], "rounds 16 and 32");
-        assert_eq!(c.chosen, [5, 27]);
+        // Sort-last measures cheaper here; the coordinator is close behind.
+        let cost = |s: Scheme| match s {
+            Middle => 90.0,
+            Last => 60.0,
+            Coordinator => 80.0,
+        };
+        let seen = run(&mut c, 48, cost);
+        // The first frame's measure is not counted (so sort-middle is
+        // measured again at once); then each in turn until each has two.
+        assert_eq!(
+            &seen[..7],
+            &[Middle, Last, Middle, Coordinator, Middle, Last, Coordinator]
+        );
+        // Then sort-last, but for one look at another each 16 frames, in
+        // turn.
+        let others: Vec<(usize, Scheme)> = (7..48)
+            .filter(|&i| seen[i] != Last)
+            .map(|i| (i, seen[i]))
+            .collect();
+        assert_eq!(others, vec![(15, Middle), (31, Coordinator), (47, Middle)]);
         // The hair changes: sort-middle is measured cheaper when looked at
         // again, and taken from then on.
         c.measured(Middle, 30.0);
         assert_eq!(c.next(), Middle);
-        // One slow round does not turn the choice; an estimate keeps the
+        // One slow frame does not turn the choice; an estimate keeps the
         // least of the last three.
         c.measured(Middle, 500.0);
         assert_eq!(c.estimate(Middle), Some(30.0));
@@ -129,5 +268,29 @@ mod tests {
         c.measured(Last, f64::NAN);
         c.measured(Last, -1.0);
         assert_eq!(c.estimate(Last), Some(60.0));
+    }
+
+    #[test]
+    fn a_scheme_far_behind_at_its_first_frame_is_not_measured_twice() {
+        let mut c = Chooser::default();
+        let cost = |s: Scheme| match s {
+            Middle => 100.0,
+            Last => 110.0,
+            Coordinator => 250.0,
+        };
+        let seen = run(&mut c, 15, cost);
+        // Warm-up, then one of each; the coordinator's 250 ms is more
+        // than 1.5x sort-middle's 100, so the second round of measures
+        // leaves it out.
+        assert_eq!(
+            &seen[..7],
+            &[Middle, Last, Middle, Coordinator, Middle, Last, Middle]
+        );
+        assert_eq!(
+            seen.iter().filter(|&&s| s == Coordinator).count(),
+            1,
+            "{seen:?}"
+        );
+        assert_eq!(c.best(), Some(Middle));
     }
 }

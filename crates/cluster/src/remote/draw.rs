@@ -96,9 +96,11 @@ impl RemoteExecutor {
         Ok(report)
     }
 
-    /// Whether the next Draw is composited on the workers.
+    /// Whether the frame's Draw is composited on the workers: its scheme
+    /// is one of theirs, two or more are left, and compositing among
+    /// themselves did not fail for good.
     pub(super) fn composites_now(&self) -> bool {
-        self.draw.on_workers() && self.composite.is_on() && self.workers.len() >= 2
+        self.scheme.sort().is_some() && self.composite.is_on() && self.workers.len() >= 2
     }
 
     /// One Draw round composited on the workers (see [`wire::Bands`]): each
@@ -168,26 +170,8 @@ impl RemoteExecutor {
         }
         let mut pb_job = wire::job_to_pb(job);
         pb_job.exchanged = exchanged;
-        // The one place a round's sort is decided: with `--draw auto`,
-        // by what the frames since the last rounds of each took (a round's
-        // frame runs from its start to the next round's: its drawing, its
-        // bands finished on the workers, and the next frame's stages).
-        let now = Instant::now();
-        let last = self.last_round.take();
-        let sort = match self.draw.sort() {
-            Some(sort) => sort,
-            None => {
-                if let Some((then, sort)) = last {
-                    self.chooser
-                        .measured(sort, (now - then).as_secs_f64() * 1e3);
-                }
-                let c = &self.chooser;
-                let estimates = engine::Sort::ALL.map(|s| c.estimate(s).unwrap_or(0.0));
-                self.clock(|t| t.round_estimate_ms = estimates);
-                self.chooser.next()
-            }
-        };
-        self.last_round = Some((now, sort));
+        // The frame's plan says which sort.
+        let sort = self.scheme.sort().unwrap_or_default();
         let mut requests = Vec::with_capacity(n);
         let mut sent = 0u64;
         // Bands of about equal cost, by what the last round of this sort
@@ -400,8 +384,8 @@ impl RemoteExecutor {
                 Err(e) => {
                     // The frame is composited here instead, with whichever
                     // workers answer; a worker that fails that is dropped.
-                    // The frame is no round's cost.
-                    self.last_round = None;
+                    // The frame is no measure of its scheme.
+                    self.frame_start = None;
                     tracing::warn!(error = %e, "compositing on the workers failed; this frame is composited on the coordinator");
                     self.clock(|t| t.composite_fallbacks += 1);
                     let before = self.workers.len();
@@ -513,7 +497,6 @@ impl BandRound {
         if let Ok(mut t) = self.timing.lock() {
             t.band_wait_ms += wait;
             t.band_composite_ms += composite;
-            t.rounds[self.sort.index()] += 1;
         }
         Ok(img)
     }

@@ -19,18 +19,22 @@
 mod choose;
 mod draw;
 mod fill;
+mod lights;
 mod step;
 
 use choose::Chooser;
+pub use choose::Scheme;
 use draw::*;
+use lights::{LightState, SweptMap};
 
 use std::ops::Range;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use engine::{
-    Animator, DrawJob, DrawReport, Drawing, Drawn, EngineError, Executor, FrameStats,
-    PendingPicture, PosePlan, PoseReport, Scene, SceneSource, Stage, StepPlan, Strands, split_by,
+    Animator, DrawJob, DrawReport, Drawing, Drawn, EngineError, Executor, FrameNeeds, FrameStats,
+    PendingPicture, PosePlan, PoseReport, Scene, SceneSource, Site, Stage, StepPlan, Strands,
+    split_by,
 };
 use prost::Message;
 use shadow::{ColumnSlab, DensityMap, Fiber, FillStats, LightFrame, Transmittance};
@@ -50,10 +54,11 @@ const BAND_ROWS: u32 = 48;
 /// rendering). Every scheme gives the same bytes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum DrawAt {
-    /// On the workers, sort-middle or sort-last, chosen round by round by
-    /// what the rounds before cost (each is measured twice first, then the
-    /// cheaper taken, the other measured again every 16 rounds); with one
-    /// worker, on the coordinator.
+    /// Sort-middle, sort-last or the coordinator's draw, chosen frame by
+    /// frame by what the frames before cost (each is measured twice first,
+    /// or once when its frame cost 1.5x the best; then the cheapest taken,
+    /// another measured again every 16 frames); with one worker, on the
+    /// coordinator.
     #[default]
     Auto,
     /// On the workers, each its own strands, each rasterizing them into
@@ -176,10 +181,14 @@ pub struct RemoteExecutor {
     failure: Arc<Mutex<Option<ClusterError>>>,
     /// What the workers held when they drew the picture left to finish.
     drawn: Option<Snapshot>,
-    /// With [`DrawAt::Auto`], what the Draw rounds cost, per sort.
+    /// How this frame is drawn: planned once, at its start
+    /// ([`Executor::plan_frame`]), and held until the next.
+    scheme: Scheme,
+    /// With [`DrawAt::Auto`], what the frames of each scheme cost.
     chooser: Chooser,
-    /// When the last Draw round on the workers began, and its sort.
-    last_round: Option<(Instant, engine::Sort)>,
+    /// When the frame being drawn began and its scheme, when [`DrawAt::Auto`]
+    /// chose it: measured when the next begins.
+    frame_start: Option<(Instant, Scheme)>,
     /// What each 16 rows of the picture cost to draw in the last round of
     /// each sort: the next round's bands are cut by it.
     row_costs: Arc<Mutex<RowCosts>>,
@@ -227,76 +236,6 @@ impl Collective {
             }
             Collective::Off => false,
         }
-    }
-}
-
-/// A light's last sweep: its frame and slabs.
-type Swept = Arc<SweptMap>;
-
-/// What the coordinator keeps of one light's map between calls.
-#[derive(Debug, Clone, Default)]
-struct LightState {
-    /// The columns each live worker's lookups read (from its last posed
-    /// Density), in worker order.
-    reads: Option<Vec<Vec<u64>>>,
-    /// The frame and slabs of its last sweep.
-    swept: Option<Swept>,
-    /// The hair version whose map the live workers last summed and swept
-    /// among themselves (each holding every column for its Draw).
-    exchanged: Option<u64>,
-    /// The hair version whose map's transmittance came from the workers'
-    /// own sweep (the frame's shadow map, not another map filled on the
-    /// workers such as a separate self-collision map).
-    swept_on_workers: Option<u64>,
-    /// Each column's weight in the last map (its occupied cells), for
-    /// cutting the next map's columns among the workers.
-    column_weights: Option<Vec<u32>>,
-}
-
-impl LightState {
-    /// Forgets what depended on the workers as they were (after a loss
-    /// or a restore): where their columns are.
-    fn forget_workers(&mut self) {
-        self.reads = None;
-        self.exchanged = None;
-        self.swept_on_workers = None;
-    }
-}
-
-/// A light's last sweep: its frame and slabs, or (when the workers summed
-/// and swept it among themselves) the summed map, swept here only if a
-/// frame must be drawn from it through the coordinator.
-#[derive(Debug)]
-struct SweptMap {
-    frame: LightFrame,
-    slabs: std::sync::OnceLock<Vec<ColumnSlab>>,
-    map: Option<DensityMap>,
-}
-
-impl SweptMap {
-    fn of_slabs(frame: LightFrame, slabs: Vec<ColumnSlab>) -> SweptMap {
-        SweptMap {
-            frame,
-            slabs: std::sync::OnceLock::from(slabs),
-            map: None,
-        }
-    }
-
-    fn of_map(map: DensityMap) -> SweptMap {
-        SweptMap {
-            frame: *map.frame(),
-            slabs: std::sync::OnceLock::new(),
-            map: Some(map),
-        }
-    }
-
-    /// The frame and its slabs (of every column).
-    fn get(&self) -> (&LightFrame, &[ColumnSlab]) {
-        let slabs = self.slabs.get_or_init(|| {
-            let map = self.map.as_ref().expect("a sweep has its slabs or its map");
-            vec![shadow::sweep(map, 0..self.frame.columns() as u32)]
-        });
-        (&self.frame, slabs)
     }
 }
 
@@ -409,8 +348,9 @@ impl RemoteExecutor {
                 .and_then(|t| t.domain().map(str::to_string)),
             failure: Arc::default(),
             drawn: None,
+            scheme: Scheme::Coordinator,
             chooser: Chooser::default(),
-            last_round: None,
+            frame_start: None,
             row_costs: Arc::default(),
             source: scene.source,
             hair: None,
@@ -479,7 +419,7 @@ impl RemoteExecutor {
             return Err(e);
         }
         self.workers.remove(i);
-        self.last_round = None;
+        self.frame_start = None;
         self.shares = None;
         self.posed = None;
         self.lights.iter_mut().for_each(LightState::forget_workers);
@@ -694,12 +634,17 @@ impl Executor for RemoteExecutor {
         true
     }
 
-    /// With one worker left the coordinator draws: a lone worker's
-    /// partial picture would cross the wire only to be composited here
-    /// (`bench scaling`, curly, 0.4 core a node: 420 ms a frame drawn on
-    /// the worker against 288 drawn here, one process 299).
+    /// Where the frame is drawn: the one place its scheme is decided
+    /// (see `remote/choose.rs`).
+    fn plan_frame(&mut self, needs: FrameNeeds) -> Site {
+        self.plan(needs)
+    }
+
+    /// Whenever the workers may draw: frames are planned elsewhere only
+    /// with two or more, but a frame planned so is finished (or drawn
+    /// again) on the workers left, however few.
     fn drawing(&mut self) -> Option<&mut dyn Drawing> {
-        (self.draw.on_workers() && self.workers.len() >= 2).then_some(self as &mut dyn Drawing)
+        self.draw.on_workers().then_some(self as &mut dyn Drawing)
     }
 }
 

@@ -6,9 +6,9 @@ use glam::Affine3A;
 use shadow::fit_to_extent;
 use sim::Body;
 
-use super::{Sequence, no_drawing, strands_of};
+use super::{Sequence, drawing, strands_of};
 use crate::collide::DensityRepulsion;
-use crate::{EngineError, FrameStats, PosePlan, PoseReport, Stage, StepPlan};
+use crate::{EngineError, FrameStats, PosePlan, PoseReport, Site, Stage, StepPlan};
 
 impl Sequence {
     /// Runs the next frame's motion alone, and nothing that only its
@@ -29,6 +29,7 @@ impl Sequence {
         }
         if self.anim.simulates() || self.repeat || self.resumed {
             let _span = tracing::warn_span!("frame", index).entered();
+            self.plan(false);
             self.motion(index, &mut stats)?;
         }
         if let Some(n) = &mut self.expected {
@@ -92,11 +93,11 @@ impl Sequence {
     /// Frame `index`'s motion: simulated steps (or, for the frame the
     /// sequence [resumed at](Self::resume_at), the pose of the wisps it
     /// was given), or a rigid move of the head; then the pose, when the
-    /// hair moved.
+    /// hair moved. Where, the frame's plan says (`self.site`).
     pub(super) fn motion(&mut self, index: u64, stats: &mut FrameStats) -> Result<(), EngineError> {
         let t = index as f32 * self.anim.frame_dt();
         let fx = self.scene.effects;
-        let elsewhere = self.draws_elsewhere();
+        let elsewhere = self.site == Site::Elsewhere;
         let head = self.anim.head_at(t);
         let drawn = |seq: &Self| {
             if fx.body_collision && seq.anim.simulates() {
@@ -159,7 +160,7 @@ impl Sequence {
     pub(super) fn report(&mut self, stats: &mut FrameStats) -> Result<&PoseReport, EngineError> {
         if self.report.is_none() {
             let plan = self.pose_again();
-            if self.draws_elsewhere() {
+            if self.site == Site::Elsewhere {
                 self.posed(stats, &plan)?;
             } else {
                 self.report = Some(PoseReport::of(self.anim.hair(), &plan));
@@ -211,8 +212,8 @@ impl Sequence {
         plan: &PosePlan,
     ) -> Result<(), EngineError> {
         self.last_plan = Some(plan.clone());
-        if self.draws_elsewhere() {
-            let ex = self.executor.drawing().ok_or_else(no_drawing)?;
+        if self.site == Site::Elsewhere {
+            let ex = drawing(self.executor.as_mut())?;
             self.report = Some(stats.time(Stage::Pose, || ex.pose(plan))?);
             self.stale_here = true;
         } else {
@@ -243,10 +244,9 @@ impl Sequence {
         let c = self.scene.collision;
         if fx.self_collision && self.collision_at != Some(self.version) {
             // The density map of the hair as it is now (the previous frame's).
-            let elsewhere = self.draws_elsewhere();
             let report = self.report(stats)?.clone();
             let anchor = self.anim.anchor_at(&self.posed_head);
-            let strands = strands_of(elsewhere, self.anim.hair(), self.version);
+            let strands = strands_of(self.site, self.anim.hair(), self.version);
             let ex = self.executor.as_mut();
             match self.collision_map.as_mut() {
                 Some(m) => {
