@@ -537,7 +537,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
                     .map(|(s, ms)| format!("{} {ms:.1} ms", s.name()))
                     .collect();
                 format!(
-                    "; auto's estimate of a frame (the least of the last three measured of each scheme: from a frame's plan to the next's): {}, so {best}",
+                    "; auto's estimate of a frame (the least of the last three measured of each scheme: a frame is the call that rendered it: its drawing and the next frame's stages beside it): {}, so {best}",
                     each.join(", ")
                 )
             }

@@ -660,7 +660,7 @@ impl Executor for StopsMidFrame {
         anim: &mut engine::Animator,
         plan: &engine::StepPlan,
         stats: &mut engine::FrameStats,
-    ) -> Result<(), EngineError> {
+    ) -> Result<Option<engine::PoseReport>, EngineError> {
         if self.armed
             && let Some(stop) = self.stop.take()
         {
@@ -1188,7 +1188,7 @@ impl Executor for GivesUp {
         anim: &mut engine::Animator,
         plan: &engine::StepPlan,
         stats: &mut engine::FrameStats,
-    ) -> Result<(), EngineError> {
+    ) -> Result<Option<engine::PoseReport>, EngineError> {
         self.inner.simulate(anim, plan, stats)
     }
     fn density(

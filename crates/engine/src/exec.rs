@@ -218,9 +218,27 @@ pub enum Site {
     Elsewhere,
 }
 
+/// What a frame cost its caller: the wall time of the call that rendered
+/// it ([`crate::Sequence::next_frame`]): its drawing, and the next
+/// frame's stages that ran beside its picture (or, for the first frame,
+/// its own stages too).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrameTime {
+    /// The frame's index.
+    pub index: u64,
+    /// Milliseconds.
+    pub ms: f64,
+}
+
 /// What a frame being planned asks of its executor.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FrameNeeds {
+    /// The frame's index.
+    pub index: u64,
+    /// The last frame rendered since the previous plan, and what it cost
+    /// (a frame's cost is known a frame or two after it is planned, as
+    /// the next frame's stages run beside its picture).
+    pub finished: Option<FrameTime>,
     /// The frame makes a picture; `false`: its motion alone (a frame
     /// skipped before a range), whose time says nothing of a scheme's.
     pub picture: bool,
@@ -254,13 +272,16 @@ pub trait Executor: Send + Sync + std::fmt::Debug {
         Ok(())
     }
     /// Runs `plan`'s steps on every wisp of `anim` and leaves the stepped
-    /// state in `anim`.
+    /// state in `anim`. An executor that holds the drawn hair may pose it
+    /// too, as `plan.pose` says, and return the pose's report (the
+    /// frame keeps it, and does not ask [`Drawing::pose`]); `None`: not
+    /// posed.
     fn simulate(
         &mut self,
         anim: &mut Animator,
         plan: &StepPlan,
         stats: &mut FrameStats,
-    ) -> Result<(), EngineError>;
+    ) -> Result<Option<PoseReport>, EngineError>;
     /// Stage 1, density: adds the density of every strand of `strands` to
     /// `map` (empty, in its frame) for light `light`.
     fn density(
@@ -335,10 +356,10 @@ impl Executor for LocalExecutor {
         anim: &mut Animator,
         plan: &StepPlan,
         stats: &mut FrameStats,
-    ) -> Result<(), EngineError> {
+    ) -> Result<Option<PoseReport>, EngineError> {
         let all = 0..anim.wisp_count();
         step_wisps(anim, all, plan, plan.accel.as_deref(), stats);
-        Ok(())
+        Ok(None)
     }
 
     fn density(

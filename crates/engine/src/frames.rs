@@ -54,6 +54,9 @@ pub struct Sequence {
     /// Where the frame being prepared draws its hair, as planned at its
     /// start ([`Self::plan`]); every stage of the frame takes it.
     site: Site,
+    /// What the last frame rendered cost its call, until the next plan
+    /// tells the executor.
+    finished: Option<crate::FrameTime>,
     /// Self-collisions' own density map, when the shadows do not fill one
     /// (self-shadowing off, or another shadow method).
     collision_map: Option<DensityMapMethod>,
@@ -185,6 +188,7 @@ impl Sequence {
             renderer,
             executor: Box::new(LocalExecutor),
             site: Site::Here,
+            finished: None,
             collision_map,
             version: 0,
             report: None,
@@ -312,9 +316,11 @@ impl Sequence {
     /// only when the executor can hold it and no shadow method needs all
     /// of it here, [`MethodConfig::needs_all_hair`]). The one place that
     /// decides; every stage of the frame reads `self.site`.
-    fn plan(&mut self, picture: bool) -> Site {
+    fn plan(&mut self, index: u64, picture: bool) -> Site {
         let all_here = self.scene.effects.self_shadow && self.scene.shadow.method.needs_all_hair();
         self.site = self.executor.plan_frame(FrameNeeds {
+            index,
+            finished: self.finished.take(),
             picture,
             may_draw_elsewhere: !all_here,
         });
@@ -340,13 +346,19 @@ impl Sequence {
     /// [`Self::hold`] stays held).
     pub fn next_frame(&mut self) -> Result<(&image::RgbImage, FrameStats), EngineError> {
         let repeat = self.repeat;
+        let (start, index) = (Instant::now(), self.next);
         let stats = match self.render_next() {
             Ok(stats) => stats,
             Err(e) => {
                 self.repeat = repeat;
+                self.finished = None;
                 return Err(e);
             }
         };
+        self.finished = Some(crate::FrameTime {
+            index,
+            ms: start.elapsed().as_secs_f64() * 1e3,
+        });
         let (_, img) = self.picture.as_ref().expect("drawn");
         Ok((img, stats))
     }
@@ -559,7 +571,7 @@ impl Sequence {
         let t = index as f32 * self.anim.frame_dt();
         let mut stats = FrameStats::new(index, t);
         let fx = self.scene.effects;
-        let site = self.plan(true);
+        let site = self.plan(index, true);
         self.motion(index, &mut stats)?;
 
         // Shadows, only when the hair moved since the last result.

@@ -34,8 +34,8 @@ mod stats;
 pub use animate::{Animator, GROUPS, Groups, split_by};
 pub use bands::{BandPlan, BandWork, ResolvedBand, Sort, Stripe};
 pub use exec::{
-    DrawJob, DrawReport, Drawing, Drawn, Executor, FrameNeeds, LocalExecutor, PendingPicture,
-    PosePlan, PoseReport, Site, StepPlan, Strands, step_wisps, step_wisps_while,
+    DrawJob, DrawReport, Drawing, Drawn, Executor, FrameNeeds, FrameTime, LocalExecutor,
+    PendingPicture, PosePlan, PoseReport, Site, StepPlan, Strands, step_wisps, step_wisps_while,
 };
 pub use export::{CYCLES_FORMAT, CYCLES_SCRIPT, CyclesExport, cycles_export};
 pub use frames::Sequence;

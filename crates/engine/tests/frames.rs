@@ -469,7 +469,7 @@ impl engine::Executor for Elsewhere {
         anim: &mut engine::Animator,
         plan: &engine::StepPlan,
         stats: &mut FrameStats,
-    ) -> Result<(), engine::EngineError> {
+    ) -> Result<Option<engine::PoseReport>, engine::EngineError> {
         self.steps.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
         engine::LocalExecutor.simulate(anim, plan, stats)
     }

@@ -40,7 +40,7 @@ impl Executor for Shares {
         anim: &mut Animator,
         plan: &StepPlan,
         stats: &mut FrameStats,
-    ) -> Result<(), EngineError> {
+    ) -> Result<Option<engine::PoseReport>, EngineError> {
         let per = anim.points_per_wisp();
         for s in &mut self.shares {
             let w = s.wisps();
@@ -53,7 +53,8 @@ impl Executor for Shares {
                 anim.set_wisp_state(i, s.animator().wisp_state(i).unwrap().clone())?;
             }
         }
-        Ok(())
+        // Not posed: the frame asks Drawing::pose.
+        Ok(None)
     }
 
     fn density(
@@ -211,7 +212,7 @@ impl Executor for Unfinished {
         anim: &mut Animator,
         plan: &StepPlan,
         stats: &mut FrameStats,
-    ) -> Result<(), EngineError> {
+    ) -> Result<Option<engine::PoseReport>, EngineError> {
         self.shares.simulate(anim, plan, stats)
     }
 

@@ -3,8 +3,6 @@
 //! measured. Every scheme gives the same bytes, so trying one costs time
 //! alone.
 
-use std::time::Instant;
-
 use engine::{FrameNeeds, Site, Sort};
 
 use super::RemoteExecutor;
@@ -73,18 +71,21 @@ impl RemoteExecutor {
     /// wire only to be composited here (`bench scaling`, curly, 0.4 core a
     /// node: 420 ms a frame drawn on the worker against 288 drawn here,
     /// one process 299). With [`DrawAt::Auto`], the scheme whose frames
-    /// measured cheapest ([`Chooser`]): a frame runs from its plan to the
-    /// next (its stages, its drawing, and whatever of the next frame ran
-    /// beside its picture). A worker lost in the frame leaves the scheme
-    /// as planned: the survivors finish it.
+    /// measured cheapest ([`Chooser`]): a frame costs what the call that
+    /// rendered it took ([`engine::FrameTime`]: its drawing, and the next
+    /// frame's stages that ran beside its picture), so a scheme whose
+    /// picture is finished beside the next frame is charged for it, not
+    /// the scheme of the next. A worker lost in the frame leaves the
+    /// scheme as planned: the survivors finish it.
     pub(super) fn plan(&mut self, needs: FrameNeeds) -> Site {
-        let now = Instant::now();
-        if let Some((then, scheme)) = self.frame_start.take()
-            && needs.picture
+        if let Some(done) = needs.finished
+            && let Some(&(_, scheme)) = self.chosen.iter().find(|c| c.0 == done.index)
         {
-            self.chooser
-                .measured(scheme, (now - then).as_secs_f64() * 1e3);
+            self.chooser.measured(scheme, done.ms);
         }
+        // Frames long past are forgotten (a frame's cost comes at most
+        // two plans later).
+        self.chosen.retain(|c| c.0 + 4 > needs.index);
         let choice = needs.may_draw_elsewhere && self.draw.on_workers() && self.workers.len() >= 2;
         self.scheme = match (choice, self.draw.sort()) {
             (false, _) => Scheme::Coordinator,
@@ -92,7 +93,7 @@ impl RemoteExecutor {
             (true, None) => {
                 let s = self.chooser.next();
                 if needs.picture {
-                    self.frame_start = Some((now, s));
+                    self.chosen.push((needs.index, s));
                 }
                 s
             }

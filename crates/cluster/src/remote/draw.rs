@@ -385,7 +385,7 @@ impl RemoteExecutor {
                     // The frame is composited here instead, with whichever
                     // workers answer; a worker that fails that is dropped.
                     // The frame is no measure of its scheme.
-                    self.frame_start = None;
+                    self.chosen.clear();
                     tracing::warn!(error = %e, "compositing on the workers failed; this frame is composited on the coordinator");
                     self.clock(|t| t.composite_fallbacks += 1);
                     let before = self.workers.len();

@@ -152,11 +152,11 @@ pub struct RemoteExecutor {
     hair: Option<SharedHair>,
     /// Each live worker's groups, once assigned.
     shares: Option<Vec<Range<usize>>>,
-    /// The hair version the workers posed last, that pose's plan and
-    /// report.
+    /// What the workers hold: the hair version they posed last, and that
+    /// pose's plan (posed again after a loss). Its report is the frame's
+    /// ([`engine::Sequence`] keeps it).
     posed: Option<u64>,
     last_pose: Option<PosePlan>,
-    report: Option<PoseReport>,
     /// What is kept of each light's map, light by light.
     lights: Vec<LightState>,
     /// Whether the workers composite the picture among themselves (two
@@ -186,9 +186,10 @@ pub struct RemoteExecutor {
     scheme: Scheme,
     /// With [`DrawAt::Auto`], what the frames of each scheme cost.
     chooser: Chooser,
-    /// When the frame being drawn began and its scheme, when [`DrawAt::Auto`]
-    /// chose it: measured when the next begins.
-    frame_start: Option<(Instant, Scheme)>,
+    /// The frames [`DrawAt::Auto`] chose a scheme for, by index, until
+    /// their cost is known (a frame with a loss or a fallback in it is
+    /// no measure of its scheme, and is forgotten).
+    chosen: Vec<(u64, Scheme)>,
     /// What each 16 rows of the picture cost to draw in the last round of
     /// each sort: the next round's bands are cut by it.
     row_costs: Arc<Mutex<RowCosts>>,
@@ -350,14 +351,13 @@ impl RemoteExecutor {
             drawn: None,
             scheme: Scheme::Coordinator,
             chooser: Chooser::default(),
-            frame_start: None,
+            chosen: Vec::new(),
             row_costs: Arc::default(),
             source: scene.source,
             hair: None,
             shares: None,
             posed: None,
             last_pose: None,
-            report: None,
         })
     }
 
@@ -419,7 +419,7 @@ impl RemoteExecutor {
             return Err(e);
         }
         self.workers.remove(i);
-        self.frame_start = None;
+        self.chosen.clear();
         self.shares = None;
         self.posed = None;
         self.lights.iter_mut().for_each(LightState::forget_workers);
@@ -545,14 +545,14 @@ impl Executor for RemoteExecutor {
         anim: &mut Animator,
         plan: &StepPlan,
         stats: &mut FrameStats,
-    ) -> Result<(), EngineError> {
-        stats
+    ) -> Result<Option<PoseReport>, EngineError> {
+        let report = stats
             .time(Stage::Simulate, || {
                 self.with_survivors(|ex| ex.step(anim, plan))
             })
             .map_err(engine_error)?;
         stats.steps += plan.heads.len() as u32;
-        Ok(())
+        Ok(Some(report))
     }
 
     fn density(
@@ -651,18 +651,13 @@ impl Executor for RemoteExecutor {
 /// The workers hold the drawn hair (`--draw workers`).
 impl Drawing for RemoteExecutor {
     fn pose(&mut self, plan: &PosePlan) -> Result<PoseReport, EngineError> {
-        if self.posed != Some(plan.version) {
-            self.with_survivors(|ex| {
-                if ex.shares.is_none() {
-                    ex.assign()?;
-                }
-                ex.pose_call(plan)
-            })
-            .map_err(engine_error)?;
-        }
-        self.report
-            .clone()
-            .ok_or_else(|| EngineError::executor("no worker reported its pose"))
+        self.with_survivors(|ex| {
+            if ex.shares.is_none() {
+                ex.assign()?;
+            }
+            ex.pose_call(plan)
+        })
+        .map_err(engine_error)
     }
 
     fn composites(&self) -> bool {
@@ -692,7 +687,6 @@ impl Drawing for RemoteExecutor {
         // Back to the frame drawn: its wisps' states, pose and maps; the
         // workers are assigned and pose it again.
         let now = self.snapshot(self.posed.unwrap_or_default());
-        let report = self.report.clone();
         self.restore(then);
         tracing::warn!(
             frame_version = job.version,
@@ -701,7 +695,6 @@ impl Drawing for RemoteExecutor {
         let r = self.with_survivors(|ex| ex.draw_remote(job));
         // On to the frames after, as they stood.
         self.restore(now);
-        self.report = report;
         r.map_err(engine_error)
     }
 }

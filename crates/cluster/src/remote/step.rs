@@ -102,18 +102,20 @@ impl RemoteExecutor {
         if self.posed.is_none()
             && let Some(plan) = self.last_pose.clone()
         {
+            // The same hair as the frame was told of: its report stands.
             self.pose_call(&plan)?;
         }
         Ok(())
     }
 
     /// One Step on every worker; the new states go into `anim` only when
-    /// every worker answered.
+    /// every worker answered. Each poses its share after the steps: the
+    /// report of the whole pose comes back.
     pub(super) fn step(
         &mut self,
         anim: &mut Animator,
         plan: &StepPlan,
-    ) -> Result<(), ClusterError> {
+    ) -> Result<PoseReport, ClusterError> {
         if self.shares.is_none() {
             self.assign()?;
         }
@@ -213,21 +215,27 @@ impl RemoteExecutor {
             t.step_wall_ms += wall;
             t.step_compute_ms += slowest;
         });
-        self.posed_as(&plan.pose, reports);
-        Ok(())
+        self.posed_as(&plan.pose, reports)
     }
 
-    /// Notes that the workers posed the hair as `plan` says.
-    pub(super) fn posed_as(&mut self, plan: &PosePlan, reports: Vec<PoseReport>) {
+    /// Notes that the workers posed the hair as `plan` says: the report of
+    /// the whole pose, their shares' reports joined.
+    pub(super) fn posed_as(
+        &mut self,
+        plan: &PosePlan,
+        reports: Vec<PoseReport>,
+    ) -> Result<PoseReport, ClusterError> {
         let mut reports = reports.into_iter();
-        let first = reports.next();
-        self.report = first.map(|f| reports.fold(f, |a, b| a.union(&b)));
+        let first = reports
+            .next()
+            .ok_or_else(|| ClusterError::Setup("no worker reported its pose".into()))?;
         self.posed = Some(plan.version);
         self.last_pose = Some(plan.clone());
+        Ok(reports.fold(first, |a, b| a.union(&b)))
     }
 
-    /// One Pose on every worker.
-    pub(super) fn pose_call(&mut self, plan: &PosePlan) -> Result<(), ClusterError> {
+    /// One Pose on every worker: the report of the whole pose.
+    pub(super) fn pose_call(&mut self, plan: &PosePlan) -> Result<PoseReport, ClusterError> {
         let request = wire::pose_plan_to_pb(plan);
         let lights = plan.lights.len();
         let sent = request.encoded_len() as u64 * self.workers.len() as u64;
@@ -259,7 +267,6 @@ impl RemoteExecutor {
         let received: u64 = replies.iter().map(|(_, b)| b).sum();
         self.count(|t| t.pose += sent + received);
         self.clock(|t| t.pose_ms += ms);
-        self.posed_as(plan, replies.into_iter().map(|(r, _)| r).collect());
-        Ok(())
+        self.posed_as(plan, replies.into_iter().map(|(r, _)| r).collect())
     }
 }

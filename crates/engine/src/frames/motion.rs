@@ -29,7 +29,8 @@ impl Sequence {
         }
         if self.anim.simulates() || self.repeat || self.resumed {
             let _span = tracing::warn_span!("frame", index).entered();
-            self.plan(false);
+            self.finished = None;
+            self.plan(index, false);
             self.motion(index, &mut stats)?;
         }
         if let Some(n) = &mut self.expected {
@@ -142,7 +143,7 @@ impl Sequence {
             // Posed elsewhere until a change of settings brought the
             // drawing here: posed here as it was there.
             let plan = self.pose_again();
-            self.posed(stats, &plan)?;
+            self.posed(stats, &plan, None)?;
         }
         self.renderer.set_head_pose(head);
         // Hair held elsewhere whose report was forgotten (new lights)
@@ -161,7 +162,7 @@ impl Sequence {
         if self.report.is_none() {
             let plan = self.pose_again();
             if self.site == Site::Elsewhere {
-                self.posed(stats, &plan)?;
+                self.posed(stats, &plan, None)?;
             } else {
                 self.report = Some(PoseReport::of(self.anim.hair(), &plan));
             }
@@ -203,18 +204,28 @@ impl Sequence {
         drawn_bodies: Vec<Body>,
     ) -> Result<(), EngineError> {
         let plan = self.pose_plan(head, drawn_bodies);
-        self.posed(stats, &plan)
+        self.posed(stats, &plan, None)
     }
 
+    /// Poses the drawn hair as `plan` says, here or where the executor
+    /// holds it; hair held elsewhere that the executor already posed so
+    /// (with the steps) gave its `report`. The sequence is the one owner
+    /// of the pose's counter, plan and report.
     pub(super) fn posed(
         &mut self,
         stats: &mut FrameStats,
         plan: &PosePlan,
+        report: Option<PoseReport>,
     ) -> Result<(), EngineError> {
         self.last_plan = Some(plan.clone());
         if self.site == Site::Elsewhere {
-            let ex = drawing(self.executor.as_mut())?;
-            self.report = Some(stats.time(Stage::Pose, || ex.pose(plan))?);
+            self.report = Some(match report {
+                Some(r) => r,
+                None => {
+                    let ex = drawing(self.executor.as_mut())?;
+                    stats.time(Stage::Pose, || ex.pose(plan))?
+                }
+            });
             self.stale_here = true;
         } else {
             self.stale_here = false;
@@ -299,8 +310,8 @@ impl Sequence {
             accel,
             pose: self.pose_plan(head, drawn_bodies),
         };
-        self.executor.simulate(&mut self.anim, &plan, stats)?;
-        self.posed(stats, &plan.pose)
+        let report = self.executor.simulate(&mut self.anim, &plan, stats)?;
+        self.posed(stats, &plan.pose, report)
     }
 
     /// The head and the scene's bodies under head transform `head`.
