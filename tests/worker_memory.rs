@@ -68,6 +68,7 @@ async fn session(addr: &str) -> SessionClient {
             protocol_version: protocol::PROTOCOL_VERSION,
             fiber_width: 0.1,
             fiber_opacity: 0.5,
+            ..Default::default()
         })
         .await
         .unwrap()

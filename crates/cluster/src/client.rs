@@ -9,7 +9,7 @@ use tonic::transport::{Channel, Endpoint};
 
 use crate::error::{WorkerError, WorkerErrorKind, root_cause};
 use crate::pb::worker_client::WorkerClient;
-use crate::token::Token;
+use crate::token::{self, Purpose, Token};
 use crate::{ClusterError, Tls, pb, tls, wire};
 
 /// The gRPC metadata key that names a call's session.
@@ -157,35 +157,22 @@ pub struct Timing {
     pub estimate_ms: [f64; 3],
 }
 
-/// Names a session in the metadata of every call (see
-/// the `wisplight-session` key), and carries the cluster's token when there is one.
+/// Names a session in the metadata of every call (see the
+/// `wisplight-session` key).
 #[derive(Debug, Clone)]
 pub struct SessionHeader {
     session: Option<tonic::metadata::AsciiMetadataValue>,
-    token: Option<Token>,
 }
 
 impl SessionHeader {
     /// The header of session `id`, as a worker's Hello reply named it.
     pub fn new(id: &str) -> Option<SessionHeader> {
-        id.parse().ok().map(|v| SessionHeader {
-            session: Some(v),
-            token: None,
-        })
+        id.parse().ok().map(|v| SessionHeader { session: Some(v) })
     }
 
-    /// The header of a Hello: no session yet, the token alone.
-    pub(crate) fn hello(token: Option<&Token>) -> SessionHeader {
-        SessionHeader {
-            session: None,
-            token: token.cloned(),
-        }
-    }
-
-    /// The same header, carrying `token` too.
-    pub fn with_token(mut self, token: Option<&Token>) -> SessionHeader {
-        self.token = token.cloned();
-        self
+    /// The header of the calls before a session: none.
+    pub(crate) fn none() -> SessionHeader {
+        SessionHeader { session: None }
     }
 }
 
@@ -193,10 +180,6 @@ impl tonic::service::Interceptor for SessionHeader {
     fn call(&mut self, mut req: tonic::Request<()>) -> Result<tonic::Request<()>, tonic::Status> {
         if let Some(s) = &self.session {
             req.metadata_mut().insert(SESSION_KEY, s.clone());
-        }
-        if let Some(t) = &self.token {
-            req.metadata_mut()
-                .insert(crate::token::TOKEN_KEY, t.value().clone());
         }
         Ok(req)
     }
@@ -253,15 +236,42 @@ pub(crate) async fn hello(
         .connect()
         .await
         .map_err(|e| err(root_cause(&e)))?;
-    let mut client = WorkerClient::with_interceptor(channel.clone(), SessionHeader::hello(token))
+    let mut client = WorkerClient::with_interceptor(channel.clone(), SessionHeader::none())
         .max_decoding_message_size(wire::MAX_MESSAGE_BYTES)
         .max_encoding_message_size(wire::MAX_MESSAGE_BYTES);
+    let refused = |msg: String| ClusterError::Refused {
+        addr: addr.to_string(),
+        msg,
+    };
+    // With a token: the worker's challenge, and a nonce of this side's
+    // for the worker to prove the token back over.
+    let mut request = pb::HelloRequest {
+        protocol_version: wire::PROTOCOL_VERSION,
+        fiber_width: fiber.width(),
+        fiber_opacity: fiber.opacity(),
+        ..Default::default()
+    };
+    if let Some(token) = token {
+        let challenge = client
+            .challenge(pb::ChallengeRequest {})
+            .await
+            .map_err(|s| match s.code() {
+                tonic::Code::Unimplemented => refused(
+                    "the worker gives no challenge: it speaks an older wisplight protocol, or \
+                     this address serves no wisplight worker"
+                        .into(),
+                ),
+                _ => err(WorkerError::from(s).message),
+            })?
+            .into_inner()
+            .nonce;
+        let mine = crate::token::nonce().map_err(|e| ClusterError::Setup(e.to_string()))?;
+        request.proof = token::prove(token.key(), Purpose::Hello, &[&challenge, &mine]);
+        request.challenge = challenge;
+        request.client_nonce = mine.to_vec();
+    }
     let reply = client
-        .hello(pb::HelloRequest {
-            protocol_version: wire::PROTOCOL_VERSION,
-            fiber_width: fiber.width(),
-            fiber_opacity: fiber.opacity(),
-        })
+        .hello(request.clone())
         .await
         .map_err(|s| {
             let e = WorkerError::from(s);
@@ -304,11 +314,27 @@ pub(crate) async fn hello(
             reply.session
         )));
     };
+    // The worker proves the token back before anything is sent to it.
+    if let Some(token) = token {
+        let parts: [&[u8]; 2] = [&request.client_nonce, reply.session.as_bytes()];
+        if reply.proof.is_empty() {
+            return Err(refused(
+                "the worker has no cluster token while this coordinator has one: start \
+                 both with the same --token (or WISPLIGHT_TOKEN)"
+                    .into(),
+            ));
+        }
+        if !token::proves(token.key(), Purpose::Worker, &parts, &reply.proof) {
+            return Err(refused(
+                "the worker did not prove the cluster's token: its token is another".into(),
+            ));
+        }
+    }
     tracing::info!(addr, worker = reply.worker, "worker ready");
     Ok(Remote {
         addr: addr.to_string(),
         session: reply.session.clone(),
-        client: WorkerClient::with_interceptor(channel, header.with_token(token))
+        client: WorkerClient::with_interceptor(channel, header)
             .max_decoding_message_size(wire::MAX_MESSAGE_BYTES)
             .max_encoding_message_size(wire::MAX_MESSAGE_BYTES),
     })
@@ -447,7 +473,7 @@ mod tests {
         Remote {
             addr: addr.into(),
             session: "s".into(),
-            client: WorkerClient::with_interceptor(channel, SessionHeader::hello(None)),
+            client: WorkerClient::with_interceptor(channel, SessionHeader::none()),
         }
     }
 

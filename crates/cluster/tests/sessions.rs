@@ -62,6 +62,7 @@ fn hello(fiber_width: f32) -> pb::HelloRequest {
         protocol_version: protocol::PROTOCOL_VERSION,
         fiber_width,
         fiber_opacity: 0.5,
+        ..Default::default()
     }
 }
 
@@ -496,6 +497,45 @@ fn a_worker_with_a_token_serves_only_coordinators_that_show_it() {
         let e = connect(token).unwrap_err().to_string();
         assert!(e.contains("token"), "{token:?}: {e}");
     }
+    // A coordinator with a token sends nothing to a worker that cannot
+    // prove it: one without a token is refused too.
+    let (open, _stop_open) = common::start_worker_with(Listen::default());
+    let e = RemoteExecutor::connect(
+        &[open.to_string()],
+        &scene(DANCE),
+        &Options {
+            deadline: Duration::from_secs(20),
+            connect_timeout: Duration::from_secs(5),
+            tls: None,
+            token: Some(cluster::Token::new(TOKEN).unwrap()),
+            draw: DrawAt::SortLast,
+        },
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("has no cluster token"), "{e}");
+    // A Hello may not replay a challenge: each is good once.
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let mut c = client(a).await;
+        let challenge = c
+            .challenge(pb::ChallengeRequest {})
+            .await
+            .unwrap()
+            .into_inner()
+            .nonce;
+        let mine = [1u8; 16];
+        let proved = pb::HelloRequest {
+            proof: common::proof(TOKEN.as_bytes(), "wisplight hello", &[&challenge, &mine]),
+            challenge,
+            client_nonce: mine.to_vec(),
+            ..hello(0.1)
+        };
+        c.hello(proved.clone()).await.unwrap();
+        let e = c.hello(proved).await.unwrap_err();
+        assert_eq!(e.code(), tonic::Code::Unauthenticated);
+        assert!(e.message().contains("challenge"), "{}", e.message());
+    });
     // The right one: the same pictures as one process.
     let s = scene(DANCE);
     let mut seq = Sequence::new(&s).unwrap();

@@ -138,6 +138,7 @@ fn a_worker_refuses_another_protocol_version_and_calls_before_hello() {
                 protocol_version: protocol::PROTOCOL_VERSION + 1,
                 fiber_width: 0.1,
                 fiber_opacity: 0.5,
+                ..Default::default()
             })
             .await
             .unwrap_err();
@@ -373,6 +374,7 @@ fn undecodable_bytes_and_unphysical_fibers_are_invalid_arguments() {
                     protocol_version: protocol::PROTOCOL_VERSION,
                     fiber_width: width,
                     fiber_opacity: opacity,
+                    ..Default::default()
                 })
                 .await
                 .unwrap_err();
@@ -385,6 +387,7 @@ fn undecodable_bytes_and_unphysical_fibers_are_invalid_arguments() {
                 protocol_version: protocol::PROTOCOL_VERSION,
                 fiber_width: 0.1,
                 fiber_opacity: 0.0,
+                ..Default::default()
             })
             .await
             .unwrap();
@@ -1347,6 +1350,102 @@ fn two_worker_round(peers: Vec<String>) -> pb::DensityChunk {
             ..Default::default()
         }),
         ..Default::default()
+    }
+}
+
+/// Every byte each connection to a listener sent in its first `secs`
+/// seconds: the listener accepts and reads, and never answers.
+fn recording_listener(secs: u64) -> (String, std::thread::JoinHandle<Vec<Vec<u8>>>) {
+    let l = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = l.local_addr().unwrap().to_string();
+    l.set_nonblocking(true).unwrap();
+    let seen = std::thread::spawn(move || {
+        use std::io::Read;
+        let until = std::time::Instant::now() + Duration::from_secs(secs);
+        let mut conns: Vec<(std::net::TcpStream, Vec<u8>)> = Vec::new();
+        while std::time::Instant::now() < until {
+            if let Ok((s, _)) = l.accept() {
+                s.set_read_timeout(Some(Duration::from_millis(10))).unwrap();
+                conns.push((s, Vec::new()));
+            }
+            for (s, got) in &mut conns {
+                let mut buf = [0u8; 65536];
+                if let Ok(n) = s.read(&mut buf) {
+                    got.extend_from_slice(&buf[..n]);
+                }
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        conns.into_iter().map(|(_, got)| got).collect()
+    });
+    (addr, seen)
+}
+
+#[test]
+fn a_listener_named_as_a_peer_sees_no_hair_and_no_token() {
+    // A listener that is no worker is named as a peer by the session's
+    // own Assign (so the plan passes the session's check). Before the
+    // worker sends it anything it asks it to prove it belongs to the
+    // cluster (Prove): the listener sees that question alone, a few
+    // hundred bytes with neither the token nor any hair. Sending the
+    // round's density straight away would show it some 64 KiB of it (the
+    // HTTP/2 window), as this map's half of the columns holds more.
+    const TOKEN: &str = "peer-test-token-0123456789";
+    for token in [None, Some(TOKEN)] {
+        let (addr, _stop) = common::start_worker_with(cluster::Listen {
+            token: token.map(|t| cluster::Token::new(t).unwrap()),
+            ..cluster::Listen::default()
+        });
+        let (stray, seen) = recording_listener(3);
+        let rt = tokio::runtime::Runtime::new().unwrap();
+        let e = rt.block_on(async {
+            let mut c = match token {
+                Some(t) => common::proved_client(addr, t).await,
+                None => greeted_client(addr).await,
+            };
+            let peers = vec![addr.to_string(), stray.clone()];
+            let (_, _, pose) = assign_at_rest_with_peers(&mut c, None, peers.clone()).await;
+            c.pose(pose).await.unwrap();
+            // A map fitted to the hair, 64 cells a side.
+            let scene = Scene::from_toml_str(DANCE, std::path::Path::new("d")).unwrap();
+            let hair = engine::Animator::new(&scene).unwrap();
+            let b = hair.hair().bounds();
+            let light = Light::directional(Vec3::NEG_Y).unwrap();
+            let size = (b.max - b.min).max_element() * 1.2;
+            let frame = LightFrame::centered(&light, (b.min + b.max) / 2.0, size, 64).unwrap();
+            let mut round = two_worker_round(peers);
+            round.map = Some(protocol::frame_to_pb(&frame));
+            let columns = frame.columns() as u32;
+            if let Some(p) = &mut round.columns {
+                p.cuts = vec![0, columns / 2, columns];
+            }
+            match c.density(tokio_stream::iter(vec![round])).await {
+                Ok(r) => {
+                    let mut s = r.into_inner();
+                    loop {
+                        match s.message().await {
+                            Ok(Some(_)) => continue,
+                            Ok(None) => break "the round ended".to_string(),
+                            Err(e) => break e.message().to_string(),
+                        }
+                    }
+                }
+                Err(e) => e.message().to_string(),
+            }
+        });
+        assert!(e.contains("took no part"), "{token:?}: {e}");
+        let seen = seen.join().unwrap();
+        let bytes: usize = seen.iter().map(Vec::len).sum();
+        assert!(
+            bytes > 0,
+            "{token:?}: the worker asked the listener to prove itself"
+        );
+        assert!(bytes < 2048, "{token:?}: the listener saw {bytes} bytes");
+        let all: Vec<u8> = seen.concat();
+        assert!(
+            !all.windows(TOKEN.len()).any(|w| w == TOKEN.as_bytes()),
+            "{token:?}: the token crossed the wire"
+        );
     }
 }
 

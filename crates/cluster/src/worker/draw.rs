@@ -55,16 +55,37 @@ impl WorkerService {
                 .map_err(|_| status(Kind::Internal, "a new channel refused its first chunk"))?;
             *slot = Some(tx);
             let (failed, addr) = (failed.clone(), addr.clone());
+            let (sid, token, proven) = (sid.clone(), self.token.clone(), self.proven.clone());
             tokio::spawn(async move {
-                let stream = tokio_stream::wrappers::ReceiverStream::new(rx);
-                if let Err(s) = client.composite(stream).await
+                // Nothing is sent to a peer that did not prove it belongs
+                // to the cluster.
+                let sent = match super::proof::prove_peer(
+                    &mut client,
+                    &addr,
+                    &sid,
+                    token.as_ref(),
+                    &proven,
+                )
+                .await
+                {
+                    Ok(()) => {
+                        let stream = tokio_stream::wrappers::ReceiverStream::new(rx);
+                        client
+                            .composite(stream)
+                            .await
+                            .map(|_| ())
+                            .map_err(|s| format!("{:?}: {}", s.code(), s.message()))
+                    }
+                    Err(e) => Err(e),
+                };
+                if let Err(why) = sent
                     && let Ok(mut f) = failed.lock()
                 {
                     // One answer whatever the cause (a closed port, a
-                    // silent one, another server): the caller learns
-                    // nothing of the address but that it did not take
-                    // part. The cause is in this worker's log.
-                    tracing::warn!(band = b, %addr, code = ?s.code(), message = s.message(), "a peer did not take this worker's stripes");
+                    // silent one, another server, no proof): the caller
+                    // learns nothing of the address but that it did not
+                    // take part. The cause is in this worker's log.
+                    tracing::warn!(band = b, %addr, why, "a peer did not take this worker's stripes");
                     f.get_or_insert(no_part(b));
                 }
             });

@@ -65,7 +65,7 @@ pub async fn serve_worker(
     // credentials they serve with.
     let mut service = service;
     service.peer_tls = listen.tls.clone();
-    service.peer_token = listen.token.clone();
+    service.token = listen.token.clone();
     // Each accepted connection counted while open, for the sessions whose
     // coordinator went away.
     let incoming = {
@@ -86,12 +86,9 @@ pub async fn serve_worker(
             }
         })
     };
-    let worker = tonic::service::interceptor::InterceptedService::new(
-        WorkerServer::from_arc(service)
-            .max_decoding_message_size(wire::MAX_MESSAGE_BYTES)
-            .max_encoding_message_size(wire::MAX_MESSAGE_BYTES),
-        crate::token::RequireToken(listen.token.clone()),
-    );
+    let worker = WorkerServer::from_arc(service)
+        .max_decoding_message_size(wire::MAX_MESSAGE_BYTES)
+        .max_encoding_message_size(wire::MAX_MESSAGE_BYTES);
     let mut server = tonic::transport::Server::builder();
     if let Some(t) = &listen.tls {
         server = server

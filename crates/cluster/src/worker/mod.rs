@@ -19,6 +19,7 @@ mod exchange;
 mod inbox;
 mod listen;
 mod memory;
+mod proof;
 mod session;
 mod share;
 mod status;
@@ -102,8 +103,13 @@ pub struct WorkerService {
     /// The credentials this worker serves with, to call other workers
     /// with when they composite a picture together.
     peer_tls: Option<Tls>,
-    /// The token this worker shows its peers.
-    peer_token: Option<crate::Token>,
+    /// The cluster's token, when the worker was given one: what a Hello
+    /// proves, and what this worker proves to its peers and asks them to.
+    token: Option<crate::Token>,
+    /// Challenges given for a Hello to prove the token over.
+    challenges: proof::Challenges,
+    /// Fellow workers' sessions that proved they belong to the cluster.
+    proven: proof::SharedProven,
     /// The connections clients hold open, to end the sessions of those
     /// gone.
     connections: Arc<connections::Connections>,
@@ -122,11 +128,25 @@ impl Default for WorkerService {
 
 #[tonic::async_trait]
 impl Worker for WorkerService {
+    async fn challenge(
+        &self,
+        req: Request<pb::ChallengeRequest>,
+    ) -> Result<Response<pb::ChallengeReply>, Status> {
+        self.challenge_call(req).await
+    }
+
     async fn hello(
         &self,
         req: Request<pb::HelloRequest>,
     ) -> Result<Response<pb::HelloReply>, Status> {
         self.hello_call(req).await
+    }
+
+    async fn prove(
+        &self,
+        req: Request<pb::ProveRequest>,
+    ) -> Result<Response<pb::ProveReply>, Status> {
+        self.prove_call(req).await
     }
 
     async fn end(&self, req: Request<pb::EndRequest>) -> Result<Response<pb::EndReply>, Status> {

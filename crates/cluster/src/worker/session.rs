@@ -106,7 +106,9 @@ impl WorkerService {
             memory: Memory::new(limits.max_memory, "this worker's", "--max-memory-mib"),
             limits,
             peer_tls: None,
-            peer_token: None,
+            token: None,
+            challenges: Default::default(),
+            proven: Default::default(),
             connections: Arc::default(),
             peers: Mutex::default(),
             expired: Mutex::default(),
@@ -143,12 +145,11 @@ impl WorkerService {
                 c
             }
         };
-        Ok(crate::pb::worker_client::WorkerClient::with_interceptor(
-            channel,
-            header.with_token(self.peer_token.as_ref()),
+        Ok(
+            crate::pb::worker_client::WorkerClient::with_interceptor(channel, header)
+                .max_decoding_message_size(wire::MAX_MESSAGE_BYTES)
+                .max_encoding_message_size(wire::MAX_MESSAGE_BYTES),
         )
-        .max_decoding_message_size(wire::MAX_MESSAGE_BYTES)
-        .max_encoding_message_size(wire::MAX_MESSAGE_BYTES))
     }
 
     /// What a call of `session` may take: from its budget and the worker's.
@@ -300,6 +301,7 @@ impl WorkerService {
                     ),
                 ));
             }
+            self.check_hello(&r)?;
             let fiber = Fiber::new(r.fiber_width, r.fiber_opacity)
                 .map_err(|e| status(Kind::Invalid, e.to_string()))?;
             self.end_idle();
@@ -342,6 +344,7 @@ impl WorkerService {
             Ok(Response::new(pb::HelloReply {
                 protocol_version: wire::PROTOCOL_VERSION,
                 worker: format!("wisplight-worker {}", env!("CARGO_PKG_VERSION")),
+                proof: self.hello_proof(&r, &id),
                 session: id,
             }))
         };
