@@ -4,13 +4,14 @@
 //!
 //! Each live worker owns a contiguous share of the hair's groups (whole
 //! wisps, weighted by their drawn strands) and, per sweep, a contiguous
-//! share of the columns (weighted by their occupied cells). With
-//! [`DrawAt::SortLast`] (the default) a worker also poses, filters, shades
-//! and rasterizes its strands into a partial picture, and the workers
-//! composite the picture among themselves, each resolving bands of rows
-//! it owns from the others' stripes (one worker's, or a round that failed,
-//! the coordinator composites); with [`DrawAt::Coordinator`] (the paper's scheme) the
-//! coordinator poses and draws every strand from the wisps' states. When a
+//! share of the columns (weighted by their occupied cells). Each frame is
+//! planned once ([`Scheme`], `choose.rs`): drawn on the workers, each
+//! posing, filtering and shading its strands and the workers finishing
+//! bands of rows among themselves from the others' stripes (their shaded
+//! segments, sort-middle, or partial pictures, sort-last; one worker's,
+//! or a round that failed, the coordinator composites), or drawn on the
+//! coordinator (the paper's scheme), which poses and draws every strand
+//! from the wisps' states. When a
 //! worker fails a call (it died, missed the deadline, or sent something
 //! malformed) it is dropped: its share goes to the survivors with the
 //! state the coordinator gathered last, they pose it again, and the stage
@@ -18,8 +19,8 @@
 
 mod choose;
 mod draw;
-mod fill;
 mod lights;
+mod maps;
 mod step;
 
 use choose::Chooser;
@@ -147,8 +148,9 @@ pub struct RemoteExecutor {
     timing: Arc<Mutex<Timing>>,
     /// The scene the workers build their shares from.
     source: SceneSource,
-    /// Whether lookups filter (the workers' columns read depend on it).
-    filter: bool,
+    /// Whether the filter stage interpolates trilinearly (the columns a
+    /// worker reads depend on it).
+    trilinear: bool,
     hair: Option<SharedHair>,
     /// Each live worker's groups, once assigned.
     shares: Option<Vec<Range<usize>>>,
@@ -336,7 +338,7 @@ impl RemoteExecutor {
             calls: 0,
             traffic: Arc::new(Mutex::new(Traffic::default())),
             timing: Arc::new(Mutex::new(Timing::default())),
-            filter: scene.shadow.method.filter(),
+            trilinear: scene.shadow.method.filter(),
             lights: vec![LightState::default(); scene.lights.len()],
             composite: Collective::default(),
             exchange: Collective::default(),

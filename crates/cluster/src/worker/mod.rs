@@ -7,13 +7,13 @@
 //!
 //! The service's impl below only dispatches; each call lives with its
 //! concept: Hello and End in `session.rs`, Assign in `assign.rs`, Step
-//! and Pose in `step.rs`, Density in `deposit.rs` (and its rounds among
+//! and Pose in `step.rs`, Density in `density.rs` (and its rounds among
 //! the workers in `exchange.rs`, with Exchange), Transmittance in
-//! `sweep.rs`, Draw and Composite in `draw.rs`.
+//! `transmittance.rs`, Draw and Composite in `draw.rs`.
 
 mod assign;
 mod connections;
-mod deposit;
+mod density;
 mod draw;
 mod exchange;
 mod inbox;
@@ -24,8 +24,8 @@ mod session;
 mod share;
 mod status;
 mod step;
-mod sweep;
 mod swept;
+mod transmittance;
 
 pub use listen::{Bound, Listen, run_worker, serve_worker};
 use memory::*;
@@ -159,7 +159,7 @@ impl Worker for WorkerService {
         &self,
         req: Request<Streaming<pb::DensityChunk>>,
     ) -> Result<Response<Self::DensityStream>, Status> {
-        self.deposit_call(req).await
+        self.density_call(req).await
     }
 
     async fn assign(

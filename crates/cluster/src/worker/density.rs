@@ -17,7 +17,7 @@ use strands::Hair;
 use tonic::{Request, Response, Status, Streaming};
 
 impl WorkerService {
-    pub(super) async fn deposit_call(
+    pub(super) async fn density_call(
         &self,
         req: Request<Streaming<pb::DensityChunk>>,
     ) -> Result<Response<Chunks<pb::ColumnChunk>>, Status> {

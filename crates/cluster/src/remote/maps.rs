@@ -1,4 +1,4 @@
-//! The coordinator's shadow calls: filling the density map (Density), with the workers summing and sweeping it among themselves or here, and the sweep (Transmittance).
+//! The coordinator's calls of the shadow maps: the density stage (Density), with the workers summing and sweeping each map among themselves or here, and the transmittance stage's sweep (Transmittance).
 
 use super::*;
 
@@ -36,7 +36,7 @@ impl RemoteExecutor {
                             map: Some(wire::frame_to_pb(frame)),
                             posed: true,
                             version: version.unwrap_or_default(),
-                            trilinear: self.filter,
+                            trilinear: self.trilinear,
                             ..Default::default()
                         };
                         (w.clone(), vec![c])
@@ -120,7 +120,7 @@ impl RemoteExecutor {
                 map: Some(wire::frame_to_pb(&frame)),
                 posed: true,
                 version,
-                trilinear: self.filter,
+                trilinear: self.trilinear,
                 columns: Some(plan.to_pb()),
                 ..Default::default()
             };
