@@ -65,10 +65,10 @@ const CYCLES_UNSHADOWED_PNG: &str = "cycles-unshadowed.png";
 pub fn sweep() -> Vec<MethodConfig> {
     let mut v = Vec::new();
     for cells in [32, 64, 128, 256] {
-        for filter in [true, false] {
+        for trilinear in [true, false] {
             v.push(MethodConfig::DensityMap {
                 cells,
-                filter,
+                trilinear,
                 contact: 0.0,
             });
         }
@@ -86,7 +86,7 @@ pub fn sweep() -> Vec<MethodConfig> {
     ] {
         v.push(MethodConfig::DensityMap {
             cells,
-            filter: true,
+            trilinear: true,
             contact,
         });
     }
@@ -95,7 +95,7 @@ pub fn sweep() -> Vec<MethodConfig> {
         slices,
         mode,
         offset,
-        filter: true,
+        trilinear: true,
     };
     let exp = OpacityMode::Exponential { kappa: 1.0 };
     for slices in [4, 16, 64, 256] {
@@ -108,7 +108,7 @@ pub fn sweep() -> Vec<MethodConfig> {
         layers,
         layer_cells,
         beyond,
-        filter: true,
+        trilinear: true,
     };
     for layers in [2, 3, 4, 8] {
         v.push(dom(layers, 4.0, Beyond::LastLayer));
@@ -119,14 +119,14 @@ pub fn sweep() -> Vec<MethodConfig> {
         v.push(MethodConfig::DensityClustering {
             resolution,
             clusters: 4,
-            filter: true,
+            trilinear: true,
         });
     }
     for (resolution, tolerance) in [(64, 0.01), (128, 0.01), (256, 0.01), (128, 0.05)] {
         v.push(MethodConfig::DeepShadowMap {
             resolution,
             tolerance,
-            filter: true,
+            trilinear: true,
         });
     }
     v

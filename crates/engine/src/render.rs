@@ -322,7 +322,7 @@ impl Renderer {
             shading: s.shading,
             lights: self.lights(),
             shadows,
-            trilinear: s.shadow.method.filter(),
+            trilinear: s.shadow.method.trilinear(),
             head: self.shadows.head_pose(),
             nearest: s.render.nearest,
         })

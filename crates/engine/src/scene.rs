@@ -216,7 +216,7 @@ impl ShadowSettings {
     /// resolution and the filter switch. `None` for an unknown name.
     pub fn switch_to(&self, name: &str) -> Option<ShadowSettings> {
         let mut m = MethodConfig::with_defaults(name, self.cells())?;
-        m.set_filter(self.method.filter());
+        m.set_trilinear(self.method.trilinear());
         Some(ShadowSettings { method: m })
     }
 }

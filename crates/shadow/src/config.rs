@@ -63,7 +63,7 @@ pub enum MethodConfig {
         /// Cells a side.
         cells: u32,
         /// Trilinear lookups (else the cell's own value).
-        filter: bool,
+        trilinear: bool,
         /// Contact shadows: the fibers within this many cells of a drawn
         /// point towards the light counted exactly, one ray a point, the
         /// map beyond them (`crate::contact`); 0: the map alone.
@@ -83,7 +83,7 @@ pub enum MethodConfig {
         /// Lookup shift towards the light, in slice spacings.
         offset: f32,
         /// Bilinear lookups between pixels (else the nearest pixel).
-        filter: bool,
+        trilinear: bool,
     },
     /// Yuksel and Keyser 2008: per pixel, `layers` layers of
     /// `layer_cells` cells each, starting at the pixel's first hair.
@@ -97,7 +97,7 @@ pub enum MethodConfig {
         /// What hair past the last layer does.
         beyond: Beyond,
         /// Bilinear lookups between pixels (else the nearest pixel).
-        filter: bool,
+        trilinear: bool,
     },
     /// Mertens et al. 2004: per pixel, one k-means iteration over the
     /// fragments' depths, one histogram bin of `mu +- sqrt(3) sigma` per
@@ -108,7 +108,7 @@ pub enum MethodConfig {
         /// Depth clusters (bins) per pixel, 1 to 16.
         clusters: u32,
         /// Bilinear lookups between pixels (else the nearest pixel).
-        filter: bool,
+        trilinear: bool,
     },
     /// Lokovic and Veach 2000: per pixel, the visibility function of all
     /// fragments, compressed to a piecewise linear function within
@@ -119,7 +119,7 @@ pub enum MethodConfig {
         /// Largest error of the compressed visibility, in transmittance, [0, 1).
         tolerance: f32,
         /// Bilinear lookups between pixels (else the nearest pixel).
-        filter: bool,
+        trilinear: bool,
     },
     /// The exact reference (see [`crate::Reference`]): `rays` rays across
     /// each fiber's width to the light, each tested against the other
@@ -157,7 +157,7 @@ impl MethodConfig {
         Some(match name {
             "density-map" => MethodConfig::DensityMap {
                 cells,
-                filter: true,
+                trilinear: true,
                 contact: 0.0,
             },
             "opacity-shadow-map" => MethodConfig::OpacityShadowMap {
@@ -165,24 +165,24 @@ impl MethodConfig {
                 slices: 64,
                 mode: OpacityMode::Exponential { kappa: 1.0 },
                 offset: 0.0,
-                filter: true,
+                trilinear: true,
             },
             "deep-opacity-map" => MethodConfig::DeepOpacityMap {
                 resolution: cells,
                 layers: 4,
                 layer_cells: 4.0,
                 beyond: Beyond::LastLayer,
-                filter: true,
+                trilinear: true,
             },
             "density-clustering" => MethodConfig::DensityClustering {
                 resolution: cells,
                 clusters: 4,
-                filter: true,
+                trilinear: true,
             },
             "deep-shadow-map" => MethodConfig::DeepShadowMap {
                 resolution: cells,
                 tolerance: 0.01,
-                filter: true,
+                trilinear: true,
             },
             "reference" => MethodConfig::Reference { rays: 4 },
             "footprint-reference" => MethodConfig::FootprintReference {
@@ -234,25 +234,25 @@ impl MethodConfig {
 
     /// Whether lookups interpolate between cells (the reference always
     /// averages over its footprint).
-    pub fn filter(&self) -> bool {
+    pub fn trilinear(&self) -> bool {
         match *self {
-            MethodConfig::DensityMap { filter, .. }
-            | MethodConfig::OpacityShadowMap { filter, .. }
-            | MethodConfig::DeepOpacityMap { filter, .. }
-            | MethodConfig::DensityClustering { filter, .. }
-            | MethodConfig::DeepShadowMap { filter, .. } => filter,
+            MethodConfig::DensityMap { trilinear, .. }
+            | MethodConfig::OpacityShadowMap { trilinear, .. }
+            | MethodConfig::DeepOpacityMap { trilinear, .. }
+            | MethodConfig::DensityClustering { trilinear, .. }
+            | MethodConfig::DeepShadowMap { trilinear, .. } => trilinear,
             MethodConfig::Reference { .. } | MethodConfig::FootprintReference { .. } => true,
         }
     }
 
     /// Turns filtering on or off (the reference has no switch).
-    pub fn set_filter(&mut self, on: bool) {
+    pub fn set_trilinear(&mut self, on: bool) {
         match self {
-            MethodConfig::DensityMap { filter, .. }
-            | MethodConfig::OpacityShadowMap { filter, .. }
-            | MethodConfig::DeepOpacityMap { filter, .. }
-            | MethodConfig::DensityClustering { filter, .. }
-            | MethodConfig::DeepShadowMap { filter, .. } => *filter = on,
+            MethodConfig::DensityMap { trilinear, .. }
+            | MethodConfig::OpacityShadowMap { trilinear, .. }
+            | MethodConfig::DeepOpacityMap { trilinear, .. }
+            | MethodConfig::DensityClustering { trilinear, .. }
+            | MethodConfig::DeepShadowMap { trilinear, .. } => *trilinear = on,
             MethodConfig::Reference { .. } | MethodConfig::FootprintReference { .. } => {}
         }
     }
@@ -377,13 +377,13 @@ impl MethodConfig {
         match *self {
             MethodConfig::DensityMap {
                 cells,
-                filter,
+                trilinear,
                 contact,
             } => {
                 if contact > 0.0 {
-                    format!("cells={cells} filter={filter} contact={contact}")
+                    format!("cells={cells} filter={trilinear} contact={contact}")
                 } else {
-                    format!("cells={cells} filter={filter}")
+                    format!("cells={cells} filter={trilinear}")
                 }
             }
             MethodConfig::OpacityShadowMap {
@@ -391,14 +391,14 @@ impl MethodConfig {
                 slices,
                 mode,
                 offset,
-                filter,
+                trilinear,
             } => {
                 let mode = match mode {
                     OpacityMode::Linear => "linear".to_string(),
                     OpacityMode::Exponential { kappa } => format!("exponential kappa={kappa}"),
                 };
                 format!(
-                    "resolution={resolution} slices={slices} mode={mode} offset={offset} filter={filter}"
+                    "resolution={resolution} slices={slices} mode={mode} offset={offset} filter={trilinear}"
                 )
             }
             MethodConfig::DeepOpacityMap {
@@ -406,21 +406,21 @@ impl MethodConfig {
                 layers,
                 layer_cells,
                 beyond,
-                filter,
+                trilinear,
             } => format!(
-                "resolution={resolution} layers={layers} layer_cells={layer_cells} beyond={} filter={filter}",
+                "resolution={resolution} layers={layers} layer_cells={layer_cells} beyond={} filter={trilinear}",
                 beyond.name()
             ),
             MethodConfig::DensityClustering {
                 resolution,
                 clusters,
-                filter,
-            } => format!("resolution={resolution} clusters={clusters} filter={filter}"),
+                trilinear,
+            } => format!("resolution={resolution} clusters={clusters} filter={trilinear}"),
             MethodConfig::DeepShadowMap {
                 resolution,
                 tolerance,
-                filter,
-            } => format!("resolution={resolution} tolerance={tolerance} filter={filter}"),
+                trilinear,
+            } => format!("resolution={resolution} tolerance={tolerance} filter={trilinear}"),
             MethodConfig::Reference { rays } => format!("rays={rays}"),
             MethodConfig::FootprintReference { footprint, rays } => match footprint {
                 Some(f) => format!("footprint={f} rays={rays}"),
@@ -447,7 +447,7 @@ mod tests {
             slices: 1,
             mode: OpacityMode::Linear,
             offset: 0.0,
-            filter: true,
+            trilinear: true,
         };
         assert!(matches!(
             bad.validate(),

@@ -70,45 +70,45 @@ impl ShadowMethod {
         Ok(match *config {
             MethodConfig::DensityMap {
                 cells,
-                filter,
+                trilinear,
                 contact,
             } => ShadowMethod::DensityMap(
-                DensityMapMethod::new(cells, filter)?.with_contact(contact)?,
+                DensityMapMethod::new(cells, trilinear)?.with_contact(contact)?,
             ),
             MethodConfig::OpacityShadowMap {
                 resolution,
                 slices,
                 mode,
                 offset,
-                filter,
+                trilinear,
             } => ShadowMethod::OpacityShadowMap(OpacityShadowMap::new(
-                resolution, slices, mode, offset, filter,
+                resolution, slices, mode, offset, trilinear,
             )),
             MethodConfig::DeepOpacityMap {
                 resolution,
                 layers,
                 layer_cells,
                 beyond,
-                filter,
+                trilinear,
             } => ShadowMethod::DeepOpacityMap(DeepOpacityMap::new(
                 resolution,
                 layers,
                 layer_cells,
                 beyond,
-                filter,
+                trilinear,
             )),
             MethodConfig::DensityClustering {
                 resolution,
                 clusters,
-                filter,
+                trilinear,
             } => ShadowMethod::DensityClustering(DensityClustering::new(
-                resolution, clusters, filter,
+                resolution, clusters, trilinear,
             )),
             MethodConfig::DeepShadowMap {
                 resolution,
                 tolerance,
-                filter,
-            } => ShadowMethod::DeepShadowMap(DeepShadowMap::new(resolution, tolerance, filter)),
+                trilinear,
+            } => ShadowMethod::DeepShadowMap(DeepShadowMap::new(resolution, tolerance, trilinear)),
             MethodConfig::Reference { rays } => ShadowMethod::Reference(Reference::new(rays)),
             MethodConfig::FootprintReference { footprint, rays } => {
                 ShadowMethod::FootprintReference(FootprintReference::new(footprint, rays))
@@ -205,7 +205,7 @@ impl ShadowMethod {
 #[derive(Debug)]
 pub struct DensityMapMethod {
     cells: u32,
-    filter: bool,
+    trilinear: bool,
     /// Contact distance, cells (0: none).
     contact: f32,
     eye: Option<Vec3>,
@@ -216,16 +216,16 @@ pub struct DensityMapMethod {
 
 impl DensityMapMethod {
     /// A map of `cells` a side, its lookups filtered trilinearly or not.
-    pub fn new(cells: u32, filter: bool) -> Result<DensityMapMethod, ShadowError> {
+    pub fn new(cells: u32, trilinear: bool) -> Result<DensityMapMethod, ShadowError> {
         MethodConfig::DensityMap {
             cells,
-            filter,
+            trilinear,
             contact: 0.0,
         }
         .validate()?;
         Ok(DensityMapMethod {
             cells,
-            filter,
+            trilinear,
             contact: 0.0,
             eye: None,
             map: None,
@@ -239,7 +239,7 @@ impl DensityMapMethod {
     pub fn with_contact(mut self, cells: f32) -> Result<DensityMapMethod, ShadowError> {
         MethodConfig::DensityMap {
             cells: self.cells,
-            filter: self.filter,
+            trilinear: self.trilinear,
             contact: cells,
         }
         .validate()?;
@@ -351,8 +351,8 @@ impl DensityMapMethod {
             .as_ref()
             .expect("the transmittance stage runs before lookups");
         match &self.near {
-            Some(c) => c.at(p, |q| trans.transmittance_at(q, self.filter)),
-            None => trans.transmittance_at(p, self.filter),
+            Some(c) => c.at(p, |q| trans.transmittance_at(q, self.trilinear)),
+            None => trans.transmittance_at(p, self.trilinear),
         }
     }
 
@@ -363,8 +363,8 @@ impl DensityMapMethod {
             .as_ref()
             .expect("the transmittance stage runs before lookups");
         match &self.near {
-            Some(c) => c.at(p, |q| trans.transmittance_at_drawn(q, self.filter)),
-            None => trans.transmittance_at_drawn(p, self.filter),
+            Some(c) => c.at(p, |q| trans.transmittance_at_drawn(q, self.trilinear)),
+            None => trans.transmittance_at_drawn(p, self.trilinear),
         }
     }
 
@@ -374,7 +374,7 @@ impl DensityMapMethod {
             .as_ref()
             .expect("the transmittance stage runs before lookups");
         let Some(near) = &self.near else {
-            return trans.filter(points, self.filter, out);
+            return trans.filter(points, self.trilinear, out);
         };
         const CHUNK: usize = 2048;
         out.par_chunks_mut(CHUNK)
@@ -383,7 +383,7 @@ impl DensityMapMethod {
             .for_each(|(c, (o, p))| {
                 for (i, (o, &p)) in o.iter_mut().zip(p).enumerate() {
                     *o = near.at_drawn(c * CHUNK + i, p, self.eye, |q| {
-                        trans.transmittance_at_drawn(q, self.filter)
+                        trans.transmittance_at_drawn(q, self.trilinear)
                     });
                 }
             });

@@ -275,20 +275,20 @@ struct Lookup {
 
 impl Lookup {
     #[inline(always)]
-    fn at(frame: &LightFrame, p: Vec3, filter: bool) -> Lookup {
-        Lookup::of_cells(frame, frame.to_cells(p), filter)
+    fn at(frame: &LightFrame, p: Vec3, trilinear: bool) -> Lookup {
+        Lookup::of_cells(frame, frame.to_cells(p), trilinear)
     }
 
     /// The lookup at map coordinates `c` (cells).
     #[inline(always)]
-    fn of_cells(frame: &LightFrame, c: Vec3, filter: bool) -> Lookup {
+    fn of_cells(frame: &LightFrame, c: Vec3, trilinear: bool) -> Lookup {
         let n = frame.n_cells as f32;
         // Shifting by 2 cells keeps the coordinates positive, so truncating
         // casts are floors (`floor` is a libm call on baseline x86-64).
         let c = c.clamp(Vec3::splat(-2.0), Vec3::splat(n + 2.0)) + 2.0;
         let x = c.x - 2.0;
         let centre = (c.x as i32 - 2) as f32 + 0.5;
-        if filter {
+        if trilinear {
             let (fy, fz) = (c.y - 0.5, c.z - 0.5);
             let (j, k) = (fy as i32, fz as i32);
             let (ty, tz) = (fy - j as f32, fz - k as f32);
@@ -318,7 +318,7 @@ impl Lookup {
 /// `c / 64`): what hair drawn elsewhere needs of a map swept elsewhere. A
 /// [`Transmittance`] that holds these columns (and any others) looks the
 /// points up exactly as the whole map does.
-pub fn columns_read(frame: &LightFrame, points: &[Vec3], filter: bool) -> Vec<u64> {
+pub fn columns_read(frame: &LightFrame, points: &[Vec3], trilinear: bool) -> Vec<u64> {
     let n = frame.n_cells as i32;
     let words = frame.columns().div_ceil(64);
     points
@@ -333,9 +333,9 @@ pub fn columns_read(frame: &LightFrame, points: &[Vec3], filter: bool) -> Vec<u6
                     }
                 };
                 for &p in pts {
-                    let at = Lookup::at(frame, p, filter);
+                    let at = Lookup::at(frame, p, trilinear);
                     mark(at.j, at.k);
-                    if filter {
+                    if trilinear {
                         mark(at.j + 1, at.k);
                         mark(at.j, at.k + 1);
                         mark(at.j + 1, at.k + 1);
@@ -575,19 +575,19 @@ impl Transmittance {
     /// front of all hair. Unfiltered: the value at the centre of `p`'s cell
     /// (0 in front of the hair of `p`'s column).
     #[inline(always)]
-    pub fn optical_depth(&self, p: Vec3, filter: bool) -> f32 {
+    pub fn optical_depth(&self, p: Vec3, trilinear: bool) -> f32 {
         debug_assert!(p.is_finite());
-        self.depth_in_cells(self.frame.to_cells(p), filter, 0.0)
+        self.depth_in_cells(self.frame.to_cells(p), trilinear, 0.0)
     }
 
     /// [`Self::optical_depth`] at map coordinates `c` (cells), read
     /// `towards_light` cells nearer the light.
     #[inline(always)]
-    fn depth_in_cells(&self, c: Vec3, filter: bool, towards_light: f32) -> f32 {
+    fn depth_in_cells(&self, c: Vec3, trilinear: bool, towards_light: f32) -> f32 {
         let c = Vec3::new(c.x - towards_light, c.y, c.z);
-        let at = Lookup::of_cells(&self.frame, c, filter);
+        let at = Lookup::of_cells(&self.frame, c, trilinear);
         let (j, k, x) = (at.j, at.k, at.x);
-        if filter {
+        if trilinear {
             let d00 = self.column_depth(j, k, x);
             let d10 = self.column_depth(j + 1, k, x);
             let d01 = self.column_depth(j, k + 1, x);
@@ -612,8 +612,8 @@ impl Transmittance {
     /// Transmittance `T(p) = exp(-D(p))` in [0, 1] at a point in free
     /// space (a probe): the light that reaches `p` through the map.
     #[inline]
-    pub fn transmittance_at(&self, p: Vec3, filter: bool) -> f32 {
-        (-self.optical_depth(p, filter)).exp()
+    pub fn transmittance_at(&self, p: Vec3, trilinear: bool) -> f32 {
+        (-self.optical_depth(p, trilinear)).exp()
     }
 
     /// Transmittance `T(p) = exp(-D(p'))` in [0, 1] at a drawn point (of a
@@ -621,15 +621,15 @@ impl Transmittance {
     /// [`LIT_EDGE_OFFSET`] cells towards the light: what [`Self::filter`]
     /// gives each point.
     #[inline]
-    pub fn transmittance_at_drawn(&self, p: Vec3, filter: bool) -> f32 {
+    pub fn transmittance_at_drawn(&self, p: Vec3, trilinear: bool) -> f32 {
         debug_assert!(p.is_finite());
         let c = self.frame.to_cells(p);
-        (-self.depth_in_cells(c, filter, LIT_EDGE_OFFSET)).exp()
+        (-self.depth_in_cells(c, trilinear, LIT_EDGE_OFFSET)).exp()
     }
 
     /// Transmittance at every drawn point (the filtering stage), in
     /// parallel: [`Self::transmittance_at_drawn`] of each.
-    pub fn filter(&self, points: &[Vec3], filter: bool, out: &mut [f32]) {
+    pub fn filter(&self, points: &[Vec3], trilinear: bool, out: &mut [f32]) {
         assert_eq!(points.len(), out.len());
         out.par_chunks_mut(4096)
             .zip(points.par_chunks(4096))
@@ -638,11 +638,11 @@ impl Transmittance {
                 if self.frame.fan.is_none() {
                     for (o, &p) in o.iter_mut().zip(p) {
                         let c = self.frame.to_cells_parallel(p);
-                        *o = (-self.depth_in_cells(c, filter, LIT_EDGE_OFFSET)).exp();
+                        *o = (-self.depth_in_cells(c, trilinear, LIT_EDGE_OFFSET)).exp();
                     }
                 } else {
                     for (o, &p) in o.iter_mut().zip(p) {
-                        *o = self.transmittance_at_drawn(p, filter);
+                        *o = self.transmittance_at_drawn(p, trilinear);
                     }
                 }
             });

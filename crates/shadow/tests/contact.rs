@@ -16,7 +16,7 @@ const CELLS: u32 = 16;
 fn map(hair: &Hair, light: &Light, contact: f32) -> ShadowMethod {
     let config = MethodConfig::DensityMap {
         cells: CELLS,
-        filter: true,
+        trilinear: true,
         contact,
     };
     common::built(&config, hair, light, W, ALPHA)
@@ -111,7 +111,7 @@ fn contact_distances_out_of_range_are_refused_by_name() {
     for bad in [-1.0, f32::NAN, f32::INFINITY, 16.5] {
         let e = ShadowMethod::new(&MethodConfig::DensityMap {
             cells: 64,
-            filter: true,
+            trilinear: true,
             contact: bad,
         })
         .unwrap_err();
@@ -128,7 +128,7 @@ fn contact_distances_out_of_range_are_refused_by_name() {
     }
     let ok = MethodConfig::DensityMap {
         cells: 64,
-        filter: true,
+        trilinear: true,
         contact: 16.0,
     };
     ok.validate().unwrap();

@@ -279,13 +279,13 @@ fn strands_on_cell_boundaries_cast_an_even_shadow() {
     let want = (-fiber.width() * fiber.opacity() / frame.ds).exp();
     for j in [8.0f32, 8.5, 12.25, 20.0, 23.9] {
         for k in [8.0f32, 16.5, 22.0] {
-            for filter in [true, false] {
-                let front = t.transmittance_at(frame.to_world(Vec3::new(14.5, j, k)), filter);
-                let back = t.transmittance_at(frame.to_world(Vec3::new(18.5, j, k)), filter);
+            for trilinear in [true, false] {
+                let front = t.transmittance_at(frame.to_world(Vec3::new(14.5, j, k)), trilinear);
+                let back = t.transmittance_at(frame.to_world(Vec3::new(18.5, j, k)), trilinear);
                 assert_eq!(front, 1.0, "in front of the sheet at ({j}, {k})");
                 assert!(
                     (back - want).abs() < 1e-3,
-                    "behind the sheet at ({j}, {k}), filter {filter}: T = {back}, want {want}"
+                    "behind the sheet at ({j}, {k}), filter {trilinear}: T = {back}, want {want}"
                 );
             }
         }
@@ -518,13 +518,13 @@ fn a_sheet_at_one_depth_gives_its_known_shadow_in_every_method() {
             layers: 3,
             layer_cells: 0.0,
             beyond,
-            filter: true,
+            trilinear: true,
         });
     }
     configs.push(MethodConfig::DensityClustering {
         resolution: 32,
         clusters: 1,
-        filter: false,
+        trilinear: false,
     });
     // The reference over a footprint of many fiber spacings: the mean.
     for c in configs.iter_mut() {
@@ -599,7 +599,7 @@ fn a_widely_spread_cluster_casts_nothing_in_front_of_its_hair() {
     let c = MethodConfig::DensityClustering {
         resolution: 16,
         clusters: 1,
-        filter: true,
+        trilinear: true,
     };
     let m = build(&c, &hair, &light, &fiber);
     for y in [3.0f32, 1.0, 0.05] {
@@ -680,7 +680,7 @@ fn point_and_spot_lights_keep_every_invariant_in_the_hard_cases() {
     let m = build(
         &MethodConfig::DensityMap {
             cells: 512,
-            filter: true,
+            trilinear: true,
             contact: 0.0,
         },
         &curly,

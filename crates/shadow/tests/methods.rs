@@ -111,28 +111,28 @@ fn ladders() -> Vec<Vec<MethodConfig>> {
         slices,
         mode: OpacityMode::Exponential { kappa: 1.0 },
         offset: 0.0,
-        filter: true,
+        trilinear: true,
     };
     let dom = |layers| MethodConfig::DeepOpacityMap {
         resolution: 64,
         layers,
         layer_cells: 0.0,
         beyond: Beyond::Cover,
-        filter: true,
+        trilinear: true,
     };
     let clu = |clusters| MethodConfig::DensityClustering {
         resolution: 64,
         clusters,
-        filter: true,
+        trilinear: true,
     };
     let dsm = |tolerance| MethodConfig::DeepShadowMap {
         resolution: 64,
         tolerance,
-        filter: true,
+        trilinear: true,
     };
     let dm = |cells| MethodConfig::DensityMap {
         cells,
-        filter: true,
+        trilinear: true,
         contact: 0.0,
     };
     vec![
@@ -216,7 +216,7 @@ fn coarse_opacity_maps_show_their_known_layering_error() {
         slices: 2,
         mode: OpacityMode::Exponential { kappa: 1.0 },
         offset: 0.0,
-        filter: true,
+        trilinear: true,
     };
     let m = run(&coarse, &half, &light, &[]);
     // Depth 0.25 into the half slab the truth is exp(-kappa 0.25). With the
@@ -304,7 +304,7 @@ fn every_method_keeps_t_in_unit_range_and_non_increasing_along_the_light() {
                     slices: 8,
                     mode: OpacityMode::Linear,
                     offset: 0.5,
-                    filter: false,
+                    trilinear: false,
                 });
             }
             if *name == "deep-opacity-map" {
@@ -314,7 +314,7 @@ fn every_method_keeps_t_in_unit_range_and_non_increasing_along_the_light() {
                         layers: 3,
                         layer_cells: 0.0,
                         beyond,
-                        filter: true,
+                        trilinear: true,
                     });
                 }
             }

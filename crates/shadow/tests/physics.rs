@@ -123,11 +123,11 @@ fn light_reaches_points_in_front_of_all_hair_untouched() {
         for p in probe_points(&hair, 2000, 5) {
             // Move each point in front of the nearest hair along the light.
             let q = p - (p.dot(l) - first + 0.01) * l;
-            for filter in [true, false] {
+            for trilinear in [true, false] {
                 assert_eq!(
-                    t.transmittance_at(q, filter),
+                    t.transmittance_at(q, trilinear),
                     1.0,
-                    "{q} in front of the hair, light {d}, filter {filter}"
+                    "{q} in front of the hair, light {d}, filter {trilinear}"
                 );
             }
         }
@@ -157,18 +157,18 @@ fn transmittance_stays_in_range_and_never_increases_along_the_light() {
         let size = hair.bounds().size().length();
         let mut darkest = 1.0f32;
         for start in probe_points(&hair, 300, 6) {
-            for filter in [true, false] {
+            for trilinear in [true, false] {
                 let mut prev = 1.0f32;
                 for s in 0..200 {
                     let p = start + l * (size * (s as f32 / 100.0 - 1.0));
-                    let v = t.transmittance_at(p, filter);
+                    let v = t.transmittance_at(p, trilinear);
                     assert!((0.0..=1.0).contains(&v), "T({p}) = {v}");
                     // The test's points drift off the ray by float rounding
                     // (a few ulps of |p|), which moves the bilinear weights
                     // across columns: allow that much, no more.
                     assert!(
                         v <= prev + 1e-5,
-                        "T rose from {prev} to {v} at {p}, light {d}, filter {filter}"
+                        "T rose from {prev} to {v} at {p}, light {d}, filter {trilinear}"
                     );
                     prev = v;
                 }

@@ -338,7 +338,7 @@ impl RemoteExecutor {
             calls: 0,
             traffic: Arc::new(Mutex::new(Traffic::default())),
             timing: Arc::new(Mutex::new(Timing::default())),
-            trilinear: scene.shadow.method.filter(),
+            trilinear: scene.shadow.method.trilinear(),
             lights: vec![LightState::default(); scene.lights.len()],
             composite: Collective::default(),
             exchange: Collective::default(),

@@ -31,7 +31,7 @@ impl Validator<'_> {
             if reference {
                 return Err(self.invalid("shadow.filter", f, "the reference does not filter"));
             }
-            m.set_filter(f);
+            m.set_trilinear(f);
         }
         if s.cells.is_some() && reference {
             return Err(self.invalid(

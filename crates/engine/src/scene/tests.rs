@@ -242,7 +242,7 @@ fn empty_scene_gets_the_documented_defaults() {
         ShadowSettings {
             method: MethodConfig::DensityMap {
                 cells: 128,
-                filter: true,
+                trilinear: true,
                 contact: 0.0,
             }
         }
@@ -535,7 +535,7 @@ fn method_settings_parse_and_settings_of_other_methods_are_refused() {
             slices: 16,
             mode: OpacityMode::Linear,
             offset: 0.5,
-            filter: true
+            trilinear: true
         }
     );
     let s = parse("[shadow]\ncontact = 2.5\n").unwrap();

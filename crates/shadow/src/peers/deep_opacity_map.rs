@@ -17,7 +17,7 @@ pub struct DeepOpacityMap {
     /// Layer thickness, cells (unless `beyond` is [`Beyond::Cover`]).
     layer_cells: f32,
     beyond: Beyond,
-    filter: bool,
+    trilinear: bool,
     pixels: Pixels,
     prepared: Option<Layers>,
 }
@@ -37,14 +37,14 @@ impl DeepOpacityMap {
         layers: u32,
         layer_cells: f32,
         beyond: Beyond,
-        filter: bool,
+        trilinear: bool,
     ) -> DeepOpacityMap {
         DeepOpacityMap {
             resolution,
             layers: layers as usize,
             layer_cells,
             beyond,
-            filter,
+            trilinear,
             pixels: Pixels::default(),
             prepared: None,
         }
@@ -109,7 +109,7 @@ impl DeepOpacityMap {
             .as_ref()
             .expect("the transmittance stage runs before lookups");
         let layers = self.layers;
-        let d = sample(frame, p, self.filter, 0.0, |pix, x| {
+        let d = sample(frame, p, self.trilinear, 0.0, |pix, x| {
             let z = z0[pix];
             if x <= z {
                 return 0.0;

@@ -14,7 +14,7 @@ use crate::{FillStats, LightFrame, ShadowError};
 pub struct DeepShadowMap {
     resolution: u32,
     tolerance: f32,
-    filter: bool,
+    trilinear: bool,
     pixels: Pixels,
     prepared: Option<Visibility>,
 }
@@ -35,11 +35,11 @@ type RowVertices = (Vec<u32>, Vec<(f32, f32)>);
 const MIN_SPAN: f32 = 1e-3;
 
 impl DeepShadowMap {
-    pub(crate) fn new(resolution: u32, tolerance: f32, filter: bool) -> DeepShadowMap {
+    pub(crate) fn new(resolution: u32, tolerance: f32, trilinear: bool) -> DeepShadowMap {
         DeepShadowMap {
             resolution,
             tolerance,
-            filter,
+            trilinear,
             pixels: Pixels::default(),
             prepared: None,
         }
@@ -86,7 +86,7 @@ impl DeepShadowMap {
             .prepared
             .as_ref()
             .expect("the transmittance stage runs before lookups");
-        sample(frame, p, self.filter, 1.0, |pix, x| {
+        sample(frame, p, self.trilinear, 1.0, |pix, x| {
             let v = &verts[start[pix] as usize..start[pix + 1] as usize];
             visibility_at(v, x)
         })

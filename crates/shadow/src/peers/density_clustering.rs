@@ -15,18 +15,18 @@ pub struct DensityClustering {
     resolution: u32,
     /// Clusters (bins) per pixel.
     k: usize,
-    filter: bool,
+    trilinear: bool,
     pixels: Pixels,
     /// Per pixel `k` bins, after `prepare`.
     bins: Option<Vec<Bin>>,
 }
 
 impl DensityClustering {
-    pub(crate) fn new(resolution: u32, clusters: u32, filter: bool) -> DensityClustering {
+    pub(crate) fn new(resolution: u32, clusters: u32, trilinear: bool) -> DensityClustering {
         DensityClustering {
             resolution,
             k: clusters as usize,
-            filter,
+            trilinear,
             pixels: Pixels::default(),
             bins: None,
         }
@@ -58,7 +58,7 @@ impl DensityClustering {
             .as_ref()
             .expect("the transmittance stage runs before lookups");
         let k = self.k;
-        let d = sample(frame, p, self.filter, 0.0, |pix, x| {
+        let d = sample(frame, p, self.trilinear, 0.0, |pix, x| {
             bins[pix * k..(pix + 1) * k]
                 .iter()
                 .map(|b| b.depth(x))

@@ -232,7 +232,7 @@ fn splat_fragment(mid: Vec3, n: i32, frag: impl Fn(f32) -> Frag, out: &mut Vec<(
 pub(super) fn sample(
     frame: &LightFrame,
     p: Vec3,
-    filter: bool,
+    trilinear: bool,
     empty: f32,
     f: impl Fn(usize, f32) -> f32,
 ) -> f32 {
@@ -247,7 +247,7 @@ pub(super) fn sample(
             f((k * n + j) as usize, x)
         }
     };
-    if filter {
+    if trilinear {
         let (fy, fz) = (c.y - 0.5, c.z - 0.5);
         let (j, k) = (fy as i32, fz as i32);
         let (ty, tz) = (fy - j as f32, fz - k as f32);

@@ -18,7 +18,7 @@ pub struct OpacityShadowMap {
     mode: OpacityMode,
     /// Lookups shift this many slice spacings towards the light.
     offset: f32,
-    filter: bool,
+    trilinear: bool,
     pixels: Pixels,
     prepared: Option<Slices>,
 }
@@ -38,14 +38,14 @@ impl OpacityShadowMap {
         slices: u32,
         mode: OpacityMode,
         offset: f32,
-        filter: bool,
+        trilinear: bool,
     ) -> OpacityShadowMap {
         OpacityShadowMap {
             resolution,
             slices: slices as usize,
             mode,
             offset,
-            filter,
+            trilinear,
             pixels: Pixels::default(),
             prepared: None,
         }
@@ -99,7 +99,7 @@ impl OpacityShadowMap {
             .expect("the transmittance stage runs before lookups");
         let (d0, delta, slices) = (*d0, *delta, self.slices);
         let offset = self.offset;
-        let om = sample(frame, p, self.filter, 0.0, |pix, x| {
+        let om = sample(frame, p, self.trilinear, 0.0, |pix, x| {
             let o = &omega[pix * slices..(pix + 1) * slices];
             let u = (x - offset * delta - d0) / delta;
             if u <= 0.0 {

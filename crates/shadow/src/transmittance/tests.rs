@@ -137,23 +137,23 @@ fn lookups_anywhere_around_the_map_read_the_nearest_edge_column_or_nothing() {
             for z in -10..=14 {
                 let c = Vec3::new(x as f32, y as f32, z as f32) + 0.25;
                 let p = frame.to_world(c);
-                for filter in [true, false] {
-                    let d = t.optical_depth(p, filter);
+                for trilinear in [true, false] {
+                    let d = t.optical_depth(p, trilinear);
                     assert!(
                         d.is_finite() && (0.0..=total + 1e-6).contains(&d),
-                        "D = {d} at cell coordinates {c}, filter {filter}"
+                        "D = {d} at cell coordinates {c}, filter {trilinear}"
                     );
                     let inside_across = (0.0..4.0).contains(&c.y) && (0.0..4.0).contains(&c.z);
                     if c.x <= 1.0 {
                         // In front of all hair: nothing at all.
                         assert_eq!(d, 0.0, "in front at {c}");
-                    } else if c.x >= 2.0 && inside_across && !filter {
+                    } else if c.x >= 2.0 && inside_across && !trilinear {
                         // Behind the hair, within the map's columns.
                         assert!((d - total).abs() < 1e-6, "behind at {c}: {d}");
                     }
                     // A drawn point reads half a cell nearer the light.
-                    let drawn = -t.transmittance_at_drawn(p, filter).ln();
-                    if c.x >= 2.0 + LIT_EDGE_OFFSET && inside_across && !filter {
+                    let drawn = -t.transmittance_at_drawn(p, trilinear).ln();
+                    if c.x >= 2.0 + LIT_EDGE_OFFSET && inside_across && !trilinear {
                         assert!(
                             (drawn - total).abs() < 1e-5,
                             "drawn, behind at {c}: {drawn}"
@@ -197,18 +197,18 @@ fn the_columns_a_lookup_reads_are_all_it_needs() {
     // Points of the first few strands, and some outside the map.
     let part = &hair.points()[..15];
     let outside = [Vec3::splat(50.0), Vec3::new(-40.0, 3.0, 0.0)];
-    for filter in [true, false] {
+    for trilinear in [true, false] {
         let mut pts = part.to_vec();
         pts.extend(outside);
-        let need = columns_read(&frame, &pts, filter);
+        let need = columns_read(&frame, &pts, trilinear);
         let kept = slab.keep(&need);
         assert!(kept.depth.len() < slab.depth.len(), "only some columns");
         let sparse = Transmittance::assemble(frame, [kept]).unwrap();
         for &p in &pts {
             assert_eq!(
-                sparse.optical_depth(p, filter).to_bits(),
-                whole.optical_depth(p, filter).to_bits(),
-                "{p} filter {filter}"
+                sparse.optical_depth(p, trilinear).to_bits(),
+                whole.optical_depth(p, trilinear).to_bits(),
+                "{p} filter {trilinear}"
             );
         }
     }
