@@ -90,6 +90,9 @@ impl RemoteExecutor {
         self.scheme = match (choice, self.draw.sort()) {
             (false, _) => Scheme::Coordinator,
             (true, Some(sort)) => Scheme::from(sort),
+            // A frame of motion alone (skipped before a range) is no
+            // measure, and takes no turn of the choice's.
+            (true, None) if !needs.picture => self.chooser.best().unwrap_or(Scheme::Middle),
             (true, None) => {
                 let s = self.chooser.next();
                 if needs.picture {
