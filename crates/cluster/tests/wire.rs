@@ -642,6 +642,32 @@ fn auto_draws_with_every_scheme_in_turn_and_every_frame_is_the_local_one() {
     assert_eq!(t.composite_fallbacks, 0);
 }
 
+/// The [`Executor`] methods a test's wrapper of a [`RemoteExecutor`]
+/// (`self.inner`) passes on unchanged: attach, density and transmittance.
+macro_rules! forward_to_inner {
+    () => {
+        fn attach(&mut self, anim: &engine::Animator) -> Result<(), EngineError> {
+            self.inner.attach(anim)
+        }
+        fn density(
+            &mut self,
+            light: usize,
+            map: &mut shadow::DensityMap,
+            strands: engine::Strands<'_>,
+            fiber: &shadow::Fiber,
+        ) -> Result<shadow::FillStats, EngineError> {
+            self.inner.density(light, map, strands, fiber)
+        }
+        fn transmittance(
+            &mut self,
+            light: usize,
+            map: &shadow::DensityMap,
+        ) -> Result<shadow::Transmittance, EngineError> {
+            self.inner.transmittance(light, map)
+        }
+    };
+}
+
 /// Workers of which one is stopped in the middle of a frame: the first
 /// frame from frame `at` on planned on the workers, after its plan and
 /// before its Step.
@@ -655,9 +681,7 @@ struct StopsMidFrame {
 }
 
 impl Executor for StopsMidFrame {
-    fn attach(&mut self, anim: &engine::Animator) -> Result<(), EngineError> {
-        self.inner.attach(anim)
-    }
+    forward_to_inner!();
     fn simulate(
         &mut self,
         anim: &mut engine::Animator,
@@ -671,22 +695,6 @@ impl Executor for StopsMidFrame {
             std::thread::sleep(Duration::from_millis(300));
         }
         self.inner.simulate(anim, plan, stats)
-    }
-    fn density(
-        &mut self,
-        light: usize,
-        map: &mut shadow::DensityMap,
-        strands: engine::Strands<'_>,
-        fiber: &shadow::Fiber,
-    ) -> Result<shadow::FillStats, EngineError> {
-        self.inner.density(light, map, strands, fiber)
-    }
-    fn transmittance(
-        &mut self,
-        light: usize,
-        map: &shadow::DensityMap,
-    ) -> Result<shadow::Transmittance, EngineError> {
-        self.inner.transmittance(light, map)
     }
     fn runs_elsewhere(&self) -> bool {
         true
@@ -1183,9 +1191,7 @@ struct GivesUp {
 }
 
 impl Executor for GivesUp {
-    fn attach(&mut self, anim: &engine::Animator) -> Result<(), EngineError> {
-        self.inner.attach(anim)
-    }
+    forward_to_inner!();
     fn simulate(
         &mut self,
         anim: &mut engine::Animator,
@@ -1193,22 +1199,6 @@ impl Executor for GivesUp {
         stats: &mut engine::FrameStats,
     ) -> Result<Option<engine::PoseReport>, EngineError> {
         self.inner.simulate(anim, plan, stats)
-    }
-    fn density(
-        &mut self,
-        light: usize,
-        map: &mut shadow::DensityMap,
-        strands: engine::Strands<'_>,
-        fiber: &shadow::Fiber,
-    ) -> Result<shadow::FillStats, EngineError> {
-        self.inner.density(light, map, strands, fiber)
-    }
-    fn transmittance(
-        &mut self,
-        light: usize,
-        map: &shadow::DensityMap,
-    ) -> Result<shadow::Transmittance, EngineError> {
-        self.inner.transmittance(light, map)
     }
     fn plan_frame(&mut self, needs: engine::FrameNeeds) -> engine::Site {
         self.inner.plan_frame(needs)
