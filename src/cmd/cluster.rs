@@ -55,9 +55,11 @@ pub struct WorkerArgs {
 #[derive(Debug, clap::Args)]
 pub struct TokenArg {
     /// The cluster's token (at least 16 printable characters, e.g. from
-    /// `openssl rand -hex 16`): a worker given one serves only calls that
-    /// carry it, and shows it to its peers; a coordinator shows it to its
-    /// workers. Best given in the environment, where `ps` does not show it.
+    /// `openssl rand -hex 16`): a worker given one opens a session only for
+    /// a coordinator that proves it knows the token, and sends a fellow
+    /// worker nothing before it proves it too; the token itself never
+    /// crosses the wire. Best given in the environment, where `ps` does not
+    /// show it.
     #[arg(
         long,
         env = "WISPLIGHT_TOKEN",

@@ -15,8 +15,9 @@ pub struct Listen {
     /// A second address serving grpc.health.v1 alone, without TLS, for
     /// probes that cannot present a certificate (Kubernetes, Docker).
     pub health: Option<SocketAddr>,
-    /// The cluster's token: every call must carry it (and this worker
-    /// shows it to its peers). `None`: calls need none.
+    /// The cluster's token: a Hello must prove it, and this worker proves
+    /// it to its peers and asks them to (see `crate::token`). `None`: a
+    /// Hello needs no proof.
     pub token: Option<crate::Token>,
 }
 
