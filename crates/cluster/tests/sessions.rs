@@ -518,19 +518,7 @@ fn a_worker_with_a_token_serves_only_coordinators_that_show_it() {
     let rt = tokio::runtime::Runtime::new().unwrap();
     rt.block_on(async {
         let mut c = client(a).await;
-        let challenge = c
-            .challenge(pb::ChallengeRequest {})
-            .await
-            .unwrap()
-            .into_inner()
-            .nonce;
-        let mine = [1u8; 16];
-        let proved = pb::HelloRequest {
-            proof: common::proof(TOKEN.as_bytes(), "wisplight hello", &[&challenge, &mine]),
-            challenge,
-            client_nonce: mine.to_vec(),
-            ..hello(0.1)
-        };
+        let proved = common::proved_hello(&mut c, TOKEN).await;
         c.hello(proved.clone()).await.unwrap();
         let e = c.hello(proved).await.unwrap_err();
         assert_eq!(e.code(), tonic::Code::Unauthenticated);

@@ -55,29 +55,20 @@ impl WorkerService {
                 .map_err(|_| status(Kind::Internal, "a new channel refused its first chunk"))?;
             *slot = Some(tx);
             let (failed, addr) = (failed.clone(), addr.clone());
-            let (sid, token, proven) = (sid.clone(), self.token.clone(), self.proven.clone());
+            let check = self.peer_check(&addr, sid);
             tokio::spawn(async move {
                 // Nothing is sent to a peer that did not prove it belongs
                 // to the cluster.
-                let sent = match super::proof::prove_peer(
-                    &mut client,
-                    &addr,
-                    &sid,
-                    token.as_ref(),
-                    &proven,
-                )
-                .await
-                {
-                    Ok(()) => {
-                        let stream = tokio_stream::wrappers::ReceiverStream::new(rx);
-                        client
-                            .composite(stream)
-                            .await
-                            .map(|_| ())
-                            .map_err(|s| format!("{:?}: {}", s.code(), s.message()))
-                    }
-                    Err(e) => Err(e),
-                };
+                let sent = async {
+                    check.prove(&mut client).await?;
+                    let stream = tokio_stream::wrappers::ReceiverStream::new(rx);
+                    client
+                        .composite(stream)
+                        .await
+                        .map_err(super::proof::call_failed)?;
+                    Ok::<_, String>(())
+                }
+                .await;
                 if let Err(why) = sent
                     && let Ok(mut f) = failed.lock()
                 {

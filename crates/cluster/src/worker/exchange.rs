@@ -3,7 +3,7 @@
 use super::STRIPES_IN_FLIGHT;
 use super::inbox::{Gather, Inbox, SendFailed, send_within, stalled};
 use super::memory::{Budget, Grant};
-use super::proof::prove_peer;
+use super::proof::call_failed;
 use super::session::{Exchanged, Session, on_pool};
 use super::status::{cancelled, first_message, invalid, logged, refused, status};
 use crate::error::WorkerErrorKind as Kind;
@@ -59,22 +59,17 @@ impl WorkerService {
             for swept in [false, true] {
                 let (tx, rx) = tokio::sync::mpsc::channel(STRIPES_IN_FLIGHT);
                 let (failed, addr, mut client) = (failed.clone(), addr.clone(), client.clone());
-                let (sid, token, proven) = (sid.clone(), self.token.clone(), self.proven.clone());
+                let check = self.peer_check(&addr, sid);
                 tokio::spawn(async move {
                     // Nothing is sent to a peer that did not prove it
                     // belongs to the cluster.
-                    let sent =
-                        match prove_peer(&mut client, &addr, &sid, token.as_ref(), &proven).await {
-                            Ok(()) => {
-                                let stream = tokio_stream::wrappers::ReceiverStream::new(rx);
-                                client
-                                    .exchange(stream)
-                                    .await
-                                    .map(|_| ())
-                                    .map_err(|s| format!("{:?}: {}", s.code(), s.message()))
-                            }
-                            Err(e) => Err(e),
-                        };
+                    let sent = async {
+                        check.prove(&mut client).await?;
+                        let stream = tokio_stream::wrappers::ReceiverStream::new(rx);
+                        client.exchange(stream).await.map_err(call_failed)?;
+                        Ok::<_, String>(())
+                    }
+                    .await;
                     if let Err(why) = sent
                         && let Ok(mut f) = failed.lock()
                     {

@@ -109,7 +109,7 @@ pub struct WorkerService {
     /// Challenges given for a Hello to prove the token over.
     challenges: proof::Challenges,
     /// Fellow workers' sessions that proved they belong to the cluster.
-    proven: proof::SharedProven,
+    proven: std::sync::Arc<proof::Proven>,
     /// The connections clients hold open, to end the sessions of those
     /// gone.
     connections: Arc<connections::Connections>,

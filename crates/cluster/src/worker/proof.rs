@@ -10,6 +10,7 @@ use std::time::{Duration, Instant};
 use tonic::{Request, Response, Status};
 
 use super::status::{poisoned, status};
+use crate::client::SessionClient;
 use crate::error::WorkerErrorKind as Kind;
 use crate::tls::{Caller, request_may_call};
 use crate::token::{self, MAX_NONCE_BYTES, NONCE_BYTES, Purpose, Token};
@@ -80,40 +81,63 @@ impl Proven {
     }
 }
 
-/// Asks the worker at `addr` to prove, over a fresh nonce, that it knows
-/// `token` (without one: that it holds `session`) before anything else
-/// is sent to it; remembered in `proven`. Its answer says nothing of why
-/// a peer failed (the caller answers one message whatever the cause).
-pub(super) async fn prove_peer(
-    client: &mut crate::client::SessionClient,
-    addr: &str,
-    session: &str,
-    token: Option<&Token>,
-    proven: &Proven,
-) -> Result<(), String> {
-    let key = (addr.to_string(), session.to_string());
-    if proven.has(&key) {
-        return Ok(());
+/// What asking a fellow worker for its proof takes, for a call's task:
+/// its address, the session named there, this worker's token and the
+/// peers already proved.
+#[derive(Debug, Clone)]
+pub(super) struct PeerCheck {
+    addr: String,
+    session: String,
+    token: Option<Token>,
+    proven: Arc<Proven>,
+}
+
+impl PeerCheck {
+    /// Asks the peer to prove, over a fresh nonce, that it knows the
+    /// token (without one: that it holds the session) before anything
+    /// else is sent to it; remembered once proved. Its answer says nothing
+    /// of why a peer failed (the caller answers one message whatever the
+    /// cause).
+    pub(super) async fn prove(&self, client: &mut SessionClient) -> Result<(), String> {
+        let key = (self.addr.clone(), self.session.clone());
+        if self.proven.has(&key) {
+            return Ok(());
+        }
+        let nonce = token::nonce().map_err(|e| e.to_string())?;
+        let reply = client
+            .prove(pb::ProveRequest {
+                nonce: nonce.to_vec(),
+                session: self.session.clone(),
+            })
+            .await
+            .map_err(|s| format!("no proof: {}", s.message()))?
+            .into_inner();
+        let session = self.session.as_bytes();
+        let secret = self.token.as_ref().map_or(session, Token::key);
+        if !token::proves(secret, Purpose::Peer, &[&nonce, session], &reply.proof) {
+            return Err("its proof does not hold: it is not a worker of this cluster".into());
+        }
+        self.proven.add(key);
+        Ok(())
     }
-    let nonce = token::nonce().map_err(|e| e.to_string())?;
-    let reply = client
-        .prove(pb::ProveRequest {
-            nonce: nonce.to_vec(),
-            session: session.to_string(),
-        })
-        .await
-        .map_err(|s| format!("no proof: {}", s.message()))?
-        .into_inner();
-    let secret = token.map_or(session.as_bytes(), Token::key);
-    let parts: [&[u8]; 2] = [&nonce, session.as_bytes()];
-    if !token::proves(secret, Purpose::Peer, &parts, &reply.proof) {
-        return Err("its proof does not hold: it is not a worker of this cluster".into());
-    }
-    proven.add(key);
-    Ok(())
+}
+
+/// A peer's call that failed, in words, for this worker's log.
+pub(super) fn call_failed(s: Status) -> String {
+    format!("{:?}: {}", s.code(), s.message())
 }
 
 impl WorkerService {
+    /// The check of the peer at `addr`, naming `session` there.
+    pub(super) fn peer_check(&self, addr: &str, session: &str) -> PeerCheck {
+        PeerCheck {
+            addr: addr.to_string(),
+            session: session.to_string(),
+            token: self.token.clone(),
+            proven: self.proven.clone(),
+        }
+    }
+
     pub(super) async fn challenge_call(
         &self,
         req: Request<pb::ChallengeRequest>,
@@ -198,6 +222,3 @@ impl WorkerService {
         Ok(Response::new(pb::ProveReply { proof }))
     }
 }
-
-/// Shares of [`Proven`] handed to a call's tasks.
-pub(super) type SharedProven = Arc<Proven>;

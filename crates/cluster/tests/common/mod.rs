@@ -116,6 +116,30 @@ pub(crate) fn proof(key: &[u8], purpose: &str, parts: &[&[u8]]) -> Vec<u8> {
     ring::hmac::sign(&k, &m).as_ref().to_vec()
 }
 
+/// A Hello (fiber 0.1 wide, 0.5 opaque) that answers a challenge `c`'s
+/// worker gives now with the proof of `token`.
+#[allow(dead_code)]
+pub(crate) async fn proved_hello(
+    c: &mut cluster::pb::worker_client::WorkerClient<tonic::transport::Channel>,
+    token: &str,
+) -> cluster::pb::HelloRequest {
+    let challenge = c
+        .challenge(cluster::pb::ChallengeRequest {})
+        .await
+        .unwrap()
+        .into_inner()
+        .nonce;
+    let mine = [7u8; 16];
+    cluster::pb::HelloRequest {
+        protocol_version: cluster::protocol::PROTOCOL_VERSION,
+        fiber_width: 0.1,
+        fiber_opacity: 0.5,
+        proof: proof(token.as_bytes(), "wisplight hello", &[&challenge, &mine]),
+        challenge,
+        client_nonce: mine.to_vec(),
+    }
+}
+
 /// [`greeted_client`] of a worker with the cluster token `token`: its
 /// Hello answers the worker's challenge with the token's proof, and the
 /// worker's proof back is checked.
@@ -128,29 +152,12 @@ pub(crate) async fn proved_client(addr: SocketAddr, token: &str) -> cluster::Ses
         .await
         .unwrap();
     let mut c = pb::worker_client::WorkerClient::new(channel.clone());
-    let challenge = c
-        .challenge(pb::ChallengeRequest {})
-        .await
-        .unwrap()
-        .into_inner()
-        .nonce;
-    let mine = [7u8; 16];
-    let reply = c
-        .hello(pb::HelloRequest {
-            protocol_version: cluster::protocol::PROTOCOL_VERSION,
-            fiber_width: 0.1,
-            fiber_opacity: 0.5,
-            proof: proof(token.as_bytes(), "wisplight hello", &[&challenge, &mine]),
-            challenge,
-            client_nonce: mine.to_vec(),
-        })
-        .await
-        .unwrap()
-        .into_inner();
+    let hello = proved_hello(&mut c, token).await;
+    let reply = c.hello(hello.clone()).await.unwrap().into_inner();
     let back = proof(
         token.as_bytes(),
         "wisplight worker",
-        &[&mine, reply.session.as_bytes()],
+        &[&hello.client_nonce, reply.session.as_bytes()],
     );
     assert_eq!(reply.proof, back, "the worker proved the token back");
     pb::worker_client::WorkerClient::with_interceptor(
