@@ -197,27 +197,47 @@ pub(crate) struct Remote {
     pub(crate) client: SessionClient,
 }
 
-/// The endpoint of the worker at `addr`: connect and call timeouts of
-/// `deadline`, TLS when `tls` is given.
-pub(crate) fn endpoint(
-    addr: &str,
-    deadline: Duration,
-    tls: Option<&Tls>,
-) -> Result<Endpoint, ClusterError> {
-    let err = |msg: String| ClusterError::Connect {
-        addr: addr.to_string(),
-        msg,
-    };
-    let endpoint = Endpoint::from_shared(format!("{}://{addr}", tls::scheme(tls)))
-        .map_err(|e| err(e.to_string()))?
-        .connect_timeout(deadline)
-        .timeout(deadline)
-        .tcp_nodelay(true);
-    match tls {
-        Some(t) => endpoint
-            .tls_config(t.client_config(addr))
-            .map_err(|e| t.refused(&e)),
-        None => Ok(endpoint),
+/// How to reach the worker at `addr`: connect and call timeouts of
+/// `deadline`, and with `tls` a handshake that checks the worker's
+/// certificate (its CA, the name dialled and the worker's role) before
+/// any byte of a call.
+pub(crate) struct Dial {
+    endpoint: Endpoint,
+    tls: Option<tls::Connector>,
+}
+
+impl Dial {
+    pub(crate) fn new(
+        addr: &str,
+        deadline: Duration,
+        tls: Option<&Tls>,
+    ) -> Result<Dial, ClusterError> {
+        let endpoint = Endpoint::from_shared(format!("http://{addr}"))
+            .map_err(|e| ClusterError::Connect {
+                addr: addr.to_string(),
+                msg: e.to_string(),
+            })?
+            .connect_timeout(deadline)
+            .timeout(deadline)
+            .tcp_nodelay(true);
+        let tls = tls.map(|t| tls::connector(t, addr)).transpose()?;
+        Ok(Dial { endpoint, tls })
+    }
+
+    /// A channel, connected now.
+    pub(crate) async fn connect(self) -> Result<Channel, tonic::transport::Error> {
+        match self.tls {
+            Some(c) => self.endpoint.connect_with_connector(c).await,
+            None => self.endpoint.connect().await,
+        }
+    }
+
+    /// A channel that connects on its first call.
+    pub(crate) fn connect_lazy(self) -> Channel {
+        match self.tls {
+            Some(c) => self.endpoint.connect_with_connector_lazy(c),
+            None => self.endpoint.connect_lazy(),
+        }
     }
 }
 
@@ -232,7 +252,7 @@ pub(crate) async fn hello(
         addr: addr.to_string(),
         msg: tls::explain(tls, msg),
     };
-    let channel = endpoint(addr, deadline, tls)?
+    let channel = Dial::new(addr, deadline, tls)?
         .connect()
         .await
         .map_err(|e| err(root_cause(&e)))?;

@@ -39,7 +39,7 @@ pub mod protocol {
 pub use client::{SessionClient, SessionHeader, Timing, Traffic};
 pub use error::{ClusterError, WorkerError, WorkerErrorKind};
 pub use remote::{DrawAt, Options, RemoteExecutor, Scheme};
-pub use tls::{COORDINATOR_NAME, Pki, Tls};
+pub use tls::{COORDINATOR_NAME, Pki, Tls, WORKER_NAME};
 pub use token::{MIN_TOKEN_LEN, Token};
 pub use worker::{
     Bound, DEFAULT_MAX_MEMORY, Listen, POOL_BYTES, SessionLimits, WorkerService, run_worker,
@@ -66,7 +66,7 @@ pub fn check_health(
         .build()
         .map_err(|e| ClusterError::Setup(format!("cannot start the network runtime: {e}")))?;
     rt.block_on(async {
-        let channel = client::endpoint(addr, deadline, tls)?
+        let channel = client::Dial::new(addr, deadline, tls)?
             .connect()
             .await
             .map_err(|e| err(error::root_cause(&e)))?;

@@ -150,29 +150,11 @@ fn workers_composite_among_themselves_over_tls_with_the_local_bytes() {
 /// Credentials whose workers may serve but not call (an older kind of
 /// worker certificate): the CA's PEM, the worker's and the coordinator's.
 fn serve_only() -> (Tls, Tls) {
-    use rcgen::{
-        BasicConstraints, CertificateParams, ExtendedKeyUsagePurpose as Eku, IsCa, Issuer, KeyPair,
-    };
-    let mut ca = CertificateParams::new(Vec::<String>::new()).unwrap();
-    ca.is_ca = IsCa::Ca(BasicConstraints::Constrained(0));
-    let ca_key = KeyPair::generate().unwrap();
-    let ca_pem = ca.self_signed(&ca_key).unwrap().pem();
-    let issuer = Issuer::new(ca, ca_key);
-    let leaf = |names: Vec<String>, eku: Eku| {
-        let mut p = CertificateParams::new(names).unwrap();
-        p.extended_key_usages = vec![eku];
-        let key = KeyPair::generate().unwrap();
-        let cert = p.signed_by(&key, &issuer).unwrap();
-        Tls::from_pem(
-            ca_pem.as_bytes(),
-            cert.pem().as_bytes(),
-            key.serialize_pem().as_bytes(),
-        )
-    };
-    (
-        leaf(vec!["127.0.0.1".into()], Eku::ServerAuth),
-        leaf(vec!["wisplight-coordinator".into()], Eku::ClientAuth),
-    )
+    use rcgen::ExtendedKeyUsagePurpose as Eku;
+    let ca = common::TestCa::new();
+    let worker = ca.leaf(&["127.0.0.1", cluster::WORKER_NAME], &[Eku::ServerAuth]);
+    let coordinator = ca.leaf(&[cluster::COORDINATOR_NAME], &[Eku::ClientAuth]);
+    (ca.tls(&worker), ca.tls(&coordinator))
 }
 
 #[test]
@@ -235,6 +217,50 @@ fn a_coordinator_refuses_a_worker_it_cannot_verify() {
     assert!(e.to_string().contains("certificate"), "{e}");
     let right = pki().coordinator().with_domain("localhost");
     assert!(connect(addr, Some(&right)).is_ok());
+}
+
+#[test]
+fn a_coordinator_refuses_a_server_of_the_ca_that_is_no_worker() {
+    // Certificates of one CA for the host dialled: a worker's, and two
+    // without the worker's role (a server's made for something else, and
+    // the coordinator's own certificate serving).
+    use rcgen::ExtendedKeyUsagePurpose::{ClientAuth, ServerAuth};
+    let ca = common::TestCa::new();
+    let coordinator = ca.tls(&ca.leaf(&[cluster::COORDINATOR_NAME], &[ClientAuth]));
+    let worker = ca.leaf(
+        &["127.0.0.1", cluster::WORKER_NAME],
+        &[ServerAuth, ClientAuth],
+    );
+    let stranger = ca.leaf(&["127.0.0.1"], &[ServerAuth]);
+    let posing = ca.leaf(
+        &["127.0.0.1", cluster::COORDINATOR_NAME],
+        &[ServerAuth, ClientAuth],
+    );
+    for (what, cert) in [("a server", &stranger), ("a coordinator", &posing)] {
+        let addr = start_worker(ca.tls(cert));
+        let e = connect(addr, Some(&coordinator)).unwrap_err();
+        assert!(matches!(e, ClusterError::Connect { .. }), "{what}: {e}");
+        assert!(e.to_string().contains(cluster::WORKER_NAME), "{what}: {e}");
+    }
+    assert!(connect(start_worker(ca.tls(&worker)), Some(&coordinator)).is_ok());
+}
+
+#[test]
+fn the_clusters_certificates_name_the_roles() {
+    // `wisplight certs` makes the workers' certificate name the worker's
+    // role, the coordinator's not.
+    let pki = Pki::generate(&["10.0.0.2".into()]).unwrap();
+    let names = |pem: &str| {
+        use rustls_pki_types::pem::PemObject;
+        let der = rustls_pki_types::CertificateDer::from_pem_slice(pem.as_bytes()).unwrap();
+        let cert = webpki::EndEntityCert::try_from(&der).unwrap();
+        [cluster::WORKER_NAME, cluster::COORDINATOR_NAME, "10.0.0.2"].map(|n| {
+            let n = rustls_pki_types::ServerName::try_from(n).unwrap();
+            cert.verify_is_valid_for_subject_name(&n).is_ok()
+        })
+    };
+    assert_eq!(names(&pki.worker_cert), [true, false, true]);
+    assert_eq!(names(&pki.coordinator_cert), [false, true, false]);
 }
 
 #[test]

@@ -1380,17 +1380,49 @@ fn a_listener_named_as_a_peer_sees_no_hair_and_no_token() {
     // hundred bytes with neither the token nor any hair. Sending the
     // round's density straight away would show it some 64 KiB of it (the
     // HTTP/2 window), as this map's half of the columns holds more.
+    //
+    // With mutual TLS the listener holds a certificate of the cluster's
+    // CA for the address dialled, but not a worker's (it does not name
+    // `wisplight-worker`): the worker ends the handshake, and the
+    // listener reads not one byte of a call.
     const TOKEN: &str = "peer-test-token-0123456789";
-    for token in [None, Some(TOKEN)] {
+    let ca = common::TestCa::new();
+    use rcgen::ExtendedKeyUsagePurpose::{ClientAuth, ServerAuth};
+    let worker = ca.leaf(
+        &["127.0.0.1", "localhost", cluster::WORKER_NAME],
+        &[ServerAuth, ClientAuth],
+    );
+    let coordinator = ca.leaf(&[cluster::COORDINATOR_NAME], &[ClientAuth]);
+    let stranger = ca.leaf(&["127.0.0.1", "localhost"], &[ServerAuth]);
+    for (token, tls) in [(None, false), (Some(TOKEN), false), (None, true)] {
+        let case = format!("token {token:?}, TLS {tls}");
         let (addr, _stop) = common::start_worker_with(cluster::Listen {
             token: token.map(|t| cluster::Token::new(t).unwrap()),
+            tls: tls.then(|| ca.tls(&worker)),
             ..cluster::Listen::default()
         });
-        let (stray, seen) = recording_listener(3);
+        let (stray, seen) = if tls {
+            let (stray, seen) = common::recording_tls_listener(3, &stranger.0, &stranger.1);
+            (
+                stray,
+                std::thread::spawn(move || vec![seen.join().unwrap()]),
+            )
+        } else {
+            let (stray, seen) = recording_listener(3);
+            let seen = std::thread::spawn(move || {
+                let conns = seen.join().unwrap();
+                vec![(conns.len(), conns.concat())]
+            });
+            (stray, seen)
+        };
         let rt = tokio::runtime::Runtime::new().unwrap();
         let e = rt.block_on(async {
             let mut c = match token {
                 Some(t) => common::proved_client(addr, t).await,
+                None if tls => {
+                    common::greeted_tls_client(addr, &ca.pem, (&coordinator.0, &coordinator.1))
+                        .await
+                }
                 None => greeted_client(addr).await,
             };
             let peers = vec![addr.to_string(), stray.clone()];
@@ -1423,18 +1455,27 @@ fn a_listener_named_as_a_peer_sees_no_hair_and_no_token() {
                 Err(e) => e.message().to_string(),
             }
         });
-        assert!(e.contains("took no part"), "{token:?}: {e}");
-        let seen = seen.join().unwrap();
-        let bytes: usize = seen.iter().map(Vec::len).sum();
-        assert!(
-            bytes > 0,
-            "{token:?}: the worker asked the listener to prove itself"
-        );
-        assert!(bytes < 2048, "{token:?}: the listener saw {bytes} bytes");
-        let all: Vec<u8> = seen.concat();
+        assert!(e.contains("took no part"), "{case}: {e}");
+        let (conns, all) = seen.join().unwrap().remove(0);
+        assert!(conns > 0, "{case}: the worker dialled the listener");
+        if tls {
+            // The handshake failed on the worker's side: nothing of a
+            // call, not even HTTP/2's preface, reached the listener.
+            assert!(all.is_empty(), "{case}: the listener read {all:?}");
+        } else {
+            assert!(
+                !all.is_empty(),
+                "{case}: the worker asked the listener to prove itself"
+            );
+            assert!(
+                all.len() < 2048,
+                "{case}: the listener saw {} bytes",
+                all.len()
+            );
+        }
         assert!(
             !all.windows(TOKEN.len()).any(|w| w == TOKEN.as_bytes()),
-            "{token:?}: the token crossed the wire"
+            "{case}: the token crossed the wire"
         );
     }
 }

@@ -135,7 +135,7 @@ impl WorkerService {
                     (Some(t), Some(d)) => Some(t.clone().with_domain(d)),
                     (t, _) => t.clone(),
                 };
-                let c = crate::client::endpoint(addr, timeout, tls.as_ref())
+                let c = crate::client::Dial::new(addr, timeout, tls.as_ref())
                     .map_err(|e| status(Kind::Invalid, e.to_string()))?
                     .connect_lazy();
                 if peers.len() >= 4 * wire::MAX_WORKERS {

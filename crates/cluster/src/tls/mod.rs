@@ -1,28 +1,41 @@
-//! Mutual TLS between the coordinator and its workers (rustls, through
-//! tonic).
+//! Mutual TLS between the coordinator and its workers (rustls; tonic
+//! serves, [`dial`] connects).
 //!
 //! Both sides hold the same three PEM files' roles: a CA certificate that
 //! signed the *other* side's certificate, their own certificate chain, and
 //! their own private key. With TLS on, a worker accepts a connection only
-//! from a client whose certificate chains to its CA, and the coordinator
-//! talks only to a worker whose certificate chains to its CA and names the
-//! host it dialled (or `--tls-domain`).
+//! from a client whose certificate chains to its CA.
 //!
-//! Roles: every certificate of the CA gets through the handshake, but only
-//! one that names [`COORDINATOR_NAME`] among its subject alternative names
-//! may drive a worker (Hello, Assign, Step and the stages). Workers'
-//! certificates do not name it: they may only call the two calls workers
-//! make of each other (Exchange and Composite).
+//! Roles, each a DNS name among a certificate's subject alternative names:
+//! - Serving: whoever dials a worker (the coordinator, or a fellow worker
+//!   in a round) talks to it only once the handshake showed a certificate
+//!   of the CA that names the host dialled (or `--tls-domain`) **and**
+//!   [`WORKER_NAME`], before any byte of a call is sent.
+//! - Calling: every certificate of the CA gets through a worker's
+//!   handshake, but only one that names [`COORDINATOR_NAME`] may drive a
+//!   worker (Hello, Assign, Step and the stages). Workers' certificates do
+//!   not name it: they may only make the calls workers make of each other
+//!   (Prove, Exchange and Composite).
+
+mod dial;
+mod pki;
 
 use std::path::Path;
 
-use tonic::transport::{Certificate, ClientTlsConfig, Identity, ServerTlsConfig};
+use tonic::transport::{Certificate, Identity, ServerTlsConfig};
 
 use crate::ClusterError;
+
+pub(crate) use dial::{Connector, connector};
+pub use pki::Pki;
 
 /// The DNS name (subject alternative name) that makes a client
 /// certificate a coordinator's.
 pub const COORDINATOR_NAME: &str = "wisplight-coordinator";
+
+/// The DNS name (subject alternative name) that makes a certificate a
+/// worker's: no one dials a server whose certificate lacks it.
+pub const WORKER_NAME: &str = "wisplight-worker";
 
 /// Who may make a call, when the worker serves mutual TLS.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -80,8 +93,12 @@ fn names_coordinator(der: &tonic::transport::CertificateDer<'_>) -> bool {
 /// One side's credentials for mutual TLS, read and checked from PEM files.
 #[derive(Debug, Clone)]
 pub struct Tls {
-    ca: Certificate,
-    identity: Identity,
+    /// The CA certificate that signs the other side's, PEM.
+    ca: Vec<u8>,
+    /// This side's certificate chain, PEM.
+    cert: Vec<u8>,
+    /// This side's private key, PEM.
+    key: Vec<u8>,
     /// The name the coordinator expects in a worker's certificate instead
     /// of the host part of its address.
     domain: Option<String>,
@@ -115,8 +132,9 @@ impl Tls {
     /// Credentials from PEM text already in memory (tests, embedding).
     pub fn from_pem(ca: &[u8], cert: &[u8], key: &[u8]) -> Tls {
         Tls {
-            ca: Certificate::from_pem(ca),
-            identity: Identity::from_pem(cert, key),
+            ca: ca.to_vec(),
+            cert: cert.to_vec(),
+            key: key.to_vec(),
             domain: None,
             origin: "the TLS credentials".into(),
         }
@@ -138,18 +156,15 @@ impl Tls {
     /// required and checked against the CA.
     pub(crate) fn server_config(&self) -> ServerTlsConfig {
         ServerTlsConfig::new()
-            .identity(self.identity.clone())
-            .client_ca_root(self.ca.clone())
+            .identity(Identity::from_pem(&self.cert, &self.key))
+            .client_ca_root(Certificate::from_pem(&self.ca))
             .client_auth_optional(false)
     }
 
-    /// The coordinator's side towards the worker at `addr` (host:port).
-    pub(crate) fn client_config(&self, addr: &str) -> ClientTlsConfig {
-        let domain = self.domain.clone().unwrap_or_else(|| host_of(addr));
-        ClientTlsConfig::new()
-            .ca_certificate(self.ca.clone())
-            .identity(self.identity.clone())
-            .domain_name(domain)
+    /// The name a worker dialled at `addr` (host:port) must show in its
+    /// certificate: `--tls-domain`, or the host part of the address.
+    fn name_for(&self, addr: &str) -> String {
+        self.domain.clone().unwrap_or_else(|| host_of(addr))
     }
 
     /// Says which files were at fault when rustls refuses them.
@@ -185,13 +200,12 @@ pub(crate) fn explain(tls: Option<&Tls>, msg: String) -> String {
             "{msg} (the worker may have refused this side's certificate: is it signed by the \
              CA the worker trusts, for client authentication? does the worker serve TLS?)"
         ),
+        Some(_) if msg.contains(WORKER_NAME) => format!(
+            "{msg} (a worker's certificate names the worker's role `{WORKER_NAME}`; \
+             `wisplight certs` makes such certificates, older ones lack it)"
+        ),
         Some(_) => msg,
     }
-}
-
-/// The URI scheme to dial with.
-pub(crate) fn scheme(tls: Option<&Tls>) -> &'static str {
-    if tls.is_some() { "https" } else { "http" }
 }
 
 /// "10.0.0.2:7000" -> "10.0.0.2", "[::1]:7000" -> "::1", "w0.svc:7000" ->
@@ -221,125 +235,6 @@ fn check_pem(pem: &[u8], path: &Path, label: &str, what: &str) -> Result<(), Clu
             "{} holds no PEM block `{label}`: expected {what}",
             path.display()
         )))
-    }
-}
-
-/// A small certificate authority for one cluster: a CA, one certificate
-/// for every worker (server and client authentication, valid for `names`)
-/// and one for the coordinator (client authentication, naming
-/// [`COORDINATOR_NAME`]). All PEM.
-#[derive(Debug, Clone)]
-pub struct Pki {
-    /// The CA's certificate.
-    pub ca_cert: String,
-    /// The CA's private key (keep it off the nodes).
-    pub ca_key: String,
-    /// The workers' certificate.
-    pub worker_cert: String,
-    /// The workers' private key.
-    pub worker_key: String,
-    /// The coordinator's certificate.
-    pub coordinator_cert: String,
-    /// The coordinator's private key.
-    pub coordinator_key: String,
-}
-
-impl Pki {
-    /// Generates fresh ECDSA P-256 keys and certificates. `names` are the
-    /// DNS names and IP addresses the workers are dialled by
-    /// (`localhost`, `10.0.0.2`, `wisplight-worker-0.wisplight`).
-    pub fn generate(names: &[String]) -> Result<Pki, ClusterError> {
-        use rcgen::{
-            BasicConstraints, CertificateParams, DnType, ExtendedKeyUsagePurpose, IsCa, Issuer,
-            KeyPair, KeyUsagePurpose,
-        };
-        let err = |e: rcgen::Error| ClusterError::Tls(format!("cannot make certificates: {e}"));
-        if names.is_empty() {
-            return Err(ClusterError::Tls(
-                "the workers' certificate needs at least one name".into(),
-            ));
-        }
-        if let Some(n) = names
-            .iter()
-            .find(|n| n.eq_ignore_ascii_case(COORDINATOR_NAME))
-        {
-            return Err(ClusterError::Tls(format!(
-                "`{n}` is the coordinator's name: a worker's certificate naming it could drive \
-                 other workers"
-            )));
-        }
-        let mut ca = CertificateParams::new(Vec::<String>::new()).map_err(err)?;
-        ca.is_ca = IsCa::Ca(BasicConstraints::Constrained(0));
-        ca.distinguished_name
-            .push(DnType::CommonName, "wisplight cluster CA");
-        ca.key_usages = vec![KeyUsagePurpose::KeyCertSign, KeyUsagePurpose::CrlSign];
-        let ca_key = KeyPair::generate().map_err(err)?;
-        let ca_cert = ca.self_signed(&ca_key).map_err(err)?;
-        let issuer = Issuer::new(ca, ca_key);
-
-        let leaf = |sans: Vec<String>, cn: &str, purposes: &[ExtendedKeyUsagePurpose]| {
-            let mut p = CertificateParams::new(sans).map_err(err)?;
-            p.distinguished_name.push(DnType::CommonName, cn);
-            p.key_usages = vec![KeyUsagePurpose::DigitalSignature];
-            p.extended_key_usages = purposes.to_vec();
-            p.use_authority_key_identifier_extension = true;
-            let key = KeyPair::generate().map_err(err)?;
-            let cert = p.signed_by(&key, &issuer).map_err(err)?;
-            Ok::<_, ClusterError>((cert.pem(), key.serialize_pem()))
-        };
-        // Workers that composite a picture together call each other: their
-        // certificate serves both ends.
-        let (worker_cert, worker_key) = leaf(
-            names.to_vec(),
-            "wisplight worker",
-            &[
-                ExtendedKeyUsagePurpose::ServerAuth,
-                ExtendedKeyUsagePurpose::ClientAuth,
-            ],
-        )?;
-        let (coordinator_cert, coordinator_key) = leaf(
-            vec![COORDINATOR_NAME.into()],
-            "wisplight coordinator",
-            &[ExtendedKeyUsagePurpose::ClientAuth],
-        )?;
-        Ok(Pki {
-            ca_cert: ca_cert.pem(),
-            ca_key: issuer.key().serialize_pem(),
-            worker_cert,
-            worker_key,
-            coordinator_cert,
-            coordinator_key,
-        })
-    }
-
-    /// The worker's credentials.
-    pub fn worker(&self) -> Tls {
-        Tls::from_pem(
-            self.ca_cert.as_bytes(),
-            self.worker_cert.as_bytes(),
-            self.worker_key.as_bytes(),
-        )
-    }
-
-    /// The coordinator's credentials.
-    pub fn coordinator(&self) -> Tls {
-        Tls::from_pem(
-            self.ca_cert.as_bytes(),
-            self.coordinator_cert.as_bytes(),
-            self.coordinator_key.as_bytes(),
-        )
-    }
-
-    /// The files of a PKI directory: name, PEM text, and whether it is secret.
-    pub fn files(&self) -> [(&'static str, &str, bool); 6] {
-        [
-            ("ca.pem", &self.ca_cert, false),
-            ("ca.key", &self.ca_key, true),
-            ("worker.pem", &self.worker_cert, false),
-            ("worker.key", &self.worker_key, true),
-            ("coordinator.pem", &self.coordinator_cert, false),
-            ("coordinator.key", &self.coordinator_key, true),
-        ]
     }
 }
 
