@@ -578,9 +578,9 @@ fn stop_cycles() -> usize {
 #[test]
 fn a_stopped_worker_is_the_one_dropped_whichever_it_is() {
     let dir = scratch("sigstop");
-    // Rigid hair: no Step calls, so the stop lands in a stage where the
+    // Rigid hair: no Simulate calls, so the stop lands in a stage where the
     // workers wait on each other (summing the maps, compositing);
-    // simulated hair: it may land in a Step too. A map and a picture
+    // simulated hair: it may land in a Simulate call too. A map and a picture
     // large enough that a stopped peer's calls fill up and block the
     // others' sends.
     let base = "[hair]\nstyle = \"smooth\"\nstrands_per_wisp = 4\n\n[render]\nwidth = 640\nheight = 360\n\n\

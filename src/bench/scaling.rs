@@ -177,7 +177,7 @@ struct Row {
     draw: Option<cluster::DrawAt>,
     workers: u32,
     frame_ms: f64,
-    /// Wall time of the Step calls, and the slowest worker's compute in them.
+    /// Wall time of the Simulate calls, and the slowest worker's compute in them.
     step_ms: f64,
     step_compute_ms: f64,
     pose_ms: f64,
@@ -480,7 +480,7 @@ pub fn run(a: ScalingArgs) -> anyhow::Result<()> {
         ));
     }
     eprintln!(
-        "bench scaling: medians per frame; step = wall time of the wisps' Step (or Pose) calls / the slowest worker's own compute; density = Density calls (with two workers or more drawing: the workers summing each other's columns) and merging the sums; transm = Transmittance calls and assembling the slabs (with two workers or more drawing: the coordinator's own sweep of its copy, the workers' swept columns being gathered among them; with one worker, the coordinator's sweep); draw = Draw calls, with the compositing (on the workers, or decoding partial pictures here) / the slowest worker's filter, shade and rasterization; wait/comp = compositing on the workers: the slowest worker's wait for the others' stripes of its band / its resolving of the band; coord = the rest of the frame on the coordinator (the self-collision field, and with the coordinator drawing, one worker included: posing, filtering, shading and drawing every strand, the next frame's step, density and transm running beside the drawing); MB = bytes on the wire per frame; same = pictures identical to one process"
+        "bench scaling: medians per frame; step = wall time of the wisps' Simulate (or Pose) calls / the slowest worker's own compute; density = Density calls (with two workers or more drawing: the workers summing each other's columns) and merging the sums; transm = Transmittance calls and assembling the slabs (with two workers or more drawing: the coordinator's own sweep of its copy, the workers' swept columns being gathered among them; with one worker, the coordinator's sweep); draw = Draw calls, with the compositing (on the workers, or decoding partial pictures here) / the slowest worker's filter, shade and rasterization; wait/comp = compositing on the workers: the slowest worker's wait for the others' stripes of its band / its resolving of the band; coord = the rest of the frame on the coordinator (the self-collision field, and with the coordinator drawing, one worker included: posing, filtering, shading and drawing every strand, the next frame's step, density and transm running beside the drawing); MB = bytes on the wire per frame; same = pictures identical to one process"
     );
     // How busy each node was: CPU time a frame against the cores it had.
     let node_cores = a

@@ -22,9 +22,9 @@ pub struct Traffic {
     /// Wisp shares and their state sent (Assign), at the start and after
     /// a worker is lost.
     pub assign_sent: u64,
-    /// Step requests (head transforms, bodies, accelerations).
+    /// Simulate requests (head transforms, bodies, accelerations).
     pub step_sent: u64,
-    /// Wisp states received (Step replies).
+    /// Wisp states received (Simulate replies).
     pub wisps_received: u64,
     /// Strands sent to workers (Density requests).
     pub strands_sent: u64,
@@ -119,9 +119,9 @@ impl Traffic {
 /// scaling benchmark's critical path).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Timing {
-    /// Wall time of Step calls, as the coordinator waited for them.
+    /// Wall time of Simulate calls, as the coordinator waited for them.
     pub step_wall_ms: f64,
-    /// The slowest worker's own compute time in each Step, summed.
+    /// The slowest worker's own compute time in each Simulate, summed.
     pub step_compute_ms: f64,
     /// Wall time of Density calls plus merging their partial densities.
     pub density_ms: f64,
@@ -405,7 +405,7 @@ fn joined<T>(
 ///
 /// It returns only when every call has ended, failed ones included. A
 /// call left running after the round failed would reach its worker after
-/// the coordinator's next move: a Step still in flight when the
+/// the coordinator's next move: a Simulate call still in flight when the
 /// survivors are assigned their new shares would step their wisps once
 /// more, and the frame after a loss would differ from one process's.
 pub(crate) fn fan_out<R, T, F, Fut>(

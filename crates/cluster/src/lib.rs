@@ -31,7 +31,7 @@ pub mod protocol {
     //! for the renderer.
     pub use crate::wire::{
         MAX_FILE_BYTES, MAX_MESSAGE_BYTES, MAX_SCENE_TEXT, MAX_STEP_WORK, MAX_STEPS, Malformed,
-        PROTOCOL_VERSION, TEXT_PIECE_BYTES, deposit_chunks, frame_to_pb, job_to_pb, pack,
+        PROTOCOL_VERSION, TEXT_PIECE_BYTES, density_chunks, frame_to_pb, job_to_pb, pack,
         report_from_pb, step_work, text_pieces, wisp_chunks,
     };
 }

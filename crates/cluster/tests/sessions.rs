@@ -142,24 +142,24 @@ fn calls_naming_no_open_session_are_refused_and_change_nothing() {
                 cluster::SessionHeader::new(id).unwrap(),
             )
         };
-        // An open session is served (a Step before Assign: refused for
+        // An open session is served (a Simulate call before Assign: refused for
         // that reason, not for the session).
         let e = named(&id)
-            .step(pb::StepRequest::default())
+            .simulate(pb::SimulateRequest::default())
             .await
             .unwrap_err();
         assert!(e.message().contains("Assign"), "{}", e.message());
         // No session, a made-up one, a guessed prefix.
         let e = client(addr)
             .await
-            .step(pb::StepRequest::default())
+            .simulate(pb::SimulateRequest::default())
             .await
             .unwrap_err();
         assert_eq!(e.code(), tonic::Code::FailedPrecondition);
         assert!(e.message().contains("names no session"), "{}", e.message());
         for other in ["0123456789abcdef0123456789abcdef", &id[..16]] {
             let e = named(other)
-                .step(pb::StepRequest::default())
+                .simulate(pb::SimulateRequest::default())
                 .await
                 .unwrap_err();
             assert_eq!(e.code(), tonic::Code::FailedPrecondition);
@@ -237,7 +237,7 @@ fn calls_naming_no_open_session_are_refused_and_change_nothing() {
             assert_eq!(e.code(), tonic::Code::FailedPrecondition);
         }
         let e = named(&id)
-            .step(pb::StepRequest::default())
+            .simulate(pb::SimulateRequest::default())
             .await
             .unwrap_err();
         assert!(e.message().contains("not open"), "{}", e.message());
@@ -313,7 +313,7 @@ fn a_worker_holds_at_most_its_sessions_and_ends_idle_ones() {
                 .unwrap(),
             cluster::SessionHeader::new(&first).unwrap(),
         )
-        .step(pb::StepRequest::default())
+        .simulate(pb::SimulateRequest::default())
         .await
         .unwrap_err();
         // Said as expired, with why, and marked for the coordinator.
@@ -393,7 +393,7 @@ fn a_session_past_its_own_memory_is_refused_and_the_others_are_served() {
                 hair.push_strand(&[glam::Vec3::new(-0.5, t, 0.0), glam::Vec3::new(0.5, t, 0.1)])
                     .unwrap();
             }
-            tokio_stream::iter(protocol::deposit_chunks(1, 0, &frame, &hair, 0..strands))
+            tokio_stream::iter(protocol::density_chunks(1, 0, &frame, &hair, 0..strands))
         };
         // 60 MB: past this session's 32 MiB, far within the worker's.
         let e = a.density(deposit(1_000_000)).await.unwrap_err();

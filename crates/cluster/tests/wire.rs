@@ -670,7 +670,7 @@ macro_rules! forward_to_inner {
 
 /// Workers of which one is stopped in the middle of a frame: the first
 /// frame from frame `at` on planned on the workers, after its plan and
-/// before its Step.
+/// before its Simulate call.
 #[derive(Debug)]
 struct StopsMidFrame {
     inner: RemoteExecutor,
@@ -713,7 +713,7 @@ impl Executor for StopsMidFrame {
 #[test]
 fn the_last_but_one_worker_lost_mid_frame_leaves_the_frame_where_it_was_planned() {
     // Two workers: a frame planned on the workers loses one before its
-    // Step and is finished on the one left (posed, filled and drawn
+    // Simulate and is finished on the one left (posed, filled and drawn
     // there); the frames after are planned on the coordinator. No frame
     // fails, and each is the local one.
     let scene = Scene::from_toml_str(DANCE, std::path::Path::new("dance.toml")).unwrap();
@@ -766,8 +766,11 @@ fn malformed_assign_and_step_calls_get_an_error_and_the_worker_lives_on() {
     let rt = tokio::runtime::Runtime::new().unwrap();
     rt.block_on(async {
         let mut c = greeted_client(addr).await;
-        // Step before Assign.
-        let e = c.step(pb::StepRequest::default()).await.unwrap_err();
+        // Simulate before Assign.
+        let e = c
+            .simulate(pb::SimulateRequest::default())
+            .await
+            .unwrap_err();
         assert_eq!(e.code(), tonic::Code::FailedPrecondition, "{}", e.message());
         let assign = |toml: &str, first: u32, end: u32| pb::AssignChunk {
             scene_toml: toml.to_string(),
@@ -811,48 +814,48 @@ fn malformed_assign_and_step_calls_get_an_error_and_the_worker_lives_on() {
             anchor: vec![0.0; 3],
             ..Default::default()
         };
-        let step = pb::StepRequest {
+        let step = pb::SimulateRequest {
             heads: head.clone(),
             body_counts: vec![0],
             pose: Some(pose.clone()),
             ..Default::default()
         };
         let bad_steps = [
-            pb::StepRequest {
+            pb::SimulateRequest {
                 heads: vec![f32::NAN; 12],
                 ..step.clone()
             },
-            pb::StepRequest {
+            pb::SimulateRequest {
                 heads: vec![1.0; 11],
                 ..step.clone()
             },
-            pb::StepRequest {
+            pb::SimulateRequest {
                 body_counts: vec![2],
                 bodies: vec![0.0; 4],
                 ..step.clone()
             },
-            pb::StepRequest {
+            pb::SimulateRequest {
                 body_counts: vec![1],
                 bodies: vec![0.0, 0.0, 0.0, -1.0],
                 ..step.clone()
             },
-            pb::StepRequest {
+            pb::SimulateRequest {
                 has_accel: true,
                 accel_skip: vec![100_000],
                 accel: vec![1.0, 0.0, 0.0],
                 ..step.clone()
             },
-            pb::StepRequest {
+            pb::SimulateRequest {
                 has_accel: true,
                 accel_skip: vec![0],
                 accel: vec![f32::INFINITY, 0.0, 0.0],
                 ..step.clone()
             },
-            pb::StepRequest {
+            pb::SimulateRequest {
                 pose: None,
                 ..step.clone()
             },
-            pb::StepRequest {
+            pb::SimulateRequest {
                 pose: Some(pb::PosePlan {
                     lights: vec![0.0; 10],
                     ..pose.clone()
@@ -861,7 +864,7 @@ fn malformed_assign_and_step_calls_get_an_error_and_the_worker_lives_on() {
             },
         ];
         for r in bad_steps {
-            let e = c.step(r.clone()).await.unwrap_err();
+            let e = c.simulate(r.clone()).await.unwrap_err();
             assert_eq!(
                 e.code(),
                 tonic::Code::InvalidArgument,
@@ -870,7 +873,7 @@ fn malformed_assign_and_step_calls_get_an_error_and_the_worker_lives_on() {
             );
         }
         // A good step, then a posed deposit of another version is refused.
-        let mut s = c.step(step).await.unwrap().into_inner();
+        let mut s = c.simulate(step).await.unwrap().into_inner();
         let (mut got, mut report) = (0, None);
         while let Some(m) = s.message().await.unwrap() {
             got += m.pos.len();
@@ -1031,7 +1034,7 @@ fn a_step_asking_more_work_than_the_cap_is_refused_before_any_step() {
             "{points} points: the cap is not what stops it"
         );
         let e = c
-            .step(pb::StepRequest {
+            .simulate(pb::SimulateRequest {
                 heads: head.repeat(steps),
                 body_counts: vec![0; steps],
                 pose: Some(pose),
@@ -1055,14 +1058,14 @@ fn a_step_past_its_deadline_stops_and_frees_the_worker_for_the_next_call() {
         // The most steps a call may ask for: seconds of work, far past
         // this call's deadline.
         let steps = protocol::MAX_STEPS;
-        let mut long = tonic::Request::new(pb::StepRequest {
+        let mut long = tonic::Request::new(pb::SimulateRequest {
             heads: head.repeat(steps),
             body_counts: vec![0; steps],
             pose: Some(pose.clone()),
             ..Default::default()
         });
         long.set_timeout(Duration::from_millis(300));
-        assert!(c.step(long).await.is_err());
+        assert!(c.simulate(long).await.is_err());
         // Served at once: had the steps gone on, this call's two seconds
         // would pass while they held the share.
         let mut next = tonic::Request::new(pose);
@@ -1111,7 +1114,10 @@ fn an_assign_past_the_limits_is_refused_saying_which() {
         assert_eq!(e.code(), tonic::Code::ResourceExhausted, "{}", e.message());
         assert!(e.message().contains("MAX_FILE_BYTES"), "{}", e.message());
         // The worker lives on.
-        let ok = c.step(pb::StepRequest::default()).await.unwrap_err();
+        let ok = c
+            .simulate(pb::SimulateRequest::default())
+            .await
+            .unwrap_err();
         assert_eq!(
             ok.code(),
             tonic::Code::FailedPrecondition,
@@ -1133,7 +1139,7 @@ fn crossing_deposit(cells: u32, strands: usize) -> Vec<pb::DensityChunk> {
         hair.push_strand(&[Vec3::new(-4.0, t, -0.9), Vec3::new(4.0, -t, 0.9)])
             .unwrap();
     }
-    protocol::deposit_chunks(1, 0, &frame, &hair, 0..strands)
+    protocol::density_chunks(1, 0, &frame, &hair, 0..strands)
 }
 
 #[test]

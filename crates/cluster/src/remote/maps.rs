@@ -17,7 +17,7 @@ impl RemoteExecutor {
     /// The Density requests of one fill: the workers' posed strands when
     /// they hold hair `version`, else shares of `hair`'s strands; `None`
     /// when they hold another version and no strands are given.
-    pub(super) fn deposit_requests(
+    pub(super) fn density_requests(
         &self,
         id: u64,
         light: u32,
@@ -56,7 +56,7 @@ impl RemoteExecutor {
                 .map(|(w, share)| {
                     (
                         w.clone(),
-                        wire::deposit_chunks(id, light, frame, hair, share),
+                        wire::density_chunks(id, light, frame, hair, share),
                     )
                 })
                 .collect(),
@@ -271,7 +271,7 @@ impl RemoteExecutor {
             self.calls
         });
         let frame = *map.frame();
-        let Some(requests) = self.deposit_requests(id, light as u32, &frame, hair, version) else {
+        let Some(requests) = self.density_requests(id, light as u32, &frame, hair, version) else {
             return Err(ClusterError::Setup(format!(
                 "the workers hold hair version {:?}, not {version:?}, and no strands were given",
                 self.posed

@@ -21,7 +21,7 @@ mod choose;
 mod draw;
 mod lights;
 mod maps;
-mod step;
+mod simulate;
 
 use choose::Chooser;
 pub use choose::Scheme;
@@ -550,7 +550,7 @@ impl Executor for RemoteExecutor {
     ) -> Result<Option<PoseReport>, EngineError> {
         let report = stats
             .time(Stage::Simulate, || {
-                self.with_survivors(|ex| ex.step(anim, plan))
+                self.with_survivors(|ex| ex.simulate(anim, plan))
             })
             .map_err(engine_error)?;
         stats.steps += plan.heads.len() as u32;

@@ -13,7 +13,7 @@
 //!   [`WORKER_NAME`], before any byte of a call is sent.
 //! - Calling: every certificate of the CA gets through a worker's
 //!   handshake, but only one that names [`COORDINATOR_NAME`] may drive a
-//!   worker (Hello, Assign, Step and the stages). Workers' certificates do
+//!   worker (Hello, Assign, Simulate and the stages). Workers' certificates do
 //!   not name it: they may only make the calls workers make of each other
 //!   (Prove, Exchange and Composite).
 

@@ -51,7 +51,7 @@ fn check_all(bytes: &[u8]) {
             shadow::Transmittance::check_slab(&f, &slab).unwrap();
         }
     }
-    if let Ok(m) = pb::StepRequest::decode(bytes) {
+    if let Ok(m) = pb::SimulateRequest::decode(bytes) {
         check_step(&m);
     }
     if let Ok(m) = pb::WispChunk::decode(bytes) {
@@ -169,7 +169,7 @@ fn check_report(r: &pb::PoseReport) {
     }
 }
 
-fn check_step(m: &pb::StepRequest) {
+fn check_step(m: &pb::SimulateRequest) {
     if let Ok(heads) = affines_from_floats(&m.heads) {
         assert!(heads.iter().all(|h| h.is_finite()));
     }
@@ -221,7 +221,7 @@ proptest! {
         let f = frame();
         let mut hair = strands::Hair::new();
         hair.push_strand(&[Vec3::ZERO, Vec3::new(0.1, 0.2, 0.0), Vec3::new(0.2, 0.5, 0.1)]).unwrap();
-        let deposit = deposit_chunks(1, 0, &f, &hair, 0..1).remove(0);
+        let deposit = density_chunks(1, 0, &f, &hair, 0..1).remove(0);
         let mut map = DensityMap::new(f);
         map.deposit(&hair, 0..1, &shadow::Fiber::new(0.1, 0.5).unwrap());
         let columns = column_chunks(&map, 0..f.columns()).remove(0);
@@ -289,7 +289,7 @@ proptest! {
         skip in proptest::collection::vec(any::<u32>(), 0..8),
         accel in proptest::collection::vec(float(), 0..30),
     ) {
-        check_step(&pb::StepRequest {
+        check_step(&pb::SimulateRequest {
             heads,
             bodies,
             accel_skip: skip,

@@ -22,7 +22,7 @@ pub(crate) use exchange::*;
 
 /// The protocol version this build speaks. A coordinator and a worker of
 /// different versions refuse each other.
-pub const PROTOCOL_VERSION: u32 = 18;
+pub const PROTOCOL_VERSION: u32 = 19;
 
 /// Points per Density chunk: 3 floats each, 1.5 MB.
 pub(crate) const POINTS_PER_CHUNK: usize = 128 * 1024;
@@ -31,7 +31,7 @@ pub(crate) const POINTS_PER_CHUNK: usize = 128 * 1024;
 pub(crate) const CELLS_PER_CHUNK: usize = 256 * 1024;
 
 /// The largest message either side decodes (16 MiB): each call in flight
-/// buffers at most one. Chunks stay far below it; a Step's head motions
+/// buffers at most one. Chunks stay far below it; a Simulate call's head motions
 /// and accelerations, sent whole, are what comes nearest.
 pub const MAX_MESSAGE_BYTES: usize = 16 << 20;
 
@@ -155,7 +155,7 @@ pub(crate) fn frame_from_pb(m: Option<&pb::MapFrame>) -> Result<LightFrame, Malf
 
 /// Strands `strands` of `hair` as Density chunks; the first carries the
 /// ids and the frame.
-pub fn deposit_chunks(
+pub fn density_chunks(
     frame_id: u64,
     light: u32,
     frame: &LightFrame,
@@ -541,14 +541,14 @@ pub(crate) fn unpack_runs(bytes: &[u8], count: usize, out: &mut Vec<u32>) -> Res
 /// ago), 1.5 MB.
 pub(crate) const GUIDE_POINTS_PER_CHUNK: usize = 64 * 1024;
 
-/// The most time steps one Step call may ask for.
+/// The most time steps one Simulate call may ask for.
 pub const MAX_STEPS: usize = 100_000;
 
-/// The most work one Step call may ask for, in nanoseconds of one core as
+/// The most work one Simulate call may ask for, in nanoseconds of one core as
 /// [`step_work`] estimates it: 6 s.
 pub const MAX_STEP_WORK: u64 = 6_000_000_000;
 
-/// A Step's cost on one core, nanoseconds: `points` guide points stepped
+/// A Simulate call's cost on one core, nanoseconds: `points` guide points stepped
 /// `steps` times with `bodies` bodies over all the steps,
 ///
 /// ```text

@@ -4,7 +4,7 @@
 use super::exchange::ExchangeRound;
 use super::memory::{Grant, POINT_BYTES, STRAND_BYTES};
 use super::session::with_share;
-use super::share::deposit_reply;
+use super::share::density_reply;
 use super::status::{
     cancelled, first_message, invalid, logged, no_share, poisoned, refused, status, stop_switch,
     stream_of,
@@ -141,7 +141,7 @@ impl WorkerService {
                 let (version, filter) = (first.version, first.trilinear);
                 with_share(&session.held, move |share| {
                     let _budget = budget;
-                    deposit_reply(&maps, frame, |map| {
+                    density_reply(&maps, frame, |map| {
                         let stats = share
                             .deposit_while(version, map, &fiber, go)
                             .map_err(refused)?
@@ -156,7 +156,7 @@ impl WorkerService {
             } else {
                 tokio::task::spawn_blocking(move || {
                     let _budget = budget;
-                    deposit_reply(&maps, frame, |map| {
+                    density_reply(&maps, frame, |map| {
                         let stats = map
                             .deposit_while(&hair, 0..hair.strand_count(), &fiber, go)
                             .ok_or_else(|| cancelled("Density"))?;

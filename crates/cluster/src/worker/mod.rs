@@ -6,7 +6,7 @@
 //! stages are the engine's own ([`engine::Share`]).
 //!
 //! The service's impl below only dispatches; each call lives with its
-//! concept: Hello and End in `session.rs`, Assign in `assign.rs`, Step
+//! concept: Hello and End in `session.rs`, Assign in `assign.rs`, Simulate
 //! and Pose in `step.rs`, Density in `density.rs` (and its rounds among
 //! the workers in `exchange.rs`, with Exchange), Transmittance in
 //! `transmittance.rs`, Draw and Composite in `draw.rs`.
@@ -22,8 +22,8 @@ mod memory;
 mod proof;
 mod session;
 mod share;
+mod simulate;
 mod status;
-mod step;
 mod swept;
 mod transmittance;
 
@@ -169,13 +169,13 @@ impl Worker for WorkerService {
         self.assign_call(req).await
     }
 
-    type StepStream = Chunks<pb::WispChunk>;
+    type SimulateStream = Chunks<pb::WispChunk>;
 
-    async fn step(
+    async fn simulate(
         &self,
-        req: Request<pb::StepRequest>,
-    ) -> Result<Response<Self::StepStream>, Status> {
-        self.step_call(req).await
+        req: Request<pb::SimulateRequest>,
+    ) -> Result<Response<Self::SimulateStream>, Status> {
+        self.simulate_call(req).await
     }
 
     async fn pose(&self, req: Request<pb::PosePlan>) -> Result<Response<pb::PoseReport>, Status> {

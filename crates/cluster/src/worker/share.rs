@@ -14,7 +14,7 @@ use tonic::Status;
 /// A Density call's reply: a pooled map in `frame`, filled by `fill`, as
 /// column chunks, the last one carrying the fill's counts and, for posed
 /// strands, the columns their lookups read.
-pub(super) fn deposit_reply(
+pub(super) fn density_reply(
     maps: &Mutex<Vec<DensityMap>>,
     frame: LightFrame,
     fill: impl FnOnce(&mut DensityMap) -> Result<(FillStats, Option<Vec<u64>>), Status>,
@@ -96,9 +96,9 @@ pub(super) fn build_share(
     Ok(held)
 }
 
-/// A Step request as a plan for `share`: the worker's accelerations apart.
+/// A Simulate request as a plan for `share`: the worker's accelerations apart.
 pub(super) fn step_plan(
-    r: &pb::StepRequest,
+    r: &pb::SimulateRequest,
     share: &Share,
 ) -> Result<(StepPlan, Option<Vec<glam::Vec3>>), wire::Malformed> {
     let heads = wire::affines_from_floats(&r.heads)?;
@@ -148,7 +148,7 @@ pub(super) fn step_plan(
     let pose = r
         .pose
         .as_ref()
-        .ok_or_else(|| wire::Malformed("a Step without its pose".into()))?;
+        .ok_or_else(|| wire::Malformed("a Simulate call without its pose".into()))?;
     let plan = StepPlan {
         heads,
         bodies,

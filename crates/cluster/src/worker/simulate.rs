@@ -1,4 +1,4 @@
-//! The Step and Pose calls: the share's wisps stepped as a frame's plan
+//! The Simulate and Pose calls: the share's wisps stepped as a frame's plan
 //! says, and its drawn strands posed and reported on.
 
 use engine::FrameStats;
@@ -13,9 +13,9 @@ use crate::tls::Caller;
 use crate::{WorkerService, pb, wire};
 
 impl WorkerService {
-    pub(super) async fn step_call(
+    pub(super) async fn simulate_call(
         &self,
-        req: Request<pb::StepRequest>,
+        req: Request<pb::SimulateRequest>,
     ) -> Result<Response<Chunks<pb::WispChunk>>, Status> {
         let peer = req.remote_addr();
         let served = async move {
@@ -32,7 +32,7 @@ impl WorkerService {
                     return Err(status(
                         Kind::Cancelled,
                         format!(
-                            "the Step was cancelled after {} of {} time steps",
+                            "the Simulate call was cancelled after {} of {} time steps",
                             stats.steps,
                             plan.heads.len()
                         ),
@@ -55,7 +55,7 @@ impl WorkerService {
             .await?;
             Ok(Response::new(stream_of(chunks)))
         };
-        logged(peer, "Step", served.await)
+        logged(peer, "Simulate", served.await)
     }
 
     pub(super) async fn pose_call(

@@ -1,4 +1,4 @@
-//! The coordinator's stage calls that move the hair: sharing the groups out (Assign), stepping the wisps (Step) and posing the drawn hair (Pose).
+//! The coordinator's stage calls that move the hair: sharing the groups out (Assign), stepping the wisps (Simulate) and posing the drawn hair (Pose).
 
 use super::*;
 
@@ -108,10 +108,10 @@ impl RemoteExecutor {
         Ok(())
     }
 
-    /// One Step on every worker; the new states go into `anim` only when
+    /// One Simulate call on every worker; the new states go into `anim` only when
     /// every worker answered. Each poses its share after the steps: the
     /// report of the whole pose comes back.
-    pub(super) fn step(
+    pub(super) fn simulate(
         &mut self,
         anim: &mut Animator,
         plan: &StepPlan,
@@ -129,7 +129,7 @@ impl RemoteExecutor {
                 None => 0..0,
             })
             .collect();
-        let mut base = pb::StepRequest {
+        let mut base = pb::SimulateRequest {
             frame_id: plan.pose.version,
             has_accel: plan.accel.is_some(),
             pose: Some(wire::pose_plan_to_pb(&plan.pose)),
@@ -159,11 +159,11 @@ impl RemoteExecutor {
             move |mut w, (r, share)| async move {
                 let s = w
                     .client
-                    .step(r)
+                    .simulate(r)
                     .await
-                    .map_err(|s| call_error(&w.addr, "step", s))?
+                    .map_err(|s| call_error(&w.addr, "simulate", s))?
                     .into_inner();
-                let chunks = collect(&w.addr, "step", s).await?;
+                let chunks = collect(&w.addr, "simulate", s).await?;
                 let mut states = Vec::with_capacity(share.len());
                 let (mut bytes, mut compute, mut report) = (0u64, 0.0f64, None);
                 for c in &chunks {
@@ -186,8 +186,9 @@ impl RemoteExecutor {
                         format!("the states of wisps {share:?} did not come whole and in order"),
                     ));
                 }
-                let report = report
-                    .ok_or_else(|| malformed(&w.addr, "a Step reply without its pose's report"))?;
+                let report = report.ok_or_else(|| {
+                    malformed(&w.addr, "a Simulate reply without its pose's report")
+                })?;
                 Ok((w.addr, states, report, bytes, compute))
             },
         )?;
