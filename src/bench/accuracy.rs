@@ -9,6 +9,7 @@ use image::RgbImage;
 use shadow::{Beyond, MethodConfig, OpacityMode};
 
 use super::plot;
+use super::scattering::{self, Against};
 
 #[derive(Debug, clap::Args)]
 pub struct AccuracyArgs {
@@ -41,6 +42,14 @@ pub struct AccuracyArgs {
     /// `blender` on PATH (or `$WISPLIGHT_BLENDER`).
     #[arg(long, value_name = "DIR")]
     cycles: Option<PathBuf>,
+    /// With --cycles: also render Cycles with N light bounces, and every
+    /// setting with multiple scattering (`[effects] multiple_scattering`),
+    /// and compare the light the fibers pass on to one another: each 8x8
+    /// block's direct share (direct light over all of it), the picture's
+    /// gain (all over direct) and its colour (red/green, blue/green).
+    #[arg(long, default_value_t = 0, value_name = "N", requires = "cycles",
+          value_parser = clap::value_parser!(u32).range(0..=1024))]
+    bounces: u32,
     /// Cycles samples per pixel.
     #[arg(long, default_value_t = 128, value_name = "N",
           value_parser = clap::value_parser!(u32).range(1..=65_536))]
@@ -51,7 +60,7 @@ pub struct AccuracyArgs {
 
 /// Pixels a side of the blocks whose shadow ratio is compared with
 /// Cycles'.
-const BLOCK: usize = 8;
+pub(super) const BLOCK: usize = 8;
 /// With `--cycles DIR`: the exact reference's picture and the picture
 /// without shadows that the ratios come from (direct light, 8-bit sRGB),
 /// to set beside Cycles' `cycles.exr` and `cycles-unshadowed.exr`.
@@ -146,6 +155,8 @@ struct Row {
     seen: (f64, f64),
     /// Against Cycles: mean block ratio error and mean ratio.
     cycles: Option<raster::RatioComparison>,
+    /// With `--bounces`: multiple scattering against Cycles' bounces.
+    scattering: Option<Against>,
 }
 
 pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
@@ -184,6 +195,30 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
     let truth = match (&a.cycles, &blender) {
         (Some(dir), Some(b)) => Some(cycles_truth(&scene, b, dir, a.cycles_samples)?),
         _ => None,
+    };
+    let (w, h) = (scene.render.width as usize, scene.render.height as usize);
+    // Cycles' light with bounces: its direct share, gain and colour.
+    let bounced = match (&truth, &a.cycles, &blender) {
+        (Some(t), Some(dir), Some(b)) if a.bounces > 0 => {
+            let (all, seconds) = scattering::cycles_bounced(
+                b,
+                dir,
+                a.cycles_samples,
+                a.bounces,
+                t.fresh,
+                (w as u32, h as u32),
+            )?;
+            Some((scattering::Light::new(&t.lit, &all, w, h), seconds))
+        }
+        _ => None,
+    };
+    let scattered = |config: MethodConfig, direct: &RgbImage| -> anyhow::Result<Option<Against>> {
+        let Some((cycles, _)) = &bounced else {
+            return Ok(None);
+        };
+        let (shade_ms, all) = scattering::measure(&scene, config, a.runs as usize)?;
+        let mine = scattering::Light::new(&linear(direct), &all, w, h);
+        Ok(Some(Against::new(&mine, cycles, shade_ms)))
     };
     let unshadowed = match (&truth, &a.cycles) {
         (Some(_), Some(dir)) => {
@@ -249,6 +284,7 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
         image: 0.0,
         seen: (0.0, 0.0),
         cycles: against_cycles(&ref_img),
+        scattering: scattered(reference, &ref_img)?,
     }];
     for c in configs {
         bar.set_message(format!("{} {}", c.name(), c.parameters()));
@@ -264,6 +300,7 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
             image: image_error(&img, &ref_img, bg),
             seen,
             cycles: against_cycles(&img),
+            scattering: scattered(c, &img)?,
         });
         bar.inc(1);
     }
@@ -326,6 +363,20 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
             t.ratios.mean()
         );
     }
+    if let Some((cycles, seconds)) = &bounced {
+        let measured: Vec<scattering::Measured> = rows
+            .iter()
+            .filter_map(|r| {
+                Some(scattering::Measured {
+                    method: r.config.name(),
+                    parameters: r.config.parameters(),
+                    shadow_ms: r.ms,
+                    against: r.scattering?,
+                })
+            })
+            .collect();
+        scattering::print_table(&measured, cycles, *seconds, a.cycles_samples, a.bounces);
+    }
     if let Some(path) = &a.csv {
         // The csv crate quotes a field where its text calls for it.
         let mut w = csv::Writer::from_writer(Vec::new());
@@ -341,7 +392,14 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
             "seen_abs",
             "cycles_error",
             "mean_ratio",
+            "scattering_shade_ms",
+            "direct_share_error",
+            "direct_share",
+            "gain",
+            "red_green",
+            "blue_green",
         ])?;
+        let f6 = |v: f64| format!("{v:.6}");
         for r in &rows {
             w.write_record([
                 r.config.name().to_string(),
@@ -356,6 +414,33 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
                 r.cycles
                     .map_or(String::new(), |c| format!("{:.6}", c.mean_abs)),
                 r.cycles.map_or(String::new(), |c| format!("{:.6}", c.mean)),
+                r.scattering.map_or(String::new(), |s| f6(s.shade_ms)),
+                r.scattering.map_or(String::new(), |s| f6(s.share.mean_abs)),
+                r.scattering.map_or(String::new(), |s| f6(s.share.mean)),
+                r.scattering.map_or(String::new(), |s| f6(s.gain)),
+                r.scattering.map_or(String::new(), |s| f6(s.color[0])),
+                r.scattering.map_or(String::new(), |s| f6(s.color[1])),
+            ])?;
+        }
+        if let Some((c, seconds)) = &bounced {
+            w.write_record([
+                "cycles".to_string(),
+                format!("samples={} bounces={}", a.cycles_samples, a.bounces),
+                format!("{:.1}", 1e3 * seconds),
+                String::new(),
+                String::new(),
+                String::new(),
+                String::new(),
+                String::new(),
+                String::new(),
+                String::new(),
+                String::new(),
+                String::new(),
+                "0".to_string(),
+                f6(c.share.mean()),
+                f6(c.gain),
+                f6(c.color[0]),
+                f6(c.color[1]),
             ])?;
         }
         if let Some(t) = &truth {
@@ -371,6 +456,12 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
                 String::new(),
                 "0".to_string(),
                 format!("{:.6}", t.ratios.mean()),
+                String::new(),
+                String::new(),
+                String::new(),
+                String::new(),
+                String::new(),
+                String::new(),
             ])?;
         }
         let bytes = w.into_inner().context("cannot write the table")?;
@@ -384,6 +475,11 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
             let cycles = path.with_file_name(format!("{stem}-cycles.png"));
             super::write_chart(&cycles, &plot_rows(&rows, &name, cores, Metric::Cycles))?;
         }
+        if bounced.is_some() {
+            let stem = path.file_stem().unwrap_or_default().to_string_lossy();
+            let chart = path.with_file_name(format!("{stem}-scattering.png"));
+            super::write_chart(&chart, &plot_rows(&rows, &name, cores, Metric::Scattering))?;
+        }
     }
     Ok(())
 }
@@ -395,6 +491,8 @@ enum Metric {
     Rms,
     /// Mean block shadow ratio error against Cycles' picture.
     Cycles,
+    /// Mean block direct-share error against Cycles' bounces.
+    Scattering,
 }
 
 /// The scene's first frame with `config`, rendered `runs` times (after one
@@ -505,7 +603,7 @@ fn direct_light(scene: &Scene, physical: bool) -> Scene {
 }
 
 /// An 8-bit sRGB picture in linear RGB.
-fn linear(img: &RgbImage) -> Vec<glam::Vec3> {
+pub(super) fn linear(img: &RgbImage) -> Vec<glam::Vec3> {
     let lut: Vec<f32> = (0..=255u8).map(raster::srgb8_to_linear).collect();
     img.pixels()
         .map(|p| {
@@ -552,6 +650,11 @@ fn ratio_picture(all: &[&raster::ShadowRatios]) -> RgbImage {
 struct Truth {
     ratios: raster::ShadowRatios,
     seconds: (f64, f64),
+    /// Cycles' shadowed picture (direct light), linear.
+    lit: Vec<glam::Vec3>,
+    /// Whether the frame was exported anew (pictures of an older export
+    /// are stale).
+    fresh: bool,
 }
 
 /// Exports the scene's first frame at rest into `dir`, renders it in
@@ -633,6 +736,8 @@ fn cycles_truth(scene: &Scene, blender: &Path, dir: &Path, samples: u32) -> anyh
     Ok(Truth {
         ratios: raster::ShadowRatios::new(&lit, &unlit, w as usize, h as usize, BLOCK),
         seconds,
+        lit,
+        fresh: kept.is_none(),
     })
 }
 
@@ -674,12 +779,16 @@ fn image_error(a: &RgbImage, b: &RgbImage, background: glam::Vec3) -> f64 {
 fn plot_rows(rows: &[Row], scene: &str, cores: usize, metric: Metric) -> plot::Chart {
     let rows: Vec<&Row> = rows
         .iter()
-        .filter(|r| metric == Metric::Rms || r.cycles.is_some())
+        .filter(|r| match metric {
+            Metric::Rms => true,
+            Metric::Cycles => r.cycles.is_some(),
+            Metric::Scattering => r.scattering.is_some(),
+        })
         .collect();
     let series: Vec<String> = MethodConfig::NAMES
         .iter()
         .filter(|n| {
-            (metric == Metric::Cycles || **n != "reference")
+            (metric != Metric::Rms || **n != "reference")
                 && rows.iter().any(|r| r.config.name() == **n)
         })
         .map(|n| n.to_string())
@@ -708,10 +817,11 @@ fn plot_rows(rows: &[Row], scene: &str, cores: usize, metric: Metric) -> plot::C
     let points: Vec<plot::Point> = rows
         .iter()
         .map(|r| plot::Point {
-            x_ms: r.ms,
+            x_ms: r.ms + r.scattering.map_or(0.0, |s| s.shade_ms),
             y: match metric {
                 Metric::Rms => r.rms,
                 Metric::Cycles => r.cycles.map_or(0.0, |c| c.mean_abs),
+                Metric::Scattering => r.scattering.map_or(0.0, |s| s.share.mean_abs),
             },
             series: series
                 .iter()
@@ -732,12 +842,14 @@ fn plot_rows(rows: &[Row], scene: &str, cores: usize, metric: Metric) -> plot::C
             format!("error against Cycles vs time: {scene}, {cores} cores"),
             "mean error of the 8x8 block shadow ratio",
         ),
+        Metric::Scattering => (
+            format!("scattered light against Cycles' bounces vs time: {scene}, {cores} cores"),
+            "mean error of the 8x8 block direct share",
+        ),
     };
-    plot::scatter(
-        &title,
-        "three shadow stages, ms (log scale)",
-        y,
-        &series,
-        &points,
-    )
+    let x = match metric {
+        Metric::Scattering => "three shadow stages and the shade stage, ms (log scale)",
+        _ => "three shadow stages, ms (log scale)",
+    };
+    plot::scatter(&title, x, y, &series, &points)
 }

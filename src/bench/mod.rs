@@ -7,6 +7,7 @@ pub mod accuracy;
 pub mod nodes;
 pub mod plot;
 pub mod scaling;
+mod scattering;
 
 use std::path::{Path, PathBuf};
 
