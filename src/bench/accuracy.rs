@@ -212,12 +212,20 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
         }
         _ => None,
     };
-    let scattered = |config: MethodConfig, direct: &RgbImage| -> anyhow::Result<Option<Against>> {
+    // Both of wisplight's pictures in linear RGB, unclamped.
+    let scattered = |config: MethodConfig| -> anyhow::Result<Option<Against>> {
         let Some((cycles, _)) = &bounced else {
             return Ok(None);
         };
-        let (shade_ms, all) = scattering::measure(&scene, config, a.runs as usize)?;
-        let mine = scattering::Light::new(&linear(direct), &all, w, h);
+        let (_, direct) = scattering::measure(&scene, config, 1, false)?;
+        let (shade_ms, all) = scattering::measure(&scene, config, a.runs as usize, true)?;
+        let mine = scattering::Light::new(&direct, &all, w, h);
+        // The reference's pair, to look at beside Cycles'.
+        if let (Some(dir), "reference") = (&a.cycles, config.name()) {
+            scattering::write_png(&dir.join("wisplight-direct.png"), &direct, w, h)?;
+            let name = format!("wisplight-scattered-{}.png", a.bounces);
+            scattering::write_png(&dir.join(name), &all, w, h)?;
+        }
         Ok(Some(Against::new(&mine, cycles, shade_ms)))
     };
     let unshadowed = match (&truth, &a.cycles) {
@@ -284,7 +292,7 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
         image: 0.0,
         seen: (0.0, 0.0),
         cycles: against_cycles(&ref_img),
-        scattering: scattered(reference, &ref_img)?,
+        scattering: scattered(reference)?,
     }];
     for c in configs {
         bar.set_message(format!("{} {}", c.name(), c.parameters()));
@@ -300,7 +308,7 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
             image: image_error(&img, &ref_img, bg),
             seen,
             cycles: against_cycles(&img),
-            scattering: scattered(c, &img)?,
+            scattering: scattered(c)?,
         });
         bar.inc(1);
     }
@@ -603,7 +611,7 @@ fn direct_light(scene: &Scene, physical: bool) -> Scene {
 }
 
 /// An 8-bit sRGB picture in linear RGB.
-pub(super) fn linear(img: &RgbImage) -> Vec<glam::Vec3> {
+fn linear(img: &RgbImage) -> Vec<glam::Vec3> {
     let lut: Vec<f32> = (0..=255u8).map(raster::srgb8_to_linear).collect();
     img.pixels()
         .map(|p| {

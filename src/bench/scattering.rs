@@ -20,7 +20,7 @@ use glam::Vec3;
 use image::RgbImage;
 use shadow::MethodConfig;
 
-use super::accuracy::{BLOCK, linear};
+use super::accuracy::BLOCK;
 
 /// One picture pair's numbers.
 #[derive(Debug, Clone)]
@@ -136,34 +136,37 @@ pub(super) fn print_table(
     );
 }
 
-/// The scene's first frame with `config` and multiple scattering,
-/// rendered `runs` times: the median time of its shade stage, and the
-/// last picture in linear RGB.
+/// The scene's first frame with `config`, with multiple scattering or
+/// without, rendered `runs` times: the median time of its shade stage,
+/// and the last picture in linear RGB, unclamped (light hair with its
+/// scattered light is brighter than an 8-bit picture holds).
 pub(super) fn measure(
     scene: &Scene,
     config: MethodConfig,
     runs: usize,
+    multiple: bool,
 ) -> anyhow::Result<(f64, Vec<Vec3>)> {
     let mut s = scene.clone();
     s.shadow.method = config;
     s.effects.self_shadow = true;
-    s.effects.multiple_scattering = true;
+    s.effects.multiple_scattering = multiple;
     s.animation.motion = sim::Motion::Still;
     let mut seq = Sequence::new(&s)?;
     let mut times = Vec::with_capacity(runs);
-    let mut img: Option<RgbImage> = None;
     for _ in 0..runs {
-        let (pic, stats) = seq.again().with_context(|| {
-            format!(
-                "cannot render with {} and multiple scattering",
-                config.name()
-            )
-        })?;
+        let (_, stats) = seq
+            .again()
+            .with_context(|| format!("cannot render with {}", config.name()))?;
         times.push(stats.stage(Stage::Shade).ms);
-        img = Some(pic.clone());
     }
-    let img = img.context("no frame rendered")?;
-    Ok((crate::cmd::median(&mut times), linear(&img)))
+    let px = seq
+        .renderer()
+        .linear_picture()
+        .context("no picture drawn")?;
+    Ok((
+        crate::cmd::median(&mut times),
+        px.iter().map(|p| p.truncate()).collect(),
+    ))
 }
 
 /// Cycles' picture of the frame exported in `dir` with `bounces` light
@@ -215,10 +218,17 @@ pub(super) fn cycles_bounced(
         );
     }
     // To look at beside wisplight's without an OpenEXR viewer.
-    let bytes = px.iter().flat_map(|&c| raster::to_srgb8(c)).collect();
-    let img = RgbImage::from_raw(w, h, bytes).context("one RGB pixel each")?;
-    crate::output::write_png(&dir.join(format!("cycles-bounces{bounces}.png")), &img)?;
+    let png = dir.join(format!("cycles-bounces{bounces}.png"));
+    write_png(&png, &px, w as usize, h as usize)?;
     Ok((px, seconds))
+}
+
+/// A linear picture of `w x h` pixels as 8-bit sRGB PNG, encoded as
+/// wisplight encodes its own.
+pub(super) fn write_png(path: &Path, px: &[Vec3], w: usize, h: usize) -> anyhow::Result<()> {
+    let bytes = px.iter().flat_map(|&c| raster::to_srgb8(c)).collect();
+    let img = RgbImage::from_raw(w as u32, h as u32, bytes).context("one RGB pixel each")?;
+    crate::output::write_png(path, &img)
 }
 
 #[cfg(test)]

@@ -542,6 +542,16 @@ impl Renderer {
             self.canvas = canvas;
         }
     }
+
+    /// The last picture drawn in this process, before it was encoded:
+    /// linear RGB, not clamped, and alpha, the coverage of the head and
+    /// the hair; row after row ([`Canvas::resolve_linear`]). `None` before
+    /// any draw. Of a picture whose hair was drawn elsewhere (by cluster
+    /// workers) it holds the head alone.
+    pub fn linear_picture(&self) -> Option<Vec<glam::Vec4>> {
+        let canvas = self.canvas.as_ref()?;
+        Some(canvas.resolve_linear(self.scene.render.background))
+    }
 }
 
 /// Where the default camera looks from, towards the hair, slightly above:

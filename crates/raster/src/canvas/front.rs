@@ -194,6 +194,14 @@ pub(super) fn composite(front: &[Fragment], sums: Option<&Sums>, base: Vec3) -> 
     c + behind * t
 }
 
+/// The fraction of what lies behind `front` (and `sums`, behind it) that
+/// they let through: `prod_i (1 - a_i)` times the sums' reveal.
+#[inline]
+pub(super) fn reveal(front: &[Fragment], sums: Option<&Sums>) -> f32 {
+    let behind = sums.map_or(1.0, Sums::reveal);
+    front.iter().fold(behind, |t, f| t * (1.0 - f.alpha))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -359,7 +359,20 @@ impl Canvas {
         layers: &[HairLayer],
         rows: std::ops::Range<u32>,
     ) -> Vec<u8> {
-        self.resolve_rows_with(background, layers, rows, true)
+        let lut = srgb::srgb_table();
+        self.resolve_rows_with(background, layers, rows, true, false, |c, _| {
+            srgb::encode(lut, c)
+        })
+        .into_flattened()
+    }
+
+    /// The finished picture as [`Self::resolve`] composites it, before it
+    /// is encoded: linear RGB (not clamped to 1) and alpha, the coverage
+    /// of the head (1) or the hair (`1 - prod (1 - a)` over its
+    /// fragments; 0 on the background), row after row.
+    pub fn resolve_linear(&self, background: Vec3) -> Vec<Vec4> {
+        let h = self.height as u32;
+        self.resolve_rows_with(background, &[], 0..h, true, true, |c, a| c.extend(a))
     }
 
     /// [`Self::resolve_rows`] of `layers` over this canvas's opaque layer
@@ -371,32 +384,40 @@ impl Canvas {
         layers: &[HairLayer],
         rows: std::ops::Range<u32>,
     ) -> Vec<u8> {
-        self.resolve_rows_with(background, layers, rows, false)
+        let lut = srgb::srgb_table();
+        self.resolve_rows_with(background, layers, rows, false, false, |c, _| {
+            srgb::encode(lut, c)
+        })
+        .into_flattened()
     }
 
-    fn resolve_rows_with(
+    /// The pixels of `rows`, each `pixel(colour, alpha)`: its linear
+    /// colour over the background, and with `alpha` its coverage (1
+    /// otherwise).
+    fn resolve_rows_with<P: Copy + Send + Sync>(
         &self,
         background: Vec3,
         layers: &[HairLayer],
         rows: std::ops::Range<u32>,
         own_hair: bool,
-    ) -> Vec<u8> {
+        alpha: bool,
+        pixel: impl Fn(Vec3, f32) -> P + Sync,
+    ) -> Vec<P> {
         let (w, h, band_rows) = (self.width, self.height, self.band);
         let (r0, r1) = ((rows.start as usize).min(h), (rows.end as usize).min(h));
         debug_assert!(r0.is_multiple_of(band_rows), "rows start on a band");
-        let mut buf = vec![0u8; r1.saturating_sub(r0) * w * 3];
-        let lut = srgb::srgb_table();
-        let bg = srgb::encode(lut, background);
+        let bg = pixel(background, 0.0);
+        let mut buf = vec![bg; r1.saturating_sub(r0) * w];
         let layers: Vec<&HairLayer> = layers
             .iter()
             .filter(|l| l.width() as usize == w && l.height() as usize == h)
             .collect();
-        buf.par_chunks_mut(w * band_rows * 3)
-            .enumerate()
-            .for_each_init(Scratch::default, |scratch, (k, out)| {
+        buf.par_chunks_mut(w * band_rows).enumerate().for_each_init(
+            Scratch::default,
+            |scratch, (k, out)| {
                 let band = r0 / band_rows + k;
                 let y0 = band * band_rows;
-                let rows = out.len() / (3 * w);
+                let rows = out.len() / w;
                 // The last group stays in floats, folded as it is composited.
                 let last = if own_hair {
                     self.band_sums(band, rows, scratch, false)
@@ -414,36 +435,43 @@ impl Canvas {
                 }
                 let depth = &self.depth[y0 * w..(y0 + rows) * w];
                 let opaque = &self.opaque[y0 * w..(y0 + rows) * w];
-                for (r, row) in out.chunks_exact_mut(3 * w).enumerate() {
+                for (r, row) in out.chunks_exact_mut(w).enumerate() {
                     // 64 pixels a word of `marked`: a run with no exact
                     // sums, no float sums and no head is background.
-                    for (k, run) in row.chunks_mut(64 * 3).enumerate() {
-                        let (x0, x1) = (k * 64, k * 64 + run.len() / 3);
+                    for (k, run) in row.chunks_mut(64).enumerate() {
+                        let (x0, x1) = (k * 64, k * 64 + run.len());
                         let (p0, p1) = (r * w + x0, r * w + x1);
                         let word = &mut scratch.marked[r * scratch.words + k];
                         let floats = x1 as u32 > last[0] && (x0 as u32) < last[1];
                         if *word == 0 && !floats && depth[p0..p1].iter().all(|d| d.is_infinite()) {
-                            run.chunks_exact_mut(3)
-                                .for_each(|px| px.copy_from_slice(&bg));
+                            run.fill(bg);
                             continue;
                         }
                         *word = 0;
-                        for (p, px) in (p0..p1).zip(run.chunks_exact_mut(3)) {
+                        for (p, px) in (p0..p1).zip(run.iter_mut()) {
                             let covered = depth[p].is_finite();
                             let hair = scratch.take(p);
                             if hair.is_none() && !covered {
-                                px.copy_from_slice(&bg);
+                                *px = bg;
                                 continue;
                             }
                             let base = if covered { opaque[p] } else { background };
                             let c = hair.map_or(base, |s| {
                                 front::composite(scratch.front(s), Some(&scratch.sums[s]), base)
                             });
-                            px.copy_from_slice(&srgb::encode(lut, c));
+                            let a = match hair {
+                                _ if covered || !alpha => 1.0,
+                                Some(s) => {
+                                    1.0 - front::reveal(scratch.front(s), Some(&scratch.sums[s]))
+                                }
+                                None => 0.0,
+                            };
+                            *px = pixel(c, a);
                         }
                     }
                 }
-            });
+            },
+        );
         buf
     }
 

@@ -81,6 +81,16 @@ impl Sums {
         self.absorb = self.absorb.wrapping_add(other.absorb);
     }
 
+    /// The fraction of what lies behind that these fragments let through:
+    /// `2^-A`, 1 without any.
+    #[inline]
+    pub fn reveal(&self) -> f32 {
+        if self.rgbw[3] <= 0 {
+            return 1.0;
+        }
+        revealed(self.absorb)
+    }
+
     /// The pixel's colour over `base`: the weighted mean hair colour
     /// `rgb / w` covering `1 - 2^-A` of it.
     #[inline]

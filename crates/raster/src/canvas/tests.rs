@@ -473,6 +473,55 @@ fn the_nearest_fragments_hide_what_is_behind_them() {
 }
 
 #[test]
+fn the_linear_picture_is_the_encoded_one_before_encoding_with_coverage_as_alpha() {
+    let cam = Camera::new(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, 40.0, 32, 32).unwrap();
+    let a = [Vec3::new(-2.0, 0.0, 0.1), Vec3::new(2.0, 0.0, 0.1)];
+    let b = [Vec3::new(-2.0, 0.0, -0.1), Vec3::new(2.0, 0.0, -0.1)];
+    let look = HairLook {
+        fiber_width: 0.6,
+        opacity: 0.5,
+        depth_ref: 10.0,
+        simplify: 0.0,
+    };
+    let bg = Vec3::new(0.0, 0.0, 0.05);
+    // A strand brighter than 1 in red, one in green behind it.
+    let bright = Vec3::new(3.0, 0.5, 0.0);
+    let draw = |strands: &[([Vec3; 2], Vec3)]| {
+        let mut c = Canvas::new(32, 32).unwrap();
+        c.set_nearest(4);
+        let pts: Vec<Vec3> = strands.iter().flat_map(|s| s.0).collect();
+        let cols: Vec<Vec3> = strands.iter().flat_map(|s| [s.1, s.1]).collect();
+        let offsets: Vec<u32> = (0..=strands.len() as u32).map(|i| 2 * i).collect();
+        c.draw_hair(&cam, &pts, &offsets, &cols, &look, &[], 0);
+        (c.resolve(bg), c.resolve_linear(bg))
+    };
+    let (img, lin) = draw(&[(a, bright), (b, Vec3::Y)]);
+    assert_eq!(lin.len(), 32 * 32);
+    // Encoded, the linear picture is the picture.
+    for (p, l) in img.pixels().zip(&lin) {
+        assert_eq!(p.0, crate::to_srgb8(l.truncate()), "{l}");
+    }
+    // The background: its colour, no coverage.
+    assert_eq!(lin[0], bg.extend(0.0));
+    // The first strand alone at the centre: its opacity there as alpha,
+    // and its colour over the background by that alpha, not clamped.
+    let (_, alone) = draw(&[(a, bright)]);
+    let c = alone[16 * 32 + 16];
+    assert!(c.w > 0.3 && c.w < 1.0, "{c}");
+    let want = bright * c.w + bg * (1.0 - c.w);
+    assert!(
+        (c.truncate() - want).abs().max_element() < 1e-5,
+        "{c} vs {want}"
+    );
+    assert!(c.x > 1.0, "{c}");
+    // Both: what lets light through multiplies.
+    let (_, other) = draw(&[(b, Vec3::Y)]);
+    let both = lin[16 * 32 + 16].w;
+    let want = 1.0 - (1.0 - c.w) * (1.0 - other[16 * 32 + 16].w);
+    assert!((both - want).abs() < 1e-5, "{both} vs {want}");
+}
+
+#[test]
 fn malformed_layers_are_refused() {
     let s = Sums::ZERO;
     assert!(HairLayer::from_parts(4, 4, vec![1, 3], vec![s, s]).is_ok());
