@@ -269,7 +269,7 @@ fn dual_scattering_light_hair_scatters_far_more_between_fibers_than_dark() {
     );
     let (la, ..) = light.back_scattering(0.2);
     let (da, ..) = dark.back_scattering(0.2);
-    // A_b holds a_f^2: paths through neighbours and back.
+    // Paths through neighbours and back: many more in light hair.
     assert!(la.y > 5.0 * da.y, "A_b blond {la} brown {da}");
     // Eumelanin keeps red: the back-scattered light is reddish.
     assert!(la.x > la.y && la.y > la.z, "{la}");
@@ -298,7 +298,8 @@ fn dual_scattering_back_lobe_carries_a_b_in_the_units_of_single_scattering() {
         let (a_back, ..) = dual.back_scattering(ui);
         // A_b, less what its wide lobe sends towards grazing directions.
         for spread in [0.0, 0.5] {
-            let sent = over_sphere(96, 384, |wo| dual.back_lobe(ui, wo.x, spread)) / ci;
+            let sent =
+                over_sphere(96, 384, |wo| dual.back_lobe(ui, wo.x, cos_phi(wo), spread)) / ci;
             let share = sent / a_back;
             assert!(
                 share.max_element() <= 1.0 && share.min_element() > 0.75,
@@ -306,6 +307,70 @@ fn dual_scattering_back_lobe_carries_a_b_in_the_units_of_single_scattering() {
             );
         }
     }
+}
+
+#[test]
+fn dual_scattering_sends_back_what_a_random_walk_through_the_fibers_does() {
+    // Light going into a deep layer of fibers along a line: after a free
+    // path of mean 1 (optical depth), a fiber sends it on with
+    // probability a_f, back with a_b, and absorbs the rest. What comes
+    // out after more than one fiber, counted by walking 200,000 rays
+    // (seeded), is A_b.
+    let mut seed = 0x2545_f491_4f6c_dd1du64;
+    let mut uniform = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        ((seed >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    };
+    for (a_f, a_b) in [(0.7f32, 0.15f32), (0.4, 0.1), (0.05, 0.05), (0.85, 0.14)] {
+        let n = 200_000;
+        let mut back = 0usize;
+        for _ in 0..n {
+            let (mut x, mut down, mut events) = (0.0f64, true, 0);
+            loop {
+                let step = -uniform().ln();
+                x += if down { step } else { -step };
+                if x < 0.0 {
+                    if events > 1 {
+                        back += 1;
+                    }
+                    break;
+                }
+                let u = uniform() as f32;
+                events += 1;
+                if u < a_b {
+                    down = !down;
+                } else if u >= a_b + a_f {
+                    break;
+                }
+            }
+        }
+        let walked = back as f32 / n as f32;
+        let want = super::dual::multiple_back(Vec3::splat(a_f), Vec3::splat(a_b)).x;
+        assert!(
+            (walked - want).abs() < 0.004,
+            "a_f {a_f} a_b {a_b}: the walk sent back {walked}, A_b = {want}"
+        );
+    }
+}
+
+#[test]
+fn the_back_lobe_spreads_over_the_back_half_of_the_azimuths() {
+    use super::dual::back_azimuth;
+    // 1 / pi on the light's side, none on the other, summing to 1.
+    assert!((back_azimuth(1.0) - 1.0 / PI).abs() < 1e-7);
+    assert_eq!(back_azimuth(-1.0), 0.0);
+    assert!((back_azimuth(0.0) - 0.5 / PI).abs() < 1e-7);
+    let n = 100_000;
+    let sum: f64 = (0..n)
+        .map(|k| {
+            let phi = -std::f64::consts::PI + (k as f64 + 0.5) * std::f64::consts::TAU / n as f64;
+            f64::from(back_azimuth(phi.cos() as f32))
+        })
+        .sum::<f64>()
+        * (std::f64::consts::TAU / n as f64);
+    assert!((sum - 1.0).abs() < 1e-4, "{sum}");
 }
 
 #[test]
@@ -383,7 +448,7 @@ fn dual_scattering_adds_nothing_forward_in_full_light_and_brightens_blond_in_sha
     // scattering adds to single scattering.
     let s = ls.radiance(ui, uo, cos_phi);
     let full = ld.radiance_exact(s, 1.0, ui, uo, cos_phi);
-    let want = s + DENSITY_BACK * ld.back_lobe(ui, uo, 0.0);
+    let want = s + DENSITY_BACK * ld.back_lobe(ui, uo, cos_phi, 0.0);
     assert!((full - want).abs().max_element() < 1e-6, "{full} {want}");
     // Five fibers deep on average, blond hair gets back much of the light
     // the shadow took; dark hair little.
