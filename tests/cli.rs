@@ -662,8 +662,13 @@ fn bench_accuracy_writes_a_table_a_csv_and_a_plot() {
     let rows: Vec<&str> = text.lines().collect();
     assert_eq!(
         rows[0],
-        "method,parameters,ms,mean_abs,rms,max,image_error,seen_bias,seen_abs,cycles_error,mean_ratio"
+        "method,parameters,ms,mean_abs,rms,max,image_error,seen_bias,seen_abs,cycles_error,mean_ratio,\
+         scattering_shade_ms,direct_share_error,direct_share,gain,red_green,blue_green"
     );
+    // --bounces compares with Cycles' bounces: it needs --cycles.
+    let b = wisplight(&["bench", "accuracy", &scene, "--bounces", "16"]);
+    assert_eq!(b.status.code(), Some(2), "{}", stderr(&b));
+    assert!(stderr(&b).contains("--cycles"), "{}", stderr(&b));
     // The reference, 15 density-map settings (8 of resolution and filter,
     // 7 with contact shadows) and 4 deep-shadow-map settings.
     assert_eq!(rows.len(), 1 + 1 + 15 + 4, "{text}");
@@ -673,14 +678,14 @@ fn bench_accuracy_writes_a_table_a_csv_and_a_plot() {
         "{text}"
     );
     assert!(rows[1].starts_with("reference,"));
-    // As a CSV reader sees it: eleven fields a row, the parameters whole,
-    // no Cycles columns without --cycles.
+    // As a CSV reader sees it: seventeen fields a row, the parameters
+    // whole, no Cycles columns without --cycles.
     let mut reader = csv::Reader::from_path(&csv).unwrap();
     for (i, r) in reader.records().enumerate() {
         let r = r.unwrap();
-        assert_eq!(r.len(), 11, "{r:?}");
+        assert_eq!(r.len(), 17, "{r:?}");
         assert!(r[1].contains('=') && !r[1].starts_with('"'), "{r:?}");
-        assert!(r[9].is_empty() && r[10].is_empty(), "{r:?}");
+        assert!((9..17).all(|k| r[k].is_empty()), "{r:?}");
         if i == 0 {
             continue;
         }

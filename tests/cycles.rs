@@ -138,11 +138,21 @@ fn cycles_and_the_exact_reference_see_the_same_shadow() {
             cycles.to_str().unwrap(),
             "--cycles-samples",
             "16",
+            "--bounces",
+            "4",
         ])
     };
     let o = run();
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(cycles.join("cycles.exr").is_file() && cycles.join("cycles-unshadowed.exr").is_file());
+    for name in [
+        "cycles-bounces4.exr",
+        "cycles-bounces4.png",
+        "wisplight-direct.png",
+        "wisplight-scattered-4.png",
+    ] {
+        assert!(cycles.join(name).is_file(), "{name}");
+    }
     assert!(cycles.join("ratios.png").is_file());
     // wisplight's two pictures beside Cycles': the scene's size, and the
     // shadows only take light away.
@@ -204,7 +214,28 @@ fn cycles_and_the_exact_reference_see_the_same_shadow() {
             assert!((0.0..1.0).contains(&e), "{r:?}");
         }
     }
-    // Run again: the same frame's Cycles pictures are reused.
+    // With bounces: both renderers' light grows, each block's direct
+    // share is below 1, and every setting was compared.
+    let bounced = rows
+        .iter()
+        .find(|r| &r[0] == "cycles" && r[1].contains("bounces=4"))
+        .unwrap();
+    let num = |r: &csv::StringRecord, name: &str| r[col(name)].parse::<f64>().unwrap();
+    assert!(num(bounced, "gain") > 1.0, "{bounced:?}");
+    assert!(
+        (0.0..1.0).contains(&num(bounced, "direct_share")),
+        "{bounced:?}"
+    );
+    for r in rows.iter().filter(|r| &r[0] != "cycles") {
+        assert!(num(r, "gain") > 1.0, "{r:?}");
+        assert!((0.0..1.0).contains(&num(r, "direct_share_error")), "{r:?}");
+        let (rg, bg) = (num(r, "red_green"), num(r, "blue_green"));
+        assert!(
+            rg.is_finite() && bg.is_finite() && rg > 0.0 && bg > 0.0,
+            "{r:?}"
+        );
+    }
+    // Run again: the same frame's Cycles pictures are reused, bounces too.
     let o = run();
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(
@@ -212,6 +243,7 @@ fn cycles_and_the_exact_reference_see_the_same_shadow() {
         "{}",
         stderr(&o)
     );
+    assert!(!stderr(&o).contains("bounces)..."), "{}", stderr(&o));
 }
 
 #[test]

@@ -430,27 +430,6 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
                 r.scattering.map_or(String::new(), |s| f6(s.color[1])),
             ])?;
         }
-        if let Some((c, seconds)) = &bounced {
-            w.write_record([
-                "cycles".to_string(),
-                format!("samples={} bounces={}", a.cycles_samples, a.bounces),
-                format!("{:.1}", 1e3 * seconds),
-                String::new(),
-                String::new(),
-                String::new(),
-                String::new(),
-                String::new(),
-                String::new(),
-                String::new(),
-                String::new(),
-                String::new(),
-                "0".to_string(),
-                f6(c.share.mean()),
-                f6(c.gain),
-                f6(c.color[0]),
-                f6(c.color[1]),
-            ])?;
-        }
         if let Some(t) = &truth {
             w.write_record([
                 "cycles".to_string(),
@@ -470,6 +449,27 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
                 String::new(),
                 String::new(),
                 String::new(),
+            ])?;
+        }
+        if let Some((c, seconds)) = &bounced {
+            w.write_record([
+                "cycles".to_string(),
+                format!("samples={} bounces={}", a.cycles_samples, a.bounces),
+                format!("{:.1}", 1e3 * seconds),
+                String::new(),
+                String::new(),
+                String::new(),
+                String::new(),
+                String::new(),
+                String::new(),
+                String::new(),
+                String::new(),
+                String::new(),
+                "0".to_string(),
+                f6(c.share.mean()),
+                f6(c.gain),
+                f6(c.color[0]),
+                f6(c.color[1]),
             ])?;
         }
         let bytes = w.into_inner().context("cannot write the table")?;

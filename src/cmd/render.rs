@@ -19,7 +19,10 @@ pub struct Args {
     /// Output: a PNG (default `wisplight.png`); for several frames a
     /// pattern with `%d` or `%04d` for the frame number (default
     /// `wisplight_%04d.png`; its directory is created); or a `.gif` for one
-    /// animated GIF. Every file is written to a temporary file first, then
+    /// animated GIF; or `.exr` (one file, or a pattern) for OpenEXR: linear
+    /// float RGBA, alpha the head's and the hair's coverage, the
+    /// background left out (colour premultiplied by alpha, to put over any
+    /// plate). Every file is written to a temporary file first, then
     /// renamed: it appears whole or not at all.
     #[arg(short, long, value_name = "OUT")]
     output: Option<PathBuf>,
@@ -54,6 +57,8 @@ pub struct Args {
 enum Output {
     /// One PNG per frame, named by the pattern.
     Pngs(Pattern),
+    /// One OpenEXR per frame, named by the pattern.
+    Exrs(Pattern),
     Gif(raster::GifWriter<AtomicFile>, PathBuf),
 }
 
@@ -104,23 +109,39 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
         Output::Gif(w, out_path.clone())
     } else {
         let pattern = Pattern::parse(&out_path)?;
-        if !out_path
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("png"))
-        {
+        let ext = |x: &str| {
+            out_path
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case(x))
+        };
+        let exr = ext("exr");
+        if !ext("png") && !exr {
             return Err(super::usage(format!(
-                "-o {}: the output must be a .png (or a .gif)",
+                "-o {}: the output must be a .png or .exr (or a .gif)",
+                out_path.display()
+            )));
+        }
+        if exr && remote.is_some() {
+            return Err(super::usage(format!(
+                "-o {}: OpenEXR needs the picture drawn in this process, and a coordinator's \
+                 pictures are finished on the workers as 8-bit sRGB: write .png, or render \
+                 the .exr with `wisplight render`",
                 out_path.display()
             )));
         }
         if n > 1 && !pattern.numbered() {
+            let e = if exr { "exr" } else { "png" };
             return Err(super::usage(format!(
-                "-o {}: {n} frames need a numbered name, like out/frame_%04d.png (or a .gif)",
+                "-o {}: {n} frames need a numbered name, like out/frame_%04d.{e} (or a .gif)",
                 out_path.display()
             )));
         }
         ready_folder(&out_path)?;
-        Output::Pngs(pattern)
+        if exr {
+            Output::Exrs(pattern)
+        } else {
+            Output::Pngs(pattern)
+        }
     };
 
     let mut seq = Sequence::new(&scene).context("cannot set up the scene")?;
@@ -221,6 +242,15 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
                 crate::output::write_bytes(&path, &bytes).context("cannot save the picture")?;
                 png = Some(bytes);
             }
+            Output::Exrs(p) => {
+                let px = seq
+                    .renderer()
+                    .linear_picture_over(glam::Vec3::ZERO)
+                    .context("no picture was drawn in this process")?;
+                let bytes = encode_exr(&px, scene.render.width, scene.render.height)?;
+                crate::output::write_bytes(&p.path(stats.index), &bytes)
+                    .context("cannot save the picture")?;
+            }
             Output::Gif(w, _) => w.add(img).context("cannot add a frame to the GIF")?,
         }
         tracing::debug!(
@@ -245,8 +275,8 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
                 .context("cannot save the GIF")?;
             path.display().to_string()
         }
-        Output::Pngs(p) if n == 1 => p.path(range.start).display().to_string(),
-        Output::Pngs(p) => format!(
+        Output::Pngs(p) | Output::Exrs(p) if n == 1 => p.path(range.start).display().to_string(),
+        Output::Pngs(p) | Output::Exrs(p) => format!(
             "{} .. {}",
             p.path(range.start).display(),
             p.path(range.end - 1).display()
@@ -364,6 +394,22 @@ fn describe(seq: &Sequence, scene: &engine::Scene) {
             c.height()
         );
     }
+}
+
+/// Linear RGBA pixels (`w x h`, row after row) as an OpenEXR file (32-bit
+/// float channels R, G, B, A).
+fn encode_exr(px: &[glam::Vec4], w: u32, h: u32) -> anyhow::Result<Vec<u8>> {
+    use image::ImageEncoder;
+    let bytes: Vec<u8> = px
+        .iter()
+        .flat_map(|p| p.to_array())
+        .flat_map(f32::to_ne_bytes)
+        .collect();
+    let mut out = std::io::Cursor::new(Vec::new());
+    image::codecs::openexr::OpenExrEncoder::new(&mut out)
+        .write_image(&bytes, w, h, image::ExtendedColorType::Rgba32F)
+        .context("cannot encode the OpenEXR picture")?;
+    Ok(out.into_inner())
 }
 
 fn is_gif(p: &Path) -> bool {

@@ -549,8 +549,14 @@ impl Renderer {
     /// any draw. Of a picture whose hair was drawn elsewhere (by cluster
     /// workers) it holds the head alone.
     pub fn linear_picture(&self) -> Option<Vec<glam::Vec4>> {
+        self.linear_picture_over(self.scene.render.background)
+    }
+
+    /// [`Self::linear_picture`] over `background` instead of the scene's
+    /// (black leaves it out: the colours are then premultiplied by alpha).
+    pub fn linear_picture_over(&self, background: glam::Vec3) -> Option<Vec<glam::Vec4>> {
         let canvas = self.canvas.as_ref()?;
-        Some(canvas.resolve_linear(self.scene.render.background))
+        Some(canvas.resolve_linear(background))
     }
 }
 
