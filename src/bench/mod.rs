@@ -4,6 +4,7 @@
 //! `wisplight` program itself.
 
 pub mod accuracy;
+mod cycles_truth;
 pub mod nodes;
 pub mod plot;
 pub mod scaling;

@@ -20,7 +20,7 @@ use glam::Vec3;
 use image::RgbImage;
 use shadow::MethodConfig;
 
-use super::accuracy::BLOCK;
+use super::cycles_truth::BLOCK;
 
 /// One picture pair's numbers.
 #[derive(Debug, Clone)]
