@@ -92,3 +92,161 @@ fn exr_output_is_refused_where_it_cannot_be_made() {
     assert!(e.contains("OpenEXR") && e.contains(".png"), "{e}");
     assert!(!std::path::Path::new(&one).exists());
 }
+
+/// Light hair with every light term: the fiber model, multiple
+/// scattering and a sky.
+const PASSES: &str = "[hair]\nstyle = \"smooth\"\nstrands_per_wisp = 3\n\n\
+[render]\nwidth = 96\nheight = 64\nbackground = [0.1, 0.2, 0.3]\n\n[animation]\nmotion = \"dance\"\n\n\
+[shadow]\ncells = 64\n\n[shading]\nmodel = \"marschner\"\neumelanin = 0.3\nambient = 0.3\n\n\
+[effects]\nmultiple_scattering = true\n";
+
+/// The channels of the first layer of an OpenEXR file, by name.
+fn channels(path: &str) -> std::collections::HashMap<String, Vec<f32>> {
+    let img = exr::prelude::read_all_flat_layers_from_file(path).unwrap();
+    let layer = &img.layer_data[0];
+    layer
+        .channel_data
+        .list
+        .iter()
+        .map(|c| {
+            let v = match &c.sample_data {
+                exr::prelude::FlatSamples::F32(v) => v.clone(),
+                other => panic!("{}: not f32 {other:?}", c.name),
+            };
+            (c.name.to_string(), v)
+        })
+        .collect()
+}
+
+#[test]
+fn the_light_passes_add_up_to_the_beauty_and_the_frames_stay_the_same() {
+    let dir = scratch("passes");
+    let scene = dir.join("s.toml");
+    std::fs::write(&scene, PASSES).unwrap();
+    let scene = scene.to_str().unwrap();
+    let at = |name: &str| dir.join(name).display().to_string();
+    let o = wisplight(&[
+        "-q",
+        "render",
+        scene,
+        "--frames",
+        "2",
+        "-o",
+        &at("f_%04d.png"),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // The same frames without multiple scattering: direct + sky.
+    let plain = dir.join("plain.toml");
+    std::fs::write(&plain, PASSES.replace("multiple_scattering = true", "")).unwrap();
+    let plain = plain.to_str().unwrap();
+    let o = wisplight(&[
+        "-q",
+        "render",
+        plain,
+        "--frames",
+        "2",
+        "-o",
+        &at("p_%04d.png"),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = wisplight(&[
+        "-q",
+        "render",
+        scene,
+        "--frames",
+        "2",
+        "-o",
+        &at("f_%04d.exr"),
+        "--passes",
+        "direct,scattered,sky,shadow,depth",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for frame in 0..2 {
+        let c = channels(&at(&format!("f_{frame:04}.exr")));
+        let mut names: Vec<&String> = c.keys().collect();
+        names.sort();
+        assert_eq!(
+            names,
+            [
+                "A",
+                "B",
+                "G",
+                "R",
+                "depth.Z",
+                "direct.B",
+                "direct.G",
+                "direct.R",
+                "scattered.B",
+                "scattered.G",
+                "scattered.R",
+                "shadow.B",
+                "shadow.G",
+                "shadow.R",
+                "sky.B",
+                "sky.G",
+                "sky.R"
+            ]
+        );
+        // The beauty is the PNG's frame: the passes changed no frame.
+        let png = image::open(at(&format!("f_{frame:04}.png")))
+            .unwrap()
+            .into_rgb8();
+        let bg = glam::Vec3::new(0.1, 0.2, 0.3);
+        let no_ms = image::open(at(&format!("p_{frame:04}.png")))
+            .unwrap()
+            .into_rgb8();
+        let (mut sky_lit, mut scattered_lit, mut shadowed) = (0, 0, 0);
+        for (i, (got, plain)) in png
+            .as_raw()
+            .chunks_exact(3)
+            .zip(no_ms.as_raw().chunks_exact(3))
+            .enumerate()
+        {
+            let get = |k: &str| c[k][i];
+            let a = get("A");
+            for ch in ["R", "G", "B"] {
+                let beauty = get(ch);
+                let (d, s, k_) = (
+                    get(&format!("direct.{ch}")),
+                    get(&format!("scattered.{ch}")),
+                    get(&format!("sky.{ch}")),
+                );
+                assert!(
+                    (d + s + k_ - beauty).abs() <= 1e-5 + 1e-5 * beauty.abs(),
+                    "pixel {i} {ch}: {d} + {s} + {k_} != {beauty}"
+                );
+                assert!(
+                    d >= -1e-6 && k_ >= -1e-4 && s >= -1e-3,
+                    "pixel {i}: {d} {s} {k_}"
+                );
+                let shadow = get(&format!("shadow.{ch}"));
+                assert!(shadow >= -1e-3, "pixel {i}: shadow {shadow}");
+                sky_lit += usize::from(k_ > 1e-3);
+                scattered_lit += usize::from(s > 1e-3);
+                shadowed += usize::from(shadow > 1e-3);
+            }
+            let over = glam::Vec3::new(get("R"), get("G"), get("B")) + bg * (1.0 - a);
+            let want = raster::to_srgb8(over);
+            let off = (0..3).map(|k| got[k].abs_diff(want[k])).max().unwrap();
+            assert!(off <= 1, "frame {frame} pixel {i}: {got:?} vs {want:?}");
+            // Direct and sky alone are the picture without scattering.
+            let lit = |ch: &str| get(&format!("direct.{ch}")) + get(&format!("sky.{ch}"));
+            let over = glam::Vec3::new(lit("R"), lit("G"), lit("B")) + bg * (1.0 - a);
+            let want = raster::to_srgb8(over);
+            let off = (0..3).map(|k| plain[k].abs_diff(want[k])).max().unwrap();
+            assert!(off <= 1, "frame {frame} pixel {i}: {plain:?} vs {want:?}");
+            // Nothing drawn: no depth; the head: a depth.
+            let z = get("depth.Z");
+            if a == 0.0 {
+                assert_eq!(z, 1e10, "pixel {i}");
+            } else {
+                assert!(z > 0.0 && z < 1e9, "pixel {i}: {z}");
+            }
+        }
+        assert!(sky_lit > 0 && scattered_lit > 0 && shadowed > 0);
+    }
+    // Passes belong in an OpenEXR file.
+    let o = wisplight(&["render", scene, "-o", &at("x.png"), "--passes", "direct"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("write .exr"));
+}

@@ -2,6 +2,7 @@
 
 pub mod cluster;
 pub mod export;
+pub mod exr;
 pub mod probe;
 pub mod render;
 pub mod simulate;

@@ -47,6 +47,13 @@ pub struct Args {
     /// Render without any shadow (the scene's `effects.self_shadow` off), for comparison.
     #[arg(long)]
     no_shadow: bool,
+    /// With an `.exr` output: also write these passes as layers of each
+    /// file. The light passes add up to the beauty (direct + scattered +
+    /// sky); shadow is the direct light the shadows took; depth the view
+    /// depth of the nearest surface (`depth.Z`). Each light pass renders
+    /// the frame again.
+    #[arg(long, value_delimiter = ',', value_name = "PASS,...")]
+    passes: Vec<super::exr::Pass>,
     #[command(flatten)]
     method: super::MethodArg,
     #[command(flatten)]
@@ -133,6 +140,12 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
             let e = if exr { "exr" } else { "png" };
             return Err(super::usage(format!(
                 "-o {}: {n} frames need a numbered name, like out/frame_%04d.{e} (or a .gif)",
+                out_path.display()
+            )));
+        }
+        if !exr && !args.passes.is_empty() {
+            return Err(super::usage(format!(
+                "-o {}: --passes are layers of an OpenEXR file: write .exr",
                 out_path.display()
             )));
         }
@@ -243,11 +256,7 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
                 png = Some(bytes);
             }
             Output::Exrs(p) => {
-                let px = seq
-                    .renderer()
-                    .linear_picture_over(glam::Vec3::ZERO)
-                    .context("no picture was drawn in this process")?;
-                let bytes = encode_exr(&px, scene.render.width, scene.render.height)?;
+                let bytes = super::exr::frame(&mut seq, &scene, &args.passes)?;
                 crate::output::write_bytes(&p.path(stats.index), &bytes)
                     .context("cannot save the picture")?;
             }
@@ -394,22 +403,6 @@ fn describe(seq: &Sequence, scene: &engine::Scene) {
             c.height()
         );
     }
-}
-
-/// Linear RGBA pixels (`w x h`, row after row) as an OpenEXR file (32-bit
-/// float channels R, G, B, A).
-fn encode_exr(px: &[glam::Vec4], w: u32, h: u32) -> anyhow::Result<Vec<u8>> {
-    use image::ImageEncoder;
-    let bytes: Vec<u8> = px
-        .iter()
-        .flat_map(|p| p.to_array())
-        .flat_map(f32::to_ne_bytes)
-        .collect();
-    let mut out = std::io::Cursor::new(Vec::new());
-    image::codecs::openexr::OpenExrEncoder::new(&mut out)
-        .write_image(&bytes, w, h, image::ExtendedColorType::Rgba32F)
-        .context("cannot encode the OpenEXR picture")?;
-    Ok(out.into_inner())
 }
 
 fn is_gif(p: &Path) -> bool {

@@ -558,6 +558,12 @@ impl Renderer {
         let canvas = self.canvas.as_ref()?;
         Some(canvas.resolve_linear(background))
     }
+
+    /// The view depth of the nearest surface at each pixel of the last
+    /// picture drawn in this process ([`Canvas::resolve_depth`]).
+    pub fn depth_picture(&self) -> Option<Vec<f32>> {
+        Some(self.canvas.as_ref()?.resolve_depth())
+    }
 }
 
 /// Where the default camera looks from, towards the hair, slightly above:

@@ -37,7 +37,7 @@ impl Canvas {
         rows: std::ops::Range<u32>,
     ) -> Vec<u8> {
         let lut = srgb::srgb_table();
-        self.resolve_rows_with(background, layers, rows, true, false, |c, _| {
+        self.resolve_rows_with(background, layers, rows, true, false, |c, _, _| {
             srgb::encode(lut, c)
         })
         .into_flattened()
@@ -49,7 +49,16 @@ impl Canvas {
     /// fragments; 0 on the background), row after row.
     pub fn resolve_linear(&self, background: Vec3) -> Vec<Vec4> {
         let h = self.height as u32;
-        self.resolve_rows_with(background, &[], 0..h, true, true, |c, a| c.extend(a))
+        self.resolve_rows_with(background, &[], 0..h, true, true, |c, a, _| c.extend(a))
+    }
+
+    /// The view depth (scene units) of the nearest surface at each pixel,
+    /// row after row: the head's, or the hair's nearest fragment kept
+    /// (with [`Self::set_nearest`] above 0; with none kept, the head's
+    /// alone); infinite where nothing is drawn.
+    pub fn resolve_depth(&self) -> Vec<f32> {
+        let h = self.height as u32;
+        self.resolve_rows_with(Vec3::ZERO, &[], 0..h, true, true, |_, _, z| z)
     }
 
     /// [`Self::resolve_rows`] of `layers` over this canvas's opaque layer
@@ -62,15 +71,16 @@ impl Canvas {
         rows: std::ops::Range<u32>,
     ) -> Vec<u8> {
         let lut = srgb::srgb_table();
-        self.resolve_rows_with(background, layers, rows, false, false, |c, _| {
+        self.resolve_rows_with(background, layers, rows, false, false, |c, _, _| {
             srgb::encode(lut, c)
         })
         .into_flattened()
     }
 
-    /// The pixels of `rows`, each `pixel(colour, alpha)`: its linear
-    /// colour over the background, and with `alpha` its coverage (1
-    /// otherwise).
+    /// The pixels of `rows`, each `pixel(colour, alpha, depth)`: its
+    /// linear colour over the background, and with `alpha` its coverage
+    /// and the depth of its nearest surface (otherwise 1 and the head's
+    /// depth alone).
     fn resolve_rows_with<P: Copy + Send + Sync>(
         &self,
         background: Vec3,
@@ -78,12 +88,12 @@ impl Canvas {
         rows: std::ops::Range<u32>,
         own_hair: bool,
         alpha: bool,
-        pixel: impl Fn(Vec3, f32) -> P + Sync,
+        pixel: impl Fn(Vec3, f32, f32) -> P + Sync,
     ) -> Vec<P> {
         let (w, h, band_rows) = (self.width, self.height, self.band);
         let (r0, r1) = ((rows.start as usize).min(h), (rows.end as usize).min(h));
         debug_assert!(r0.is_multiple_of(band_rows), "rows start on a band");
-        let bg = pixel(background, 0.0);
+        let bg = pixel(background, 0.0, f32::INFINITY);
         let mut buf = vec![bg; r1.saturating_sub(r0) * w];
         let layers: Vec<&HairLayer> = layers
             .iter()
@@ -136,14 +146,23 @@ impl Canvas {
                             let c = hair.map_or(base, |s| {
                                 front::composite(scratch.front(s), Some(&scratch.sums[s]), base)
                             });
+                            if !alpha {
+                                *px = pixel(c, 1.0, depth[p]);
+                                continue;
+                            }
                             let a = match hair {
-                                _ if covered || !alpha => 1.0,
+                                _ if covered => 1.0,
                                 Some(s) => {
                                     1.0 - front::reveal(scratch.front(s), Some(&scratch.sums[s]))
                                 }
                                 None => 0.0,
                             };
-                            *px = pixel(c, a);
+                            // The nearest surface: the head's, or the
+                            // hair's nearest fragment kept.
+                            let near = hair
+                                .and_then(|s| scratch.front(s).first())
+                                .map_or(f32::INFINITY, |f| f.z);
+                            *px = pixel(c, a, near.min(depth[p]));
                         }
                     }
                 }

@@ -493,9 +493,15 @@ fn the_linear_picture_is_the_encoded_one_before_encoding_with_coverage_as_alpha(
         let cols: Vec<Vec3> = strands.iter().flat_map(|s| [s.1, s.1]).collect();
         let offsets: Vec<u32> = (0..=strands.len() as u32).map(|i| 2 * i).collect();
         c.draw_hair(&cam, &pts, &offsets, &cols, &look, &[], 0);
-        (c.resolve(bg), c.resolve_linear(bg))
+        (c.resolve(bg), c.resolve_linear(bg), c.resolve_depth())
     };
-    let (img, lin) = draw(&[(a, bright), (b, Vec3::Y)]);
+    let (img, lin, depth) = draw(&[(a, bright), (b, Vec3::Y)]);
+    // The nearest surface: the strand in front (9.9 from the camera), the
+    // one behind alone (10.1); nothing on the background.
+    let centre = 16 * 32 + 16;
+    assert!((depth[centre] - 9.9).abs() < 0.01, "{}", depth[centre]);
+    assert!((draw(&[(b, Vec3::Y)]).2[centre] - 10.1).abs() < 0.01);
+    assert_eq!(depth[0], f32::INFINITY);
     assert_eq!(lin.len(), 32 * 32);
     // Encoded, the linear picture is the picture.
     for (p, l) in img.pixels().zip(&lin) {
@@ -505,7 +511,7 @@ fn the_linear_picture_is_the_encoded_one_before_encoding_with_coverage_as_alpha(
     assert_eq!(lin[0], bg.extend(0.0));
     // The first strand alone at the centre: its opacity there as alpha,
     // and its colour over the background by that alpha, not clamped.
-    let (_, alone) = draw(&[(a, bright)]);
+    let (_, alone, _) = draw(&[(a, bright)]);
     let c = alone[16 * 32 + 16];
     assert!(c.w > 0.3 && c.w < 1.0, "{c}");
     let want = bright * c.w + bg * (1.0 - c.w);
@@ -515,7 +521,7 @@ fn the_linear_picture_is_the_encoded_one_before_encoding_with_coverage_as_alpha(
     );
     assert!(c.x > 1.0, "{c}");
     // Both: what lets light through multiplies.
-    let (_, other) = draw(&[(b, Vec3::Y)]);
+    let (_, other, _) = draw(&[(b, Vec3::Y)]);
     let both = lin[16 * 32 + 16].w;
     let want = 1.0 - (1.0 - c.w) * (1.0 - other[16 * 32 + 16].w);
     assert!((both - want).abs() < 1e-5, "{both} vs {want}");
