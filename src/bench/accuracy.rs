@@ -380,25 +380,7 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
     if let Some(path) = &a.csv {
         // The csv crate quotes a field where its text calls for it.
         let mut w = csv::Writer::from_writer(Vec::new());
-        w.write_record([
-            "method",
-            "parameters",
-            "ms",
-            "mean_abs",
-            "rms",
-            "max",
-            "image_error",
-            "seen_bias",
-            "seen_abs",
-            "cycles_error",
-            "mean_ratio",
-            "scattering_shade_ms",
-            "direct_share_error",
-            "direct_share",
-            "gain",
-            "red_green",
-            "blue_green",
-        ])?;
+        w.write_record(CSV_HEADER)?;
         let f6 = |v: f64| format!("{v:.6}");
         for r in &rows {
             w.write_record([
@@ -422,46 +404,40 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
                 r.scattering.map_or(String::new(), |s| f6(s.color[1])),
             ])?;
         }
+        // Cycles' rows: the columns named, the others empty.
+        let mut named = |fields: &[(&str, String)]| {
+            let mut row = vec![String::new(); CSV_HEADER.len()];
+            for (name, value) in fields {
+                let k = CSV_HEADER.iter().position(|h| h == name).expect("a column");
+                row[k] = value.clone();
+            }
+            w.write_record(&row)
+        };
         if let Some(t) = &truth {
-            w.write_record([
-                "cycles".to_string(),
-                format!("samples={} bounces=0", a.cycles_samples),
-                format!("{:.1}", 1e3 * t.seconds.0),
-                String::new(),
-                String::new(),
-                String::new(),
-                String::new(),
-                String::new(),
-                String::new(),
-                "0".to_string(),
-                format!("{:.6}", t.ratios.mean()),
-                String::new(),
-                String::new(),
-                String::new(),
-                String::new(),
-                String::new(),
-                String::new(),
+            named(&[
+                ("method", "cycles".into()),
+                (
+                    "parameters",
+                    format!("samples={} bounces=0", a.cycles_samples),
+                ),
+                ("ms", format!("{:.1}", 1e3 * t.seconds.0)),
+                ("cycles_error", "0".into()),
+                ("mean_ratio", f6(t.ratios.mean())),
             ])?;
         }
         if let Some((c, seconds)) = &bounced {
-            w.write_record([
-                "cycles".to_string(),
-                format!("samples={} bounces={}", a.cycles_samples, a.bounces),
-                format!("{:.1}", 1e3 * seconds),
-                String::new(),
-                String::new(),
-                String::new(),
-                String::new(),
-                String::new(),
-                String::new(),
-                String::new(),
-                String::new(),
-                String::new(),
-                "0".to_string(),
-                f6(c.share.mean()),
-                f6(c.gain),
-                f6(c.color[0]),
-                f6(c.color[1]),
+            named(&[
+                ("method", "cycles".into()),
+                (
+                    "parameters",
+                    format!("samples={} bounces={}", a.cycles_samples, a.bounces),
+                ),
+                ("ms", format!("{:.1}", 1e3 * seconds)),
+                ("direct_share_error", "0".into()),
+                ("direct_share", f6(c.share.mean())),
+                ("gain", f6(c.gain)),
+                ("red_green", f6(c.color[0])),
+                ("blue_green", f6(c.color[1])),
             ])?;
         }
         let bytes = w.into_inner().context("cannot write the table")?;
@@ -483,6 +459,27 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
     }
     Ok(())
 }
+
+/// The CSV's columns.
+const CSV_HEADER: [&str; 17] = [
+    "method",
+    "parameters",
+    "ms",
+    "mean_abs",
+    "rms",
+    "max",
+    "image_error",
+    "seen_bias",
+    "seen_abs",
+    "cycles_error",
+    "mean_ratio",
+    "scattering_shade_ms",
+    "direct_share_error",
+    "direct_share",
+    "gain",
+    "red_green",
+    "blue_green",
+];
 
 /// What a plot's vertical axis shows.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -36,11 +36,7 @@ impl Canvas {
         layers: &[HairLayer],
         rows: std::ops::Range<u32>,
     ) -> Vec<u8> {
-        let lut = srgb::srgb_table();
-        self.resolve_rows_with(background, layers, rows, true, false, |c, _, _| {
-            srgb::encode(lut, c)
-        })
-        .into_flattened()
+        self.srgb_rows(background, layers, rows, true)
     }
 
     /// The finished picture as [`Self::resolve`] composites it, before it
@@ -70,8 +66,19 @@ impl Canvas {
         layers: &[HairLayer],
         rows: std::ops::Range<u32>,
     ) -> Vec<u8> {
+        self.srgb_rows(background, layers, rows, false)
+    }
+
+    /// Rows `rows` as 8-bit sRGB, with or without this canvas's own hair.
+    fn srgb_rows(
+        &self,
+        background: Vec3,
+        layers: &[HairLayer],
+        rows: std::ops::Range<u32>,
+        own_hair: bool,
+    ) -> Vec<u8> {
         let lut = srgb::srgb_table();
-        self.resolve_rows_with(background, layers, rows, false, false, |c, _, _| {
+        self.resolve_rows_with(background, layers, rows, own_hair, false, |c, _, _| {
             srgb::encode(lut, c)
         })
         .into_flattened()
