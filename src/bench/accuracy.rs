@@ -205,12 +205,14 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
         _ => None,
     };
     // Both of wisplight's pictures in linear RGB, unclamped.
-    let scattered = |config: MethodConfig| -> anyhow::Result<Option<Against>> {
-        let Some((cycles, _)) = &bounced else {
+    // `direct`: the setting's direct-light picture its measure drew.
+    let scattered = |config: MethodConfig,
+                     direct: Option<Vec<glam::Vec3>>|
+     -> anyhow::Result<Option<Against>> {
+        let (Some((cycles, _)), Some(direct)) = (&bounced, direct) else {
             return Ok(None);
         };
-        let (_, direct) = scattering::measure(&scene, config, 1, false)?;
-        let (shade_ms, all) = scattering::measure(&scene, config, a.runs as usize, true)?;
+        let (shade_ms, all) = scattering::measure(&scene, config, a.runs as usize)?;
         let mine = scattering::Light::new(&direct, &all, w, h);
         // The reference's pair, to look at beside Cycles'.
         if let (Some(dir), "reference") = (&a.cycles, config.name()) {
@@ -252,7 +254,9 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
     );
     bar.set_message("reference");
     let reference = MethodConfig::with_defaults("reference", 128).expect("a known method");
-    let (ref_ms, ref_t, ref_img, visible) = measure(&scene, reference, 1, false)?;
+    let linear_too = bounced.is_some();
+    let (ref_ms, ref_t, ref_img, visible, ref_linear) =
+        measure(&scene, reference, 1, false, linear_too)?;
     let n_points = hair.point_count();
     bar.inc(1);
     // Where the two disagree, block by block: Cycles' shadow ratio beside
@@ -284,11 +288,11 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
         image: 0.0,
         seen: (0.0, 0.0),
         cycles: against_cycles(&ref_img),
-        scattering: scattered(reference)?,
+        scattering: scattered(reference, ref_linear)?,
     }];
     for c in configs {
         bar.set_message(format!("{} {}", c.name(), c.parameters()));
-        let (ms, t, img, _) = measure(&scene, c, a.runs as usize, true)?;
+        let (ms, t, img, _, direct) = measure(&scene, c, a.runs as usize, true, linear_too)?;
         let (mean_abs, rms, max) = errors(&t, &ref_t);
         let seen = visible_errors(&t, &ref_t, &visible, n_points);
         rows.push(Row {
@@ -300,7 +304,7 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
             image: image_error(&img, &ref_img, bg),
             seen,
             cycles: against_cycles(&img),
-            scattering: scattered(c)?,
+            scattering: scattered(c, direct)?,
         });
         bar.inc(1);
     }
@@ -501,7 +505,8 @@ fn measure(
     config: MethodConfig,
     runs: usize,
     warmup: bool,
-) -> anyhow::Result<(f64, Vec<f32>, RgbImage, Vec<usize>)> {
+    linear: bool,
+) -> anyhow::Result<Measured> {
     let mut s = scene.clone();
     s.shadow.method = config;
     s.effects.self_shadow = true;
@@ -529,8 +534,25 @@ fn measure(
         Some(c) => visible_points(c, seq.hair().points()),
         None => Vec::new(),
     };
-    Ok((crate::cmd::median(&mut times), t, img, visible))
+    // With `linear`, the last picture unclamped too.
+    let px = match linear {
+        true => Some(
+            seq.renderer()
+                .linear_picture()
+                .context("no picture drawn")?
+                .iter()
+                .map(|p| p.truncate())
+                .collect(),
+        ),
+        false => None,
+    };
+    Ok((crate::cmd::median(&mut times), t, img, visible, px))
 }
+
+/// What [`measure`] gives: the median time of the shadow stages, the
+/// transmittance at every drawn point, the last picture, the points it
+/// shows, and that picture in linear RGB when asked.
+type Measured = (f64, Vec<f32>, RgbImage, Vec<usize>, Option<Vec<glam::Vec3>>);
 
 /// The drawn points the picture shows: at each pixel, the point nearest
 /// the camera of those that project into it (the head not counted).

@@ -136,20 +136,19 @@ pub(super) fn print_table(
     );
 }
 
-/// The scene's first frame with `config`, with multiple scattering or
-/// without, rendered `runs` times: the median time of its shade stage,
-/// and the last picture in linear RGB, unclamped (light hair with its
-/// scattered light is brighter than an 8-bit picture holds).
+/// The scene's first frame with `config` and multiple scattering,
+/// rendered `runs` times: the median time of its shade stage, and the
+/// last picture in linear RGB, unclamped (light hair with its scattered
+/// light is brighter than an 8-bit picture holds).
 pub(super) fn measure(
     scene: &Scene,
     config: MethodConfig,
     runs: usize,
-    multiple: bool,
 ) -> anyhow::Result<(f64, Vec<Vec3>)> {
     let mut s = scene.clone();
     s.shadow.method = config;
     s.effects.self_shadow = true;
-    s.effects.multiple_scattering = multiple;
+    s.effects.multiple_scattering = true;
     s.animation.motion = sim::Motion::Still;
     let mut seq = Sequence::new(&s)?;
     let mut times = Vec::with_capacity(runs);

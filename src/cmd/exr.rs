@@ -60,15 +60,20 @@ impl Pass {
 /// bytes, with `passes`. The sequence is left rendering with `scene`.
 pub fn frame(seq: &mut Sequence, scene: &Scene, passes: &[Pass]) -> anyhow::Result<Vec<u8>> {
     let (w, h) = (scene.render.width as usize, scene.render.height as usize);
-    let beauty = linear(seq)?;
+    let asked = |p: Pass| passes.contains(&p);
+    // The beauty, and its depth in the same pass when asked.
+    let (beauty, depth) = if asked(Pass::Depth) {
+        let (beauty, depth) = seq
+            .renderer()
+            .linear_picture_and_depth(Vec3::ZERO)
+            .context("no picture was drawn in this process")?;
+        (beauty, Some(depth))
+    } else {
+        (linear(seq)?, None)
+    };
     let mut channels: Vec<AnyChannel<FlatSamples>> = Vec::new();
     rgba(&mut channels, "", &beauty, true);
-    let asked = |p: Pass| passes.contains(&p);
-    if asked(Pass::Depth) {
-        let depth = seq
-            .renderer()
-            .depth_picture()
-            .context("no picture was drawn in this process")?;
+    if let Some(depth) = depth {
         let z = depth
             .iter()
             .map(|&z| if z.is_finite() { z } else { NO_DEPTH })
@@ -81,18 +86,26 @@ pub fn frame(seq: &mut Sequence, scene: &Scene, passes: &[Pass]) -> anyhow::Resu
         let mut direct_scene = scene.clone();
         direct_scene.effects.multiple_scattering = false;
         direct_scene.shading.ambient = 0.0;
-        let direct = again(seq, &direct_scene)?;
+        // A pass of the scene itself is the beauty: not rendered again.
+        let mut render = |s: &Scene| -> anyhow::Result<Vec<Vec4>> {
+            if s == scene {
+                Ok(beauty.clone())
+            } else {
+                again(seq, s)
+            }
+        };
+        let direct = render(&direct_scene)?;
         // With the sky: the sky's share is the difference.
-        let sky = if scene.shading.ambient > 0.0 {
+        let sky = if scene.shading.ambient > 0.0 && (asked(Pass::Sky) || asked(Pass::Scattered)) {
             let mut s = direct_scene.clone();
             s.shading.ambient = scene.shading.ambient;
-            let with_sky = again(seq, &s)?;
+            let with_sky = render(&s)?;
             with_sky.iter().zip(&direct).map(|(a, b)| *a - *b).collect()
         } else {
             vec![Vec4::ZERO; w * h]
         };
         // Scattered: the rest of the beauty, so that the passes add up.
-        let scattered: Vec<Vec4> = if scene.effects.multiple_scattering {
+        let scattered: Vec<Vec4> = if scene.effects.multiple_scattering && asked(Pass::Scattered) {
             beauty
                 .iter()
                 .zip(&direct)
@@ -105,7 +118,7 @@ pub fn frame(seq: &mut Sequence, scene: &Scene, passes: &[Pass]) -> anyhow::Resu
         if asked(Pass::Shadow) {
             let mut s = direct_scene.clone();
             s.effects.self_shadow = false;
-            let lit = again(seq, &s)?;
+            let lit = render(&s)?;
             let took: Vec<Vec4> = lit.iter().zip(&direct).map(|(l, d)| *l - *d).collect();
             rgba(&mut channels, Pass::Shadow.name(), &took, false);
         }
@@ -119,8 +132,10 @@ pub fn frame(seq: &mut Sequence, scene: &Scene, passes: &[Pass]) -> anyhow::Resu
             }
         }
         // Back to the scene for the frames to come.
-        seq.set_scene(scene)
-            .context("cannot render the next frame")?;
+        if seq.scene() != scene {
+            seq.set_scene(scene)
+                .context("cannot render the next frame")?;
+        }
     }
     let layer = Layer::new(
         (w, h),

@@ -559,10 +559,13 @@ impl Renderer {
         Some(canvas.resolve_linear(background))
     }
 
-    /// The view depth of the nearest surface at each pixel of the last
-    /// picture drawn in this process ([`Canvas::resolve_depth`]).
-    pub fn depth_picture(&self) -> Option<Vec<f32>> {
-        Some(self.canvas.as_ref()?.resolve_depth())
+    /// [`Self::linear_picture_over`], and the view depth of the nearest
+    /// surface at each pixel ([`Canvas::resolve_linear_and_depth`]).
+    pub fn linear_picture_and_depth(
+        &self,
+        background: glam::Vec3,
+    ) -> Option<(Vec<glam::Vec4>, Vec<f32>)> {
+        Some(self.canvas.as_ref()?.resolve_linear_and_depth(background))
     }
 }
 

@@ -48,13 +48,18 @@ impl Canvas {
         self.resolve_rows_with(background, &[], 0..h, true, true, |c, a, _| c.extend(a))
     }
 
-    /// The view depth (scene units) of the nearest surface at each pixel,
-    /// row after row: the head's, or the hair's nearest fragment kept
-    /// (with [`Self::set_nearest`] above 0; with none kept, the head's
-    /// alone); infinite where nothing is drawn.
-    pub fn resolve_depth(&self) -> Vec<f32> {
+    /// [`Self::resolve_linear`], and in the same pass the view depth
+    /// (scene units) of the nearest surface at each pixel: the head's, or
+    /// the hair's nearest fragment kept (with [`Self::set_nearest`] above
+    /// 0; with none kept, the head's alone); infinite where nothing is
+    /// drawn.
+    pub fn resolve_linear_and_depth(&self, background: Vec3) -> (Vec<Vec4>, Vec<f32>) {
         let h = self.height as u32;
-        self.resolve_rows_with(Vec3::ZERO, &[], 0..h, true, true, |_, _, z| z)
+        self.resolve_rows_with(background, &[], 0..h, true, true, |c, a, z| {
+            (c.extend(a), z)
+        })
+        .into_iter()
+        .unzip()
     }
 
     /// [`Self::resolve_rows`] of `layers` over this canvas's opaque layer

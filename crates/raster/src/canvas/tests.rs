@@ -493,7 +493,8 @@ fn the_linear_picture_is_the_encoded_one_before_encoding_with_coverage_as_alpha(
         let cols: Vec<Vec3> = strands.iter().flat_map(|s| [s.1, s.1]).collect();
         let offsets: Vec<u32> = (0..=strands.len() as u32).map(|i| 2 * i).collect();
         c.draw_hair(&cam, &pts, &offsets, &cols, &look, &[], 0);
-        (c.resolve(bg), c.resolve_linear(bg), c.resolve_depth())
+        let (lin, depth) = c.resolve_linear_and_depth(bg);
+        (c.resolve(bg), lin, depth)
     };
     let (img, lin, depth) = draw(&[(a, bright), (b, Vec3::Y)]);
     // The nearest surface: the strand in front (9.9 from the camera), the
