@@ -11,8 +11,9 @@ use crate::output::AtomicFile;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Scene file (TOML), or a groom file (.hair, .tfx, .data, .bin, .ply)
-    /// to render at the defaults; the built-in scene (the smooth style,
+    /// Scene file (TOML), or a groom file (.hair, .tfx, .data, .bin, .ply,
+    /// Alembic .abc, USD .usd/.usda/.usdc/.usdz; an animated cache's first
+    /// sample) to render at the defaults; the built-in scene (the smooth style,
     /// parted, on a dancing head with a face, seen from three quarters)
     /// when omitted.
     scene: Option<PathBuf>,

@@ -25,10 +25,11 @@ pub fn build_hair(scene: &Scene) -> Result<Hair, EngineError> {
         }
         HairSource::File {
             path,
+            sample,
             follow,
             place,
         } => {
-            let mut guides = load_groom(scene, path)?;
+            let mut guides = load_groom(scene, path, *sample)?;
             place.apply(&mut guides);
             match follow {
                 Some(f) => {
@@ -48,9 +49,10 @@ pub fn build_hair(scene: &Scene) -> Result<Hair, EngineError> {
     Ok(resample(&control, scene.subdivide))
 }
 
-/// The groom `path` of `scene`'s `hair.file`; an error names both.
-fn load_groom(scene: &Scene, path: &std::path::Path) -> Result<Hair, EngineError> {
-    strands::load_with(path, |p| scene.data_file(p)).map_err(|error| EngineError::Load {
+/// The groom `path` of `scene`'s `hair.file`, at `sample`; an error
+/// names both.
+fn load_groom(scene: &Scene, path: &std::path::Path, sample: u32) -> Result<Hair, EngineError> {
+    strands::load_with(path, sample, |p| scene.data_file(p)).map_err(|error| EngineError::Load {
         scene: scene.source.path.clone(),
         error,
     })
@@ -63,9 +65,14 @@ pub fn drawn_segments(scene: &Scene) -> Result<u64, EngineError> {
     let sub = u64::from(scene.subdivide);
     let segs = match &scene.hair {
         HairSource::Style(p) => u64::from(p.wisps) * u64::from(p.strands_per_wisp) * 31 * sub,
-        HairSource::File { path, follow, .. } => {
+        HairSource::File {
+            path,
+            sample,
+            follow,
+            ..
+        } => {
             // Placing the groom changes no count.
-            let guides = load_groom(scene, path)?;
+            let guides = load_groom(scene, path, *sample)?;
             let per = follow.as_ref().map_or(1, |f| u64::from(f.followers) + 1);
             guides.segment_count() as u64 * per * sub
         }

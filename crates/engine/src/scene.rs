@@ -2,7 +2,8 @@
 //!
 //! ```toml
 //! [hair]
-//! style = "smooth"          # or "curly"; or file = "groom.tfx" (.hair, .tfx, .data, .bin or .ply, relative to the scene);
+//! style = "smooth"          # or "curly"; or file = "groom.tfx" (.hair, .tfx, .data, .bin, .ply, .abc, .usd, .usda, .usdc or .usdz, relative to the scene);
+//! sample = 0                # files: the sample of an animated Alembic or USD groom (0 the first)
 //!                           # or strands = [[[x, y, z], ...], ...] written out in the scene
 //! seed = 1                  # procedural styles
 //! strands_per_wisp = 25     # procedural styles: 134 wisps of this many drawn strands
@@ -111,6 +112,9 @@ pub enum HairSource {
     File {
         /// The file, relative to the scene's.
         path: PathBuf,
+        /// The sample of an animated Alembic or USD file read
+        /// (`hair.sample`, 0 the first); 0 for other formats.
+        sample: u32,
         /// Follow strands grown around its strands, when asked.
         follow: Option<FollowParams>,
         /// Where the groom goes in the scene (`hair.scale`,
@@ -747,18 +751,24 @@ impl Validator<'_> {
         // What needs the data files read, now that the text is valid.
         if let HairSource::File {
             path,
+            sample,
             follow,
             place,
         } = &mut scene.hair
             && (scale_width || scale_follow)
         {
-            let (unit, files_strands) = self.groom_unit(path, place)?;
+            let (unit, files_strands, file_width) = self.groom_unit(path, *sample, place)?;
             if scale_follow && let Some(f) = follow {
                 f.radius = DEFAULT_FOLLOW_RADIUS * unit;
             }
             if scale_width {
                 let per = follow.as_ref().map_or(1, |f| u64::from(f.followers) + 1);
-                let width = groom_fiber_width(unit, files_strands.saturating_mul(per));
+                // The file's own widths (Alembic, USD), placed, else one
+                // from the groom's unit and strands.
+                let width = match file_width {
+                    Some(w) => w * place.scale,
+                    None => groom_fiber_width(unit, files_strands.saturating_mul(per)),
+                };
                 scene.fiber = Fiber::new(width, scene.fiber.opacity()).map_err(|_| {
                     self.invalid("fiber.width", width, "must be a finite number > 0")
                 })?;

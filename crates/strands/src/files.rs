@@ -28,7 +28,7 @@ pub enum LoadError {
         cause: FormatError,
     },
     #[error(
-        "{}: unknown hair file type (expected .hair, .tfx, USC-HairSalon .data, CT2Hair .bin or PLY strands; convert Alembic curves to one of them, e.g. with hairutil)",
+        "{}: unknown hair file type (expected .hair, .tfx, USC-HairSalon .data, CT2Hair .bin, PLY strands, Alembic .abc or USD .usd, .usda, .usdc, .usdz)",
         path.display()
     )]
     /// An extension no parser reads.
@@ -36,16 +36,18 @@ pub enum LoadError {
         /// The file.
         path: PathBuf,
     },
-    /// Alembic archives are not read: the Rust readers of Ogawa archives
-    /// (ogawa-rs 0.4) are unfinished and trust the sizes a file claims.
+    /// A sample other than the first asked of a format that has one.
     #[error(
-        "{}: Alembic archives are not read; convert the curves to PLY strands first, e.g. `hairutil convert -i {} -o ply` (github.com/kenshi84/hairutil), and name the .ply",
-        path.display(),
+        "{}: sample {sample} asked for, but a .{ext} file holds one pose (samples are read from Alembic and USD files)",
         path.display()
     )]
-    Alembic {
-        /// The archive.
+    NotAnimated {
+        /// The file.
         path: PathBuf,
+        /// Its extension.
+        ext: String,
+        /// The sample asked for.
+        sample: u32,
     },
 }
 
@@ -164,10 +166,12 @@ fn too_large(len: u64, cap: u64) -> std::io::Error {
     )
 }
 
-/// Loads `.hair`, `.tfx`, `.data`, `.bin` or `.ply` by extension (at
-/// most [`MAX_FILE_BYTES`]).
-pub fn load(path: &Path) -> Result<Hair, LoadError> {
-    load_with(path, |p| {
+/// Loads a groom by its extension (`.hair`, `.tfx`, `.data`, `.bin`,
+/// `.ply`, `.abc`, `.usd`, `.usda`, `.usdc`, `.usdz`; at most
+/// [`MAX_FILE_BYTES`]), at `sample` of an animated Alembic or USD file (0
+/// the first; others have only 0).
+pub fn load(path: &Path, sample: u32) -> Result<Hair, LoadError> {
+    load_with(path, sample, |p| {
         read_capped(p, MAX_FILE_BYTES).map(std::borrow::Cow::Owned)
     })
 }
@@ -175,53 +179,85 @@ pub fn load(path: &Path) -> Result<Hair, LoadError> {
 /// Whether `path` names a groom file by its extension (one [`load`]
 /// reads).
 pub fn is_groom_path(path: &Path) -> bool {
-    parser(path).is_ok()
+    format(path).is_ok()
 }
 
-/// Loads `.hair`, `.tfx`, `.data`, `.bin` or `.ply` by extension, its bytes from `read` (called
-/// once the extension is known: an unknown one is refused first).
+/// Whether `path` names a groom format that holds samples (Alembic, USD).
+pub fn is_animated_groom_path(path: &Path) -> bool {
+    matches!(format(path), Ok(Format::Alembic | Format::Usd(_)))
+}
+
+/// [`load`], the bytes from `read` (called once the extension is known:
+/// an unknown one is refused first).
 pub fn load_with<'a>(
     path: &Path,
+    sample: u32,
     read: impl FnOnce(&Path) -> std::io::Result<std::borrow::Cow<'a, [u8]>>,
 ) -> Result<Hair, LoadError> {
-    parser(path)?;
+    format(path)?;
     let bytes = read(path).map_err(|cause| LoadError::Io {
         path: path.to_owned(),
         cause,
     })?;
-    load_bytes(path, &bytes)
+    load_bytes(path, &bytes, sample)
 }
 
-/// Parses the bytes of the file `path` (`.hair`, `.tfx`, `.data`, `.bin` or `.ply` by extension;
-/// the path names the file in errors).
-pub fn load_bytes(path: &Path, bytes: &[u8]) -> Result<Hair, LoadError> {
-    parser(path)?(bytes).map_err(|cause| LoadError::Format {
+/// Parses the bytes of the groom file `path` by its extension, at
+/// `sample` (see [`load`]; the path names the file in errors).
+pub fn load_bytes(path: &Path, bytes: &[u8], sample: u32) -> Result<Hair, LoadError> {
+    let format_error = |cause| LoadError::Format {
         path: path.to_owned(),
         cause,
-    })
+    };
+    match format(path)? {
+        Format::Still(_, ext) if sample != 0 => Err(LoadError::NotAnimated {
+            path: path.to_owned(),
+            ext: ext.to_owned(),
+            sample,
+        }),
+        Format::Still(parse, _) => parse(bytes).map_err(format_error),
+        Format::Alembic => {
+            crate::alembic::parse_alembic(bytes, sample).map_err(|e| format_error(e.into()))
+        }
+        Format::Usd(ext) => {
+            crate::usd::parse_usd(bytes, ext, sample).map_err(|e| format_error(e.into()))
+        }
+    }
 }
 
-type Parser = fn(&[u8]) -> Result<Hair, FormatError>;
+/// How a groom file's bytes are read.
+enum Format {
+    /// One pose, by this parser; the extension.
+    Still(fn(&[u8]) -> Result<Hair, FormatError>, &'static str),
+    /// An Alembic Ogawa archive.
+    Alembic,
+    /// A USD layer or package, by its extension.
+    Usd(&'static str),
+}
 
-/// The parser for `path`'s extension.
-fn parser(path: &Path) -> Result<Parser, LoadError> {
+/// The format of `path`, by its extension.
+fn format(path: &Path) -> Result<Format, LoadError> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
-    match ext.as_deref() {
-        Some("hair") => Ok(parse_hair_format),
-        Some("tfx") => Ok(parse_tfx),
-        Some("data") => Ok(parse_usc_data),
-        Some("bin") => Ok(parse_ct2hair_bin),
-        Some("ply") => Ok(parse_ply_strands),
-        Some("abc") => Err(LoadError::Alembic {
-            path: path.to_owned(),
-        }),
-        _ => Err(LoadError::UnknownExtension {
-            path: path.to_owned(),
-        }),
-    }
+    Ok(match ext.as_deref() {
+        Some("hair") => Format::Still(parse_hair_format, "hair"),
+        Some("tfx") => Format::Still(parse_tfx, "tfx"),
+        Some("data") => Format::Still(parse_usc_data, "data"),
+        Some("bin") => Format::Still(parse_ct2hair_bin, "bin"),
+        Some("ply") => Format::Still(parse_ply_strands, "ply"),
+        Some("abc") => Format::Alembic,
+        Some("usd") => Format::Usd("usd"),
+        Some("usda") => Format::Usd("usda"),
+        Some("usdc") => Format::Usd("usdc"),
+        Some("usdz") => Format::Usd("usdz"),
+        _ => {
+            return Err(LoadError::UnknownExtension {
+                path: path.to_owned(),
+            });
+        }
+    })
 }
 
 /// Reads a mesh from Wavefront OBJ or PLY, by the file's extension.
@@ -346,19 +382,17 @@ mod tests {
 
     #[test]
     fn unknown_extension_and_missing_file_name_the_path() {
-        let e = load(Path::new("groom.obj")).unwrap_err();
+        let e = load(Path::new("groom.obj"), 0).unwrap_err();
         assert!(e.to_string().contains("groom.obj"), "{e}");
-        // An Alembic archive is refused before it is read, with a way out.
-        let e = load(Path::new("/nonexistent/groom.abc")).unwrap_err();
-        assert!(
-            matches!(e, LoadError::Alembic { .. })
-                && e.to_string()
-                    .contains("hairutil convert -i /nonexistent/groom.abc -o ply"),
-            "{e}"
-        );
-        let e = load(Path::new("/nonexistent/x.hair")).unwrap_err();
+        let e = load(Path::new("/nonexistent/x.hair"), 0).unwrap_err();
         assert!(
             e.to_string().starts_with("cannot read /nonexistent/x.hair"),
+            "{e}"
+        );
+        // A sample of a format of one pose is refused, naming the format.
+        let e = load_bytes(Path::new("x.hair"), b"", 3).unwrap_err();
+        assert!(
+            e.to_string().contains("sample 3") && e.to_string().contains(".hair file"),
             "{e}"
         );
     }

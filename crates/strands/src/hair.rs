@@ -14,6 +14,9 @@ pub struct Hair {
     offsets: Vec<u32>,
     /// Linear RGB colour of each strand, when the source gives one.
     colors: Option<Vec<Vec3>>,
+    /// Width (diameter) of each strand, the points' units, when the source
+    /// gives one (Alembic and USD curves' widths).
+    widths: Option<Vec<f32>>,
 }
 
 /// Errors building hair from points.
@@ -124,6 +127,7 @@ impl Hair {
             points: Vec::new(),
             offsets: vec![0],
             colors: None,
+            widths: None,
         }
     }
 
@@ -135,6 +139,7 @@ impl Hair {
             points: Vec::with_capacity(points),
             offsets,
             colors: None,
+            widths: None,
         }
     }
 
@@ -167,6 +172,30 @@ impl Hair {
     /// Each strand's linear RGB colour, when the hair has them.
     pub fn colors(&self) -> Option<&[Vec3]> {
         self.colors.as_deref()
+    }
+
+    /// Sets one width per strand (points' units); `widths.len()` must
+    /// equal the strand count.
+    pub fn set_widths(&mut self, widths: Vec<f32>) {
+        assert_eq!(widths.len(), self.strand_count(), "one width per strand");
+        self.widths = Some(widths);
+    }
+
+    /// Each strand's width (diameter, the points' units), when the file
+    /// gives widths.
+    pub fn widths(&self) -> Option<&[f32]> {
+        self.widths.as_deref()
+    }
+
+    /// The median of the strands' widths, when the file gives widths and
+    /// one is above 0.
+    pub fn median_width(&self) -> Option<f32> {
+        let mut w: Vec<f32> = self.widths()?.iter().copied().filter(|w| *w > 0.0).collect();
+        if w.is_empty() {
+            return None;
+        }
+        let mid = w.len() / 2;
+        Some(*w.select_nth_unstable_by(mid, f32::total_cmp).1)
     }
 
     /// Strands.

@@ -2,7 +2,7 @@
 //!
 //! This crate owns the hair as data: loading it from files (Cem Yuksel's
 //! `.hair`, TressFX `.tfx`, USC-HairSalon `.data`, CT2Hair `.bin`, PLY
-//! strand sets), growing it procedurally (the `smooth` and `curly`
+//! strand sets, Alembic curves, USD `BasisCurves`), growing it procedurally (the `smooth` and `curly`
 //! styles of 134 wisps on a spherical head), growing follow strands around
 //! guide strands, and Catmull-Rom resampling of every strand into the points
 //! that are both filled into the density map and drawn. It also reads the
@@ -11,7 +11,9 @@
 //! It knows nothing of light, shadows, cameras or simulation, and does no I/O
 //! beyond reading the one file a loader is given.
 
+mod alembic;
 mod catmull_rom;
+mod cubic;
 mod files;
 mod follow;
 mod hair;
@@ -20,10 +22,13 @@ mod mesh;
 mod ply;
 mod rng;
 mod style;
+mod usd;
 
+pub use alembic::{AlembicError, parse_alembic};
 pub use catmull_rom::{resample, resample_into};
 pub use files::{
-    LoadError, MAX_FILE_BYTES, MeshLoadError, SPECIAL_FILE_WAIT, is_groom_path, load, load_bytes,
+    LoadError, MAX_FILE_BYTES, MeshLoadError, SPECIAL_FILE_WAIT, is_animated_groom_path,
+    is_groom_path, load, load_bytes,
     load_mesh, load_mesh_bytes, load_obj, load_obj_bytes, load_with, mesh_parser, read_capped,
     read_capped_within,
 };
@@ -34,3 +39,4 @@ pub use mesh::{MAX_MESH_ELEMENTS, Mesh, MeshError, parse_obj};
 pub use ply::{parse_ply_mesh, parse_ply_strands};
 pub use rng::Rng;
 pub use style::{GUIDES_PER_WISP, Member, Style, StyleParams, WispModel};
+pub use usd::{UsdError, parse_usd};

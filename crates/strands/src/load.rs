@@ -152,6 +152,12 @@ pub enum FormatError {
     /// A malformed PLY file.
     #[error("PLY: {0}")]
     Ply(String),
+    /// An Alembic archive wisplight cannot read.
+    #[error("Alembic: {0}")]
+    Alembic(#[from] crate::AlembicError),
+    /// A USD file wisplight cannot read.
+    #[error("USD: {0}")]
+    Usd(#[from] crate::UsdError),
 }
 
 fn u32_at(b: &[u8], at: usize) -> u32 {

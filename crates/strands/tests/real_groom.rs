@@ -10,7 +10,7 @@ use strands::{FollowParams, grow_followers, load};
 
 fn groom() -> strands::Hair {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/data/sintel_hair.tfx");
-    load(&path).unwrap_or_else(|e| panic!("{e}"))
+    load(&path, 0).unwrap_or_else(|e| panic!("{e}"))
 }
 
 #[test]

@@ -1,5 +1,5 @@
 //! Reading a scene file, and saying what a file given as a scene is when
-//! it is not one (a mesh, a cache, an Alembic or USD groom), before its
+//! it is not one (a mesh, a cache, a picture), before its
 //! bytes are read as TOML.
 
 use std::path::Path;
@@ -14,14 +14,6 @@ fn not_a_scene(path: &Path) -> Option<String> {
         "obj" | "stl" | "fbx" | "gltf" | "glb" => {
             "a mesh, not a scene: a head mesh is named in a scene, [head] mesh = \"FILE\" \
              (OBJ or PLY)"
-        }
-        "abc" => {
-            "an Alembic file, which wisplight does not read: export the curves as .ply \
-             strands or .hair, or name a scene (TOML)"
-        }
-        "usd" | "usda" | "usdc" | "usdz" => {
-            "a USD file, which wisplight does not read: export the curves as .ply strands \
-             or .hair, or name a scene (TOML)"
         }
         "wlsim" => "a simulation cache file: give its folder to render --cache",
         "png" | "gif" | "exr" | "jpg" | "jpeg" => "a picture, not a scene (TOML)",
@@ -57,7 +49,7 @@ pub(super) fn read_text(path: &Path) -> Result<String, SceneError> {
     String::from_utf8(bytes).map_err(|e| {
         parse(format!(
             "not text (byte {} is not UTF-8): a scene is a TOML file; a groom file is rendered \
-             by its extension (.hair, .tfx, .data, .bin or .ply)",
+             by its extension (.hair, .tfx, .data, .bin, .ply, .abc, .usd, .usda, .usdc or .usdz)",
             e.utf8_error().valid_up_to()
         ))
     })
@@ -71,8 +63,6 @@ mod tests {
     fn files_that_are_not_scenes_are_named_by_what_they_are() {
         for (name, says) in [
             ("head.obj", "a mesh"),
-            ("groom.abc", "Alembic"),
-            ("groom.USDC", "USD"),
             ("frame_000001.wlsim", "simulation cache"),
             ("out.png", "a picture"),
         ] {

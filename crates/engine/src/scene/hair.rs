@@ -22,31 +22,34 @@ impl Validator<'_> {
     /// 1 for a groom 10 to 100 units across (centimetres: a head is about
     /// 16 to 20 across, long hair under 100), 10 for 100 to 1000
     /// (millimetres), 0.01 for 0.1 to 1 (metres); at most 10^4 either way,
-    /// 1 for an empty groom. Reads the groom (from the scene's files when
-    /// held there).
-    /// Also gives the file's strand count.
+    /// 1 for an empty groom. Reads the groom at `sample` (from the
+    /// scene's files when held there).
+    /// Also gives the file's strand count, and the median of its widths
+    /// when it gives widths (Alembic, USD; the file's units).
     pub(super) fn groom_unit(
         &self,
         path: &Path,
+        sample: u32,
         place: &Placement,
-    ) -> Result<(f32, u64), SceneError> {
+    ) -> Result<(f32, u64, Option<f32>), SceneError> {
         let fail = |reason: String| self.invalid("hair.file", path.display(), reason);
         let hair = match self.files.get(path) {
-            Some(b) => strands::load_bytes(path, b),
-            None => strands::load(path),
+            Some(b) => strands::load_bytes(path, b, sample),
+            None => strands::load(path, sample),
         }
         .map_err(|e| fail(e.to_string()))?;
         let strands = hair.strand_count() as u64;
+        let width = hair.median_width();
         let b = hair.bounds();
         if b.is_empty() {
-            return Ok((1.0, strands));
+            return Ok((1.0, strands, width));
         }
         let side = (b.size() * place.scale).max_element();
         if side.is_nan() || side <= 0.0 {
-            return Ok((1.0, strands));
+            return Ok((1.0, strands, width));
         }
         let e = (side / 10.0).log10().floor().clamp(-4.0, 4.0);
-        Ok((10f32.powf(e), strands))
+        Ok((10f32.powf(e), strands, width))
     }
 
     /// `hair.scale`, `hair.rotate_deg`, `hair.translate`: finite, the
@@ -136,6 +139,9 @@ impl Validator<'_> {
             ("hair.tip_spread", h.tip_spread.is_some()),
         ];
         let place = self.placement(h)?;
+        if h.file.is_none() {
+            self.refuse_set(&[("hair.sample", h.sample.is_some())], "applies to hair.file only")?;
+        }
         // Length defaults in centimetres that follow a groom file's unit
         // (set once the rest is valid): the fiber width, the follow radius.
         let mut scale_width = false;
@@ -162,6 +168,14 @@ impl Validator<'_> {
                     if tfx { DEFAULT_TFX_FOLLOWERS } else { 0 },
                     0..=1000,
                 )?;
+                let sample = self.int("hair.sample", h.sample, 0, 0..=1_000_000)?;
+                if sample > 0 && !strands::is_animated_groom_path(&path) {
+                    return Err(self.invalid(
+                        "hair.sample",
+                        sample,
+                        "applies to Alembic (.abc) and USD files, which hold samples",
+                    ));
+                }
                 scale_width = width_unset;
                 scale_follow = followers > 0 && h.follow_radius.is_none();
                 let radius =
@@ -175,6 +189,7 @@ impl Validator<'_> {
                 });
                 HairSource::File {
                     path,
+                    sample,
                     follow,
                     place,
                 }

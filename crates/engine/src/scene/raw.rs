@@ -129,6 +129,7 @@ impl<'de, T: Deserialize<'de>> Deserialize<'de> for OneOrMany<T> {
 pub(super) struct RawHair {
     pub(super) style: Option<String>,
     pub(super) file: Option<PathBuf>,
+    pub(super) sample: Option<i64>,
     pub(super) strands: Option<Vec<Vec<[f32; 3]>>>,
     pub(super) seed: Option<u64>,
     pub(super) strands_per_wisp: Option<i64>,
