@@ -144,7 +144,10 @@ mod tests {
     fn widths_are_told_apart_by_their_count() {
         let counts = [2, 3];
         assert_eq!(strand_widths(&[0.5], &counts, None), Ok(vec![0.5, 0.5]));
-        assert_eq!(strand_widths(&[1.0, 2.0], &counts, None), Ok(vec![1.0, 2.0]));
+        assert_eq!(
+            strand_widths(&[1.0, 2.0], &counts, None),
+            Ok(vec![1.0, 2.0])
+        );
         assert_eq!(
             strand_widths(&[1.0, 3.0, 2.0, 2.0, 5.0], &counts, None),
             Ok(vec![2.0, 3.0])
@@ -155,7 +158,11 @@ mod tests {
             strand_widths(&[1.0, 3.0, 1.0, 1.0, 4.0], &counts, Some(Basis::Bezier)),
             Ok(vec![2.0, 2.0])
         );
-        assert!(strand_widths(&[1.0; 3], &counts, None).unwrap_err().contains("3 widths"));
+        assert!(
+            strand_widths(&[1.0; 3], &counts, None)
+                .unwrap_err()
+                .contains("3 widths")
+        );
         assert!(strand_widths(&[f32::NAN], &counts, None).is_err());
     }
 

@@ -190,7 +190,12 @@ impl Hair {
     /// The median of the strands' widths, when the file gives widths and
     /// one is above 0.
     pub fn median_width(&self) -> Option<f32> {
-        let mut w: Vec<f32> = self.widths()?.iter().copied().filter(|w| *w > 0.0).collect();
+        let mut w: Vec<f32> = self
+            .widths()?
+            .iter()
+            .copied()
+            .filter(|w| *w > 0.0)
+            .collect();
         if w.is_empty() {
             return None;
         }

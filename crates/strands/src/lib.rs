@@ -28,9 +28,8 @@ pub use alembic::{AlembicError, parse_alembic};
 pub use catmull_rom::{resample, resample_into};
 pub use files::{
     LoadError, MAX_FILE_BYTES, MeshLoadError, SPECIAL_FILE_WAIT, is_animated_groom_path,
-    is_groom_path, load, load_bytes,
-    load_mesh, load_mesh_bytes, load_obj, load_obj_bytes, load_with, mesh_parser, read_capped,
-    read_capped_within,
+    is_groom_path, load, load_bytes, load_mesh, load_mesh_bytes, load_obj, load_obj_bytes,
+    load_with, mesh_parser, read_capped, read_capped_within,
 };
 pub use follow::{FollowParams, grow_followers};
 pub use hair::{Bounds, Hair, HairError};

@@ -24,6 +24,11 @@ use openusd::{ar, sdf, usd};
 
 use crate::Hair;
 
+/// The largest layer read out of a `.usdz` package: a groom file's limit
+/// (`MAX_FILE_BYTES`), so that a package's compressed entry cannot grow
+/// past what a file may hold.
+const MAX_LAYER_BYTES: u64 = 256 << 20;
+
 /// What is wrong in a USD file, naming the prim.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum UsdError {
@@ -89,11 +94,14 @@ impl ar::Resolver for OneFile {
                 .map_err(std::io::Error::other)?;
             let entry = zip.by_name(&inner).map_err(std::io::Error::other)?;
             let mut out = Vec::new();
-            entry.take(crate::MAX_FILE_BYTES + 1).read_to_end(&mut out)?;
-            if out.len() as u64 > crate::MAX_FILE_BYTES {
+            entry.take(MAX_LAYER_BYTES + 1).read_to_end(&mut out)?;
+            if out.len() as u64 > MAX_LAYER_BYTES {
                 return Err(std::io::Error::new(
                     std::io::ErrorKind::FileTooLarge,
-                    format!("{inner} in the package: more than {} bytes", crate::MAX_FILE_BYTES),
+                    format!(
+                        "{inner} in the package: more than {} bytes",
+                        MAX_LAYER_BYTES
+                    ),
                 ));
             }
             Ok(Box::new(std::io::Cursor::new(out)))
@@ -163,7 +171,9 @@ pub fn parse_usd(bytes: &[u8], ext: &str, sample: u32) -> Result<Hair, UsdError>
             .map(String::as_str)
             .or_else(|| panic.downcast_ref::<&str>().copied())
             .unwrap_or("the reader failed");
-        Err(UsdError::Open(format!("the USD reader failed on it: {why}")))
+        Err(UsdError::Open(format!(
+            "the USD reader failed on it: {why}"
+        )))
     })
 }
 
@@ -283,15 +293,21 @@ fn world(stage: &Stage, prim: &Prim, time: TimeCode) -> Result<DMat4, UsdError> 
         let x = AnyXformable(p.clone());
         // openusd's matrices are USD's: row vectors, row-major, so the
         // same 16 numbers are column-major for column vectors.
-        let local = x.local_to_parent_transform(time).map_err(|e| UsdError::Unreadable {
-            prim: p.path().to_string(),
-            why: format!("{e:#}"),
-        })?;
+        let local = x
+            .local_to_parent_transform(time)
+            .map_err(|e| UsdError::Unreadable {
+                prim: p.path().to_string(),
+                why: format!("{e:#}"),
+            })?;
         m = DMat4::from_cols_array(&local.0) * m;
         if x.resets_xform_stack().unwrap_or(false) {
             break;
         }
-        at = p.path().parent().filter(|q| !q.is_abs_root()).map(|q| stage.prim(q));
+        at = p
+            .path()
+            .parent()
+            .filter(|q| !q.is_abs_root())
+            .map(|q| stage.prim(q));
     }
     Ok(m)
 }
@@ -332,7 +348,9 @@ fn read_curves(
     let counts: Vec<usize> = match at(c.curve_vertex_counts_attr())? {
         Some(sdf::Value::IntVec(v)) => v
             .iter()
-            .map(|&n| usize::try_from(n).map_err(|_| unreadable(format!("a curve of {n} vertices"))))
+            .map(|&n| {
+                usize::try_from(n).map_err(|_| unreadable(format!("a curve of {n} vertices")))
+            })
             .collect::<Result<_, _>>()?,
         None => return Err(unreadable("curves without curveVertexCounts".into())),
         Some(other) => return Err(unreadable(format!("curveVertexCounts of {other:?}"))),
@@ -347,7 +365,10 @@ fn read_curves(
     if nurbs {
         tracing::warn!("USD {name}: NURBS curves read as their control polygon");
     }
-    let kind = token(AnyXformable(c.prim().clone()).prim().attribute("type"), "cubic");
+    let kind = token(
+        AnyXformable(c.prim().clone()).prim().attribute("type"),
+        "cubic",
+    );
     let basis = token(c.prim().attribute("basis"), "bezier");
     let wrap = token(c.prim().attribute("wrap"), "nonperiodic");
     let cubic = match (nurbs, kind.as_str()) {
@@ -365,7 +386,9 @@ fn read_curves(
         (false, k) => return Err(unreadable(format!("curves of type {k}"))),
     };
     if wrap == "periodic" && cubic.is_some() {
-        return Err(unreadable("periodic (closed) cubic curves, not strands of hair".into()));
+        return Err(unreadable(
+            "periodic (closed) cubic curves, not strands of hair".into(),
+        ));
     }
     let time_code = time.unwrap_or(TimeCode::new(0.0));
     let world = world(stage, c.prim(), time_code)?;
@@ -385,7 +408,11 @@ fn read_curves(
     let mut start = 0;
     for (s, &n) in counts.iter().enumerate() {
         cv.clear();
-        cv.extend(points[start..start + n].iter().map(|&p| world.transform_point3(p)));
+        cv.extend(
+            points[start..start + n]
+                .iter()
+                .map(|&p| world.transform_point3(p)),
+        );
         start += n;
         if wrap == "periodic" && n > 1 {
             cv.push(cv[0]);

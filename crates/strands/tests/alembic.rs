@@ -77,7 +77,12 @@ fn an_independent_reader_reads_the_fixtures_as_written() {
     let top = archive.load_root_object(&mut reader).unwrap();
     assert_eq!(top.child_count(), 1);
     let hair = top
-        .load_child(0, &mut reader, &archive.indexed_meta_data, &archive.time_samplings)
+        .load_child(
+            0,
+            &mut reader,
+            &archive.indexed_meta_data,
+            &archive.time_samplings,
+        )
         .unwrap();
     assert_eq!(hair.header.full_name, "/hair");
     let schema = ogawa_rs::Schema::parse(&hair, &mut reader, &archive).unwrap();
@@ -94,8 +99,12 @@ fn an_independent_reader_reads_the_fixtures_as_written() {
 
 fn two_strands() -> Hair {
     let mut h = Hair::new();
-    h.push_strand(&[Vec3::ZERO, Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, 2.0, 0.0)])
-        .unwrap();
+    h.push_strand(&[
+        Vec3::ZERO,
+        Vec3::new(0.0, 1.0, 0.0),
+        Vec3::new(0.0, 2.0, 0.0),
+    ])
+    .unwrap();
     h.push_strand(&[Vec3::new(1.0, 0.0, 0.0), Vec3::new(1.0, 1.0, 0.5)])
         .unwrap();
     h
@@ -105,21 +114,39 @@ fn two_strands() -> Hair {
 fn widths_of_every_scope_give_each_strand_its_mean_width() {
     let h = two_strands();
     let read = |w| parse_alembic(&archive(vec![linear("c", &h, vec![w])]), 0).unwrap();
-    assert_eq!(read(width(&[0.01], "con")).widths(), Some(&[0.01, 0.01][..]));
-    assert_eq!(read(width(&[0.01, 0.03], "uni")).widths(), Some(&[0.01, 0.03][..]));
+    assert_eq!(
+        read(width(&[0.01], "con")).widths(),
+        Some(&[0.01, 0.01][..])
+    );
+    assert_eq!(
+        read(width(&[0.01, 0.03], "uni")).widths(),
+        Some(&[0.01, 0.03][..])
+    );
     // Per vertex: the first strand's three (mean 0.02), the second's two.
     let v = read(width(&[0.01, 0.02, 0.03, 0.04, 0.06], "vtx"));
     let w = v.widths().unwrap();
-    assert!((w[0] - 0.02).abs() < 1e-7 && (w[1] - 0.05).abs() < 1e-7, "{w:?}");
+    assert!(
+        (w[0] - 0.02).abs() < 1e-7 && (w[1] - 0.05).abs() < 1e-7,
+        "{w:?}"
+    );
     // Indexed: values 0.1 and 0.3 by index, per vertex.
     let i = read(indexed_width(&[0.1, 0.3], &[0, 0, 1, 1, 1], "vtx"));
     let w = i.widths().unwrap();
-    assert!((w[0] - 0.5 / 3.0).abs() < 1e-6 && (w[1] - 0.3).abs() < 1e-7, "{w:?}");
+    assert!(
+        (w[0] - 0.5 / 3.0).abs() < 1e-6 && (w[1] - 0.3).abs() < 1e-7,
+        "{w:?}"
+    );
     assert_eq!(i.median_width(), Some(w[1]));
     // Three widths fit neither curves nor vertices: refused, named.
-    let e = parse_alembic(&archive(vec![linear("c", &h, vec![width(&[0.1; 3], "vtx")])]), 0)
-        .unwrap_err();
-    assert!(e.to_string().starts_with("/c: 3 widths for 2 curves"), "{e}");
+    let e = parse_alembic(
+        &archive(vec![linear("c", &h, vec![width(&[0.1; 3], "vtx")])]),
+        0,
+    )
+    .unwrap_err();
+    assert!(
+        e.to_string().starts_with("/c: 3 widths for 2 curves"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -131,8 +158,20 @@ fn several_objects_are_placed_by_the_transforms_above_them() {
     // below it /b/c with inherits off, translate (0, 0, 5) alone.
     let translate = 1 << 4;
     let (scale, rotate_y, matrix) = (0, 5 << 4, 3 << 4);
-    let a = xform("a", &[translate], vec![vec![1.0, 2.0, 3.0]], true, vec![linear("ca", &h, Vec::new())]);
-    let c = xform("c", &[translate], vec![vec![0.0, 0.0, 5.0]], false, vec![linear("cc", &h, Vec::new())]);
+    let a = xform(
+        "a",
+        &[translate],
+        vec![vec![1.0, 2.0, 3.0]],
+        true,
+        vec![linear("ca", &h, Vec::new())],
+    );
+    let c = xform(
+        "c",
+        &[translate],
+        vec![vec![0.0, 0.0, 5.0]],
+        false,
+        vec![linear("cc", &h, Vec::new())],
+    );
     let b = xform(
         "b",
         &[rotate_y, scale],
@@ -144,7 +183,13 @@ fn several_objects_are_placed_by_the_transforms_above_them() {
     let mut m = vec![0.0; 16];
     (m[0], m[5], m[10], m[15]) = (1.0, 1.0, 1.0, 1.0);
     (m[12], m[13], m[14]) = (-4.0, 0.0, 0.0);
-    let mx = xform("m", &[matrix], vec![m], true, vec![linear("cm", &h, Vec::new())]);
+    let mx = xform(
+        "m",
+        &[matrix],
+        vec![m],
+        true,
+        vec![linear("cm", &h, Vec::new())],
+    );
     let read = parse_alembic(&archive(vec![a, b, mx]), 0).unwrap();
     assert_eq!(read.strand_count(), 8);
     let pts: Vec<Vec3> = h.points().to_vec();
@@ -152,12 +197,24 @@ fn several_objects_are_placed_by_the_transforms_above_them() {
     let close = |a: Vec3, b: Vec3| (a - b).length() < 1e-5;
     for (k, &p) in pts.iter().enumerate() {
         // Objects in the order read: /a/ca, /b/cb, /b/c/cc, /m/cm.
-        assert!(close(read.points()[k], p + Vec3::new(1.0, 2.0, 3.0)), "ca {k}");
+        assert!(
+            close(read.points()[k], p + Vec3::new(1.0, 2.0, 3.0)),
+            "ca {k}"
+        );
         // Scale x by 2, then 90 degrees about y: (x, y, z) -> (z, y, -x).
         let s = p * Vec3::new(2.0, 1.0, 1.0);
-        assert!(close(read.points()[n + k], Vec3::new(s.z, s.y, -s.x)), "cb {k}");
-        assert!(close(read.points()[2 * n + k], p + Vec3::new(0.0, 0.0, 5.0)), "cc {k}");
-        assert!(close(read.points()[3 * n + k], p + Vec3::new(-4.0, 0.0, 0.0)), "cm {k}");
+        assert!(
+            close(read.points()[n + k], Vec3::new(s.z, s.y, -s.x)),
+            "cb {k}"
+        );
+        assert!(
+            close(read.points()[2 * n + k], p + Vec3::new(0.0, 0.0, 5.0)),
+            "cc {k}"
+        );
+        assert!(
+            close(read.points()[3 * n + k], p + Vec3::new(-4.0, 0.0, 0.0)),
+            "cm {k}"
+        );
     }
 }
 
@@ -165,13 +222,29 @@ fn several_objects_are_placed_by_the_transforms_above_them() {
 fn a_chosen_sample_of_an_animated_cache_is_read_with_repeats_elided() {
     let h = two_strands();
     let at = |dy: f32| -> Vec<f32> {
-        h.points().iter().flat_map(|p| (*p + Vec3::new(0.0, dy, 0.0)).to_array()).collect()
+        h.points()
+            .iter()
+            .flat_map(|p| (*p + Vec3::new(0.0, dy, 0.0)).to_array())
+            .collect()
     };
     // Samples A A B B C C: Alembic stores A, then B B C from the first
     // change (sample 2) to the last (4), and records both.
     let (a, b, c) = (at(0.0), at(1.0), at(2.0));
-    let repeats = vec![a.clone(), a.clone(), b.clone(), b.clone(), c.clone(), c.clone()];
-    let abc = archive(vec![curves("c", repeats, &counts(&h), [1, 0, 0], Vec::new())]);
+    let repeats = vec![
+        a.clone(),
+        a.clone(),
+        b.clone(),
+        b.clone(),
+        c.clone(),
+        c.clone(),
+    ];
+    let abc = archive(vec![curves(
+        "c",
+        repeats,
+        &counts(&h),
+        [1, 0, 0],
+        Vec::new(),
+    )]);
     for (k, want) in [&a, &a, &b, &b, &c, &c].iter().enumerate() {
         let got = parse_alembic(&abc, k as u32).unwrap();
         assert_eq!(&flat(&got), *want, "sample {k}");
@@ -184,7 +257,11 @@ fn a_chosen_sample_of_an_animated_cache_is_read_with_repeats_elided() {
     let all = vec![a.clone(), b.clone(), c.clone()];
     let abc = archive(vec![curves("c", all, &counts(&h), [1, 0, 0], Vec::new())]);
     for (k, want) in [&a, &b, &c].iter().enumerate() {
-        assert_eq!(&flat(&parse_alembic(&abc, k as u32).unwrap()), *want, "sample {k}");
+        assert_eq!(
+            &flat(&parse_alembic(&abc, k as u32).unwrap()),
+            *want,
+            "sample {k}"
+        );
     }
     // An animated transform over still curves.
     let moved = xform(
@@ -204,18 +281,33 @@ fn cubic_curves_are_evaluated_and_nurbs_read_as_their_control_polygon() {
     // One B-spline of 5 control points on a line, 0 to 4 along x: the
     // curve runs from 1 to 3.
     let cv: Vec<f32> = (0..5).flat_map(|i| [i as f32, 0.0, 0.0]).collect();
-    let bspline = archive(vec![curves("c", vec![cv.clone()], &[5], [0, 0, 2], Vec::new())]);
+    let bspline = archive(vec![curves(
+        "c",
+        vec![cv.clone()],
+        &[5],
+        [0, 0, 2],
+        Vec::new(),
+    )]);
     let h = parse_alembic(&bspline, 0).unwrap();
     let xs: Vec<f32> = h.points().iter().map(|p| p.x).collect();
     assert_eq!(xs.first(), Some(&1.0));
     assert!((xs.last().unwrap() - 3.0).abs() < 1e-6, "{xs:?}");
     // NURBS (variable order): the control points as they are.
-    let nurbs = archive(vec![curves("n", vec![cv.clone()], &[5], [2, 0, 0], Vec::new())]);
+    let nurbs = archive(vec![curves(
+        "n",
+        vec![cv.clone()],
+        &[5],
+        [2, 0, 0],
+        Vec::new(),
+    )]);
     assert_eq!(flat(&parse_alembic(&nurbs, 0).unwrap()), cv);
     // Hermite: refused, naming the object.
     let hermite = archive(vec![curves("h", vec![cv], &[5], [0, 0, 4], Vec::new())]);
     let e = parse_alembic(&hermite, 0).unwrap_err();
-    assert!(e.to_string().starts_with("/h: cubic curves of basis 4"), "{e}");
+    assert!(
+        e.to_string().starts_with("/h: cubic curves of basis 4"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -237,10 +329,17 @@ fn what_is_not_curves_is_refused_in_one_line_naming_the_object() {
         props.retain(|p| !matches!(p, abc_writer::Prop::Array { name, .. } if name == "P"));
     }
     let e = parse_alembic(&archive(vec![no_p]), 0).unwrap_err();
-    assert_eq!(e.to_string(), "/c: curves without points (P); nothing to read");
+    assert_eq!(
+        e.to_string(),
+        "/c: curves without points (P); nothing to read"
+    );
     // Empty, not Ogawa, HDF5.
     let e = load_bytes(Path::new("groom.abc"), b"", 0).unwrap_err();
-    assert!(e.to_string().starts_with("groom.abc: Alembic: not an Alembic Ogawa archive (0 bytes"), "{e}");
+    assert!(
+        e.to_string()
+            .starts_with("groom.abc: Alembic: not an Alembic Ogawa archive (0 bytes"),
+        "{e}"
+    );
     let e = parse_alembic(b"\x89HDF\r\n\x1a\n........", 0).unwrap_err();
     assert!(e.to_string().contains("HDF5"), "{e}");
 }

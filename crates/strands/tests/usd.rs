@@ -53,16 +53,10 @@ fn placed(p: Vec3) -> Vec3 {
 }
 
 fn check(h: &Hair, dz: f32) {
-    let want: Vec<Vec3> = [
-        (0.0, 0.0),
-        (0.0, 1.0),
-        (0.0, 2.0),
-        (1.0, 0.0),
-        (1.0, 1.0),
-    ]
-    .iter()
-    .map(|&(x, y)| placed(Vec3::new(x, y, dz)))
-    .collect();
+    let want: Vec<Vec3> = [(0.0, 0.0), (0.0, 1.0), (0.0, 2.0), (1.0, 0.0), (1.0, 1.0)]
+        .iter()
+        .map(|&(x, y)| placed(Vec3::new(x, y, dz)))
+        .collect();
     assert_eq!(h.strand_count(), 2);
     assert_eq!(h.offsets(), &[0, 3, 5]);
     for (k, (a, b)) in h.points().iter().zip(&want).enumerate() {
@@ -72,7 +66,10 @@ fn check(h: &Hair, dz: f32) {
     // cube root of |det| (2).
     let w = h.widths().unwrap();
     let s = 2f32.cbrt();
-    assert!((w[0] - 0.02 * s).abs() < 1e-6 && (w[1] - 0.05 * s).abs() < 1e-6, "{w:?}");
+    assert!(
+        (w[0] - 0.02 * s).abs() < 1e-6 && (w[1] - 0.05 * s).abs() < 1e-6,
+        "{w:?}"
+    );
 }
 
 fn usdc() -> Vec<u8> {
@@ -98,13 +95,22 @@ fn a_usda_groom_is_placed_by_its_transforms_at_each_time_sample() {
 fn the_same_stage_as_usdc_and_inside_a_usdz_reads_the_same() {
     let crate_bytes = usdc();
     assert!(crate_bytes.starts_with(b"PXR-USDC"));
-    check(&load_bytes(Path::new("groom.usdc"), &crate_bytes, 1).unwrap(), 1.0);
+    check(
+        &load_bytes(Path::new("groom.usdc"), &crate_bytes, 1).unwrap(),
+        1.0,
+    );
     // `.usd` holds either: this one the binary crate.
-    check(&load_bytes(Path::new("groom.usd"), &crate_bytes, 0).unwrap(), 0.0);
+    check(
+        &load_bytes(Path::new("groom.usd"), &crate_bytes, 0).unwrap(),
+        0.0,
+    );
     let mut z = openusd::usdz::ArchiveWriter::new(std::io::Cursor::new(Vec::new()));
     z.add_layer("groom.usdc", &crate_bytes).unwrap();
     let package = z.finish().unwrap().into_inner();
-    check(&load_bytes(Path::new("groom.usdz"), &package, 1).unwrap(), 1.0);
+    check(
+        &load_bytes(Path::new("groom.usdz"), &package, 1).unwrap(),
+        1.0,
+    );
 }
 
 #[test]
@@ -139,14 +145,25 @@ def BasisCurves "C"
     let pinned = xs(curve("catmullRom", "pinned"));
     assert!(pinned[0].abs() < 1e-6 && (pinned[pinned.len() - 1] - 4.0).abs() < 1e-6);
     // Periodic cubic curves are not hair.
-    let e = load_bytes(Path::new("c.usda"), curve("bspline", "periodic").as_bytes(), 0)
-        .unwrap_err();
-    assert!(e.to_string().contains("/C: periodic (closed) cubic curves"), "{e}");
+    let e = load_bytes(
+        Path::new("c.usda"),
+        curve("bspline", "periodic").as_bytes(),
+        0,
+    )
+    .unwrap_err();
+    assert!(
+        e.to_string().contains("/C: periodic (closed) cubic curves"),
+        "{e}"
+    );
 }
 
 #[test]
 fn what_cannot_be_read_is_refused_naming_it() {
-    let err = |name: &str, bytes: &[u8]| load_bytes(Path::new(name), bytes, 0).unwrap_err().to_string();
+    let err = |name: &str, bytes: &[u8]| {
+        load_bytes(Path::new(name), bytes, 0)
+            .unwrap_err()
+            .to_string()
+    };
     // A stage of no curves names what it holds.
     let mesh = "#usda 1.0\ndef Mesh \"Head\"\n{\n    point3f[] points = [(0, 0, 0)]\n}\n";
     assert_eq!(
@@ -154,19 +171,31 @@ fn what_cannot_be_read_is_refused_naming_it() {
         "m.usda: USD: holds no BasisCurves (it holds /Head, a Mesh)"
     );
     // Counts that do not add up.
-    let bad = GROOM.replace("int[] curveVertexCounts = [3, 2]", "int[] curveVertexCounts = [3, 3]");
+    let bad = GROOM.replace(
+        "int[] curveVertexCounts = [3, 2]",
+        "int[] curveVertexCounts = [3, 3]",
+    );
     let e = err("g.usda", bad.as_bytes());
-    assert!(e.contains("/Groom/Hair: curveVertexCounts add up to 6 points, but points holds 5"), "{e}");
+    assert!(
+        e.contains("/Groom/Hair: curveVertexCounts add up to 6 points, but points holds 5"),
+        "{e}"
+    );
     // A stage that references another file.
     let refs = "#usda 1.0\ndef Xform \"G\" (\n    references = @other.usda@\n)\n{\n}\n";
     let e = err("r.usda", refs.as_bytes());
-    assert!(e.contains("composes other files") && e.contains("other.usda"), "{e}");
+    assert!(
+        e.contains("composes other files") && e.contains("other.usda"),
+        "{e}"
+    );
     // Not USD at all, empty, truncated.
     assert!(err("x.usda", b"not usd").starts_with("x.usda: USD: not a USD stage"));
     assert!(err("x.usdc", b"").starts_with("x.usdc: USD: not a USD stage"));
     let c = usdc();
     for cut in [8, 64, c.len() / 2, c.len() - 1] {
-        assert!(load_bytes(Path::new("x.usdc"), &c[..cut], 0).is_err(), "cut at {cut}");
+        assert!(
+            load_bytes(Path::new("x.usdc"), &c[..cut], 0).is_err(),
+            "cut at {cut}"
+        );
     }
     assert!(err("x.usdz", b"PK\x03\x04 not a zip").starts_with("x.usdz: USD: not a USD stage"));
 }

@@ -140,7 +140,10 @@ impl Validator<'_> {
         ];
         let place = self.placement(h)?;
         if h.file.is_none() {
-            self.refuse_set(&[("hair.sample", h.sample.is_some())], "applies to hair.file only")?;
+            self.refuse_set(
+                &[("hair.sample", h.sample.is_some())],
+                "applies to hair.file only",
+            )?;
         }
         // Length defaults in centimetres that follow a groom file's unit
         // (set once the rest is valid): the fiber width, the follow radius.

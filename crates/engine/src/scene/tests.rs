@@ -620,3 +620,42 @@ fn a_value_of_the_wrong_shape_is_named_by_its_field() {
         assert!(e.contains("line"), "{e}");
     }
 }
+
+#[test]
+fn a_usd_grooms_widths_set_the_fiber_width_and_hair_sample_picks_its_time() {
+    let dir = std::env::temp_dir().join(format!("wisplight-usd-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // Two curves 20 units long, widths 0.01 and 0.03 (constant a curve),
+    // points at times 1 and 2, the second 5 units along x.
+    let usda = r#"#usda 1.0
+def BasisCurves "Hair"
+{
+    uniform token type = "linear"
+    int[] curveVertexCounts = [2, 2]
+    point3f[] points.timeSamples = {
+        1: [(0, 0, 0), (0, -20, 0), (1, 0, 0), (1, -20, 0)],
+        2: [(5, 0, 0), (5, -20, 0), (6, 0, 0), (6, -20, 0)],
+    }
+    float[] widths = [0.01, 0.03, 0.03] (interpolation = "uniform")
+}
+"#;
+    std::fs::write(dir.join("g.usda"), usda.replace("0.03, 0.03", "0.03")).unwrap();
+    let scene = |text: &str| Scene::from_toml_str(text, &dir.join("s.toml"));
+    // The median of the strands' widths (0.01, 0.03: the upper one),
+    // times hair.scale.
+    let s = scene("[hair]\nfile = \"g.usda\"\nscale = 2\n").unwrap();
+    assert!((s.fiber.width() - 0.06).abs() < 1e-7, "{}", s.fiber.width());
+    // A fiber width given wins.
+    let s = scene("[hair]\nfile = \"g.usda\"\n[fiber]\nwidth = 0.5\n").unwrap();
+    assert_eq!(s.fiber.width(), 0.5);
+    // hair.sample: kept, checked against the file, refused elsewhere.
+    let s = scene("[hair]\nfile = \"g.usda\"\nsample = 1\n").unwrap();
+    assert!(matches!(s.hair, HairSource::File { sample: 1, .. }));
+    let e = scene("[hair]\nfile = \"g.usda\"\nsample = 2\n").unwrap_err();
+    assert!(e.to_string().contains("2 time samples (0 to 1)"), "{e}");
+    let e = scene("[hair]\nfile = \"x.hair\"\nsample = 1\n").unwrap_err();
+    assert!(e.to_string().contains("hair.sample"), "{e}");
+    let e = scene("[hair]\nstyle = \"curly\"\nsample = 1\n").unwrap_err();
+    assert!(e.to_string().contains("applies to hair.file only"), "{e}");
+    let _ = std::fs::remove_dir_all(dir);
+}

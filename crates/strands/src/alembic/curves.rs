@@ -195,12 +195,12 @@ fn widths(
                     let idx = numbers(archive.sample(&c, ii, sample)?, ih.pod, &what, |x| x)?;
                     idx.iter()
                         .map(|&k| {
-                            vals.get(k as usize).copied().ok_or_else(|| {
-                                AlembicError::Malformed {
+                            vals.get(k as usize)
+                                .copied()
+                                .ok_or_else(|| AlembicError::Malformed {
                                     what: what.clone(),
                                     why: format!("index {k} of {} values", vals.len()),
-                                }
-                            })
+                                })
                         })
                         .collect::<Result<_, _>>()?
                 }

@@ -86,7 +86,13 @@ pub enum AlembicError {
 pub fn parse_alembic(b: &[u8], sample: u32) -> Result<Hair, AlembicError> {
     let archive = Archive::open(b)?;
     let mut found = Found::default();
-    walk(&archive, &archive.top()?, DMat4::IDENTITY, sample, &mut found)?;
+    walk(
+        &archive,
+        &archive.top()?,
+        DMat4::IDENTITY,
+        sample,
+        &mut found,
+    )?;
     if found.objects == 0 {
         return Err(AlembicError::NoCurves {
             others: list(&found.others),
@@ -171,7 +177,11 @@ fn walk(
         Some("AbcGeom_Xform_v3") => {
             let x = xform::read(archive, o, sample)?;
             found.samples = found.samples.max(x.samples);
-            world = if x.inherits { parent * x.local } else { x.local };
+            world = if x.inherits {
+                parent * x.local
+            } else {
+                x.local
+            };
         }
         Some("AbcGeom_Curve_v2") => {
             let c = curves::read(archive, o, sample, parent)?;

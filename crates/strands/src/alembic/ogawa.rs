@@ -440,9 +440,7 @@ impl<'a> Archive<'a> {
                 if first_changed > last_changed || last_changed > samples {
                     return Err(malformed(
                         what,
-                        format!(
-                            "samples {first_changed} to {last_changed} changed of {samples}"
-                        ),
+                        format!("samples {first_changed} to {last_changed} changed of {samples}"),
                     ));
                 }
                 if info & 0x100 != 0 {
@@ -612,16 +610,16 @@ pub(super) fn numbers<T>(
     Ok(b.chunks_exact(n)
         .map(|c| {
             into(match pod {
-            Pod::Bool | Pod::U8 => f64::from(c[0]),
-            Pod::I8 => f64::from(c[0] as i8),
-            Pod::U16 => f64::from(u16::from_le_bytes([c[0], c[1]])),
-            Pod::I16 => f64::from(i16::from_le_bytes([c[0], c[1]])),
-            Pod::U32 => f64::from(u32::from_le_bytes(c.try_into().expect("4"))),
-            Pod::I32 => f64::from(i32::from_le_bytes(c.try_into().expect("4"))),
-            Pod::F32 => f64::from(f32::from_le_bytes(c.try_into().expect("4"))),
-            Pod::U64 => u64::from_le_bytes(c.try_into().expect("8")) as f64,
-            Pod::I64 => i64::from_le_bytes(c.try_into().expect("8")) as f64,
-            _ => f64::from_le_bytes(c.try_into().expect("8")),
+                Pod::Bool | Pod::U8 => f64::from(c[0]),
+                Pod::I8 => f64::from(c[0] as i8),
+                Pod::U16 => f64::from(u16::from_le_bytes([c[0], c[1]])),
+                Pod::I16 => f64::from(i16::from_le_bytes([c[0], c[1]])),
+                Pod::U32 => f64::from(u32::from_le_bytes(c.try_into().expect("4"))),
+                Pod::I32 => f64::from(i32::from_le_bytes(c.try_into().expect("4"))),
+                Pod::F32 => f64::from(f32::from_le_bytes(c.try_into().expect("4"))),
+                Pod::U64 => u64::from_le_bytes(c.try_into().expect("8")) as f64,
+                Pod::I64 => i64::from_le_bytes(c.try_into().expect("8")) as f64,
+                _ => f64::from_le_bytes(c.try_into().expect("8")),
             })
         })
         .collect())

@@ -69,7 +69,11 @@ pub(super) fn read(archive: &Archive, o: &Object, sample: u32) -> Result<Xform, 
             2 => 4,
             3 => 16,
             4..=6 => 1,
-            t => return Err(bad(format!("op {k} of type {t}, not one of Alembic's 0 to 6"))),
+            t => {
+                return Err(bad(format!(
+                    "op {k} of type {t}, not one of Alembic's 0 to 6"
+                )));
+            }
         };
         let c = vals.get(at..at + n).ok_or_else(|| {
             bad(format!(

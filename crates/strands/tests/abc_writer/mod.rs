@@ -65,7 +65,13 @@ pub fn u32s(v: &[u32]) -> Vec<u8> {
 /// The curves schema's object: `.geom` holding `.selfBnds`, `P`,
 /// `nVertices`, `curveBasisAndType` and any `extra` properties (width).
 /// `points` has one entry a sample; `kind` is `[type, wrap, basis]`.
-pub fn curves(name: &str, points: Vec<Vec<f32>>, counts: &[i32], kind: [u8; 3], extra: Vec<Prop>) -> Obj {
+pub fn curves(
+    name: &str,
+    points: Vec<Vec<f32>>,
+    counts: &[i32],
+    kind: [u8; 3],
+    extra: Vec<Prop>,
+) -> Obj {
     let mut props = vec![
         Prop::Scalar {
             name: ".selfBnds".into(),
@@ -115,7 +121,13 @@ pub fn curves(name: &str, points: Vec<Vec<f32>>, counts: &[i32], kind: [u8; 3], 
 
 /// A transform object: `ops` one byte each (type << 4), `vals` one list
 /// of channels a sample, with `children` below it.
-pub fn xform(name: &str, ops: &[u8], vals: Vec<Vec<f64>>, inherits: bool, children: Vec<Obj>) -> Obj {
+pub fn xform(
+    name: &str,
+    ops: &[u8],
+    vals: Vec<Vec<f64>>,
+    inherits: bool,
+    children: Vec<Obj>,
+) -> Obj {
     let channels = vals[0].len() as u32;
     let mut props = vec![
         Prop::Scalar {
@@ -338,8 +350,9 @@ impl Writer {
                     let array = matches!(p, Prop::Array { .. });
                     // Alembic writes sample 0 and every sample from the
                     // first change to the last, elides the rest.
-                    let changed: Vec<usize> =
-                        (1..samples.len()).filter(|&i| samples[i] != samples[i - 1]).collect();
+                    let changed: Vec<usize> = (1..samples.len())
+                        .filter(|&i| samples[i] != samples[i - 1])
+                        .collect();
                     let (first, last) = match (changed.first(), changed.last()) {
                         (Some(&f), Some(&l)) => (f, l),
                         _ => (0, 0),

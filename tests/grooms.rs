@@ -1,0 +1,148 @@
+//! Studio grooms as a user renders them: an Alembic archive and a USD
+//! stage of the real Sintel groom render the same picture as its `.hair`
+//! copy; an empty or foreign `.abc` is refused, not rendered.
+
+#[path = "../crates/strands/tests/abc_writer/mod.rs"]
+mod abc_writer;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn wisplight(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_wisplight"))
+        .args(args)
+        .output()
+        .expect("the binary runs")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("wisplight-grooms-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn sintel() -> strands::Hair {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/data/sintel_hair.tfx");
+    strands::load(&path, 0).unwrap()
+}
+
+/// Cem Yuksel's HAIR format, by hand from its layout.
+fn hair_file(h: &strands::Hair) -> Vec<u8> {
+    let mut b = b"HAIR".to_vec();
+    b.extend((h.strand_count() as u32).to_le_bytes());
+    b.extend((h.point_count() as u32).to_le_bytes());
+    b.extend(3u32.to_le_bytes());
+    b.resize(128, 0);
+    for s in h.strands() {
+        b.extend(((s.len() - 1) as u16).to_le_bytes());
+    }
+    for p in h.points() {
+        for c in p.to_array() {
+            b.extend(c.to_le_bytes());
+        }
+    }
+    b
+}
+
+/// The same strands as a USD stage's one BasisCurves prim.
+fn usda(h: &strands::Hair) -> String {
+    let counts: Vec<String> = h.strands().map(|s| s.len().to_string()).collect();
+    // Rust's shortest round-trip form: the same f32 parsed back.
+    let points: Vec<String> = h
+        .points()
+        .iter()
+        .map(|p| format!("({:?}, {:?}, {:?})", p.x, p.y, p.z))
+        .collect();
+    format!(
+        "#usda 1.0\ndef BasisCurves \"Hair\"\n{{\n    uniform token type = \"linear\"\n    int[] curveVertexCounts = [{}]\n    point3f[] points = [{}]\n}}\n",
+        counts.join(", "),
+        points.join(", ")
+    )
+}
+
+#[test]
+fn the_sintel_groom_as_alembic_and_as_usd_renders_as_its_hair_copy() {
+    let dir = scratch("same");
+    let groom = sintel();
+    let flat: Vec<f32> = groom.points().iter().flat_map(|p| p.to_array()).collect();
+    let counts: Vec<i32> = groom.strands().map(|s| s.len() as i32).collect();
+    let abc = abc_writer::archive(vec![abc_writer::curves(
+        "hair",
+        vec![flat],
+        &counts,
+        [1, 0, 0],
+        Vec::new(),
+    )]);
+    std::fs::write(dir.join("sintel.abc"), abc).unwrap();
+    std::fs::write(dir.join("sintel.hair"), hair_file(&groom)).unwrap();
+    std::fs::write(dir.join("sintel.usda"), usda(&groom)).unwrap();
+    let mut pictures = Vec::new();
+    for name in ["sintel.hair", "sintel.abc", "sintel.usda"] {
+        let out = dir.join(format!("{name}.png"));
+        let o = wisplight(&[
+            "render",
+            dir.join(name).to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "-q",
+        ]);
+        assert!(
+            o.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        pictures.push(std::fs::read(out).unwrap());
+    }
+    assert!(
+        pictures[0] == pictures[1],
+        "the .abc renders another picture"
+    );
+    assert!(
+        pictures[0] == pictures[2],
+        "the .usda renders another picture"
+    );
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+#[test]
+fn an_empty_or_foreign_alembic_file_is_refused_not_rendered() {
+    let dir = scratch("refused");
+    let empty = dir.join("groom.abc");
+    std::fs::write(&empty, b"").unwrap();
+    let out = dir.join("x.png");
+    let o = wisplight(&[
+        "render",
+        empty.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && !out.exists(), "{err}");
+    assert!(
+        err.contains("groom.abc") && err.contains("not an Alembic Ogawa archive"),
+        "{err}"
+    );
+    // A scene naming an archive of a mesh alone: the object is named.
+    let head = abc_writer::Obj {
+        name: "head".into(),
+        meta: "schema=AbcGeom_PolyMesh_v1".into(),
+        props: Vec::new(),
+        children: Vec::new(),
+    };
+    std::fs::write(dir.join("head.abc"), abc_writer::archive(vec![head])).unwrap();
+    std::fs::write(dir.join("s.toml"), "[hair]\nfile = \"head.abc\"\n").unwrap();
+    let o = wisplight(&[
+        "render",
+        dir.join("s.toml").to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    assert!(
+        err.contains("holds no curves (it holds /head, a polygon mesh)"),
+        "{err}"
+    );
+    let _ = std::fs::remove_dir_all(dir);
+}
