@@ -1,6 +1,8 @@
 //! OpenEXR output (`render -o frame.exr`, `%04d.exr` for frames): linear
 //! float RGBA with the background left out, read back and checked against
-//! the PNG of the same frames.
+//! the PNG of the same frames, and from a coordinator the same bytes.
+
+mod common;
 
 use std::path::PathBuf;
 use std::process::{Command, Output};
@@ -84,13 +86,79 @@ fn exr_output_is_refused_where_it_cannot_be_made() {
     assert_eq!(o.status.code(), Some(2));
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(e.contains("%04d.exr"), "{e}");
-    // A coordinator's pictures are finished on the workers: refused before
-    // any worker is dialled.
-    let o = wisplight(&["coordinator", "--workers", "127.0.0.1:9", "-o", &one]);
-    assert_eq!(o.status.code(), Some(2));
-    let e = String::from_utf8_lossy(&o.stderr);
-    assert!(e.contains("OpenEXR") && e.contains(".png"), "{e}");
+    // The workers finish their bands as 8-bit: a coordinator asked to
+    // draw there is refused before any worker is dialled.
+    for draw in ["sort-middle", "sort-last"] {
+        let o = wisplight(&[
+            "coordinator",
+            "--workers",
+            "127.0.0.1:9",
+            "--draw",
+            draw,
+            "-o",
+            &one,
+        ]);
+        assert_eq!(o.status.code(), Some(2));
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(e.contains("OpenEXR") && e.contains(draw), "{e}");
+    }
     assert!(!std::path::Path::new(&one).exists());
+}
+
+#[test]
+fn a_coordinator_writes_the_same_openexr_bytes_as_one_process_passes_included() {
+    let dir = scratch("cluster");
+    let scene = dir.join("s.toml");
+    std::fs::write(&scene, PASSES).unwrap();
+    let scene = scene.display().to_string();
+    let workers = [common::Worker::start(), common::Worker::start()];
+    let list = format!("{},{}", workers[0].addr, workers[1].addr);
+    let (local, remote) = (dir.join("local_%04d.exr"), dir.join("remote_%04d.exr"));
+    let args = |out: &PathBuf| -> Vec<String> {
+        [
+            &scene,
+            "--frames",
+            "3",
+            "--passes",
+            "direct,scattered,sky,shadow,depth",
+            "-o",
+        ]
+        .iter()
+        .map(|a| a.to_string())
+        .chain([out.display().to_string()])
+        .collect()
+    };
+    let mut render = vec!["render".to_string()];
+    render.extend(args(&local));
+    let render: Vec<&str> = render.iter().map(String::as_str).collect();
+    let o = wisplight(&render);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut coordinator = vec!["coordinator".to_string(), "--workers".into(), list];
+    coordinator.extend(args(&remote));
+    let coordinator: Vec<&str> = coordinator.iter().map(String::as_str).collect();
+    let o = wisplight(&coordinator);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for k in 0..3 {
+        let name = |p: &PathBuf| p.display().to_string().replace("%04d", &format!("{k:04}"));
+        let (a, b) = (
+            std::fs::read(name(&local)).unwrap(),
+            std::fs::read(name(&remote)).unwrap(),
+        );
+        assert!(a == b, "frame {k}: the coordinator's OpenEXR differs");
+        // And it holds every pass asked for.
+        let c = channels(&name(&remote));
+        for layer in [
+            "direct.R",
+            "scattered.G",
+            "sky.B",
+            "shadow.R",
+            "depth.Z",
+            "A",
+        ] {
+            assert!(c.contains_key(layer), "frame {k}: no {layer}");
+        }
+    }
+    let _ = std::fs::remove_dir_all(dir);
 }
 
 /// Light hair with every light term: the fiber model, multiple

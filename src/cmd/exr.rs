@@ -56,6 +56,12 @@ impl Pass {
     }
 }
 
+/// Whether `passes` render the frame again (the light passes; depth comes
+/// with the beauty).
+pub fn renders_again(passes: &[Pass]) -> bool {
+    passes.iter().any(|&p| p != Pass::Depth)
+}
+
 /// The last frame of `seq` (rendered with `scene`) as an OpenEXR file's
 /// bytes, with `passes`. The sequence is left rendering with `scene`.
 pub fn frame(seq: &mut Sequence, scene: &Scene, passes: &[Pass]) -> anyhow::Result<Vec<u8>> {

@@ -20,7 +20,8 @@ pub struct Args {
     /// Output: a PNG (default `wisplight.png`); for several frames a
     /// pattern with `%d` or `%04d` for the frame number (default
     /// `wisplight_%04d.png`; its directory is created); or a `.gif` for one
-    /// animated GIF; or `.exr` (one file, or a pattern) for OpenEXR: linear
+    /// animated GIF; or `.exr` (one file, or a pattern; from a coordinator
+    /// too, which then draws the frames itself) for OpenEXR: linear
     /// float RGBA, alpha the head's and the hair's coverage, the
     /// background left out (colour premultiplied by alpha, to put over any
     /// plate). Every file is written to a temporary file first, then
@@ -83,7 +84,7 @@ pub struct Remote {
 
 /// `render`, or with `remote` the same frames with the density map filled
 /// and swept by cluster workers (the coordinator).
-pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
+pub fn run_with(args: Args, mut remote: Option<Remote>) -> anyhow::Result<()> {
     let start = Instant::now();
     // A single frame says what it does once it takes a second; frames
     // have their progress bar.
@@ -129,13 +130,24 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
                 out_path.display()
             )));
         }
-        if exr && remote.is_some() {
-            return Err(super::usage(format!(
-                "-o {}: OpenEXR needs the picture drawn in this process, and a coordinator's \
-                 pictures are finished on the workers as 8-bit sRGB: write .png, or render \
-                 the .exr with `wisplight render`",
-                out_path.display()
-            )));
+        // OpenEXR is the linear picture, before it is made 8-bit sRGB: the
+        // coordinator draws it (the paper's scheme), where the workers
+        // would finish their bands as 8-bit. The workers still simulate,
+        // fill and sweep; the bytes are those of one process.
+        if let Some(r) = remote.as_mut().filter(|_| exr) {
+            if matches!(
+                r.options.draw,
+                cluster::DrawAt::SortLast | cluster::DrawAt::SortMiddle
+            ) {
+                return Err(super::usage(format!(
+                    "-o {}: --draw {}: OpenEXR frames are drawn on the coordinator, where the \
+                     linear picture is (the workers finish theirs as 8-bit sRGB): leave --draw \
+                     out, or write .png",
+                    out_path.display(),
+                    r.options.draw.name()
+                )));
+            }
+            r.options.draw = cluster::DrawAt::Coordinator;
         }
         if n > 1 && !pattern.numbered() {
             let e = if exr { "exr" } else { "png" };
@@ -222,7 +234,11 @@ pub fn run_with(args: Args, remote: Option<Remote>) -> anyhow::Result<()> {
     // Bytes on the wire of each frame (cluster mode).
     let mut wire: Vec<cluster::Traffic> = Vec::new();
     let mut counted = cluster::Traffic::default();
-    seq.expect_frames(n);
+    // Frames to come let the next frame's stages run beside this one's
+    // drawing; OpenEXR light passes render each frame again with other
+    // settings, which needs the hair where the frame left it.
+    let again = matches!(output, Output::Exrs(_)) && super::exr::renders_again(&args.passes);
+    seq.expect_frames(if again { 1 } else { n });
     // Each frame's wall time: with the next frame's stages running beside
     // this one's drawing, the stages' own times add up to more.
     let mut frame_ms = Vec::with_capacity(n.min(100_000) as usize);

@@ -247,6 +247,15 @@ impl Sequence {
                  (but dynamics), shading and shadow settings",
             ));
         }
+        // The next frame's stages ran beside this one's drawing: the hair
+        // has moved on, and the last frame cannot be rendered again with
+        // the new settings (see `again`).
+        if self.ahead.is_some() {
+            return Err(EngineError::executor(
+                "the scene cannot change once the next frame's stages ran ahead \
+                 (expect one frame at a time to render a frame again)",
+            ));
+        }
         let renderer = self.renderer.remade(scene)?;
         self.collision_map = collision_map(scene, &self.anim)?;
         self.renderer = renderer;

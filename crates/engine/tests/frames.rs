@@ -535,6 +535,33 @@ fn stages_elsewhere_run_the_next_frame_while_this_one_is_drawn_here_to_the_same_
     }
 }
 
+#[test]
+fn the_scene_cannot_change_once_the_next_frames_stages_ran_ahead() {
+    // Changing it would render the last frame again with the next
+    // frame's hair: a picture of neither (an OpenEXR pass once was).
+    let s = scene("[animation]\nmotion = \"dance\"\n");
+    let mut seq = Sequence::new(&s).unwrap();
+    seq.set_executor(Box::new(Elsewhere {
+        steps: Default::default(),
+    }))
+    .unwrap();
+    seq.expect_frames(3);
+    seq.next_frame().unwrap();
+    let mut other = s.clone();
+    other.shading.ambient = 0.0;
+    let e = seq.set_scene(&other).unwrap_err();
+    assert!(e.to_string().contains("ran ahead"), "{e}");
+    // One frame at a time, it changes, and the frame renders again.
+    let mut seq = Sequence::new(&s).unwrap();
+    seq.set_executor(Box::new(Elsewhere {
+        steps: Default::default(),
+    }))
+    .unwrap();
+    seq.next_frame().unwrap();
+    seq.set_scene(&other).unwrap();
+    assert_eq!(seq.again().unwrap().1.index, 0);
+}
+
 /// Frames `from..to` of `scene` as a run that renders only them draws
 /// them: the frames before simulated, not drawn, and `expect_frames`
 /// told the range's length (as `render --frames A..B` does).
