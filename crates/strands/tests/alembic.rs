@@ -376,3 +376,50 @@ fn every_truncation_and_corruption_is_an_error_not_a_panic_or_a_huge_allocation(
     }
     assert!(parse_alembic(&b, 0).is_err());
 }
+
+#[test]
+fn a_small_file_that_describes_a_huge_tree_is_refused_in_bounded_time() {
+    // Each object's group names the same child group twice: 2^60 objects
+    // described in a few kilobytes. Written by hand: a chain of groups,
+    // each [properties (empty), child, child, headers of two children].
+    let mut b = b"Ogawa\xff\x00\x01".to_vec();
+    b.extend(0u64.to_le_bytes());
+    let data = |b: &mut Vec<u8>, bytes: &[u8]| -> u64 {
+        let pos = b.len() as u64;
+        b.extend((bytes.len() as u64).to_le_bytes());
+        b.extend(bytes);
+        pos | 1 << 63
+    };
+    let group = |b: &mut Vec<u8>, children: &[u64]| -> u64 {
+        let pos = b.len() as u64;
+        b.extend((children.len() as u64).to_le_bytes());
+        for c in children {
+            b.extend(c.to_le_bytes());
+        }
+        pos
+    };
+    let mut headers = Vec::new();
+    for name in [b"a", b"b"] {
+        headers.extend(1u32.to_le_bytes());
+        headers.extend(name);
+        headers.push(0);
+    }
+    headers.extend([0u8; 32]);
+    let headers = data(&mut b, &headers);
+    let leaf_headers = data(&mut b, &[0u8; 32]);
+    let mut child = group(&mut b, &[0, leaf_headers]);
+    for _ in 0..60 {
+        child = group(&mut b, &[0, child, child, headers]);
+    }
+    let version = data(&mut b, &0i32.to_le_bytes());
+    let library = data(&mut b, &10709i32.to_le_bytes());
+    let empty = 1u64 << 63;
+    let root = group(&mut b, &[version, library, child, empty, empty, empty]);
+    b[8..16].copy_from_slice(&root.to_le_bytes());
+    // Refused once a million objects are walked, not after 2^60.
+    let e = parse_alembic(&b, 0).unwrap_err();
+    assert!(
+        e.to_string().contains("objects in the archive's tree"),
+        "{e}"
+    );
+}

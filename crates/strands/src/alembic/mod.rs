@@ -25,6 +25,15 @@ use glam::DMat4;
 use crate::Hair;
 use ogawa::{Archive, Object};
 
+/// The most objects an archive's tree is walked through: an object's
+/// group may be named by several parents (Alembic shares what is the
+/// same), so a small file can describe an exponential tree.
+const MAX_OBJECTS: usize = 1 << 20;
+/// The most points read from all curves objects together (about 400 MB
+/// of points): more than the largest groom file of another format holds,
+/// and shared samples cannot multiply past it.
+const MAX_POINTS: usize = 32 << 20;
+
 /// What is wrong in an Alembic archive, naming the object.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum AlembicError {
@@ -132,6 +141,8 @@ struct Found {
     widths_missing: usize,
     /// Curves objects read.
     objects: usize,
+    /// Objects walked through.
+    visited: usize,
     /// The most samples of any curves' points or transform.
     samples: u32,
     /// Geometry passed over: path and kind.
@@ -172,6 +183,13 @@ fn walk(
     sample: u32,
     found: &mut Found,
 ) -> Result<(), AlembicError> {
+    found.visited += 1;
+    if found.visited > MAX_OBJECTS {
+        return Err(AlembicError::Malformed {
+            what: o.path.clone(),
+            why: format!("more than {MAX_OBJECTS} objects in the archive's tree"),
+        });
+    }
     let mut world = parent;
     match schema(archive, o)?.as_deref() {
         Some("AbcGeom_Xform_v3") => {
@@ -185,6 +203,12 @@ fn walk(
         }
         Some("AbcGeom_Curve_v2") => {
             let c = curves::read(archive, o, sample, parent)?;
+            if found.hair.point_count() + c.hair.point_count() > MAX_POINTS {
+                return Err(AlembicError::Unreadable {
+                    object: o.path.clone(),
+                    why: format!("the curves read so far pass {MAX_POINTS} points, the most read"),
+                });
+            }
             found.samples = found.samples.max(c.samples);
             found.objects += 1;
             match c.widths {
