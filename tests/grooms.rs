@@ -1,9 +1,11 @@
 //! Studio grooms as a user renders them: an Alembic archive and a USD
 //! stage of the real Sintel groom render the same picture as its `.hair`
-//! copy; an empty or foreign `.abc` is refused, not rendered.
+//! copy; an empty or foreign `.abc` is refused, not rendered; an animated
+//! cache plays, the same on workers as in one process.
 
 #[path = "../crates/strands/tests/abc_writer/mod.rs"]
 mod abc_writer;
+mod common;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -144,5 +146,86 @@ fn an_empty_or_foreign_alembic_file_is_refused_not_rendered() {
         err.contains("holds no curves (it holds /head, a polygon mesh)"),
         "{err}"
     );
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+#[test]
+fn an_animated_alembic_cache_plays_the_same_on_two_workers_as_in_one_process() {
+    let dir = scratch("cache");
+    // 200 strands of the Sintel groom swaying along x over 4 samples.
+    let groom = sintel();
+    let counts: Vec<i32> = groom.strands().take(200).map(|s| s.len() as i32).collect();
+    let n: usize = counts.iter().map(|&c| c as usize).sum();
+    let samples: Vec<Vec<f32>> = (0..4)
+        .map(|k| {
+            groom.points()[..n]
+                .iter()
+                .flat_map(|p| {
+                    [
+                        p.x + 0.5 * k as f32 * (30.0 - p.y).max(0.0) / 10.0,
+                        p.y,
+                        p.z,
+                    ]
+                })
+                .collect()
+        })
+        .collect();
+    let abc = abc_writer::archive(vec![abc_writer::curves(
+        "hair",
+        samples,
+        &counts,
+        [1, 0, 0],
+        Vec::new(),
+    )]);
+    std::fs::write(dir.join("cache.abc"), abc).unwrap();
+    let cache = dir.join("cache.abc");
+    let (local, remote) = (dir.join("l_%d.png"), dir.join("r_%d.png"));
+    let o = wisplight(&[
+        "render",
+        cache.to_str().unwrap(),
+        "--frames",
+        "5",
+        "-q",
+        "-o",
+        local.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let workers = [common::Worker::start(), common::Worker::start()];
+    let list = format!("{},{}", workers[0].addr, workers[1].addr);
+    let frame = |p: &Path, k: usize| {
+        std::fs::read(p.display().to_string().replace("%d", &k.to_string())).unwrap()
+    };
+    // The workers pose (sort-middle) or the coordinator does.
+    for draw in ["sort-middle", "coordinator"] {
+        let o = wisplight(&[
+            "coordinator",
+            cache.to_str().unwrap(),
+            "--workers",
+            &list,
+            "--draw",
+            draw,
+            "--frames",
+            "5",
+            "-q",
+            "-o",
+            remote.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        for k in 0..5 {
+            assert!(
+                frame(&local, k) == frame(&remote, k),
+                "frame {k} differs with --draw {draw}"
+            );
+        }
+    }
+    // It plays: the first four frames differ; the fifth holds the last
+    // sample.
+    for k in 1..4 {
+        assert!(
+            frame(&local, k) != frame(&local, k - 1),
+            "frame {k} did not move"
+        );
+    }
+    assert!(frame(&local, 4) == frame(&local, 3));
     let _ = std::fs::remove_dir_all(dir);
 }

@@ -43,6 +43,20 @@ pub struct Animator {
     /// The head transform the drawn hair is posed under.
     head: Affine3A,
     groups: Groups,
+    /// An animated groom file whose frames follow its samples.
+    cache: Option<Cache>,
+}
+
+/// An animated groom file (Alembic, USD) the rest hair is read from, a
+/// sample a frame.
+#[derive(Debug)]
+struct Cache {
+    /// The scene, whose hair file is read again at each sample.
+    scene: Box<Scene>,
+    /// The file's samples.
+    samples: u32,
+    /// The sample the rest hair is now.
+    sample: u32,
 }
 
 /// How many groups the drawn hair is drawn in (see [`Groups`]).
@@ -182,7 +196,16 @@ impl Animator {
                 }
             }
         };
+        let cache = match &source {
+            Source::Rigid { .. } => crate::hair::groom_samples(scene)?.map(|samples| Cache {
+                scene: Box::new(scene.clone()),
+                samples,
+                sample: 0,
+            }),
+            Source::Wisps { .. } => None,
+        };
         let mut a = Animator {
+            cache,
             head: motion.at(0.0, pivot),
             motion,
             pivot,
@@ -195,6 +218,41 @@ impl Animator {
         };
         a.pose();
         Ok(a)
+    }
+
+    /// The sample of the groom file frame `frame` is posed from: `frame`
+    /// itself (the last sample past the last) for an animated groom whose
+    /// frames follow its samples, else 0.
+    pub fn sample_at(&self, frame: u64) -> u32 {
+        self.cache
+            .as_ref()
+            .map_or(0, |c| frame.min(u64::from(c.samples - 1)) as u32)
+    }
+
+    /// Takes the rest hair from `sample` of the animated groom file (the
+    /// next pose poses it); nothing for other hair. Its strands must be
+    /// those of the first sample, point for point.
+    pub fn set_sample(&mut self, sample: u32) -> Result<(), EngineError> {
+        let (Some(c), Source::Rigid { rest }) = (&mut self.cache, &mut self.source) else {
+            return Ok(());
+        };
+        if c.sample == sample {
+            return Ok(());
+        }
+        let hair = crate::hair::build_hair_at(&c.scene, Some(sample))?;
+        if hair.offsets() != rest.offsets() {
+            return Err(EngineError::Topology {
+                scene: c.scene.source.path.clone(),
+                sample,
+                strands: hair.strand_count(),
+                points: hair.point_count(),
+                first_strands: rest.strand_count(),
+                first_points: rest.point_count(),
+            });
+        }
+        *rest = hair;
+        c.sample = sample;
+        Ok(())
     }
 
     /// The drawn hair as last posed.

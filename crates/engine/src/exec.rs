@@ -43,6 +43,9 @@ pub struct StepPlan {
 pub struct PosePlan {
     /// The head transform the hair is posed under.
     pub head: Affine3A,
+    /// The sample of an animated groom file the rest hair is taken from
+    /// ([`crate::Animator::sample_at`]; 0 for other hair).
+    pub sample: u32,
     /// Simulated hair: bodies the drawn points are pushed out of (empty:
     /// not pushed).
     pub drawn_bodies: Vec<Body>,

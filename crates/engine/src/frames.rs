@@ -64,6 +64,10 @@ pub struct Sequence {
     version: Version,
     /// The head transform the drawn hair was last posed under.
     posed_head: Affine3A,
+    /// The groom file's sample the next pose takes the rest hair from (an
+    /// animated groom's frame), and the one the last pose took.
+    sample: u32,
+    posed_sample: u32,
     /// What the last pose reported, when it was posed elsewhere or once
     /// measured here.
     report: Option<PoseReport>,
@@ -183,6 +187,8 @@ impl Sequence {
         Ok(Sequence {
             scene: scene.clone(),
             posed_head: anim.head(),
+            sample: 0,
+            posed_sample: 0,
             rest: rest_sample(anim.hair()),
             anim,
             renderer,

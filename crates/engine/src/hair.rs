@@ -14,6 +14,40 @@ pub const MAX_SEGMENTS: u64 = 100_000_000;
 /// Builds the hair a scene describes: generated or loaded, with follow
 /// strands when asked, then Catmull-Rom resampled into drawn points.
 pub fn build_hair(scene: &Scene) -> Result<Hair, EngineError> {
+    build_hair_at(scene, None)
+}
+
+/// The samples an animated groom file's frames follow: `Some(n)` when the
+/// scene's hair is a groom file of `n > 1` samples (Alembic, USD) and
+/// `hair.sample` does not fix one. Frame `k` is then sample `min(k, n - 1)`.
+pub fn groom_samples(scene: &Scene) -> Result<Option<u32>, EngineError> {
+    let HairSource::File {
+        path, sample: None, ..
+    } = &scene.hair
+    else {
+        return Ok(None);
+    };
+    if !strands::is_animated_groom_path(path) {
+        return Ok(None);
+    }
+    let fail = |error| EngineError::Load {
+        scene: scene.source.path.clone(),
+        error,
+    };
+    let bytes = scene.data_file(path).map_err(|cause| {
+        fail(strands::LoadError::Io {
+            path: path.clone(),
+            cause,
+        })
+    })?;
+    let n = strands::groom_samples(path, &bytes).map_err(fail)?;
+    Ok((n > 1).then_some(n))
+}
+
+/// [`build_hair`] at `sample` of an animated groom file (`None`: the
+/// scene's `hair.sample`, or the first); a sample given is a file read
+/// before, its warnings not said again.
+pub(crate) fn build_hair_at(scene: &Scene, at: Option<u32>) -> Result<Hair, EngineError> {
     let control = match &scene.hair {
         HairSource::Style(p) => {
             let segs = u64::from(p.wisps)
@@ -29,7 +63,10 @@ pub fn build_hair(scene: &Scene) -> Result<Hair, EngineError> {
             follow,
             place,
         } => {
-            let mut guides = load_groom(scene, path, *sample)?;
+            let mut guides = match at {
+                Some(s) => load_groom_again(scene, path, s)?,
+                None => load_groom(scene, path, sample.unwrap_or(0))?,
+            };
             place.apply(&mut guides);
             match follow {
                 Some(f) => {
@@ -58,6 +95,25 @@ fn load_groom(scene: &Scene, path: &std::path::Path, sample: u32) -> Result<Hair
     })
 }
 
+/// [`load_groom`] of a file read before, at another sample.
+fn load_groom_again(
+    scene: &Scene,
+    path: &std::path::Path,
+    sample: u32,
+) -> Result<Hair, EngineError> {
+    let fail = |error| EngineError::Load {
+        scene: scene.source.path.clone(),
+        error,
+    };
+    let bytes = scene.data_file(path).map_err(|cause| {
+        fail(strands::LoadError::Io {
+            path: path.to_owned(),
+            cause,
+        })
+    })?;
+    strands::load_bytes_again(path, &bytes, sample).map_err(fail)
+}
+
 /// The drawn segments [`build_hair`] makes of a scene's hair, counted
 /// without making them (a loaded groom is loaded, not resampled). Checked
 /// against [`MAX_SEGMENTS`].
@@ -72,7 +128,7 @@ pub fn drawn_segments(scene: &Scene) -> Result<u64, EngineError> {
             ..
         } => {
             // Placing the groom changes no count.
-            let guides = load_groom(scene, path, *sample)?;
+            let guides = load_groom(scene, path, sample.unwrap_or(0))?;
             let per = follow.as_ref().map_or(1, |f| u64::from(f.followers) + 1);
             guides.segment_count() as u64 * per * sub
         }

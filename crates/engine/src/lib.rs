@@ -39,7 +39,7 @@ pub use exec::{
 };
 pub use export::{CYCLES_FORMAT, CYCLES_SCRIPT, CyclesExport, cycles_export};
 pub use frames::Sequence;
-pub use hair::{MAX_SEGMENTS, build_hair, drawn_segments};
+pub use hair::{MAX_SEGMENTS, build_hair, drawn_segments, groom_samples};
 pub use head::Head;
 pub use part::{HairPart, Seen, draw_head};
 pub use pipeline::ShadowPipeline;
@@ -91,6 +91,26 @@ pub enum EngineError {
     /// A change a running sequence cannot take.
     #[error("{0}")]
     Unchangeable(&'static str),
+    /// A sample of an animated groom whose strands differ from the
+    /// first's in number or length.
+    #[error(
+        "{}: hair.file: sample {sample} has {strands} strands of {points} points, the first {first_strands} of {first_points}: an animated groom keeps its strands (set hair.sample to render one sample)",
+        scene.display()
+    )]
+    Topology {
+        /// The scene file.
+        scene: std::path::PathBuf,
+        /// The sample.
+        sample: u32,
+        /// Its strands and points.
+        strands: usize,
+        /// Its points.
+        points: usize,
+        /// The first sample's strands.
+        first_strands: usize,
+        /// The first sample's points.
+        first_points: usize,
+    },
     /// The executor gave up the drawing part a frame was planned to be
     /// drawn with ([`Site::Elsewhere`]): the frame failed, and the next
     /// attempt is planned anew.

@@ -112,9 +112,10 @@ pub enum HairSource {
     File {
         /// The file, relative to the scene's.
         path: PathBuf,
-        /// The sample of an animated Alembic or USD file read
-        /// (`hair.sample`, 0 the first); 0 for other formats.
-        sample: u32,
+        /// The sample of an animated Alembic or USD file read for every
+        /// frame (`hair.sample`, 0 the first); `None`: frame `k` reads
+        /// sample `k` (the last past the last), the first of a still file.
+        sample: Option<u32>,
         /// Follow strands grown around its strands, when asked.
         follow: Option<FollowParams>,
         /// Where the groom goes in the scene (`hair.scale`,
@@ -757,7 +758,8 @@ impl Validator<'_> {
         } = &mut scene.hair
             && (scale_width || scale_follow)
         {
-            let (unit, files_strands, file_width) = self.groom_unit(path, *sample, place)?;
+            let (unit, files_strands, file_width) =
+                self.groom_unit(path, sample.unwrap_or(0), place)?;
             if scale_follow && let Some(f) = follow {
                 f.radius = DEFAULT_FOLLOW_RADIUS * unit;
             }

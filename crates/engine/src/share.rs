@@ -128,7 +128,9 @@ impl Share {
     }
 
     /// Poses the share's strands as `plan` says and reports on them.
-    pub fn pose(&mut self, plan: &PosePlan) -> PoseReport {
+    pub fn pose(&mut self, plan: &PosePlan) -> Result<PoseReport, EngineError> {
+        // An animated groom's frame: the rest hair of its sample.
+        self.anim.set_sample(plan.sample)?;
         // The last pose's memory, reused: a new pose of a large share
         // would fault in tens of MB of fresh pages a frame.
         let mut hair = self.posed.take().map(|(_, h)| h).unwrap_or_default();
@@ -141,7 +143,7 @@ impl Share {
         );
         let report = PoseReport::of(&hair, plan);
         self.posed = Some((plan.version, hair));
-        report
+        Ok(report)
     }
 
     /// The share's strands as posed last, when they are hair `version`.

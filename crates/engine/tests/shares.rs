@@ -99,9 +99,13 @@ impl Drawing for Shares {
     }
 
     fn pose(&mut self, plan: &PosePlan) -> Result<PoseReport, EngineError> {
-        let mut reports = self.shares.iter_mut().map(|s| s.pose(plan));
-        let first = reports.next().unwrap();
-        Ok(reports.fold(first, |a, b| a.union(&b)))
+        let reports = self
+            .shares
+            .iter_mut()
+            .map(|s| s.pose(plan))
+            .collect::<Result<Vec<_>, _>>()?;
+        let (first, rest) = reports.split_first().unwrap();
+        Ok(rest.iter().fold(first.clone(), |a, b| a.union(b)))
     }
 
     fn draw(&mut self, job: &DrawJob) -> Result<DrawReport, EngineError> {

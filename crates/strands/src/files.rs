@@ -225,6 +225,40 @@ pub fn load_bytes(path: &Path, bytes: &[u8], sample: u32) -> Result<Hair, LoadEr
     }
 }
 
+/// The samples of the groom file `path` of `bytes`: an animated Alembic
+/// or USD file's (its curves' points and transforms), 1 for others.
+pub fn groom_samples(path: &Path, bytes: &[u8]) -> Result<u32, LoadError> {
+    let format_error = |cause| LoadError::Format {
+        path: path.to_owned(),
+        cause,
+    };
+    match format(path)? {
+        Format::Still(..) => Ok(1),
+        Format::Alembic => {
+            crate::alembic::alembic_samples(bytes).map_err(|e| format_error(e.into()))
+        }
+        Format::Usd(ext) => crate::usd::usd_samples(bytes, ext).map_err(|e| format_error(e.into())),
+    }
+}
+
+/// [`load_bytes`] of a file read before at another sample: what it passes
+/// over or reads only approximately is not said again.
+pub fn load_bytes_again(path: &Path, bytes: &[u8], sample: u32) -> Result<Hair, LoadError> {
+    let format_error = |cause| LoadError::Format {
+        path: path.to_owned(),
+        cause,
+    };
+    match format(path)? {
+        Format::Alembic => crate::alembic::read(bytes, sample, false)
+            .map(|(h, _)| h)
+            .map_err(|e| format_error(e.into())),
+        Format::Usd(ext) => crate::usd::read(bytes, ext, sample, false)
+            .map(|(h, _)| h)
+            .map_err(|e| format_error(e.into())),
+        Format::Still(..) => load_bytes(path, bytes, sample),
+    }
+}
+
 /// How a groom file's bytes are read.
 enum Format {
     /// One pose, by this parser; the extension.

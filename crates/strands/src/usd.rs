@@ -155,6 +155,23 @@ impl Curves for AnyCurves {}
 /// `usda`, `usdc` or `usdz`) at sample `sample` into hair, with the
 /// strands' widths when every curves prim has them.
 pub fn parse_usd(bytes: &[u8], ext: &str, sample: u32) -> Result<Hair, UsdError> {
+    read(bytes, ext, sample, true).map(|(hair, _)| hair)
+}
+
+/// The samples the USD file's curves have: their `points`' time samples
+/// (1 when they have none).
+pub fn usd_samples(bytes: &[u8], ext: &str) -> Result<u32, UsdError> {
+    read(bytes, ext, 0, false).map(|(_, samples)| samples.max(1))
+}
+
+/// [`parse_usd`] and the samples the curves have; `warn`: say what was
+/// passed over (once a file, not again at each sample).
+pub(crate) fn read(
+    bytes: &[u8],
+    ext: &str,
+    sample: u32,
+    warn: bool,
+) -> Result<(Hair, u32), UsdError> {
     let root = format!("groom.{ext}");
     let resolver = OneFile {
         root: root.clone(),
@@ -163,7 +180,7 @@ pub fn parse_usd(bytes: &[u8], ext: &str, sample: u32) -> Result<Hair, UsdError>
     // The reader is large and young: a panic in it is this file's error,
     // not the program's end.
     let read = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        read_stage(resolver, &root, sample)
+        read_stage(resolver, &root, sample, warn)
     }));
     read.unwrap_or_else(|panic| {
         let why = panic
@@ -181,7 +198,12 @@ fn open_error(e: impl std::fmt::Display) -> UsdError {
     UsdError::Open(e.to_string())
 }
 
-fn read_stage(resolver: OneFile, root: &str, sample: u32) -> Result<Hair, UsdError> {
+fn read_stage(
+    resolver: OneFile,
+    root: &str,
+    sample: u32,
+    warn: bool,
+) -> Result<(Hair, u32), UsdError> {
     let stage = Stage::builder()
         .resolver(resolver)
         .open(root)
@@ -215,7 +237,7 @@ fn read_stage(resolver: OneFile, root: &str, sample: u32) -> Result<Hair, UsdErr
             others: list(&others),
         });
     }
-    if !others.is_empty() {
+    if warn && !others.is_empty() {
         tracing::warn!("USD: passed over what is not curves: {}", list(&others));
     }
     // The sample's time: the k-th of every curves prim's points' times.
@@ -249,7 +271,7 @@ fn read_stage(resolver: OneFile, root: &str, sample: u32) -> Result<Hair, UsdErr
     let mut widths = Some(Vec::new());
     for (prim, nurbs) in curves {
         let name = prim.path().to_string();
-        let c = read_curves(&stage, AnyCurves(prim), nurbs, time)?;
+        let c = read_curves(&stage, AnyCurves(prim), nurbs, warn, time)?;
         for strand in c.hair.strands() {
             hair.push_strand(strand).map_err(|e| UsdError::Unreadable {
                 prim: name.clone(),
@@ -267,7 +289,7 @@ fn read_stage(resolver: OneFile, root: &str, sample: u32) -> Result<Hair, UsdErr
     if let Some(w) = widths {
         hair.set_widths(w);
     }
-    Ok(hair)
+    Ok((hair, times.len() as u32))
 }
 
 fn list(others: &[String]) -> String {
@@ -325,6 +347,7 @@ fn read_curves(
     stage: &Stage,
     c: AnyCurves,
     nurbs: bool,
+    warn: bool,
     time: Option<TimeCode>,
 ) -> Result<Read, UsdError> {
     let name = c.prim().path().to_string();
@@ -362,7 +385,7 @@ fn read_curves(
             points.len()
         )));
     }
-    if nurbs {
+    if nurbs && warn {
         tracing::warn!("USD {name}: NURBS curves read as their control polygon");
     }
     let kind = token(

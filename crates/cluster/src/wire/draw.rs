@@ -120,6 +120,7 @@ fn lights_from_floats(f: &[f32]) -> Result<Vec<Light>, Malformed> {
 pub(crate) fn pose_plan_to_pb(p: &PosePlan) -> pb::PosePlan {
     let mut out = pb::PosePlan {
         version: p.version,
+        sample: p.sample,
         head: p.head.to_cols_array().to_vec(),
         anchor: p.anchor.to_array().to_vec(),
         ..Default::default()
@@ -135,6 +136,7 @@ pub(crate) fn pose_plan_from_pb(p: &pb::PosePlan) -> Result<PosePlan, Malformed>
     Ok(PosePlan {
         version: p.version,
         head: one_affine("pose head", &p.head)?,
+        sample: p.sample,
         drawn_bodies: bodies_from_floats(&p.drawn_bodies)?,
         lights: lights_from_floats(&p.lights)?,
         anchor: Vec3::from_array(floats::<3>("pose anchor", &p.anchor)?),

@@ -22,7 +22,7 @@ pub(crate) use exchange::*;
 
 /// The protocol version this build speaks. A coordinator and a worker of
 /// different versions refuse each other.
-pub const PROTOCOL_VERSION: u32 = 19;
+pub const PROTOCOL_VERSION: u32 = 20;
 
 /// Points per Density chunk: 3 floats each, 1.5 MB.
 pub(crate) const POINTS_PER_CHUNK: usize = 128 * 1024;

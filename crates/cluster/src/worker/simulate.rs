@@ -7,7 +7,7 @@ use tonic::{Request, Response, Status};
 use super::Chunks;
 use super::session::with_share;
 use super::share::{share_chunks, step_plan};
-use super::status::{invalid, logged, status, stop_switch, stream_of};
+use super::status::{invalid, logged, refused, status, stop_switch, stream_of};
 use crate::error::WorkerErrorKind as Kind;
 use crate::tls::Caller;
 use crate::{WorkerService, pb, wire};
@@ -38,7 +38,7 @@ impl WorkerService {
                         ),
                     ));
                 }
-                let report = share.pose(&plan.pose);
+                let report = share.pose(&plan.pose).map_err(refused)?;
                 let mut chunks = share_chunks(share)?;
                 if let Some(c) = chunks.last_mut() {
                     c.compute_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -66,7 +66,10 @@ impl WorkerService {
         let served = async move {
             let session = self.session(&req, Caller::Coordinator)?;
             let plan = wire::pose_plan_from_pb(&req.into_inner()).map_err(invalid)?;
-            let report = with_share(&session.held, move |share| Ok(share.pose(&plan))).await?;
+            let report = with_share(&session.held, move |share| {
+                share.pose(&plan).map_err(refused)
+            })
+            .await?;
             Ok(Response::new(wire::report_to_pb(&report)))
         };
         logged(peer, "Pose", served.await)

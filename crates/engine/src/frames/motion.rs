@@ -100,6 +100,7 @@ impl Sequence {
         let fx = self.scene.effects;
         let elsewhere = self.site == Site::Elsewhere;
         let head = self.anim.head_at(t);
+        self.sample = self.anim.sample_at(index);
         let drawn = |seq: &Self| {
             if fx.body_collision && seq.anim.simulates() {
                 seq.bodies(&head)
@@ -136,7 +137,10 @@ impl Sequence {
                     .collect();
                 self.advance(stats, heads, head, drawn)?;
             }
-        } else if head != self.posed_head || (elsewhere && self.report.is_none()) {
+        } else if head != self.posed_head
+            || self.sample != self.posed_sample
+            || (elsewhere && self.report.is_none())
+        {
             self.pose(stats, head, Vec::new())?;
         }
         if !elsewhere && self.stale_here {
@@ -187,6 +191,7 @@ impl Sequence {
     pub(super) fn pose_plan(&self, head: Affine3A, drawn_bodies: Vec<Body>) -> PosePlan {
         PosePlan {
             head,
+            sample: self.sample,
             drawn_bodies,
             version: self.version + 1,
             lights: self.scene.lights.clone(),
@@ -229,7 +234,12 @@ impl Sequence {
             self.stale_here = true;
         } else {
             self.stale_here = false;
-            stats.time(Stage::Pose, || self.anim.set_head(plan.head));
+            let anim = &mut self.anim;
+            stats.time(Stage::Pose, || -> Result<(), EngineError> {
+                anim.set_sample(plan.sample)?;
+                anim.set_head(plan.head);
+                Ok(())
+            })?;
             if !plan.drawn_bodies.is_empty() {
                 let b = &plan.drawn_bodies;
                 stats.time(Stage::BodyCollide, || self.anim.collide_drawn(b));
@@ -238,6 +248,7 @@ impl Sequence {
         }
         self.version = plan.version;
         self.posed_head = plan.head;
+        self.posed_sample = plan.sample;
         Ok(())
     }
 

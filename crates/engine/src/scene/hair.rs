@@ -171,11 +171,14 @@ impl Validator<'_> {
                     if tfx { DEFAULT_TFX_FOLLOWERS } else { 0 },
                     0..=1000,
                 )?;
-                let sample = self.int("hair.sample", h.sample, 0, 0..=1_000_000)?;
-                if sample > 0 && !strands::is_animated_groom_path(&path) {
+                let sample = h
+                    .sample
+                    .map(|_| self.int("hair.sample", h.sample, 0, 0..=1_000_000))
+                    .transpose()?;
+                if sample.is_some_and(|s| s > 0) && !strands::is_animated_groom_path(&path) {
                     return Err(self.invalid(
                         "hair.sample",
-                        sample,
+                        sample.unwrap_or(0),
                         "applies to Alembic (.abc) and USD files, which hold samples",
                     ));
                 }

@@ -650,7 +650,13 @@ def BasisCurves "Hair"
     assert_eq!(s.fiber.width(), 0.5);
     // hair.sample: kept, checked against the file, refused elsewhere.
     let s = scene("[hair]\nfile = \"g.usda\"\nsample = 1\n").unwrap();
-    assert!(matches!(s.hair, HairSource::File { sample: 1, .. }));
+    assert!(matches!(
+        s.hair,
+        HairSource::File {
+            sample: Some(1),
+            ..
+        }
+    ));
     let e = scene("[hair]\nfile = \"g.usda\"\nsample = 2\n").unwrap_err();
     assert!(e.to_string().contains("2 time samples (0 to 1)"), "{e}");
     let e = scene("[hair]\nfile = \"x.hair\"\nsample = 1\n").unwrap_err();

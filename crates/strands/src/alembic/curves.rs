@@ -22,6 +22,7 @@ pub(super) fn read(
     o: &Object,
     sample: u32,
     world: DMat4,
+    warn: bool,
 ) -> Result<Curves, AlembicError> {
     let unreadable = |why: String| AlembicError::Unreadable {
         object: o.path.clone(),
@@ -63,10 +64,12 @@ pub(super) fn read(
         })?),
         1 => None,
         2 => {
-            tracing::warn!(
+            if warn {
+                tracing::warn!(
                 "Alembic {}: NURBS curves read as their control polygon",
-                o.path
-            );
+                    o.path
+                );
+            }
             None
         }
         k => return Err(unreadable(format!("curve type {k}, not linear, cubic or NURBS"))),

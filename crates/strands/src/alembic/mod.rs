@@ -93,8 +93,23 @@ pub enum AlembicError {
 /// first) into hair, with the strands' widths when every curves object
 /// has them.
 pub fn parse_alembic(b: &[u8], sample: u32) -> Result<Hair, AlembicError> {
+    read(b, sample, true).map(|(hair, _)| hair)
+}
+
+/// The samples the archive's curves have (their points' and the
+/// transforms above them; 1 for a still groom).
+pub fn alembic_samples(b: &[u8]) -> Result<u32, AlembicError> {
+    read(b, 0, false).map(|(_, samples)| samples.max(1))
+}
+
+/// [`parse_alembic`] and the samples the curves have; `warn`: say what
+/// was passed over (once a file, not again at each sample).
+pub(crate) fn read(b: &[u8], sample: u32, warn: bool) -> Result<(Hair, u32), AlembicError> {
     let archive = Archive::open(b)?;
-    let mut found = Found::default();
+    let mut found = Found {
+        warn,
+        ..Found::default()
+    };
     walk(
         &archive,
         &archive.top()?,
@@ -107,7 +122,7 @@ pub fn parse_alembic(b: &[u8], sample: u32) -> Result<Hair, AlembicError> {
             others: list(&found.others),
         });
     }
-    if !found.others.is_empty() {
+    if warn && !found.others.is_empty() {
         tracing::warn!(
             "Alembic: passed over what is not curves: {}",
             list(&found.others)
@@ -122,14 +137,14 @@ pub fn parse_alembic(b: &[u8], sample: u32) -> Result<Hair, AlembicError> {
     let mut hair = found.hair;
     if found.widths_missing == 0 {
         hair.set_widths(found.widths);
-    } else if found.widths_missing < found.objects {
+    } else if warn && found.widths_missing < found.objects {
         tracing::warn!(
             "Alembic: {} of {} curves objects have no widths; the scene's fiber width applies to all",
             found.widths_missing,
             found.objects
         );
     }
-    Ok(hair)
+    Ok((hair, found.samples))
 }
 
 /// What the walk has gathered.
@@ -143,6 +158,8 @@ struct Found {
     objects: usize,
     /// Objects walked through.
     visited: usize,
+    /// Say what is read only approximately (once a file).
+    warn: bool,
     /// The most samples of any curves' points or transform.
     samples: u32,
     /// Geometry passed over: path and kind.
@@ -202,7 +219,7 @@ fn walk(
             };
         }
         Some("AbcGeom_Curve_v2") => {
-            let c = curves::read(archive, o, sample, parent)?;
+            let c = curves::read(archive, o, sample, parent, found.warn)?;
             if found.hair.point_count() + c.hair.point_count() > MAX_POINTS {
                 return Err(AlembicError::Unreadable {
                     object: o.path.clone(),

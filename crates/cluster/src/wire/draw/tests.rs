@@ -7,6 +7,7 @@ fn pose_plans_reports_and_jobs_round_trip_exactly() {
     let plan = PosePlan {
         version: 9,
         head: Affine3A::from_rotation_y(0.3) * Affine3A::from_translation(Vec3::X),
+        sample: 17,
         drawn_bodies: vec![sim::Body {
             center: Vec3::new(0.0, -16.0, -3.0),
             radius: 6.0,
