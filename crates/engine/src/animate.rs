@@ -204,6 +204,12 @@ impl Animator {
             }),
             Source::Wisps { .. } => None,
         };
+        if let Some(c) = &cache {
+            tracing::info!(
+                samples = c.samples,
+                "hair.file is an animated groom: frame k reads its sample k (the last past it)"
+            );
+        }
         let mut a = Animator {
             cache,
             head: motion.at(0.0, pivot),
