@@ -5,20 +5,11 @@
 mod common;
 
 use std::path::PathBuf;
-use std::process::{Command, Output};
 
-fn wisplight(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_wisplight"))
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
+use common::wisplight;
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("wisplight-exr-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    common::scratch("exr", name)
 }
 
 /// A small animated scene over a coloured background, with a head.

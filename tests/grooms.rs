@@ -8,43 +8,16 @@ mod abc_writer;
 mod common;
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-fn wisplight(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_wisplight"))
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
+use common::wisplight;
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("wisplight-grooms-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    common::scratch("grooms", name)
 }
 
 fn sintel() -> strands::Hair {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/data/sintel_hair.tfx");
     strands::load(&path, 0).unwrap()
-}
-
-/// Cem Yuksel's HAIR format, by hand from its layout.
-fn hair_file(h: &strands::Hair) -> Vec<u8> {
-    let mut b = b"HAIR".to_vec();
-    b.extend((h.strand_count() as u32).to_le_bytes());
-    b.extend((h.point_count() as u32).to_le_bytes());
-    b.extend(3u32.to_le_bytes());
-    b.resize(128, 0);
-    for s in h.strands() {
-        b.extend(((s.len() - 1) as u16).to_le_bytes());
-    }
-    for p in h.points() {
-        for c in p.to_array() {
-            b.extend(c.to_le_bytes());
-        }
-    }
-    b
 }
 
 /// The same strands as a USD stage's one BasisCurves prim.
@@ -77,7 +50,7 @@ fn the_sintel_groom_as_alembic_and_as_usd_renders_as_its_hair_copy() {
         Vec::new(),
     )]);
     std::fs::write(dir.join("sintel.abc"), abc).unwrap();
-    std::fs::write(dir.join("sintel.hair"), hair_file(&groom)).unwrap();
+    std::fs::write(dir.join("sintel.hair"), abc_writer::hair_file(&groom)).unwrap();
     std::fs::write(dir.join("sintel.usda"), usda(&groom)).unwrap();
     let mut pictures = Vec::new();
     for name in ["sintel.hair", "sintel.abc", "sintel.usda"] {

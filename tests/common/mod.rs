@@ -1,7 +1,28 @@
-//! What the tests of the `wisplight` program share: worker processes.
+//! What the tests of the `wisplight` program share: the program run,
+//! a scratch folder, worker processes.
 
 use std::io::{BufRead, BufReader};
-use std::process::{Child, Command, Stdio};
+use std::path::PathBuf;
+use std::process::{Child, Command, Output, Stdio};
+
+/// `wisplight ARGS`, run to its end.
+#[allow(dead_code)] // not every test file runs the program this way
+pub(crate) fn wisplight(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_wisplight"))
+        .args(args)
+        .output()
+        .expect("the binary runs")
+}
+
+/// A fresh folder for one test's files, `wisplight-TOPIC-PID-NAME` in the
+/// system's temporary folder.
+#[allow(dead_code)]
+pub(crate) fn scratch(topic: &str, name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("wisplight-{topic}-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
 
 /// A worker process and the address it printed first.
 pub(crate) struct Worker {

@@ -30,18 +30,29 @@ pub fn groom_samples(scene: &Scene) -> Result<Option<u32>, EngineError> {
     if !strands::is_animated_groom_path(path) {
         return Ok(None);
     }
-    let fail = |error| EngineError::Load {
-        scene: scene.source.path.clone(),
-        error,
-    };
-    let bytes = scene.data_file(path).map_err(|cause| {
-        fail(strands::LoadError::Io {
-            path: path.clone(),
-            cause,
-        })
-    })?;
-    let n = strands::groom_samples(path, &bytes).map_err(fail)?;
+    let n = with_groom_bytes(scene, path, |bytes| strands::groom_samples(path, bytes))?;
     Ok((n > 1).then_some(n))
+}
+
+/// `read` of the bytes of the groom `path` of `scene`'s `hair.file`; an
+/// error names both.
+fn with_groom_bytes<T>(
+    scene: &Scene,
+    path: &std::path::Path,
+    read: impl FnOnce(&[u8]) -> Result<T, strands::LoadError>,
+) -> Result<T, EngineError> {
+    let bytes = scene
+        .data_file(path)
+        .map_err(|cause| strands::LoadError::Io {
+            path: path.to_owned(),
+            cause,
+        });
+    bytes
+        .and_then(|b| read(&b))
+        .map_err(|error| EngineError::Load {
+            scene: scene.source.path.clone(),
+            error,
+        })
 }
 
 /// [`build_hair`] at `sample` of an animated groom file (`None`: the
@@ -101,17 +112,9 @@ fn load_groom_again(
     path: &std::path::Path,
     sample: u32,
 ) -> Result<Hair, EngineError> {
-    let fail = |error| EngineError::Load {
-        scene: scene.source.path.clone(),
-        error,
-    };
-    let bytes = scene.data_file(path).map_err(|cause| {
-        fail(strands::LoadError::Io {
-            path: path.to_owned(),
-            cause,
-        })
-    })?;
-    strands::load_bytes_again(path, &bytes, sample).map_err(fail)
+    with_groom_bytes(scene, path, |bytes| {
+        strands::load_bytes_again(path, bytes, sample)
+    })
 }
 
 /// The drawn segments [`build_hair`] makes of a scene's hair, counted

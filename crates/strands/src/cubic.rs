@@ -84,6 +84,24 @@ impl Basis {
     }
 }
 
+/// Appends to `hair` the strand of control points `cv` (in place: a
+/// cubic curve of basis `basis` is evaluated, `None` is linear), using
+/// `along` for the points; the error is the hair's.
+pub(crate) fn push_curve(
+    hair: &mut crate::Hair,
+    cv: &[DVec3],
+    basis: Option<Basis>,
+    along: &mut Vec<DVec3>,
+) -> Result<(), crate::HairError> {
+    along.clear();
+    match basis {
+        Some(b) => b.evaluate(cv, along),
+        None => along.extend_from_slice(cv),
+    }
+    let strand: Vec<glam::Vec3> = along.iter().map(|p| p.as_vec3()).collect();
+    hair.push_strand(&strand)
+}
+
 /// One width a strand (the mean of its values) from `values` given one
 /// for all, one a curve, one a control point, or one a span end (a
 /// control point for linear curves), told apart by their count; the

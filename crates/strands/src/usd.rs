@@ -17,7 +17,7 @@
 //! passed over with a warning, and a stage of none but such prims is
 //! refused naming them.
 
-use glam::{DMat4, DVec3, Vec3};
+use glam::{DMat4, DVec3};
 use openusd::schemas::geom::{Curves, Imageable, PointBased, Xformable};
 use openusd::usd::{Prim, SchemaBase, SchemaKind, Stage, TimeCode};
 use openusd::{ar, sdf, usd};
@@ -443,13 +443,7 @@ fn read_curves(
         if wrap == "pinned" && n >= 2 {
             pin(&mut cv, cubic);
         }
-        along.clear();
-        match cubic {
-            Some(b) => b.evaluate(&cv, &mut along),
-            None => along.extend_from_slice(&cv),
-        }
-        let strand: Vec<Vec3> = along.iter().map(|p| p.as_vec3()).collect();
-        hair.push_strand(&strand)
+        crate::cubic::push_curve(&mut hair, &cv, cubic, &mut along)
             .map_err(|e| unreadable(format!("curve {s}: {e}")))?;
     }
     Ok(Read {

@@ -7,7 +7,7 @@ mod abc_writer;
 
 use std::path::Path;
 
-use abc_writer::{Obj, archive, curves, indexed_width, width, xform};
+use abc_writer::{Obj, archive, curves, hair_file, indexed_width, width, xform};
 use glam::Vec3;
 use strands::{AlembicError, Hair, load, load_bytes, parse_alembic};
 
@@ -22,27 +22,6 @@ fn flat(h: &Hair) -> Vec<f32> {
 
 fn counts(h: &Hair) -> Vec<i32> {
     h.strands().map(|s| s.len() as i32).collect()
-}
-
-/// Cem Yuksel's HAIR format, written by hand from its layout (128-byte
-/// header, then segments a strand and points).
-fn hair_file(h: &Hair) -> Vec<u8> {
-    let mut b = b"HAIR".to_vec();
-    b.extend((h.strand_count() as u32).to_le_bytes());
-    b.extend((h.point_count() as u32).to_le_bytes());
-    b.extend(3u32.to_le_bytes()); // segments and points
-    b.extend(0u32.to_le_bytes());
-    b.extend([0u8; 4 * 5]);
-    b.resize(128, 0);
-    for s in h.strands() {
-        b.extend(((s.len() - 1) as u16).to_le_bytes());
-    }
-    for p in h.points() {
-        for c in p.to_array() {
-            b.extend(c.to_le_bytes());
-        }
-    }
-    b
 }
 
 fn linear(name: &str, h: &Hair, extra: Vec<abc_writer::Prop>) -> Obj {

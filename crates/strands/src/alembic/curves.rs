@@ -1,12 +1,12 @@
 //! AbcGeom's curves schema (`AbcGeom_Curve_v2`, its properties under
 //! `.geom`): points, vertex counts, basis and type, widths.
 
-use glam::{DMat4, DVec3, Vec3};
+use glam::{DMat4, DVec3};
 
 use super::AlembicError;
 use super::ogawa::{Archive, Compound, Kind, Object, Pod, numbers};
 use crate::Hair;
-use crate::cubic::{Basis, strand_widths};
+use crate::cubic::{Basis, push_curve, strand_widths};
 
 /// One curves object read: its strands in world space, each strand's
 /// width when it has widths, and how many samples its points have.
@@ -101,13 +101,7 @@ pub(super) fn read(
             cv.push(cv[0]);
         }
         start += n;
-        along.clear();
-        match basis {
-            Some(b) => b.evaluate(&cv, &mut along),
-            None => along.extend_from_slice(&cv),
-        }
-        let strand: Vec<Vec3> = along.iter().map(|p| p.as_vec3()).collect();
-        hair.push_strand(&strand)
+        push_curve(&mut hair, &cv, basis, &mut along)
             .map_err(|e| unreadable(format!("curve {s}: {e}")))?;
     }
     let widths = widths.map(|w| w.into_iter().map(|x| x * width_scale).collect());

@@ -49,6 +49,26 @@ pub const U32: u32 = 5;
 pub const F32: u32 = 10;
 pub const F64: u32 = 11;
 
+/// The same strands in Cem Yuksel's HAIR format, written by hand from its
+/// layout (a 128-byte header, then segments a strand and points): the
+/// copy an Alembic groom is compared with.
+pub fn hair_file(h: &strands::Hair) -> Vec<u8> {
+    let mut b = b"HAIR".to_vec();
+    b.extend((h.strand_count() as u32).to_le_bytes());
+    b.extend((h.point_count() as u32).to_le_bytes());
+    b.extend(3u32.to_le_bytes()); // segments and points
+    b.resize(128, 0);
+    for s in h.strands() {
+        b.extend(((s.len() - 1) as u16).to_le_bytes());
+    }
+    for p in h.points() {
+        for c in p.to_array() {
+            b.extend(c.to_le_bytes());
+        }
+    }
+    b
+}
+
 pub fn f32s(v: &[f32]) -> Vec<u8> {
     v.iter().flat_map(|x| x.to_le_bytes()).collect()
 }
