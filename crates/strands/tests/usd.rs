@@ -212,3 +212,23 @@ fn files_written_by_pixars_usd_read_the_same() {
         check(&load_bytes(&path, &bytes, 1).unwrap(), 1.0);
     }
 }
+
+#[test]
+fn a_stage_nested_past_any_groom_is_refused_before_it_is_read() {
+    // 20,000 prims each inside the last: the USD reader's parser recurses
+    // a level a prim and overflowed the stack (an abort) before the
+    // nesting was bounded, and a crate of prims 3,000 deep took over a
+    // minute to compose. The crate here (written by Pixar's USD) nests
+    // 100 deep, past the bound.
+    let n = 20_000;
+    let text: String = "#usda 1.0\n".to_owned()
+        + &(0..n)
+            .map(|i| format!("def Xform \"a{i}\" {{\n"))
+            .collect::<String>()
+        + &"}\n".repeat(n);
+    let e = load_bytes(Path::new("deep.usda"), text.as_bytes(), 0).unwrap_err();
+    assert!(e.to_string().contains("nested deeper than 64"), "{e}");
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/pixar-deep.usdc");
+    let e = load_bytes(&path, &std::fs::read(&path).unwrap(), 0).unwrap_err();
+    assert!(e.to_string().contains("prims nested 100 deep"), "{e}");
+}

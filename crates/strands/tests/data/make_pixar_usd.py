@@ -7,7 +7,8 @@ files from a writer other than the crate that reads them.
 
 The groom: /Groom translates by (1, 2, 3) and turns 90 degrees about y;
 /Groom/Hair scales x by 2 and holds two linear curves, their points at
-time 10 and at time 20 (one unit along z), widths per vertex.
+time 10 and at time 20 (one unit along z), widths per vertex. And
+pixar-deep.usdc, prims nested 100 deep.
 """
 import os
 from pxr import Usd, UsdGeom, UsdUtils, Gf, Vt, Sdf
@@ -31,3 +32,11 @@ hair.AddScaleOp().Set(Gf.Vec3f(2, 1, 1))
 stage.SetDefaultPrim(groom.GetPrim())
 stage.GetRootLayer().Save()
 UsdUtils.CreateNewUsdzPackage(Sdf.AssetPath(usdc), os.path.join(here, "pixar-groom.usdz"))
+
+# A stage of prims nested 100 deep, past what the reader is given.
+deep = Usd.Stage.CreateNew(os.path.join(here, "pixar-deep.usdc"))
+path = ""
+for i in range(100):
+    path += "/a%d" % i
+    deep.DefinePrim(path, "Xform")
+deep.GetRootLayer().Save()

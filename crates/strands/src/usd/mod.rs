@@ -24,6 +24,8 @@ use openusd::{ar, sdf, usd};
 
 use crate::Hair;
 
+mod guard;
+
 /// The largest layer read out of a `.usdz` package: a groom file's limit
 /// (`MAX_FILE_BYTES`), so that a package's compressed entry cannot grow
 /// past what a file may hold.
@@ -84,8 +86,13 @@ impl ar::Resolver for OneFile {
     }
     fn open_asset(&self, resolved: &ar::ResolvedPath) -> std::io::Result<Box<dyn ar::Asset>> {
         let path = resolved.to_string_lossy();
+        let checked = |bytes: Vec<u8>| -> std::io::Result<Box<dyn ar::Asset>> {
+            guard::check_layer(&bytes)
+                .map_err(|why| std::io::Error::new(std::io::ErrorKind::InvalidData, why))?;
+            Ok(Box::new(std::io::Cursor::new(bytes)))
+        };
         if path == self.root.as_str() {
-            Ok(Box::new(std::io::Cursor::new(self.bytes.clone())))
+            checked(self.bytes.clone())
         } else if let Some(inner) = self.inner(&path) {
             // A layer inside the `.usdz` package (a zip), read whole, at
             // most as large as a groom file may be.
@@ -104,7 +111,7 @@ impl ar::Resolver for OneFile {
                     ),
                 ));
             }
-            Ok(Box::new(std::io::Cursor::new(out)))
+            checked(out)
         } else {
             Err(std::io::Error::new(
                 std::io::ErrorKind::NotFound,
