@@ -12,10 +12,10 @@ use crate::output::AtomicFile;
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Scene file (TOML), or a groom file (.hair, .tfx, .data, .bin, .ply,
-    /// Alembic .abc, USD .usd/.usda/.usdc/.usdz; an animated cache's first
-    /// sample) to render at the defaults; the built-in scene (the smooth style,
-    /// parted, on a dancing head with a face, seen from three quarters)
-    /// when omitted.
+    /// Alembic .abc, USD .usd/.usda/.usdc/.usdz; an animated cache plays,
+    /// frame k its sample k) to render at the defaults; the built-in scene
+    /// (the smooth style, parted, on a dancing head with a face, seen from
+    /// three quarters) when omitted.
     scene: Option<PathBuf>,
     /// Output: a PNG (default `wisplight.png`); for several frames a
     /// pattern with `%d` or `%04d` for the frame number (default
