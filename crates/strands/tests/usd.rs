@@ -232,3 +232,32 @@ fn a_stage_nested_past_any_groom_is_refused_before_it_is_read() {
     let e = load_bytes(&path, &std::fs::read(&path).unwrap(), 0).unwrap_err();
     assert!(e.to_string().contains("prims nested 100 deep"), "{e}");
 }
+
+#[test]
+fn an_animated_transform_over_still_curves_gives_the_samples() {
+    let usda = r#"#usda 1.0
+def Xform "Groom"
+{
+    double3 xformOp:translate.timeSamples = { 1: (0, 0, 0), 2: (0, 0, 5) }
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+
+    def BasisCurves "Hair"
+    {
+        uniform token type = "linear"
+        int[] curveVertexCounts = [2]
+        point3f[] points = [(0, 0, 0), (0, -1, 0)]
+    }
+}
+"#;
+    let z = |sample| {
+        load_bytes(Path::new("g.usda"), usda.as_bytes(), sample)
+            .unwrap()
+            .points()[0]
+            .z
+    };
+    assert_eq!((z(0), z(1)), (0.0, 5.0));
+    assert_eq!(
+        strands::groom_samples(Path::new("g.usda"), usda.as_bytes()).unwrap(),
+        2
+    );
+}

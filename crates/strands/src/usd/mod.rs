@@ -11,7 +11,8 @@
 //! `widths` (constant, uniform, varying or vertex), `type`, `basis` and
 //! `wrap`; its transform is the product of its own and its ancestors'
 //! `xformOp`s up to a `!resetXformStack!`. Sample `k` is the `k`-th time
-//! of the curves' `points` time samples (all curves prims' times, merged);
+//! of the curves' `points` time samples and of their transform ops (all
+//! curves prims' times, merged);
 //! a stage with none holds one sample, its default values. `NurbsCurves`
 //! are read as their control polygon, with a warning; other geometry is
 //! passed over with a warning, and a stage of none but such prims is
@@ -247,7 +248,8 @@ fn read_stage(
     if warn && !others.is_empty() {
         tracing::warn!("USD: passed over what is not curves: {}", list(&others));
     }
-    // The sample's time: the k-th of every curves prim's points' times.
+    // The sample's time: the k-th of every curves prim's points' times
+    // and of the transform ops above them.
     let mut times: Vec<f64> = Vec::new();
     for (prim, _) in &curves {
         let t = AnyCurves(prim.clone())
@@ -255,6 +257,26 @@ fn read_stage(
             .time_sample_times()
             .map_err(open_error)?;
         times.extend(t);
+        let mut at = Some(prim.clone());
+        while let Some(p) = at {
+            let ops = AnyXformable(p.clone())
+                .xform_op_order()
+                .map_err(open_error)?;
+            for op in ops.unwrap_or_default() {
+                if op.starts_with("xformOp:") {
+                    times.extend(
+                        p.attribute(op.as_str())
+                            .time_sample_times()
+                            .map_err(open_error)?,
+                    );
+                }
+            }
+            at = p
+                .path()
+                .parent()
+                .filter(|q| !q.is_abs_root())
+                .map(|q| stage.prim(q));
+        }
     }
     times.sort_by(f64::total_cmp);
     times.dedup();
