@@ -253,6 +253,18 @@ fn a_chosen_sample_of_an_animated_cache_is_read_with_repeats_elided() {
     let abc = archive(vec![moved]);
     let z = parse_alembic(&abc, 2).unwrap().points()[0].z;
     assert_eq!(z, 2.0);
+    assert_eq!(strands::alembic_samples(&abc), Ok(3));
+    // A transform that places no curves (a camera's, say) gives the groom
+    // no samples.
+    let camera = xform(
+        "cam",
+        &[1 << 4],
+        vec![vec![0.0; 3], vec![1.0, 0.0, 0.0]],
+        true,
+        Vec::new(),
+    );
+    let abc = archive(vec![camera, linear("c", &h, Vec::new())]);
+    assert_eq!(strands::alembic_samples(&abc), Ok(1));
 }
 
 #[test]

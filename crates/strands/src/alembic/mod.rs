@@ -208,10 +208,12 @@ fn walk(
         });
     }
     let mut world = parent;
+    // A transform's samples count when it places curves.
+    let mut xform_samples = 0;
     match schema(archive, o)?.as_deref() {
         Some("AbcGeom_Xform_v3") => {
             let x = xform::read(archive, o, sample)?;
-            found.samples = found.samples.max(x.samples);
+            xform_samples = x.samples;
             world = if x.inherits {
                 parent * x.local
             } else {
@@ -249,8 +251,12 @@ fn walk(
         }
         None => {}
     }
+    let curves_before = found.objects;
     for child in archive.children(o)? {
         walk(archive, &child, world, sample, found)?;
+    }
+    if found.objects > curves_before {
+        found.samples = found.samples.max(xform_samples);
     }
     Ok(())
 }
