@@ -12,6 +12,15 @@ fn scratch(name: &str) -> PathBuf {
     common::scratch("exr", name)
 }
 
+/// A fresh folder for test `name` holding `text` as its scene `s.toml`:
+/// the folder and the scene's path.
+fn with_scene(name: &str, text: &str) -> (PathBuf, String) {
+    let dir = scratch(name);
+    let scene = dir.join("s.toml");
+    std::fs::write(&scene, text).unwrap();
+    (dir, scene.display().to_string())
+}
+
 /// A small animated scene over a coloured background, with a head.
 const SCENE: &str = "[hair]\nstyle = \"smooth\"\nstrands_per_wisp = 3\n\n\
 [render]\nwidth = 96\nheight = 64\nbackground = [0.2, 0.3, 0.4]\n\n\
@@ -19,10 +28,8 @@ const SCENE: &str = "[hair]\nstyle = \"smooth\"\nstrands_per_wisp = 3\n\n\
 
 #[test]
 fn exr_frames_are_the_png_frames_before_encoding_with_coverage_as_alpha() {
-    let dir = scratch("frames");
-    let scene = dir.join("s.toml");
-    std::fs::write(&scene, SCENE).unwrap();
-    let scene = scene.to_str().unwrap();
+    let (dir, scene) = with_scene("frames", SCENE);
+    let scene = scene.as_str();
     let at = |name: &str| dir.join(name).display().to_string();
     for out in ["f_%04d.png", "f_%04d.exr"] {
         let o = wisplight(&["-q", "render", scene, "--frames", "3", "-o", &at(out)]);
@@ -98,10 +105,7 @@ fn exr_output_is_refused_where_it_cannot_be_made() {
 
 #[test]
 fn a_coordinator_writes_the_same_openexr_bytes_as_one_process_passes_included() {
-    let dir = scratch("cluster");
-    let scene = dir.join("s.toml");
-    std::fs::write(&scene, PASSES).unwrap();
-    let scene = scene.display().to_string();
+    let (dir, scene) = with_scene("cluster", PASSES);
     let workers = [common::Worker::start(), common::Worker::start()];
     let list = format!("{},{}", workers[0].addr, workers[1].addr);
     let (local, remote) = (dir.join("local_%04d.exr"), dir.join("remote_%04d.exr"));
@@ -179,10 +183,8 @@ fn channels(path: &str) -> std::collections::HashMap<String, Vec<f32>> {
 
 #[test]
 fn the_light_passes_add_up_to_the_beauty_and_the_frames_stay_the_same() {
-    let dir = scratch("passes");
-    let scene = dir.join("s.toml");
-    std::fs::write(&scene, PASSES).unwrap();
-    let scene = scene.to_str().unwrap();
+    let (dir, scene) = with_scene("passes", PASSES);
+    let scene = scene.as_str();
     let at = |name: &str| dir.join(name).display().to_string();
     let o = wisplight(&[
         "-q",

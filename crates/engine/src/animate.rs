@@ -8,7 +8,8 @@ use rayon::prelude::*;
 use sim::{Body, ForceField, HairSim, Motion, SimParams, WispState};
 use strands::{Hair, WispModel, resample_into};
 
-use crate::{EngineError, HairSource, Scene, build_hair};
+use crate::hair::build_hair_at;
+use crate::{EngineError, HairSource, Scene};
 
 /// Where the drawn hair of each frame comes from.
 #[derive(Debug)]
@@ -128,7 +129,7 @@ pub fn split_by(len: usize, parts: usize, weight: impl Fn(usize) -> u64) -> Vec<
 impl Animator {
     /// The scene's hair at time 0, at rest.
     pub fn new(scene: &Scene) -> Result<Animator, EngineError> {
-        let rest = build_hair(scene)?;
+        let (rest, samples) = build_hair_at(scene, None)?;
         let motion = scene.animation.motion.clone();
         let frame_dt = 1.0 / scene.animation.fps;
         let substeps = scene.dynamics.steps_per_frame(scene.animation.fps);
@@ -196,13 +197,17 @@ impl Animator {
                 }
             }
         };
-        let cache = match &source {
-            Source::Rigid { .. } => crate::hair::groom_samples(scene)?.map(|samples| Cache {
-                scene: Box::new(scene.clone()),
-                samples,
-                sample: 0,
-            }),
-            Source::Wisps { .. } => None,
+        // A groom file of several samples, none fixed: its frames follow
+        // them.
+        let cache = match (&source, &scene.hair) {
+            (Source::Rigid { .. }, HairSource::File { sample: None, .. }) if samples > 1 => {
+                Some(Cache {
+                    scene: Box::new(scene.clone()),
+                    samples,
+                    sample: 0,
+                })
+            }
+            _ => None,
         };
         if let Some(c) = &cache {
             tracing::info!(
@@ -245,7 +250,7 @@ impl Animator {
         if c.sample == sample {
             return Ok(());
         }
-        let hair = crate::hair::build_hair_at(&c.scene, Some(sample))?;
+        let (hair, _) = build_hair_at(&c.scene, Some(sample))?;
         if hair.offsets() != rest.offsets() {
             return Err(EngineError::Topology {
                 scene: c.scene.source.path.clone(),

@@ -14,51 +14,15 @@ pub const MAX_SEGMENTS: u64 = 100_000_000;
 /// Builds the hair a scene describes: generated or loaded, with follow
 /// strands when asked, then Catmull-Rom resampled into drawn points.
 pub fn build_hair(scene: &Scene) -> Result<Hair, EngineError> {
-    build_hair_at(scene, None)
-}
-
-/// The samples an animated groom file's frames follow: `Some(n)` when the
-/// scene's hair is a groom file of `n > 1` samples (Alembic, USD) and
-/// `hair.sample` does not fix one. Frame `k` is then sample `min(k, n - 1)`.
-pub fn groom_samples(scene: &Scene) -> Result<Option<u32>, EngineError> {
-    let HairSource::File {
-        path, sample: None, ..
-    } = &scene.hair
-    else {
-        return Ok(None);
-    };
-    if !strands::is_animated_groom_path(path) {
-        return Ok(None);
-    }
-    let n = with_groom_bytes(scene, path, |bytes| strands::groom_samples(path, bytes))?;
-    Ok((n > 1).then_some(n))
-}
-
-/// `read` of the bytes of the groom `path` of `scene`'s `hair.file`; an
-/// error names both.
-fn with_groom_bytes<T>(
-    scene: &Scene,
-    path: &std::path::Path,
-    read: impl FnOnce(&[u8]) -> Result<T, strands::LoadError>,
-) -> Result<T, EngineError> {
-    let bytes = scene
-        .data_file(path)
-        .map_err(|cause| strands::LoadError::Io {
-            path: path.to_owned(),
-            cause,
-        });
-    bytes
-        .and_then(|b| read(&b))
-        .map_err(|error| EngineError::Load {
-            scene: scene.source.path.clone(),
-            error,
-        })
+    build_hair_at(scene, None).map(|(hair, _)| hair)
 }
 
 /// [`build_hair`] at `sample` of an animated groom file (`None`: the
-/// scene's `hair.sample`, or the first); a sample given is a file read
-/// before, its warnings not said again.
-pub(crate) fn build_hair_at(scene: &Scene, at: Option<u32>) -> Result<Hair, EngineError> {
+/// scene's `hair.sample`, or the first; a sample given is a file read
+/// before, its warnings not said again), and the samples its groom file
+/// holds (1 for other hair).
+pub(crate) fn build_hair_at(scene: &Scene, at: Option<u32>) -> Result<(Hair, u32), EngineError> {
+    let mut samples = 1;
     let control = match &scene.hair {
         HairSource::Style(p) => {
             let segs = u64::from(p.wisps)
@@ -76,7 +40,11 @@ pub(crate) fn build_hair_at(scene: &Scene, at: Option<u32>) -> Result<Hair, Engi
         } => {
             let mut guides = match at {
                 Some(s) => load_groom_again(scene, path, s)?,
-                None => load_groom(scene, path, sample.unwrap_or(0))?,
+                None => {
+                    let (guides, n) = load_groom(scene, path, sample.unwrap_or(0))?;
+                    samples = n;
+                    guides
+                }
             };
             place.apply(&mut guides);
             match follow {
@@ -94,15 +62,21 @@ pub(crate) fn build_hair_at(scene: &Scene, at: Option<u32>) -> Result<Hair, Engi
         HairSource::Inline(hair) => hair.clone(),
     };
     check_size(control.segment_count() as u64 * u64::from(scene.subdivide))?;
-    Ok(resample(&control, scene.subdivide))
+    Ok((resample(&control, scene.subdivide), samples))
 }
 
-/// The groom `path` of `scene`'s `hair.file`, at `sample`; an error
-/// names both.
-fn load_groom(scene: &Scene, path: &std::path::Path, sample: u32) -> Result<Hair, EngineError> {
-    strands::load_with(path, sample, |p| scene.data_file(p)).map_err(|error| EngineError::Load {
-        scene: scene.source.path.clone(),
-        error,
+/// The groom `path` of `scene`'s `hair.file`, at `sample`, and the
+/// samples the file holds; an error names both.
+fn load_groom(
+    scene: &Scene,
+    path: &std::path::Path,
+    sample: u32,
+) -> Result<(Hair, u32), EngineError> {
+    strands::load_with_samples(path, sample, |p| scene.data_file(p)).map_err(|error| {
+        EngineError::Load {
+            scene: scene.source.path.clone(),
+            error,
+        }
     })
 }
 
@@ -112,9 +86,18 @@ fn load_groom_again(
     path: &std::path::Path,
     sample: u32,
 ) -> Result<Hair, EngineError> {
-    with_groom_bytes(scene, path, |bytes| {
-        strands::load_bytes_again(path, bytes, sample)
-    })
+    let bytes = scene
+        .data_file(path)
+        .map_err(|cause| strands::LoadError::Io {
+            path: path.to_owned(),
+            cause,
+        });
+    bytes
+        .and_then(|b| strands::load_bytes_again(path, &b, sample))
+        .map_err(|error| EngineError::Load {
+            scene: scene.source.path.clone(),
+            error,
+        })
 }
 
 /// The drawn segments [`build_hair`] makes of a scene's hair, counted
@@ -131,7 +114,7 @@ pub fn drawn_segments(scene: &Scene) -> Result<u64, EngineError> {
             ..
         } => {
             // Placing the groom changes no count.
-            let guides = load_groom(scene, path, sample.unwrap_or(0))?;
+            let (guides, _) = load_groom(scene, path, sample.unwrap_or(0))?;
             let per = follow.as_ref().map_or(1, |f| u64::from(f.followers) + 1);
             guides.segment_count() as u64 * per * sub
         }

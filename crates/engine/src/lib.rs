@@ -39,7 +39,7 @@ pub use exec::{
 };
 pub use export::{CYCLES_FORMAT, CYCLES_SCRIPT, CyclesExport, cycles_export};
 pub use frames::Sequence;
-pub use hair::{MAX_SEGMENTS, build_hair, drawn_segments, groom_samples};
+pub use hair::{MAX_SEGMENTS, build_hair, drawn_segments};
 pub use head::Head;
 pub use part::{HairPart, Seen, draw_head};
 pub use pipeline::ShadowPipeline;

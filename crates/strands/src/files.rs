@@ -194,69 +194,71 @@ pub fn load_with<'a>(
     sample: u32,
     read: impl FnOnce(&Path) -> std::io::Result<std::borrow::Cow<'a, [u8]>>,
 ) -> Result<Hair, LoadError> {
+    load_with_samples(path, sample, read).map(|(hair, _)| hair)
+}
+
+/// [`load_with`], and the samples the file holds (see [`groom_samples`]).
+pub fn load_with_samples<'a>(
+    path: &Path,
+    sample: u32,
+    read: impl FnOnce(&Path) -> std::io::Result<std::borrow::Cow<'a, [u8]>>,
+) -> Result<(Hair, u32), LoadError> {
     format(path)?;
     let bytes = read(path).map_err(|cause| LoadError::Io {
         path: path.to_owned(),
         cause,
     })?;
-    load_bytes(path, &bytes, sample)
+    read_groom(path, &bytes, sample, true)
 }
 
 /// Parses the bytes of the groom file `path` by its extension, at
 /// `sample` (see [`load`]; the path names the file in errors).
 pub fn load_bytes(path: &Path, bytes: &[u8], sample: u32) -> Result<Hair, LoadError> {
-    let format_error = |cause| LoadError::Format {
-        path: path.to_owned(),
-        cause,
-    };
-    match format(path)? {
-        Format::Still(_, ext) if sample != 0 => Err(LoadError::NotAnimated {
-            path: path.to_owned(),
-            ext: ext.to_owned(),
-            sample,
-        }),
-        Format::Still(parse, _) => parse(bytes).map_err(format_error),
-        Format::Alembic => {
-            crate::alembic::parse_alembic(bytes, sample).map_err(|e| format_error(e.into()))
-        }
-        Format::Usd(ext) => {
-            crate::usd::parse_usd(bytes, ext, sample).map_err(|e| format_error(e.into()))
-        }
-    }
+    read_groom(path, bytes, sample, true).map(|(hair, _)| hair)
 }
 
 /// The samples of the groom file `path` of `bytes`: an animated Alembic
 /// or USD file's (its curves' points and transforms), 1 for others.
 pub fn groom_samples(path: &Path, bytes: &[u8]) -> Result<u32, LoadError> {
-    let format_error = |cause| LoadError::Format {
-        path: path.to_owned(),
-        cause,
-    };
-    match format(path)? {
-        Format::Still(..) => Ok(1),
-        Format::Alembic => {
-            crate::alembic::alembic_samples(bytes).map_err(|e| format_error(e.into()))
-        }
-        Format::Usd(ext) => crate::usd::usd_samples(bytes, ext).map_err(|e| format_error(e.into())),
-    }
+    read_groom(path, bytes, 0, false).map(|(_, samples)| samples)
 }
 
 /// [`load_bytes`] of a file read before at another sample: what it passes
 /// over or reads only approximately is not said again.
 pub fn load_bytes_again(path: &Path, bytes: &[u8], sample: u32) -> Result<Hair, LoadError> {
+    read_groom(path, bytes, sample, false).map(|(hair, _)| hair)
+}
+
+/// The groom `path` of `bytes` at `sample`, and the samples the file holds
+/// (1 for a format of one pose); `warn`: say what is passed over or read
+/// only approximately.
+fn read_groom(
+    path: &Path,
+    bytes: &[u8],
+    sample: u32,
+    warn: bool,
+) -> Result<(Hair, u32), LoadError> {
     let format_error = |cause| LoadError::Format {
         path: path.to_owned(),
         cause,
     };
-    match format(path)? {
-        Format::Alembic => crate::alembic::read(bytes, sample, false)
-            .map(|(h, _)| h)
-            .map_err(|e| format_error(e.into())),
-        Format::Usd(ext) => crate::usd::read(bytes, ext, sample, false)
-            .map(|(h, _)| h)
-            .map_err(|e| format_error(e.into())),
-        Format::Still(..) => load_bytes(path, bytes, sample),
-    }
+    let (hair, samples) = match format(path)? {
+        Format::Still(_, ext) if sample != 0 => {
+            return Err(LoadError::NotAnimated {
+                path: path.to_owned(),
+                ext: ext.to_owned(),
+                sample,
+            });
+        }
+        Format::Still(parse, _) => (parse(bytes).map_err(format_error)?, 1),
+        Format::Alembic => {
+            crate::alembic::read(bytes, sample, warn).map_err(|e| format_error(e.into()))?
+        }
+        Format::Usd(ext) => {
+            crate::usd::read(bytes, ext, sample, warn).map_err(|e| format_error(e.into()))?
+        }
+    };
+    Ok((hair, samples.max(1)))
 }
 
 /// How a groom file's bytes are read.

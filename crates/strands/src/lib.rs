@@ -29,8 +29,8 @@ pub use catmull_rom::{resample, resample_into};
 pub use files::{
     LoadError, MAX_FILE_BYTES, MeshLoadError, SPECIAL_FILE_WAIT, groom_samples,
     is_animated_groom_path, is_groom_path, load, load_bytes, load_bytes_again, load_mesh,
-    load_mesh_bytes, load_obj, load_obj_bytes, load_with, mesh_parser, read_capped,
-    read_capped_within,
+    load_mesh_bytes, load_obj, load_obj_bytes, load_with, load_with_samples, mesh_parser,
+    read_capped, read_capped_within,
 };
 pub use follow::{FollowParams, grow_followers};
 pub use hair::{Bounds, Hair, HairError};
@@ -39,4 +39,4 @@ pub use mesh::{MAX_MESH_ELEMENTS, Mesh, MeshError, parse_obj};
 pub use ply::{parse_ply_mesh, parse_ply_strands};
 pub use rng::Rng;
 pub use style::{GUIDES_PER_WISP, Member, Style, StyleParams, WispModel};
-pub use usd::{UsdError, parse_usd, usd_samples};
+pub use usd::{UsdError, parse_usd};

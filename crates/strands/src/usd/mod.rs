@@ -72,6 +72,10 @@ pub enum UsdError {
 struct OneFile {
     root: String,
     bytes: Vec<u8>,
+    /// The layers that passed [`guard::check_layer`]: the reader opens a
+    /// layer more than once (a peek at a `.usd`'s first bytes, then the
+    /// read), and a crate's check parses it whole.
+    passed: std::sync::Mutex<std::collections::BTreeSet<String>>,
 }
 
 impl ar::Resolver for OneFile {
@@ -88,8 +92,12 @@ impl ar::Resolver for OneFile {
     fn open_asset(&self, resolved: &ar::ResolvedPath) -> std::io::Result<Box<dyn ar::Asset>> {
         let path = resolved.to_string_lossy();
         let checked = |bytes: Vec<u8>| -> std::io::Result<Box<dyn ar::Asset>> {
-            guard::check_layer(&bytes)
-                .map_err(|why| std::io::Error::new(std::io::ErrorKind::InvalidData, why))?;
+            let mut passed = self.passed.lock().unwrap_or_else(|e| e.into_inner());
+            if !passed.contains(path.as_ref()) {
+                guard::check_layer(&bytes)
+                    .map_err(|why| std::io::Error::new(std::io::ErrorKind::InvalidData, why))?;
+                passed.insert(path.to_string());
+            }
             Ok(Box::new(std::io::Cursor::new(bytes)))
         };
         if path == self.root.as_str() {
@@ -130,46 +138,29 @@ impl OneFile {
     }
 }
 
-/// Any prim, seen as transformable: its `xformOp`s (none when it has
-/// none) give its transform.
-struct AnyXformable(Prim);
+/// A prim seen through the geometry schemas wisplight reads: its
+/// `xformOp`s (none when it has none) give its transform, and a curves
+/// prim's attributes its curves.
+struct View(Prim);
 
-impl SchemaBase for AnyXformable {
+impl SchemaBase for View {
     const KIND: SchemaKind = SchemaKind::AbstractTyped;
     fn prim(&self) -> &Prim {
         &self.0
     }
 }
-impl Imageable for AnyXformable {}
-impl Xformable for AnyXformable {}
-
-/// The curves prims' schema views.
-struct AnyCurves(Prim);
-
-impl SchemaBase for AnyCurves {
-    const KIND: SchemaKind = SchemaKind::AbstractTyped;
-    fn prim(&self) -> &Prim {
-        &self.0
-    }
-}
-impl Imageable for AnyCurves {}
-impl Xformable for AnyCurves {}
-impl openusd::schemas::geom::Boundable for AnyCurves {}
-impl openusd::schemas::geom::Gprim for AnyCurves {}
-impl PointBased for AnyCurves {}
-impl Curves for AnyCurves {}
+impl Imageable for View {}
+impl Xformable for View {}
+impl openusd::schemas::geom::Boundable for View {}
+impl openusd::schemas::geom::Gprim for View {}
+impl PointBased for View {}
+impl Curves for View {}
 
 /// Reads the curves of the USD file `bytes` (extension `ext`: `usd`,
 /// `usda`, `usdc` or `usdz`) at sample `sample` into hair, with the
 /// strands' widths when every curves prim has them.
 pub fn parse_usd(bytes: &[u8], ext: &str, sample: u32) -> Result<Hair, UsdError> {
     read(bytes, ext, sample, true).map(|(hair, _)| hair)
-}
-
-/// The samples the USD file's curves have: their `points`' time samples
-/// (1 when they have none).
-pub fn usd_samples(bytes: &[u8], ext: &str) -> Result<u32, UsdError> {
-    read(bytes, ext, 0, false).map(|(_, samples)| samples.max(1))
 }
 
 /// [`parse_usd`] and the samples the curves have; `warn`: say what was
@@ -184,6 +175,7 @@ pub(crate) fn read(
     let resolver = OneFile {
         root: root.clone(),
         bytes: bytes.to_vec(),
+        passed: Default::default(),
     };
     // The reader is large and young: a panic in it is this file's error,
     // not the program's end.
@@ -252,16 +244,14 @@ fn read_stage(
     // and of the transform ops above them.
     let mut times: Vec<f64> = Vec::new();
     for (prim, _) in &curves {
-        let t = AnyCurves(prim.clone())
+        let t = View(prim.clone())
             .points_attr()
             .time_sample_times()
             .map_err(open_error)?;
         times.extend(t);
         let mut at = Some(prim.clone());
         while let Some(p) = at {
-            let ops = AnyXformable(p.clone())
-                .xform_op_order()
-                .map_err(open_error)?;
+            let ops = View(p.clone()).xform_op_order().map_err(open_error)?;
             for op in ops.unwrap_or_default() {
                 if op.starts_with("xformOp:") {
                     times.extend(
@@ -300,7 +290,7 @@ fn read_stage(
     let mut widths = Some(Vec::new());
     for (prim, nurbs) in curves {
         let name = prim.path().to_string();
-        let c = read_curves(&stage, AnyCurves(prim), nurbs, warn, time)?;
+        let c = read_curves(&stage, View(prim), nurbs, warn, time)?;
         for strand in c.hair.strands() {
             hair.push_strand(strand).map_err(|e| UsdError::Unreadable {
                 prim: name.clone(),
@@ -341,7 +331,7 @@ fn world(stage: &Stage, prim: &Prim, time: TimeCode) -> Result<DMat4, UsdError> 
     let mut m = DMat4::IDENTITY;
     let mut at = Some(prim.clone());
     while let Some(p) = at {
-        let x = AnyXformable(p.clone());
+        let x = View(p.clone());
         // openusd's matrices are USD's: row vectors, row-major, so the
         // same 16 numbers are column-major for column vectors.
         let local = x
@@ -374,7 +364,7 @@ fn token(attr: usd::Attribute, default: &str) -> String {
 
 fn read_curves(
     stage: &Stage,
-    c: AnyCurves,
+    c: View,
     nurbs: bool,
     warn: bool,
     time: Option<TimeCode>,
@@ -417,10 +407,7 @@ fn read_curves(
     if nurbs && warn {
         tracing::warn!("USD {name}: NURBS curves read as their control polygon");
     }
-    let kind = token(
-        AnyXformable(c.prim().clone()).prim().attribute("type"),
-        "cubic",
-    );
+    let kind = token(c.prim().attribute("type"), "cubic");
     let basis = token(c.prim().attribute("basis"), "bezier");
     let wrap = token(c.prim().attribute("wrap"), "nonperiodic");
     let cubic = match (nurbs, kind.as_str()) {
