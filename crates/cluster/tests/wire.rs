@@ -1292,6 +1292,34 @@ fn a_physically_based_fiber_draws_the_same_bytes_on_workers() {
         }
         firsts.push(want[0].clone());
     }
+    // With multiple scattering the head lights the hair (a sphere, and a
+    // mesh whose surface the workers find as one process does), from
+    // the maps the workers hold: the same bytes with every scheme.
+    let mesh = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/head.obj");
+    for head in [
+        String::new(),
+        format!(
+            "[head]\nmesh = {:?}\ncolor = [0.7, 0.3, 0.2]\n",
+            mesh.display().to_string()
+        ),
+    ] {
+        let text = format!("{fiber}[effects]\nmultiple_scattering = true\n{head}");
+        let mut scene = Scene::from_toml_str(&text, std::path::Path::new("fiber.toml")).unwrap();
+        scene.read_data_files().unwrap();
+        let want = local_frames(&scene, 2);
+        for draw in [DrawAt::SortMiddle, DrawAt::SortLast, DrawAt::Coordinator] {
+            let remote = RemoteExecutor::connect(&addrs, &scene, &options(draw, 20)).unwrap();
+            let mut seq = Sequence::new(&scene).unwrap();
+            seq.set_executor(Box::new(remote)).unwrap();
+            seq.expect_frames(want.len() as u64);
+            for (i, w) in want.iter().enumerate() {
+                assert!(
+                    seq.next_frame().unwrap().0 == w,
+                    "{draw:?} {head}: frame {i}"
+                );
+            }
+        }
+    }
     // Multiple scattering changes the picture; the fiber differs from
     // Kajiya-Kay's.
     assert!(firsts[0] != firsts[1]);

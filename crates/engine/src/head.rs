@@ -1,12 +1,13 @@
 //! The head as it stands in a frame: a sphere, or a mesh read from OBJ or
 //! PLY.
 
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 use glam::{Affine3A, Vec3};
 use shadow::Occluder;
 use strands::{Bounds, Mesh};
 
+use crate::bounce::{HeadShape, Surface};
 use crate::{EngineError, HeadSettings, Scene};
 
 /// The scene's head, moved by the head's motion.
@@ -19,6 +20,9 @@ pub struct Head {
     pose: Affine3A,
     center: Vec3,
     posed: Option<Arc<Mesh>>,
+    /// The surface around the centre at rest, found when first asked
+    /// for (the head's light, [`crate::bounce`]).
+    surface: OnceLock<Arc<Surface>>,
 }
 
 impl Head {
@@ -51,6 +55,7 @@ impl Head {
             center: settings.center,
             posed: rest.clone(),
             rest,
+            surface: OnceLock::new(),
         })
     }
 
@@ -89,6 +94,24 @@ impl Head {
     /// The mesh as it stands now, if the head is one.
     pub fn mesh(&self) -> Option<&Mesh> {
         self.posed.as_deref()
+    }
+
+    /// The head's surface along the sampled directions from its centre,
+    /// at rest (see [`Surface`]): made once, on first use.
+    pub(crate) fn surface(&self) -> Arc<Surface> {
+        self.surface
+            .get_or_init(|| {
+                Arc::new(match &self.rest {
+                    Some(m) => Surface::mesh(m, self.settings.center),
+                    None => Surface::sphere(self.settings.radius),
+                })
+            })
+            .clone()
+    }
+
+    /// The head as it stands now, for its light on the hair.
+    pub(crate) fn shape(&self) -> HeadShape {
+        HeadShape::new(self.center, self.pose.matrix3, self.surface())
     }
 
     /// The head as an opaque body for the shadow methods.

@@ -13,7 +13,8 @@ use rayon::prelude::*;
 use shadow::Light;
 use strands::Hair;
 
-use crate::Head;
+use crate::bounce::HeadLight;
+use crate::{HairSource, Head, Scene};
 
 /// Hair colour when neither the style nor the file gives one (linear RGB).
 pub const DEFAULT_HAIR_COLOR: Vec3 = Vec3::new(0.30, 0.17, 0.08);
@@ -23,6 +24,11 @@ pub const DEFAULT_HAIR_COLOR: Vec3 = Vec3::new(0.30, 0.17, 0.08);
 pub struct HairPart {
     /// Transmittance of each light at each vertex: `[light][vertex]`.
     trans: Vec<Vec<f32>>,
+    /// The head's irradiance at each vertex and its transmittance there,
+    /// when the head lights the hair ([`Self::filter_head`]), and the
+    /// head's centre.
+    head_in: Vec<(Vec3, f32, f32)>,
+    head_center: Vec3,
     /// The shaded linear colour of each vertex.
     colors: Vec<Vec3>,
     /// The fiber tables made so far, by the optics they tabulate (one per
@@ -69,6 +75,41 @@ impl HairPart {
         }
     }
 
+    /// The light the head sends to every vertex of `hair`, `head`'s (see
+    /// [`crate::bounce`]): its irradiance there and its transmittance
+    /// through the hair between.
+    pub fn filter_head(&mut self, hair: &Hair, head: &HeadLight) {
+        self.head_center = head.center();
+        self.head_in.clear();
+        self.head_in.par_extend(
+            hair.points()
+                .par_iter()
+                .with_min_len(1024)
+                .map(|&p| head.through_at(p).unwrap_or((Vec3::ZERO, 1.0, 0.0))),
+        );
+    }
+
+    /// A fiber's tables with multiple scattering, for `optics`: what the
+    /// head's own shading takes the light the hair scatters forward from
+    /// (made once, kept with the strands' tables).
+    pub fn dual_table(&mut self, optics: &FiberOptics) -> Arc<DualTable> {
+        let at = match self.tables.iter().position(|(k, _)| k == optics) {
+            Some(at) => at,
+            None => {
+                if self.tables.len() >= MAX_TABLES {
+                    self.tables.remove(0);
+                }
+                let single = Arc::new(FiberTable::new(optics));
+                self.tables.push((*optics, Tables { single, dual: None }));
+                self.tables.len() - 1
+            }
+        };
+        let t = &mut self.tables[at].1;
+        t.dual
+            .get_or_insert_with(|| Arc::new(DualTable::new(optics)))
+            .clone()
+    }
+
     /// Shading at every vertex of `hair` with its strand's colour, seen
     /// as `seen` says (strands a simplified look leaves out of the picture
     /// get no colour: black), lit by `lights` (each from its direction at the vertex,
@@ -76,7 +117,8 @@ impl HairPart {
     /// transmittance of the last [`Self::filter`] (`shadows`) or by full
     /// light: Kajiya-Kay, or a physically based fiber (its
     /// [`FiberTable`]), as `shading.model` says. The ambient term is added
-    /// once.
+    /// once. With multiple scattering, `head` adds the light the head
+    /// sends, as the last [`Self::filter_head`] found it.
     pub fn shade(
         &mut self,
         hair: &Hair,
@@ -84,6 +126,7 @@ impl HairPart {
         shading: &Shading,
         lights: &[Light],
         shadows: bool,
+        head: bool,
     ) {
         let eye = seen.camera.position;
         let points = hair.points();
@@ -110,6 +153,18 @@ impl HairPart {
             }
             ShadingModel::KajiyaKay => None,
         };
+        // The head's light is scattered light: with multiple scattering.
+        let head = head
+            && shadows
+            && matches!(
+                shading.model,
+                ShadingModel::Marschner { multiple: true, .. }
+            );
+        assert!(
+            !head || self.head_in.len() == points.len(),
+            "filter_head runs before shading with the head's light"
+        );
+        let (head_in, head_center) = (&self.head_in[..], self.head_center);
         self.colors.resize(points.len(), Vec3::ZERO);
         let offsets = hair.offsets();
         let strand_colors = hair.colors();
@@ -184,19 +239,37 @@ impl HairPart {
                                 (0..lights.len()).map(tr).sum::<f32>() / lights.len() as f32
                             };
                             let mut c = shading.ambient * sky * color;
-                            for (l, light) in lights.iter().enumerate() {
-                                let (to_light, scale) = at(light);
+                            // sin theta_i and cos phi of light from
+                            // `to_light`, cos phi between its and the eye's
+                            // directions across the fiber, from unit
+                            // vectors: (l.e - sin_i sin_o) / (cos_i cos_o);
+                            // 1 when either runs along it.
+                            let incidence = |to_light: Vec3| {
                                 let ui = tangent.dot(to_light).clamp(-1.0, 1.0);
-                                // cos phi between the light's and the eye's
-                                // directions across the fiber, from unit
-                                // vectors: (l.e - sin_i sin_o) / (cos_i
-                                // cos_o); 1 when either runs along it.
                                 let d = ((1.0 - ui * ui) * (1.0 - uo * uo)).sqrt();
                                 let cos_phi = if d > 1e-6 {
                                     (to_light.dot(to_eye) - ui * uo) / d
                                 } else {
                                     1.0
                                 };
+                                (ui, cos_phi)
+                            };
+                            if head
+                                && let Some(dual) = &tables.dual
+                                && let (e, t, sin_alpha) = head_in[base + v]
+                                && e.max_element() > 0.0
+                            {
+                                // The cone's light as from its axis, with
+                                // the fiber's cos theta_i over the cone.
+                                let to_head = (head_center - p).normalize_or_zero();
+                                let (ui, cos_phi) = incidence(to_head);
+                                let single = tables.single.radiance(ui, uo, cos_phi);
+                                let e = e * crate::bounce::cone_factor(sin_alpha, ui);
+                                c += e * dual.radiance(single, t, ui, uo, cos_phi);
+                            }
+                            for (l, light) in lights.iter().enumerate() {
+                                let (to_light, scale) = at(light);
+                                let (ui, cos_phi) = incidence(to_light);
                                 let single = tables.single.radiance(ui, uo, cos_phi);
                                 match &tables.dual {
                                     Some(dual) => {
@@ -338,12 +411,19 @@ pub struct Seen<'a> {
 /// the physically based fiber `s = E / pi`, a diffuse surface of albedo
 /// `C` under the irradiance `E` that lights the hair (radiance `C E cos /
 /// pi`, as a path tracer's diffuse surface under a sun of strength `E`).
+///
+/// With `forward` (multiple scattering), the light the hair scatters
+/// forward reaches the head too: `T_l` becomes the hair's forward
+/// transmittance `T_f >= T_l` of that fiber ([`DualTable::forward_transmittance`],
+/// at normal incidence), the light a diffuse surface under the hair
+/// gathers whatever direction the hair turned it.
 pub(crate) fn head_lambert(
     color: Vec3,
     shading: &Shading,
     lights: &[Light],
     p: Vec3,
     n: Vec3,
+    forward: Option<&DualTable>,
     trans: impl Fn(usize) -> f32,
 ) -> Vec3 {
     let ambient = shading.ambient;
@@ -356,10 +436,66 @@ pub(crate) fn head_lambert(
         let lambert = n.dot(-light.direction_at(p)).max(0.0);
         let scale = light.falloff(p);
         if lambert > 0.0 && scale > 0.0 {
-            c += trans(l) * scale * lambert * s * color;
+            let t = trans(l);
+            let t = forward.map_or(Vec3::splat(t), |f| {
+                f.forward_transmittance(t, 0.0).max(Vec3::splat(t))
+            });
+            c += t * scale * lambert * s * color;
         }
     }
     c
+}
+
+/// The fiber the head's light is scattered by on its way to the head,
+/// when `scene` has the head light the hair: multiple scattering with the
+/// fiber model and self-shadowing, a head, and `effects.head_bounce`. The
+/// scene's fiber; where the strands' colours set the absorption, the
+/// style's colour (the default hair colour for files).
+pub(crate) fn head_optics(scene: &Scene) -> Option<FiberOptics> {
+    let ShadingModel::Marschner {
+        optics, from_color, ..
+    } = scene.shading.model
+    else {
+        return None;
+    };
+    let e = &scene.effects;
+    if !(e.multiple_scattering && e.self_shadow && e.head_bounce && scene.head.is_some()) {
+        return None;
+    }
+    if !from_color {
+        return Some(optics);
+    }
+    let color = match &scene.hair {
+        HairSource::Style(p) => p.color.unwrap_or(DEFAULT_HAIR_COLOR),
+        _ => DEFAULT_HAIR_COLOR,
+    };
+    Some(FiberOptics {
+        sigma_a: raster::sigma_a_from_color(color, optics.beta_n),
+        ..optics
+    })
+}
+
+/// The head's light for this frame: `head` as posed, shaded as its
+/// pixels are (no ambient term: light from no source is not bounced),
+/// `trans(light, x, n)` its transmittance at its point `x` of normal `n`,
+/// `forward` the fiber that scatters the light on its way.
+pub(crate) fn head_light(
+    head: &Head,
+    shading: &Shading,
+    lights: &[Light],
+    forward: &DualTable,
+    trans: impl Fn(usize, Vec3, Vec3) -> f32,
+) -> HeadLight {
+    let color = head.settings().color;
+    let direct = Shading {
+        ambient: 0.0,
+        ..*shading
+    };
+    HeadLight::new(head.shape(), |x, n| {
+        head_lambert(color, &direct, lights, x, n, Some(forward), |l| {
+            trans(l, x, n)
+        })
+    })
 }
 
 /// Draws `head` into `canvas`'s opaque layer, `shade(point, normal)`
@@ -418,7 +554,7 @@ mod tests {
         let shaded = |multiple, shadows| {
             let mut part = HairPart::default();
             part.filter(&hair, 1, |_, _, t| t.fill(0.2));
-            part.shade(&hair, seen, &shading(multiple), &lights, shadows);
+            part.shade(&hair, seen, &shading(multiple), &lights, shadows, false);
             let duals = part.tables.iter().filter(|(_, t)| t.dual.is_some()).count();
             (part.colors().to_vec(), duals)
         };

@@ -2,13 +2,16 @@
 //! and the draw (head, then hair), or the compositing of hair drawn
 //! elsewhere over the head.
 
+use std::sync::Arc;
+
 use glam::{Affine3A, Vec3};
-use raster::{Camera, Canvas, HairLayer, ShadingModel};
+use raster::{Camera, Canvas, DualTable, HairLayer, ShadingModel};
 use strands::{Bounds, Hair};
 
 use crate::part::{Seen, draw_head, head_lambert};
 use crate::{
-    DrawJob, DrawReport, Drawn, EngineError, HairPart, PendingPicture, Scene, ShadowPipeline,
+    DrawJob, DrawReport, Drawn, EngineError, HairPart, HeadLight, PendingPicture, Scene,
+    ShadowPipeline,
 };
 
 pub use crate::part::DEFAULT_HAIR_COLOR;
@@ -32,6 +35,9 @@ pub struct Renderer {
     /// The camera, framed on the first frame and then fixed, so that an
     /// animation does not shake.
     view: Option<View>,
+    /// The fiber the head's light is scattered by, when the head lights
+    /// the hair ([`crate::bounce`]).
+    head_optics: Option<raster::FiberOptics>,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -54,6 +60,7 @@ impl Renderer {
             *multiple = scene.effects.multiple_scattering && scene.effects.self_shadow;
         }
         Ok(Renderer {
+            head_optics: crate::part::head_optics(&scene),
             shadows,
             scene,
             part: HairPart::default(),
@@ -271,6 +278,53 @@ impl Renderer {
             .filter(hair, shadows.light_count(), |l, pts, out| {
                 shadows.filter_light(l, pts, out)
             });
+        // The head's light, through the hair between as the first light's
+        // map has it (a method without a map: unattenuated).
+        if let Some(mut head) = self.head_light() {
+            let shadows = &self.shadows;
+            let light = shadows
+                .lights()
+                .next()
+                .expect("the head lights with a light");
+            if let Some(f) = shadows.frame(0) {
+                head.through_hair(light, f.ds, f.n_cells, |pts, out| {
+                    shadows.filter_light(0, pts, out)
+                });
+            }
+            self.part.filter_head(hair, &head);
+        }
+    }
+
+    /// The fiber that scatters light on to the head, when the head lights
+    /// the hair (with `shadows`).
+    fn forward_table(&mut self, shadows: bool) -> Option<Arc<DualTable>> {
+        let optics = self.head_optics.filter(|_| shadows)?;
+        Some(self.part.dual_table(&optics))
+    }
+
+    /// The head's light on the hair this frame, when the head lights the
+    /// hair (after the shadow stages).
+    fn head_light(&mut self) -> Option<HeadLight> {
+        let forward = self.forward_table(true)?;
+        let head = self.shadows.head()?;
+        if self.shadows.light_count() == 0 {
+            return None;
+        }
+        let (pipeline, lights) = (&self.shadows, self.lights());
+        let head_shadow = self.scene.effects.head_shadow;
+        Some(crate::part::head_light(
+            head,
+            &self.scene.shading,
+            &lights,
+            &forward,
+            |l, x, n| {
+                if head_shadow {
+                    pipeline.transmittance_off_surface(l, x, n)
+                } else {
+                    1.0
+                }
+            },
+        ))
     }
 
     /// Renders `hair` with self-shadowing (`shadows`) or without (every
@@ -303,8 +357,10 @@ impl Renderer {
             look: &look,
             first_strand: 0,
         };
+        let head =
+            self.head_optics.is_some() && self.shadows.head().is_some() && !lights.is_empty();
         self.part
-            .shade(hair, seen, &self.scene.shading, &lights, shadows);
+            .shade(hair, seen, &self.scene.shading, &lights, shadows, head);
         Ok(())
     }
 
@@ -353,6 +409,8 @@ impl Renderer {
         if self.canvas.is_none() {
             self.canvas = Some(Canvas::new(s.render.width, s.render.height)?);
         }
+        let forward = self.forward_table(shadows);
+        let s = &self.scene;
         let canvas = self.canvas.as_mut().expect("made above");
         canvas.clear();
         canvas.set_nearest(s.render.nearest as usize);
@@ -367,7 +425,7 @@ impl Renderer {
             let shading = &s.shading;
             let color = head.settings().color;
             let shade = |p: Vec3, n: Vec3| {
-                head_lambert(color, shading, &lights, p, n, |l| {
+                head_lambert(color, shading, &lights, p, n, forward.as_deref(), |l| {
                     // Off the surface: past the head's own deposit.
                     if head_shadow {
                         pipeline.transmittance_off_surface(l, p, n)

@@ -36,7 +36,8 @@
 //! [head]                    # visible, center, radius, color; mesh = "head.obj" or .ply, mesh_scale, mesh_offset
 //!                           # (a mesh alone: center and radius fitted to its crown)
 //! [effects]                 # dynamics, self_collision, body_collision, self_shadow, specular, head_shadow,
-//!                           # multiple_scattering (off; with model = "marschner" and self_shadow)
+//!                           # multiple_scattering (off; with model = "marschner" and self_shadow),
+//!                           # head_bounce (with multiple_scattering: the head's reflected light)
 //! [animation]               # motion = "still" | "dance" | "keyframes" ([[animation.key]]), fps = 30
 //! [dynamics]                # time_step, gravity, damping, stiffness, iterations, settle
 //! [collision]               # density, repulsion, max_acceleration (self-collisions)

@@ -37,6 +37,9 @@ pub struct Share {
     /// What resolving a band of the picture needs of the scene.
     background: Vec3,
     head_shadow: bool,
+    /// The fiber the head's light is scattered by, when the head lights
+    /// the hair ([`crate::bounce`]).
+    head_optics: Option<raster::FiberOptics>,
     /// The scene's picture, width and height in pixels: the only size a
     /// Draw of it may ask for.
     picture: (u32, u32),
@@ -68,6 +71,7 @@ impl Share {
             canvas: None,
             background: scene.render.background,
             head_shadow: scene.effects.head_shadow,
+            head_optics: crate::part::head_optics(scene),
             picture: (scene.render.width, scene.render.height),
         })
     }
@@ -204,11 +208,20 @@ impl Share {
         frame: &LightFrame,
         filter: bool,
     ) -> Result<Vec<u64>, EngineError> {
-        Ok(shadow::columns_read(
-            frame,
-            self.posed(version)?.points(),
-            filter,
-        ))
+        let hair = self.posed(version)?;
+        if self.head_optics.is_some() && self.head.is_some() {
+            // The head's light asks for the head's own points all round:
+            // every column.
+            let n = frame.columns();
+            let mut all = vec![u64::MAX; n.div_ceil(64)];
+            if !n.is_multiple_of(64)
+                && let Some(last) = all.last_mut()
+            {
+                *last = (1u64 << (n % 64)) - 1;
+            }
+            return Ok(all);
+        }
+        Ok(shadow::columns_read(frame, hair.points(), filter))
     }
 
     /// Filters the transmittance of `maps` (one per light, holding at
@@ -381,16 +394,51 @@ impl Share {
             self.part.filter(hair, maps.len(), |l, pts, out| {
                 maps[l].filter(pts, job.trilinear, out)
             });
+            // The head's light (see `Renderer::filter`).
+            let forward = self.head_optics.map(|o| self.part.dual_table(&o));
+            if let (Some(forward), Some(head), Some(light)) =
+                (&forward, &mut self.head, job.lights.first())
+            {
+                head.set_pose(job.head);
+                let head_shadow = self.head_shadow;
+                let head =
+                    crate::part::head_light(head, &job.shading, &job.lights, forward, |l, x, n| {
+                        if head_shadow {
+                            let m = &maps[l];
+                            let q = off_surface(m.frame(), x, n, 1.0);
+                            m.transmittance_at_drawn(q, job.trilinear)
+                        } else {
+                            1.0
+                        }
+                    });
+                let (m, mut head) = (&maps[0], head);
+                let f = m.frame();
+                head.through_hair(light, f.ds, f.n_cells, |pts, out| {
+                    m.filter(pts, job.trilinear, out)
+                });
+                self.part.filter_head(hair, &head);
+            }
             times.filter_ms = ms(t);
         }
+        let forward = self
+            .head_optics
+            .filter(|_| job.shadows)
+            .map(|o| self.part.dual_table(&o));
+        let head_light = forward.is_some() && self.head.is_some() && !job.lights.is_empty();
         let t = Instant::now();
         let seen = Seen {
             camera: &job.camera,
             look: &job.look,
             first_strand,
         };
-        self.part
-            .shade(hair, seen, &job.shading, &job.lights, job.shadows);
+        self.part.shade(
+            hair,
+            seen,
+            &job.shading,
+            &job.lights,
+            job.shadows,
+            head_light,
+        );
         times.shade_ms = ms(t);
         let t = Instant::now();
         let (w, h) = (job.camera.width(), job.camera.height());
@@ -430,7 +478,7 @@ impl Share {
                 if !mine {
                     return Vec3::ZERO;
                 }
-                head_lambert(color, shading, &job.lights, p, n, |l| {
+                head_lambert(color, shading, &job.lights, p, n, forward.as_deref(), |l| {
                     if head_shadow {
                         let m = &maps[l];
                         m.transmittance_at_drawn(off_surface(m.frame(), p, n, 1.0), job.trilinear)

@@ -491,7 +491,7 @@ mod dual;
 #[cfg(test)]
 mod tests;
 
-pub use dual::{DENSITY_BACK, DENSITY_FORWARD, DualTable, MAX_DEPTH, optical_depth};
+pub use dual::{BODY_DEPTH, DENSITY_BACK, DENSITY_FORWARD, DualTable, MAX_DEPTH, optical_depth};
 
 /// [`FarField`] tabulated for shading many vertices: the radiance a fiber
 /// sends towards `w_o` per unit irradiance from `w_i`,

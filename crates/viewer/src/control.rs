@@ -20,7 +20,7 @@ use crate::ViewerError;
 pub const MAX_MESSAGE: usize = 4096;
 
 /// The `[effects]` switches a page can turn, as named in scene files.
-pub const EFFECTS: [&str; 7] = [
+pub const EFFECTS: [&str; 8] = [
     "dynamics",
     "self_collision",
     "body_collision",
@@ -28,6 +28,7 @@ pub const EFFECTS: [&str; 7] = [
     "specular",
     "head_shadow",
     "multiple_scattering",
+    "head_bounce",
 ];
 
 /// A request from a page, checked.

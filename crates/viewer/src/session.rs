@@ -382,6 +382,7 @@ impl Session {
                     "specular" => &mut fx.specular,
                     "head_shadow" => &mut fx.head_shadow,
                     "multiple_scattering" => &mut fx.multiple_scattering,
+                    "head_bounce" => &mut fx.head_bounce,
                     _ => unreachable!("checked against EFFECTS: {EFFECTS:?}"),
                 };
                 if *switch == on {
@@ -508,6 +509,7 @@ impl Session {
                 fx.specular,
                 fx.head_shadow,
                 fx.multiple_scattering,
+                fx.head_bounce,
             ])
             .map(|(n, on)| (n.to_string(), on.into()))
             .collect();

@@ -17,6 +17,7 @@ pub(super) struct RawEffects {
     specular: Option<bool>,
     head_shadow: Option<bool>,
     multiple_scattering: Option<bool>,
+    head_bounce: Option<bool>,
 }
 
 /// The most frames a shot may declare (`animation.frames`), as many as
@@ -92,6 +93,9 @@ pub struct Effects {
     /// self-shadowing's transmittance; with the fiber shading model and
     /// self-shadowing).
     pub multiple_scattering: bool,
+    /// With multiple scattering, the head lights the hair around it with
+    /// the light it reflects (a diffuse surface of its colour).
+    pub head_bounce: bool,
 }
 
 /// How the scene moves in time.
@@ -198,6 +202,7 @@ impl Validator<'_> {
             specular: e.specular.unwrap_or(true),
             head_shadow: e.head_shadow.unwrap_or(true),
             multiple_scattering: e.multiple_scattering.unwrap_or(false),
+            head_bounce: e.head_bounce.unwrap_or(true),
         })
     }
 

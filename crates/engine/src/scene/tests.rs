@@ -175,6 +175,17 @@ fn multiple_scattering_needs_the_fiber_model_and_the_shadow() {
 }
 
 #[test]
+fn the_heads_light_is_on_by_default_and_a_switch() {
+    assert!(parse("").unwrap().effects.head_bounce);
+    let off = parse("[effects]\nhead_bounce = false\n").unwrap();
+    assert!(!off.effects.head_bounce);
+    let e = parse("[effects]\nhead_bounce = 1\n")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("head_bounce"), "{e}");
+}
+
+#[test]
 fn counts_a_scene_multiplies_are_bounded_before_any_work() {
     let many = |table: &str, body: &str, n: usize| {
         (0..n)

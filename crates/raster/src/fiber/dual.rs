@@ -119,6 +119,12 @@ pub(super) fn back_azimuth(cos_phi: f32) -> f32 {
 /// `exp(-MAX_DEPTH)` counts as that).
 pub const MAX_DEPTH: f32 = 200.0;
 
+/// The optical depth from which an opaque body (a head) is taken to stand
+/// between the light and a point: the shadow crate deposits a body 30
+/// deep. Light a body stops is not scattered on by hair: past it there is
+/// no forward-scattered light, only what the transmittance lets through.
+pub const BODY_DEPTH: f32 = 29.0;
+
 /// Nodes along `sin theta_i` of the per-angle averages.
 const DUAL_THETA: usize = 33;
 /// Nodes along `sin theta_o` and `cos phi` of `N_p^G`.
@@ -374,7 +380,11 @@ impl DualTable {
     /// light at `sin theta_i = ui`, directly or scattered forward by the
     /// fibers in front, `exp(-tau (1 - a_f))` with `tau = -ln t`.
     pub fn forward_transmittance(&self, t: f32, ui: f32) -> Vec3 {
-        Vec3::from((self.averages(ui).rest_f * -optical_depth(t)).exp())
+        let tau = optical_depth(t);
+        if tau >= BODY_DEPTH {
+            return Vec3::splat(t.clamp(0.0, 1.0));
+        }
+        Vec3::from((self.averages(ui).rest_f * -tau).exp())
     }
 
     /// `N_p^G` at `sin theta_o = uo` and `cos phi`.
@@ -414,7 +424,7 @@ impl DualTable {
         let tau = optical_depth(t);
         let m = self.spread(ui, uo, tau);
         let mut l = t * (single + a_back * m.back.y);
-        if tau > 0.0 {
+        if tau > 0.0 && tau < BODY_DEPTH {
             let t_f = Vec3::from((a.rest_f * -tau).exp());
             let forward = (t_f - Vec3::splat(t)).max(Vec3::ZERO);
             if forward.max_element() > 0.0 {
@@ -451,7 +461,7 @@ impl DualTable {
         };
         let mut l = t * (single + DENSITY_BACK * back(0.0));
         let tau = optical_depth(t);
-        if tau > 0.0 {
+        if tau > 0.0 && tau < BODY_DEPTH {
             let t_f = Vec3::from((a.rest_f * -tau).exp());
             let forward = (t_f - Vec3::splat(t)).max(Vec3::ZERO);
             if forward.max_element() > 0.0 {

@@ -438,6 +438,28 @@ fn dual_scattering_forward_transmittance_averages_a_f_over_the_fibers_met() {
 }
 
 #[test]
+fn no_light_is_scattered_forward_past_an_opaque_body() {
+    // Behind a head (30 deep in the map, and hair besides) the hair
+    // gets what the transmittance lets through and no forward light: a
+    // body stops light, it does not pass it on.
+    let (d, f) = (DualTable::new(&blond()), FiberTable::new(&blond()));
+    let (ui, uo, cos_phi) = (0.1, -0.2, 0.3);
+    for tau in [30.0f32, 31.5, 80.0] {
+        let t = (-tau).exp();
+        assert_eq!(d.forward_transmittance(t, ui), Vec3::splat(t));
+        let s = f.radiance(ui, uo, cos_phi);
+        let l = d.radiance(s, t, ui, uo, cos_phi);
+        assert!(
+            l.max_element() <= 2.0 * t * s.max_element().max(1.0),
+            "{tau}: {l}"
+        );
+    }
+    // Just short of a body's depth, hair alone: blond passes light on.
+    let t = (-20.0f32).exp();
+    assert!(d.forward_transmittance(t, ui).min_element() > 1e3 * t);
+}
+
+#[test]
 fn dual_scattering_adds_nothing_forward_in_full_light_and_brightens_blond_in_shadow() {
     let (light, dark) = (blond(), brown());
     let tables = |o: &FiberOptics| (DualTable::new(o), FiberTable::new(o));

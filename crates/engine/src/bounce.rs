@@ -1,0 +1,677 @@
+//! The light the head sends back into the hair, with multiple scattering.
+//!
+//! The head is a diffuse surface of albedo `rho` (its colour). Lit through
+//! the hair, it sends radiance `L(x) = rho E(x) / pi` back out, `E(x)` the
+//! irradiance at its point `x` (each light's, as the head's own shading
+//! takes it: [`crate::part::head_lambert`], with the light the hair
+//! scatters forward on its way to the head). A path tracer's bounces carry
+//! that light into the hair around the head, tinted by the skin: on every
+//! groom of the comparisons against Cycles it is a large share of what
+//! light hair shows beyond direct light (docs/shading.md).
+//!
+//! The head is taken as the surface along 12 x 24 directions from its
+//! centre `c`: a sphere's, or a mesh's outermost hit along each ray (found
+//! once, at rest). Around each direction it is taken as a sphere of the
+//! radius `R` there: a hair vertex `p` at distance `d > R` from `c` sees the
+//! cap of the head whose directions lie within `beta` of `n_p = (p - c) /
+//! d`, `cos beta = R / d`, filling the solid angle
+//!
+//! ```text
+//! Omega = 2 pi (1 - sqrt(1 - (R / d)^2))
+//! ```
+//!
+//! so the head's irradiance there, perpendicular to the direction `-n_p`
+//! towards the head, is `E_h = Omega L_cap(n_p, beta)`, `L_cap` the mean
+//! radiance of the cap. [`HeadLight`] samples `L` at the surface's points
+//! once a frame (none where a ray leaves a mesh through a hole) and
+//! averages it over caps of 7 sizes, so a vertex looks `L_cap` up
+//! (bilinear over the directions, linear between the sizes).
+//!
+//! The head's light travels out from the head, through the hair between:
+//! the map oriented to that light is a spherical one about the head,
+//! whose columns are the sampled directions. [`HeadLight::through_hair`]
+//! fills it from the first light's map, which already holds the hair:
+//! along each direction, at 48 radii from the surface out past the hair,
+//! the extinction `sigma_t` is the difference of that map's optical depth
+//! `tau = -ln T` across a cell along its light (two lookups), and one
+//! sweep out along the column sums it into the optical depth
+//! `tau_h(r) = int sigma_t dr` from the surface. A vertex looks `tau_h`
+//! up at its direction and height (bilinear, linear between radii) and
+//! gets `E_h` through `T_h = exp(-tau_h)`; the fiber scatters it as it
+//! scatters a light's irradiance, multiple scattering included. The
+//! radii near the head, whose lookups would reach the head's own deposit
+//! in the light's map, take the extinction of the first clear one.
+
+use std::f32::consts::PI;
+use std::sync::Arc;
+
+use glam::{Mat3A, Vec3};
+use rayon::prelude::*;
+use shadow::Light;
+use strands::Mesh;
+
+// The fiber tables take an optical depth past `raster::BODY_DEPTH` for a
+// body in the way of the light (no forward-scattered light past it): the
+// shadow crate must deposit bodies deeper than that, and hair alone
+// should seldom reach it.
+const _: () = assert!(
+    raster::BODY_DEPTH < shadow::OPAQUE_DEPTH && raster::BODY_DEPTH > shadow::OPAQUE_DEPTH - 2.0
+);
+
+/// Rows of the sampled directions, pole to pole (about `y`).
+const N_THETA: usize = 12;
+/// Columns of the sampled directions, around `y`.
+const N_PHI: usize = 24;
+/// The sampled directions.
+const DIRECTIONS: usize = N_THETA * N_PHI;
+/// Points a side of each direction's cell its radiance is the mean of.
+const SUB: usize = 4;
+/// Radii a column of the head's map samples, from the surface out.
+const RADII: usize = 48;
+/// The column's radii run out this many cells of the light's map past
+/// the surface: the hair anywhere in that map lies within them.
+const REACH_CELLS: f32 = 1.8;
+/// Radii nearer the surface than this many of the light map's cells
+/// would look the head's own deposit up.
+const CLEAR_CELLS: f32 = 2.5;
+
+/// `cos beta` of the caps the radiance is averaged over, decreasing: from
+/// a point (hair on the head, whose horizon hides the rest) to a
+/// hemisphere (hair far from it).
+const CAPS: [f32; 7] = [1.0, 0.95, 0.85, 0.7, 0.5, 0.25, 0.0];
+
+/// Where the head's surface lies along each sampled direction from its
+/// centre, in the head's own frame (at rest, about the scene's
+/// `head.center`): the distance and the outward unit normal; `None`
+/// where the ray leaves a mesh through no surface.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Surface {
+    at: Vec<Option<(f32, Vec3)>>,
+    /// The distances alone, 0 where there is none: what vertices look up.
+    radii: Vec<f32>,
+}
+
+impl Surface {
+    /// A sphere of `radius`.
+    pub(crate) fn sphere(radius: f32) -> Surface {
+        Surface::new(
+            (0..N_THETA)
+                .flat_map(|i| (0..N_PHI).map(move |j| direction(i, j).0))
+                .map(|n| Some((radius, n)))
+                .collect(),
+        )
+    }
+
+    fn new(at: Vec<Option<(f32, Vec3)>>) -> Surface {
+        let radii = at.iter().map(|a| a.map_or(0.0, |(r, _)| r)).collect();
+        Surface { at, radii }
+    }
+
+    /// `mesh` (at rest), seen from `center`: along each direction the
+    /// farthest triangle the ray crosses (Moller-Trumbore), and the
+    /// vertex normals there, interpolated, turned outwards.
+    pub(crate) fn mesh(mesh: &Mesh, center: Vec3) -> Surface {
+        let dirs: Vec<Vec3> = (0..N_THETA)
+            .flat_map(|i| (0..N_PHI).map(move |j| direction(i, j).0))
+            .collect();
+        let (pos, nor) = (mesh.positions(), mesh.normals());
+        let at = dirs
+            .par_iter()
+            .map(|&d| {
+                let mut best: Option<(f32, Vec3)> = None;
+                for tri in mesh.triangles() {
+                    let [a, b, c] = tri.map(|v| pos[v as usize]);
+                    let Some((t, u, v)) = ray_triangle(center, d, a, b, c) else {
+                        continue;
+                    };
+                    if best.is_some_and(|(far, _)| far >= t) {
+                        continue;
+                    }
+                    let [na, nb, nc] = tri.map(|v| nor[v as usize]);
+                    let n = (na * (1.0 - u - v) + nb * u + nc * v).normalize_or(d);
+                    best = Some((t, if n.dot(d) < 0.0 { -n } else { n }));
+                }
+                best
+            })
+            .collect();
+        Surface::new(at)
+    }
+
+    /// The surface's distance from the centre towards the head's own
+    /// direction at grid place `g` (bilinear; 0 where there is none).
+    fn radius_at(&self, g: Grid) -> f32 {
+        bilinear(g, |i, j| self.radii[i * N_PHI + j])
+    }
+}
+
+/// The ray `o + t d`'s crossing of triangle `a b c`: `t > 0` and the
+/// barycentrics of `b` and `c` (Moller and Trumbore 1997), either side.
+fn ray_triangle(o: Vec3, d: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Option<(f32, f32, f32)> {
+    let (e1, e2) = (b - a, c - a);
+    let p = d.cross(e2);
+    let det = e1.dot(p);
+    if det.abs() < 1e-12 {
+        return None;
+    }
+    let inv = 1.0 / det;
+    let s = o - a;
+    let u = s.dot(p) * inv;
+    if !(0.0..=1.0).contains(&u) {
+        return None;
+    }
+    let q = s.cross(e1);
+    let v = d.dot(q) * inv;
+    if v < 0.0 || u + v > 1.0 {
+        return None;
+    }
+    let t = e2.dot(q) * inv;
+    (t > 0.0 && t.is_finite()).then_some((t, u, v))
+}
+
+/// Where a direction falls among the sampled ones: rows `i0`, `i1` and
+/// the share of the second, columns `j0`, `j1` (wrapping) and the share
+/// of the second.
+type Grid = ((usize, usize, f32), (usize, usize, f32));
+
+/// `value(row, column)` bilinear at `g`.
+#[inline]
+fn bilinear<T>(g: Grid, value: impl Fn(usize, usize) -> T) -> T
+where
+    T: Copy
+        + std::ops::Add<Output = T>
+        + std::ops::Sub<Output = T>
+        + std::ops::Mul<f32, Output = T>,
+{
+    let ((i0, i1, fu), (j0, j1, fv)) = g;
+    let top = value(i0, j0) + (value(i0, j1) - value(i0, j0)) * fv;
+    let bottom = value(i1, j0) + (value(i1, j1) - value(i1, j0)) * fv;
+    top + (bottom - top) * fu
+}
+
+/// `atan2(y, x)` in `[-pi, pi]` to within 0.005 radians (a twentieth of
+/// a grid cell), from a polynomial: no library call in the per-vertex
+/// path (Rajan et al.'s `pi/4 x + 0.273 x (1 - |x|)` on each octant).
+#[inline]
+fn atan2_approx(y: f32, x: f32) -> f32 {
+    let (ax, ay) = (x.abs(), y.abs());
+    if ax == 0.0 && ay == 0.0 {
+        return 0.0;
+    }
+    let (r, swap) = if ay > ax {
+        (ax / ay, true)
+    } else {
+        (ay / ax, false)
+    };
+    let mut a = r * (0.25 * PI + 0.273 * (1.0 - r));
+    if swap {
+        a = 0.5 * PI - a;
+    }
+    if x < 0.0 {
+        a = PI - a;
+    }
+    if y < 0.0 { -a } else { a }
+}
+
+/// The sampled directions around `n` (unit).
+#[inline]
+fn grid(n: Vec3) -> Grid {
+    let theta = atan2_approx((n.x * n.x + n.z * n.z).sqrt(), n.y);
+    let mut phi = atan2_approx(n.z, n.x);
+    if phi < 0.0 {
+        phi += 2.0 * PI;
+    }
+    let u = (theta / PI * N_THETA as f32 - 0.5).clamp(0.0, (N_THETA - 1) as f32);
+    let v = phi / (2.0 * PI) * N_PHI as f32 - 0.5;
+    let (i0, fu) = (u.floor() as usize, u.fract());
+    let i1 = (i0 + 1).min(N_THETA - 1);
+    let vf = v.floor();
+    let j0 = (vf as i32).rem_euclid(N_PHI as i32) as usize;
+    ((i0, i1, fu), (j0, (j0 + 1) % N_PHI, v - vf))
+}
+
+/// Steps of the [`cone_factor`] table along `sin alpha` and `|u|`.
+const CONE_STEPS: usize = 16;
+
+/// How much more (or less) a fiber takes from light spread evenly over a
+/// cone of half-angle `alpha` than from the same irradiance along the
+/// cone's axis, through the fiber's `cos theta_i = sqrt(1 - (w . t)^2)`:
+/// the mean of it over the cone's directions over its value on the axis,
+/// `u = c . t` (`c` the axis, `t` the fiber's tangent). A fiber lying
+/// across the axis takes `pi / 4` of it from a hemisphere; one along the
+/// axis takes light only from the cone's sides (at most 4 times the
+/// axis's, where that is nearly none). Integrated once (midpoint rule,
+/// uniform in solid angle), looked up bilinear.
+pub(crate) fn cone_factor(sin_alpha: f32, u: f32) -> f32 {
+    static TABLE: std::sync::OnceLock<Vec<f32>> = std::sync::OnceLock::new();
+    let table = TABLE.get_or_init(|| {
+        let n = 48;
+        let mut out = Vec::with_capacity((CONE_STEPS + 1) * (CONE_STEPS + 1));
+        for a in 0..=CONE_STEPS {
+            let sa = a as f64 / CONE_STEPS as f64;
+            let ca = (1.0 - sa * sa).max(0.0).sqrt();
+            for k in 0..=CONE_STEPS {
+                let u = k as f64 / CONE_STEPS as f64;
+                let w = (1.0 - u * u).max(0.0).sqrt();
+                let mut sum = 0.0;
+                for i in 0..n {
+                    // cos gamma uniform over [cos alpha, 1].
+                    let cg = ca + (1.0 - ca) * (i as f64 + 0.5) / n as f64;
+                    let sg = (1.0 - cg * cg).max(0.0).sqrt();
+                    for j in 0..n {
+                        let psi = 2.0 * std::f64::consts::PI * (j as f64 + 0.5) / n as f64;
+                        let wt = cg * u + sg * psi.cos() * w;
+                        sum += (1.0 - wt * wt).max(0.0).sqrt();
+                    }
+                }
+                let mean = sum / (n * n) as f64;
+                out.push((mean / w.max(1e-6)).min(4.0) as f32);
+            }
+        }
+        out
+    });
+    let x = sin_alpha.clamp(0.0, 1.0) * CONE_STEPS as f32;
+    let y = u.abs().min(1.0) * CONE_STEPS as f32;
+    let (a, fa) = (
+        (x as usize).min(CONE_STEPS - 1),
+        x - (x as usize).min(CONE_STEPS - 1) as f32,
+    );
+    let (k, fk) = (
+        (y as usize).min(CONE_STEPS - 1),
+        y - (y as usize).min(CONE_STEPS - 1) as f32,
+    );
+    let at = |a: usize, k: usize| table[a * (CONE_STEPS + 1) + k];
+    let top = at(a, k) + (at(a, k + 1) - at(a, k)) * fk;
+    let bottom = at(a + 1, k) + (at(a + 1, k + 1) - at(a + 1, k)) * fk;
+    top + (bottom - top) * fa
+}
+
+/// The head as it stands in a frame: its centre, its frame, and its
+/// [`Surface`].
+#[derive(Debug, Clone)]
+pub struct HeadShape {
+    center: Vec3,
+    /// The head's own frame from the world's, and back (the pose's linear
+    /// part).
+    to_own: Mat3A,
+    from_own: Mat3A,
+    surface: Arc<Surface>,
+}
+
+impl HeadShape {
+    /// The head whose centre stands at `center`, turned by `from_own`
+    /// (its pose's linear part), of `surface` about its centre at rest.
+    pub(crate) fn new(center: Vec3, from_own: Mat3A, surface: Arc<Surface>) -> HeadShape {
+        HeadShape {
+            center,
+            to_own: from_own.inverse(),
+            from_own,
+            surface,
+        }
+    }
+
+    /// A sphere at `center` of `radius`, unturned.
+    #[cfg(test)]
+    fn sphere(center: Vec3, radius: f32) -> HeadShape {
+        HeadShape {
+            center,
+            to_own: Mat3A::IDENTITY,
+            from_own: Mat3A::IDENTITY,
+            surface: Arc::new(Surface::sphere(radius)),
+        }
+    }
+
+    /// `p` in the head's own frame, about its centre: the unit direction
+    /// and the distance (`None` at the centre or not finite).
+    fn own(&self, p: Vec3) -> Option<(Vec3, f32)> {
+        let v = self.to_own * (p - self.center);
+        let d = v.length();
+        (d > 1e-6 && d.is_finite()).then(|| (v / d, d))
+    }
+}
+
+/// The head's light on the hair around it, for one frame.
+#[derive(Debug, Clone)]
+pub struct HeadLight {
+    shape: HeadShape,
+    /// Per cap size and sampled direction, the mean radiance of the cap
+    /// around that direction: `[cap][direction]`, linear RGB.
+    caps: Vec<Vec3>,
+    /// The hair's optical depth from the surface out along each sampled
+    /// direction, at [`RADII`] heights `reach (j / (RADII - 1))^2`:
+    /// `[direction][j]`; empty until [`Self::through_hair`].
+    depth: Vec<f32>,
+    /// The height of the last radius.
+    reach: f32,
+}
+
+/// The sampled direction of row `i` and column `j`, and its row's share
+/// of the sphere's area (`sin theta`).
+fn direction(i: usize, j: usize) -> (Vec3, f32) {
+    direction_at(i as f32, j as f32)
+}
+
+/// [`direction`] at a fractional row and column.
+fn direction_at(i: f32, j: f32) -> (Vec3, f32) {
+    let theta = (i + 0.5) * PI / N_THETA as f32;
+    let phi = (j + 0.5) * 2.0 * PI / N_PHI as f32;
+    let (st, ct) = theta.sin_cos();
+    let (sp, cp) = phi.sin_cos();
+    (Vec3::new(st * cp, ct, st * sp), st)
+}
+
+impl HeadLight {
+    /// The head `shape`, of radiance `radiance(x, n)` at its point `x` of
+    /// outward normal `n` (world; linear RGB, as the head is shaded; asked
+    /// at each sampled point once).
+    pub fn new(shape: HeadShape, radiance: impl Fn(Vec3, Vec3) -> Vec3) -> HeadLight {
+        let dirs: Vec<(Vec3, f32)> = (0..N_THETA)
+            .flat_map(|i| (0..N_PHI).map(move |j| direction(i, j)))
+            .collect();
+        // Each direction's radiance, the mean of SUB x SUB points over its
+        // cell of directions (the surface there taken at the cell's
+        // distance, its normal turned with the direction): a lit parting
+        // narrower than a cell counts for the share of the cell it is.
+        let l: Vec<Vec3> = shape
+            .surface
+            .at
+            .iter()
+            .enumerate()
+            .map(|(k, at)| {
+                let Some((r, n)) = *at else {
+                    return Vec3::ZERO;
+                };
+                let (d, _) = direction(k / N_PHI, k % N_PHI);
+                let (mut sum, mut w) = (Vec3::ZERO, 0.0f32);
+                for a in 0..SUB {
+                    for b in 0..SUB {
+                        let (i, j) = (k / N_PHI, k % N_PHI);
+                        let sub = |x: usize| (x as f32 + 0.5) / SUB as f32 - 0.5;
+                        let (ds, area) = direction_at(i as f32 + sub(a), j as f32 + sub(b));
+                        let turn = glam::Quat::from_rotation_arc(d, ds);
+                        let x = shape.center + shape.from_own * (r * ds);
+                        let m = (shape.from_own * (turn * n)).normalize_or(n);
+                        let c = radiance(x, m);
+                        if c.is_finite() {
+                            sum += area * c.max(Vec3::ZERO);
+                        }
+                        w += area;
+                    }
+                }
+                sum / w
+            })
+            .collect();
+        let mut caps = Vec::with_capacity(CAPS.len() * DIRECTIONS);
+        for &cos_beta in &CAPS {
+            for &(n, _) in &dirs {
+                let (mut sum, mut w) = (Vec3::ZERO, 0.0f32);
+                for (&(m, area), &lm) in dirs.iter().zip(&l) {
+                    // The direction itself is always in its cap.
+                    if n.dot(m) >= cos_beta - 1e-5 {
+                        sum += area * lm;
+                        w += area;
+                    }
+                }
+                caps.push(sum / w);
+            }
+        }
+        HeadLight {
+            shape,
+            caps,
+            depth: Vec::new(),
+            reach: 0.0,
+        }
+    }
+
+    /// Fills the head's map from the hair in the map of `light` (cells
+    /// of `cell` scene units, `cells` a side): `lookup(points, out)` its
+    /// transmittance at `points`, as drawn hair looks it up.
+    pub fn through_hair(
+        &mut self,
+        light: &Light,
+        cell: f32,
+        cells: u32,
+        lookup: impl Fn(&[Vec3], &mut [f32]),
+    ) {
+        let reach = REACH_CELLS * cell * cells as f32;
+        let height = |j: usize| reach * (j as f32 / (RADII - 1) as f32).powi(2);
+        let shape = &self.shape;
+        // Two points a radius, a cell apart along the light.
+        let mut points = Vec::with_capacity(DIRECTIONS * RADII * 2);
+        for (k, at) in shape.surface.at.iter().enumerate() {
+            let (d, _) = direction(k / N_PHI, k % N_PHI);
+            let r = at.map_or(0.0, |(r, _)| r);
+            for j in 0..RADII {
+                let x = shape.center + shape.from_own * ((r + height(j)) * d);
+                let u = light.direction_at(x) * (0.5 * cell);
+                points.extend([x - u, x + u]);
+            }
+        }
+        let mut t = vec![0.0; points.len()];
+        lookup(&points, &mut t);
+        let tau = |t: f32| -t.max(1e-30).ln();
+        self.depth.clear();
+        for k in 0..DIRECTIONS {
+            let sigma = |j: usize| {
+                let i = 2 * (k * RADII + j);
+                (tau(t[i + 1]) - tau(t[i])).max(0.0) / cell
+            };
+            // Radii too near the head take the first clear one's.
+            let clear = (0..RADII)
+                .find(|&j| height(j) >= CLEAR_CELLS * cell)
+                .unwrap_or(RADII - 1);
+            let sigma = |j: usize| sigma(j.max(clear));
+            let mut sum = 0.0f32;
+            self.depth.push(0.0);
+            for j in 1..RADII {
+                // The trapezoid rule between radii.
+                sum += 0.5 * (sigma(j - 1) + sigma(j)) * (height(j) - height(j - 1));
+                self.depth.push(sum);
+            }
+        }
+        self.reach = reach;
+    }
+
+    /// At `p`: the unit direction towards the head's centre, the head's
+    /// irradiance `E_h` across it (linear RGB), and the height of `p`
+    /// over the head's surface (0 inside). `None` at the centre, or where
+    /// no surface lies below `p`.
+    pub fn at(&self, p: Vec3) -> Option<(Vec3, Vec3, f32)> {
+        let (e, height) = self.light_at(p)?;
+        Some(((self.shape.center - p).normalize_or_zero(), e, height))
+    }
+
+    /// [`Self::at`] without the direction.
+    #[inline]
+    pub fn light_at(&self, p: Vec3) -> Option<(Vec3, f32)> {
+        let (n, d) = self.shape.own(p)?;
+        let g = grid(n);
+        let r = self.shape.surface.radius_at(g);
+        if r.is_nan() || r <= 0.0 {
+            return None;
+        }
+        // sin alpha of the cone the head fills, = cos beta of its cap.
+        let s = (r / d).min(1.0);
+        let omega = 2.0 * PI * (1.0 - (1.0 - s * s).max(0.0).sqrt());
+        Some((omega * self.cap(g, s), (d - r).max(0.0)))
+    }
+
+    /// The head's light at `p` through the hair between (after
+    /// [`Self::through_hair`]; unattenuated before): its irradiance
+    /// `E_h`, transmittance `T_h`, and `sin alpha` of the cone it comes
+    /// from.
+    #[inline]
+    pub fn through_at(&self, p: Vec3) -> Option<(Vec3, f32, f32)> {
+        let (n, d) = self.shape.own(p)?;
+        let g = grid(n);
+        let r = self.shape.surface.radius_at(g);
+        if r.is_nan() || r <= 0.0 {
+            return None;
+        }
+        let s = (r / d).min(1.0);
+        let omega = 2.0 * PI * (1.0 - (1.0 - s * s).max(0.0).sqrt());
+        let e = omega * self.cap(g, s);
+        if self.depth.is_empty() || self.reach <= 0.0 {
+            return Some((e, 1.0, s));
+        }
+        // The radius index of the height: j = (RADII - 1) sqrt(h / reach).
+        let h = ((d - r).max(0.0) / self.reach).min(1.0);
+        let x = (RADII - 1) as f32 * h.sqrt();
+        let (j, f) = ((x as usize).min(RADII - 2), x.fract());
+        let f = if x >= (RADII - 1) as f32 { 1.0 } else { f };
+        let tau = bilinear(g, |i, jj| {
+            let col = &self.depth[(i * N_PHI + jj) * RADII..][..RADII];
+            col[j] + (col[j + 1] - col[j]) * f
+        });
+        Some((e, (-tau).exp(), s))
+    }
+
+    /// The head's centre now.
+    pub fn center(&self) -> Vec3 {
+        self.shape.center
+    }
+
+    /// The most irradiance the head can send anywhere: its brightest
+    /// radiance over a hemisphere of directions.
+    pub fn max_irradiance(&self) -> f32 {
+        let brightest = self.caps[..DIRECTIONS]
+            .iter()
+            .fold(0.0f32, |m, c| m.max(c.max_element()));
+        2.0 * PI * brightest
+    }
+
+    /// The mean radiance over the cap of directions within `acos(cos_beta)`
+    /// of the head's own direction at grid place `g`.
+    fn cap(&self, g: Grid, cos_beta: f32) -> Vec3 {
+        // Between which cap sizes, and how far.
+        let c = CAPS
+            .windows(2)
+            .position(|w| cos_beta >= w[1])
+            .unwrap_or(CAPS.len() - 2);
+        let t = ((CAPS[c] - cos_beta) / (CAPS[c] - CAPS[c + 1])).clamp(0.0, 1.0);
+        let at = |c: usize| bilinear(g, |i, j| self.caps[c * DIRECTIONS + i * N_PHI + j]);
+        let (a, b) = (at(c), at(c + 1));
+        a + (b - a) * t
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_uniform_head_gives_its_radiance_times_the_solid_angle() {
+        // A head of radiance 1 everywhere: E_h = Omega, from the cone's
+        // half-angle alone.
+        let c = Vec3::new(1.0, 2.0, 3.0);
+        let h = HeadLight::new(HeadShape::sphere(c, 2.0), |_, _| Vec3::ONE);
+        for d in [2.0f32, 2.5, 4.0, 20.0] {
+            for n in [
+                Vec3::X,
+                Vec3::Y,
+                -Vec3::Y,
+                Vec3::new(0.3, -0.5, 0.8).normalize(),
+            ] {
+                let (to, e, height) = h.at(c + d * n).unwrap();
+                let alpha = (2.0 / d).asin();
+                let omega = 2.0 * PI * (1.0 - alpha.cos());
+                assert!(
+                    (e - Vec3::splat(omega)).abs().max_element() < 1e-4,
+                    "{d} {n}: {e}"
+                );
+                assert!((to + n).length() < 1e-6);
+                assert!((height - (d - 2.0)).abs() < 1e-5);
+            }
+        }
+        // On the surface, a hemisphere: 2 pi.
+        let (_, e, _) = h.at(c + 2.0 * Vec3::Z).unwrap();
+        assert!((e.x - 2.0 * PI).abs() < 1e-4);
+        assert!(h.at(c).is_none());
+    }
+
+    #[test]
+    fn a_head_lit_from_one_side_sends_light_to_that_side() {
+        // Radiance max(n . x, 0): the far side's hair gets none. Hair on
+        // the lit pole sees the point under it (radiance 1) fill a
+        // hemisphere of directions; hair far off sees the lit hemisphere
+        // of the head, whose mean radiance by area is 1/2.
+        let h = HeadLight::new(HeadShape::sphere(Vec3::ZERO, 1.0), |_, n| {
+            Vec3::splat(n.x.max(0.0))
+        });
+        let (_, far, _) = h.at(-3.0 * Vec3::X).unwrap();
+        assert!(far.x < 1e-3, "{far}");
+        let (_, near, _) = h.at(1.0 * Vec3::X).unwrap();
+        let mean = near.x / (2.0 * PI);
+        assert!((mean - 1.0).abs() < 0.03, "{mean}");
+        let (_, distant, _) = h.at(50.0 * Vec3::X).unwrap();
+        let omega = 2.0 * PI * (1.0 - (1.0f32 - 1.0 / 2500.0).sqrt());
+        let mean = distant.x / omega;
+        assert!((mean - 0.5).abs() < 0.04, "{mean}");
+    }
+
+    #[test]
+    fn a_mesh_head_is_its_outermost_surface_and_none_through_a_hole() {
+        // A cube of side 2 about (0, 1, 0), its bottom face left open.
+        let obj = "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nv -1 2 -1\nv 1 2 -1\nv 1 2 1\nv -1 2 1\n\
+                   f 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\nf 2 3 7\nf 2 7 6\nf 3 4 8\nf 3 8 7\n\
+                   f 4 1 5\nf 4 5 8\n";
+        let mesh =
+            strands::load_mesh_bytes(std::path::Path::new("cube.obj"), obj.as_bytes()).unwrap();
+        let s = Surface::mesh(&mesh, Vec3::Y);
+        for (k, at) in s.at.iter().enumerate() {
+            let (d, _) = direction(k / N_PHI, k % N_PHI);
+            // Rays through the open bottom find nothing; the others the
+            // face they leave by, at 1 / max |d_i|.
+            let leaves_by_bottom = -d.y >= d.x.abs().max(d.z.abs());
+            match at {
+                None => assert!(leaves_by_bottom, "{d}"),
+                Some((r, n)) => {
+                    assert!(!leaves_by_bottom, "{d}");
+                    let want = 1.0 / d.abs().max_element();
+                    assert!((r - want).abs() < 1e-4, "{d}: {r} against {want}");
+                    assert!(n.dot(d) > 0.0 && (n.length() - 1.0).abs() < 1e-5);
+                }
+            }
+        }
+        // No light from under the hole: the radius there is 0.
+        let shape = HeadShape {
+            center: Vec3::Y,
+            to_own: Mat3A::IDENTITY,
+            from_own: Mat3A::IDENTITY,
+            surface: Arc::new(s),
+        };
+        let h = HeadLight::new(shape, |_, _| Vec3::ONE);
+        assert!(h.at(Vec3::new(0.0, -5.0, 0.0)).is_none());
+        let (_, _, height) = h.at(Vec3::new(0.0, 4.0, 0.0)).unwrap();
+        assert!((height - 2.0).abs() < 0.05, "{height}");
+        let (_, e, _) = h.at(Vec3::new(0.0, 1.0, 1.0)).unwrap();
+        assert!((e.x - 2.0 * PI).abs() < 1e-3, "{e}");
+    }
+
+    #[test]
+    fn the_polynomial_atan2_is_within_its_bound_all_round() {
+        for k in 0..3600 {
+            let a = k as f32 * 0.1f32.to_radians() - PI;
+            for r in [1e-3f32, 1.0, 7.0] {
+                let (y, x) = (r * a.sin(), r * a.cos());
+                let d = (atan2_approx(y, x) - y.atan2(x)).abs();
+                let d = d.min((d - 2.0 * PI).abs());
+                assert!(d < 0.005, "{a}: off by {d}");
+            }
+        }
+        assert_eq!(atan2_approx(0.0, 0.0), 0.0);
+    }
+
+    #[test]
+    fn a_fiber_across_a_hemisphere_takes_a_quarter_of_pi_of_it() {
+        // Across the axis, from a hemisphere: the mean of sqrt(1 - x^2)
+        // for x = w . t over the hemisphere, pi / 4.
+        assert!((cone_factor(1.0, 0.0) - PI / 4.0).abs() < 0.01);
+        // From a point: the axis's own.
+        for u in [0.0, 0.5, 0.9] {
+            assert!((cone_factor(0.0, u) - 1.0).abs() < 1e-3);
+        }
+        // A fiber nearly along the axis gets more from the sides, bounded.
+        let along = cone_factor(0.8, 0.99);
+        assert!(along > 1.0 && along <= 4.0, "{along}");
+    }
+}

@@ -1,0 +1,61 @@
+//! The light the head sends back into the hair with multiple scattering
+//! (the engine's `bounce` module): it adds the head's light, tinted by the
+//! head's colour, most to the hair nearest the head, and nothing when the
+//! head is black or the effect is off.
+
+use std::path::Path;
+
+use engine::{Scene, Sequence};
+use glam::Vec3;
+
+/// Each vertex's shaded colour and its distance from the head's centre,
+/// for the smooth style lit from the front, blond, with multiple
+/// scattering, the head `head` coloured and `bounce` saying
+/// `effects.head_bounce`.
+fn shaded(head: [f32; 3], bounce: bool) -> (Vec<Vec3>, Vec<f32>) {
+    let text = format!(
+        "[hair]\nstrands_per_wisp = 4\n[render]\nwidth = 96\nheight = 64\n\
+         [[light]]\ndirection = [-0.2, -0.5, -1]\n\
+         [head]\ncolor = [{}, {}, {}]\n\
+         [shading]\nmodel = \"marschner\"\neumelanin = 0.3\nambient = 0\n\
+         [effects]\nmultiple_scattering = true\nhead_bounce = {bounce}\n",
+        head[0], head[1], head[2]
+    );
+    let scene = Scene::from_toml_str(&text, Path::new("head.toml")).unwrap();
+    let mut seq = Sequence::new(&scene).unwrap();
+    seq.next_frame().unwrap();
+    let center = scene.head.as_ref().unwrap().center;
+    let colors = seq.renderer().colors().to_vec();
+    let dist = seq
+        .hair()
+        .points()
+        .iter()
+        .map(|p| (*p - center).length())
+        .collect();
+    (colors, dist)
+}
+
+#[test]
+fn the_head_lights_the_hair_around_it_in_its_own_colour() {
+    let (off, dist) = shaded([0.6, 0.1, 0.1], false);
+    let (black, _) = shaded([0.0, 0.0, 0.0], true);
+    let (red, _) = shaded([0.6, 0.1, 0.1], true);
+    // A black head sends nothing: the same colours as with the effect off.
+    assert_eq!(off, black);
+    // A red head adds light everywhere it adds any, red most.
+    let mut added = Vec3::ZERO;
+    for (a, b) in red.iter().zip(&off) {
+        assert!(a.cmpge(*b).all(), "{a} against {b}");
+        added += *a - *b;
+    }
+    assert!(added.x > 3.0 * added.z && added.x > 0.0, "{added}");
+    // Most to the hair nearest the head: the inner fifth of the vertices
+    // by distance gains more, a vertex, than the outer fifth.
+    let mut order: Vec<usize> = (0..dist.len()).collect();
+    order.sort_by(|&i, &j| dist[i].total_cmp(&dist[j]));
+    let fifth = order.len() / 5;
+    let gain =
+        |idx: &[usize]| idx.iter().map(|&i| (red[i] - off[i]).x).sum::<f32>() / idx.len() as f32;
+    let (inner, outer) = (gain(&order[..fifth]), gain(&order[order.len() - fifth..]));
+    assert!(inner > 2.0 * outer, "inner {inner}, outer {outer}");
+}
