@@ -44,6 +44,10 @@ struct Tables {
     dual: Option<Arc<DualTable>>,
 }
 
+/// Vertices of a strand between two lookups of the head's light
+/// ([`HairPart::filter_head`]).
+pub(crate) const HEAD_STRIDE: usize = 4;
+
 /// The most fiber tables kept: a groom of more distinct strand colours
 /// than this has them rounded to fewer (see [`HairPart::shade`]).
 const MAX_TABLES: usize = 64;
@@ -76,17 +80,50 @@ impl HairPart {
     }
 
     /// The light the head sends to every vertex of `hair`, `head`'s (see
-    /// [`crate::bounce`]): its irradiance there and its transmittance
-    /// through the hair between.
+    /// [`crate::bounce`]): its irradiance there, its transmittance through
+    /// the hair between, and the cone it comes from. It changes slowly
+    /// along a strand (over the head's size): looked up at every
+    /// [`HEAD_STRIDE`]th vertex of each strand and its last, linear
+    /// between.
     pub fn filter_head(&mut self, hair: &Hair, head: &HeadLight) {
+        let (points, offsets) = (hair.points(), hair.offsets());
         self.head_center = head.center();
         self.head_in.clear();
-        self.head_in.par_extend(
-            hair.points()
-                .par_iter()
-                .with_min_len(1024)
-                .map(|&p| head.through_at(p).unwrap_or((Vec3::ZERO, 1.0, 0.0))),
-        );
+        self.head_in.resize(points.len(), (Vec3::ZERO, 1.0, 0.0));
+        let mut strands: Vec<&mut [(Vec3, f32, f32)]> = Vec::with_capacity(hair.strand_count());
+        let mut rest = &mut self.head_in[..];
+        for w in offsets.windows(2) {
+            let (a, b) = rest.split_at_mut((w[1] - w[0]) as usize);
+            strands.push(a);
+            rest = b;
+        }
+        strands
+            .into_par_iter()
+            .enumerate()
+            .with_min_len(64)
+            .for_each(|(s, out)| {
+                let pts = &points[offsets[s] as usize..][..out.len()];
+                let at = |i: usize| head.through_at(pts[i]).unwrap_or((Vec3::ZERO, 1.0, 0.0));
+                let Some(first) = pts.first().map(|_| at(0)) else {
+                    return;
+                };
+                out[0] = first;
+                let (mut i, mut a) = (0, first);
+                while i + 1 < out.len() {
+                    let j = (i + HEAD_STRIDE).min(out.len() - 1);
+                    let b = at(j);
+                    for (k, o) in out[i + 1..j].iter_mut().enumerate() {
+                        let f = (k + 1) as f32 / (j - i) as f32;
+                        *o = (
+                            a.0 + (b.0 - a.0) * f,
+                            a.1 + (b.1 - a.1) * f,
+                            a.2 + (b.2 - a.2) * f,
+                        );
+                    }
+                    out[j] = b;
+                    (i, a) = (j, b);
+                }
+            });
     }
 
     /// A fiber's tables with multiple scattering, for `optics`: what the
