@@ -286,7 +286,7 @@ pub(crate) fn cone_factor(sin_alpha: f32, u: f32) -> f32 {
 }
 
 /// The head as it stands in a frame: its centre, its frame, and its
-/// [`Surface`].
+/// surface about its centre.
 #[derive(Debug, Clone)]
 pub struct HeadShape {
     center: Vec3,

@@ -80,10 +80,10 @@ impl HairPart {
     }
 
     /// The light the head sends to every vertex of `hair`, `head`'s (see
-    /// [`crate::bounce`]): its irradiance there, its transmittance through
+    /// the engine's `bounce` module): its irradiance there, its transmittance through
     /// the hair between, and the cone it comes from. It changes slowly
     /// along a strand (over the head's size): looked up at every
-    /// [`HEAD_STRIDE`]th vertex of each strand and its last, linear
+    /// fourth vertex of each strand (`HEAD_STRIDE`) and its last, linear
     /// between.
     pub fn filter_head(&mut self, hair: &Hair, head: &HeadLight) {
         let (points, offsets) = (hair.points(), hair.offsets());
