@@ -476,23 +476,8 @@ impl HeadLight {
     /// over the head's surface (0 inside). `None` at the centre, or where
     /// no surface lies below `p`.
     pub fn at(&self, p: Vec3) -> Option<(Vec3, Vec3, f32)> {
-        let (e, height) = self.light_at(p)?;
+        let (_, e, _, height) = self.light(p)?;
         Some(((self.shape.center - p).normalize_or_zero(), e, height))
-    }
-
-    /// [`Self::at`] without the direction.
-    #[inline]
-    pub fn light_at(&self, p: Vec3) -> Option<(Vec3, f32)> {
-        let (n, d) = self.shape.own(p)?;
-        let g = grid(n);
-        let r = self.shape.surface.radius_at(g);
-        if r.is_nan() || r <= 0.0 {
-            return None;
-        }
-        // sin alpha of the cone the head fills, = cos beta of its cap.
-        let s = (r / d).min(1.0);
-        let omega = 2.0 * PI * (1.0 - (1.0 - s * s).max(0.0).sqrt());
-        Some((omega * self.cap(g, s), (d - r).max(0.0)))
     }
 
     /// The head's light at `p` through the hair between (after
@@ -501,6 +486,26 @@ impl HeadLight {
     /// from.
     #[inline]
     pub fn through_at(&self, p: Vec3) -> Option<(Vec3, f32, f32)> {
+        let (g, e, s, height) = self.light(p)?;
+        if self.depth.is_empty() || self.reach <= 0.0 {
+            return Some((e, 1.0, s));
+        }
+        // The radius index of the height: j = (RADII - 1) sqrt(h / reach).
+        let x = (RADII - 1) as f32 * (height / self.reach).min(1.0).sqrt();
+        let (j, f) = ((x as usize).min(RADII - 2), x.fract());
+        let f = if x >= (RADII - 1) as f32 { 1.0 } else { f };
+        let tau = bilinear(g, |i, jj| {
+            let col = &self.depth[(i * N_PHI + jj) * RADII..][..RADII];
+            col[j] + (col[j + 1] - col[j]) * f
+        });
+        Some((e, (-tau).exp(), s))
+    }
+
+    /// At `p`: where its direction falls among the sampled ones, the
+    /// head's irradiance `E_h`, `sin alpha` of the cone the head fills (=
+    /// `cos beta` of the cap it sees) and the height over the surface.
+    #[inline]
+    fn light(&self, p: Vec3) -> Option<(Grid, Vec3, f32, f32)> {
         let (n, d) = self.shape.own(p)?;
         let g = grid(n);
         let r = self.shape.surface.radius_at(g);
@@ -509,20 +514,7 @@ impl HeadLight {
         }
         let s = (r / d).min(1.0);
         let omega = 2.0 * PI * (1.0 - (1.0 - s * s).max(0.0).sqrt());
-        let e = omega * self.cap(g, s);
-        if self.depth.is_empty() || self.reach <= 0.0 {
-            return Some((e, 1.0, s));
-        }
-        // The radius index of the height: j = (RADII - 1) sqrt(h / reach).
-        let h = ((d - r).max(0.0) / self.reach).min(1.0);
-        let x = (RADII - 1) as f32 * h.sqrt();
-        let (j, f) = ((x as usize).min(RADII - 2), x.fract());
-        let f = if x >= (RADII - 1) as f32 { 1.0 } else { f };
-        let tau = bilinear(g, |i, jj| {
-            let col = &self.depth[(i * N_PHI + jj) * RADII..][..RADII];
-            col[j] + (col[j + 1] - col[j]) * f
-        });
-        Some((e, (-tau).exp(), s))
+        Some((g, omega * self.cap(g, s), s, (d - r).max(0.0)))
     }
 
     /// The head's centre now.
