@@ -121,7 +121,7 @@ impl Surface {
                 let mut best: Option<(f32, Vec3)> = None;
                 for tri in mesh.triangles() {
                     let [a, b, c] = tri.map(|v| pos[v as usize]);
-                    let Some((t, u, v)) = ray_triangle(center, d, a, b, c) else {
+                    let Some((t, u, v)) = shadow::ray_triangle(center, d, a, b, c) else {
                         continue;
                     };
                     if best.is_some_and(|(far, _)| far >= t) {
@@ -142,30 +142,6 @@ impl Surface {
     fn radius_at(&self, g: Grid) -> f32 {
         bilinear(g, |i, j| self.radii[i * N_PHI + j])
     }
-}
-
-/// The ray `o + t d`'s crossing of triangle `a b c`: `t > 0` and the
-/// barycentrics of `b` and `c` (Moller and Trumbore 1997), either side.
-fn ray_triangle(o: Vec3, d: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Option<(f32, f32, f32)> {
-    let (e1, e2) = (b - a, c - a);
-    let p = d.cross(e2);
-    let det = e1.dot(p);
-    if det.abs() < 1e-12 {
-        return None;
-    }
-    let inv = 1.0 / det;
-    let s = o - a;
-    let u = s.dot(p) * inv;
-    if !(0.0..=1.0).contains(&u) {
-        return None;
-    }
-    let q = s.cross(e1);
-    let v = d.dot(q) * inv;
-    if v < 0.0 || u + v > 1.0 {
-        return None;
-    }
-    let t = e2.dot(q) * inv;
-    (t > 0.0 && t.is_finite()).then_some((t, u, v))
 }
 
 /// Where a direction falls among the sampled ones: rows `i0`, `i1` and

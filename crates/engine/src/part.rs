@@ -126,21 +126,26 @@ impl HairPart {
             });
     }
 
+    /// Where the tables of `optics` are kept, made now (single
+    /// scattering) if they were not, the oldest dropped past
+    /// [`MAX_TABLES`].
+    fn table_at(&mut self, optics: &FiberOptics) -> usize {
+        if let Some(at) = self.tables.iter().position(|(k, _)| k == optics) {
+            return at;
+        }
+        if self.tables.len() >= MAX_TABLES {
+            self.tables.remove(0);
+        }
+        let single = Arc::new(FiberTable::new(optics));
+        self.tables.push((*optics, Tables { single, dual: None }));
+        self.tables.len() - 1
+    }
+
     /// A fiber's tables with multiple scattering, for `optics`: what the
     /// head's own shading takes the light the hair scatters forward from
     /// (made once, kept with the strands' tables).
     pub fn dual_table(&mut self, optics: &FiberOptics) -> Arc<DualTable> {
-        let at = match self.tables.iter().position(|(k, _)| k == optics) {
-            Some(at) => at,
-            None => {
-                if self.tables.len() >= MAX_TABLES {
-                    self.tables.remove(0);
-                }
-                let single = Arc::new(FiberTable::new(optics));
-                self.tables.push((*optics, Tables { single, dual: None }));
-                self.tables.len() - 1
-            }
-        };
+        let at = self.table_at(optics);
         let t = &mut self.tables[at].1;
         t.dual
             .get_or_insert_with(|| Arc::new(DualTable::new(optics)))
@@ -378,17 +383,7 @@ impl HairPart {
         let tables = used
             .iter()
             .map(|o| {
-                let at = match self.tables.iter().position(|(k, _)| k == o) {
-                    Some(at) => at,
-                    None => {
-                        if self.tables.len() >= MAX_TABLES {
-                            self.tables.remove(0);
-                        }
-                        let single = Arc::new(FiberTable::new(o));
-                        self.tables.push((*o, Tables { single, dual: None }));
-                        self.tables.len() - 1
-                    }
-                };
+                let at = self.table_at(o);
                 let t = &mut self.tables[at].1;
                 if dual && t.dual.is_none() {
                     t.dual = Some(Arc::new(DualTable::new(o)));

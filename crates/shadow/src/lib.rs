@@ -37,7 +37,7 @@ pub use footprint_reference::FootprintReference;
 pub use frame::{Extent, Fan, Light, LightFrame, MAX_CELLS, MAX_FAN_TAN};
 pub use input::{OPAQUE_DEPTH, ShadowInput, fit_to_extent};
 pub use method::{DensityMapMethod, ShadowMethod};
-pub use occluder::{Occluder, OccluderView};
+pub use occluder::{Occluder, OccluderView, ray_triangle};
 pub use peers::{DeepOpacityMap, DeepShadowMap, DensityClustering, OpacityShadowMap};
 pub use reference::{AcrossFiber, Reference};
 pub use transmittance::{

@@ -154,18 +154,26 @@ fn sphere_blocks(center: Vec3, radius: f32, p: Vec3, dir: Vec3) -> bool {
 
 /// Moeller-Trumbore: does the ray `o + t d`, `t > 0`, cross triangle `abc`?
 fn ray_hits_triangle(o: Vec3, d: Vec3, a: Vec3, b: Vec3, c: Vec3) -> bool {
+    ray_triangle(o, d, a, b, c).is_some()
+}
+
+/// Where the ray `o + t d` crosses triangle `abc` (Moeller and Trumbore
+/// 1997), from either side: `t > 0` and the barycentrics `(u, v)` of `b`
+/// and `c`.
+pub fn ray_triangle(o: Vec3, d: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Option<(f32, f32, f32)> {
     let (e1, e2) = (b - a, c - a);
     let p = d.cross(e2);
     let det = e1.dot(p);
     if det.abs() < 1e-12 {
-        return false;
+        return None;
     }
     let inv = 1.0 / det;
     let s = o - a;
     let u = s.dot(p) * inv;
     let q = s.cross(e1);
     let v = d.dot(q) * inv;
-    u >= 0.0 && v >= 0.0 && u + v <= 1.0 && e2.dot(q) * inv > 0.0
+    let t = e2.dot(q) * inv;
+    (u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0).then_some((t, u, v))
 }
 
 /// A triangle in map coordinates (cells), for questions along the light
