@@ -1309,15 +1309,7 @@ fn a_physically_based_fiber_draws_the_same_bytes_on_workers() {
         let want = local_frames(&scene, 2);
         for draw in [DrawAt::SortMiddle, DrawAt::SortLast, DrawAt::Coordinator] {
             let remote = RemoteExecutor::connect(&addrs, &scene, &options(draw, 20)).unwrap();
-            let mut seq = Sequence::new(&scene).unwrap();
-            seq.set_executor(Box::new(remote)).unwrap();
-            seq.expect_frames(want.len() as u64);
-            for (i, w) in want.iter().enumerate() {
-                assert!(
-                    seq.next_frame().unwrap().0 == w,
-                    "{draw:?} {head}: frame {i}"
-                );
-            }
+            assert_frames(&scene, remote, &want);
         }
     }
     // Multiple scattering changes the picture; the fiber differs from

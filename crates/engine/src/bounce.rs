@@ -264,7 +264,7 @@ pub(crate) fn cone_factor(sin_alpha: f32, u: f32) -> f32 {
 /// The head as it stands in a frame: its centre, its frame, and its
 /// surface about its centre.
 #[derive(Debug, Clone)]
-pub struct HeadShape {
+pub(crate) struct HeadShape {
     center: Vec3,
     /// The head's own frame from the world's, and back (the pose's linear
     /// part).
@@ -307,7 +307,7 @@ impl HeadShape {
 
 /// The head's light on the hair around it, for one frame.
 #[derive(Debug, Clone)]
-pub struct HeadLight {
+pub(crate) struct HeadLight {
     shape: HeadShape,
     /// Per cap size and sampled direction, the mean radiance of the cap
     /// around that direction: `[cap][direction]`, linear RGB.
@@ -339,7 +339,7 @@ impl HeadLight {
     /// The head `shape`, of radiance `radiance(x, n)` at its point `x` of
     /// outward normal `n` (world; linear RGB, as the head is shaded; asked
     /// at each sampled point once).
-    pub fn new(shape: HeadShape, radiance: impl Fn(Vec3, Vec3) -> Vec3) -> HeadLight {
+    pub(crate) fn new(shape: HeadShape, radiance: impl Fn(Vec3, Vec3) -> Vec3) -> HeadLight {
         let dirs: Vec<(Vec3, f32)> = (0..N_THETA)
             .flat_map(|i| (0..N_PHI).map(move |j| direction(i, j)))
             .collect();
@@ -401,7 +401,7 @@ impl HeadLight {
     /// Fills the head's map from the hair in the map of `light` (cells
     /// of `cell` scene units, `cells` a side): `lookup(points, out)` its
     /// transmittance at `points`, as drawn hair looks it up.
-    pub fn through_hair(
+    pub(crate) fn through_hair(
         &mut self,
         light: &Light,
         cell: f32,
@@ -451,7 +451,8 @@ impl HeadLight {
     /// irradiance `E_h` across it (linear RGB), and the height of `p`
     /// over the head's surface (0 inside). `None` at the centre, or where
     /// no surface lies below `p`.
-    pub fn at(&self, p: Vec3) -> Option<(Vec3, Vec3, f32)> {
+    #[cfg(test)]
+    fn at(&self, p: Vec3) -> Option<(Vec3, Vec3, f32)> {
         let (_, e, _, height) = self.light(p)?;
         Some(((self.shape.center - p).normalize_or_zero(), e, height))
     }
@@ -461,7 +462,7 @@ impl HeadLight {
     /// `E_h`, transmittance `T_h`, and `sin alpha` of the cone it comes
     /// from.
     #[inline]
-    pub fn through_at(&self, p: Vec3) -> Option<(Vec3, f32, f32)> {
+    pub(crate) fn through_at(&self, p: Vec3) -> Option<(Vec3, f32, f32)> {
         let (g, e, s, height) = self.light(p)?;
         if self.depth.is_empty() || self.reach <= 0.0 {
             return Some((e, 1.0, s));
@@ -494,17 +495,8 @@ impl HeadLight {
     }
 
     /// The head's centre now.
-    pub fn center(&self) -> Vec3 {
+    pub(crate) fn center(&self) -> Vec3 {
         self.shape.center
-    }
-
-    /// The most irradiance the head can send anywhere: its brightest
-    /// radiance over a hemisphere of directions.
-    pub fn max_irradiance(&self) -> f32 {
-        let brightest = self.caps[..DIRECTIONS]
-            .iter()
-            .fold(0.0f32, |m, c| m.max(c.max_element()));
-        2.0 * PI * brightest
     }
 
     /// The mean radiance over the cap of directions within `acos(cos_beta)`

@@ -34,7 +34,6 @@ mod stats;
 
 pub use animate::{Animator, GROUPS, Groups, split_by};
 pub use bands::{BandPlan, BandWork, ResolvedBand, Sort, Stripe};
-pub use bounce::{HeadLight, HeadShape};
 pub use exec::{
     DrawJob, DrawReport, Drawing, Drawn, Executor, FrameNeeds, FrameTime, LocalExecutor,
     PendingPicture, PosePlan, PoseReport, Site, StepPlan, Strands, step_wisps, step_wisps_while,

@@ -72,6 +72,9 @@ impl HairPart {
         lights: usize,
         lookup: impl Fn(usize, &[Vec3], &mut [f32]),
     ) {
+        // The head's light of this hair, if any, comes after
+        // (`filter_head`).
+        self.head_in.clear();
         self.trans.resize(lights, Vec::new());
         for (l, t) in self.trans.iter_mut().enumerate() {
             t.resize(hair.point_count(), 0.0);
@@ -85,7 +88,7 @@ impl HairPart {
     /// along a strand (over the head's size): looked up at every
     /// fourth vertex of each strand (`HEAD_STRIDE`) and its last, linear
     /// between.
-    pub fn filter_head(&mut self, hair: &Hair, head: &HeadLight) {
+    pub(crate) fn filter_head(&mut self, hair: &Hair, head: &HeadLight) {
         let (points, offsets) = (hair.points(), hair.offsets());
         self.head_center = head.center();
         self.head_in.clear();
@@ -159,8 +162,8 @@ impl HairPart {
     /// transmittance of the last [`Self::filter`] (`shadows`) or by full
     /// light: Kajiya-Kay, or a physically based fiber (its
     /// [`FiberTable`]), as `shading.model` says. The ambient term is added
-    /// once. With multiple scattering, `head` adds the light the head
-    /// sends, as the last [`Self::filter_head`] found it.
+    /// once. With multiple scattering, the light the head sends is added
+    /// where the last filter looked it up for this hair.
     pub fn shade(
         &mut self,
         hair: &Hair,
@@ -168,7 +171,6 @@ impl HairPart {
         shading: &Shading,
         lights: &[Light],
         shadows: bool,
-        head: bool,
     ) {
         let eye = seen.camera.position;
         let points = hair.points();
@@ -196,16 +198,12 @@ impl HairPart {
             ShadingModel::KajiyaKay => None,
         };
         // The head's light is scattered light: with multiple scattering.
-        let head = head
-            && shadows
+        let head = shadows
+            && self.head_in.len() == points.len()
             && matches!(
                 shading.model,
                 ShadingModel::Marschner { multiple: true, .. }
             );
-        assert!(
-            !head || self.head_in.len() == points.len(),
-            "filter_head runs before shading with the head's light"
-        );
         let (head_in, head_center) = (&self.head_in[..], self.head_center);
         self.colors.resize(points.len(), Vec3::ZERO);
         let offsets = hair.offsets();
@@ -507,27 +505,36 @@ pub(crate) fn head_optics(scene: &Scene) -> Option<FiberOptics> {
     })
 }
 
-/// The head's light for this frame: `head` as posed, shaded as its
-/// pixels are (no ambient term: light from no source is not bounced),
-/// `trans(light, x, n)` its transmittance at its point `x` of normal `n`,
-/// `forward` the fiber that scatters the light on its way.
+/// The head's light for this frame, through the hair between: `head` as
+/// posed, shaded as its pixels are (no ambient term: light from no source
+/// is not bounced), `trans(light, x, n)` its transmittance at its point
+/// `x` of normal `n`, `forward` the fiber that scatters the light on its
+/// way; the hair between as the map of the first of `lights` (not empty)
+/// has it, in `frame`, `lookup(points, out)` its transmittance at
+/// `points` (a method without a map: unattenuated).
 pub(crate) fn head_light(
     head: &Head,
     shading: &Shading,
     lights: &[Light],
     forward: &DualTable,
+    frame: Option<&shadow::LightFrame>,
     trans: impl Fn(usize, Vec3, Vec3) -> f32,
+    lookup: impl Fn(&[Vec3], &mut [f32]),
 ) -> HeadLight {
     let color = head.settings().color;
     let direct = Shading {
         ambient: 0.0,
         ..*shading
     };
-    HeadLight::new(head.shape(), |x, n| {
+    let mut light = HeadLight::new(head.shape(), |x, n| {
         head_lambert(color, &direct, lights, x, n, Some(forward), |l| {
             trans(l, x, n)
         })
-    })
+    });
+    if let Some(f) = frame {
+        light.through_hair(&lights[0], f.ds, f.n_cells, lookup);
+    }
+    light
 }
 
 /// Draws `head` into `canvas`'s opaque layer, `shade(point, normal)`
@@ -586,7 +593,7 @@ mod tests {
         let shaded = |multiple, shadows| {
             let mut part = HairPart::default();
             part.filter(&hair, 1, |_, _, t| t.fill(0.2));
-            part.shade(&hair, seen, &shading(multiple), &lights, shadows, false);
+            part.shade(&hair, seen, &shading(multiple), &lights, shadows);
             let duals = part.tables.iter().filter(|(_, t)| t.dual.is_some()).count();
             (part.colors().to_vec(), duals)
         };

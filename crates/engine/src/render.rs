@@ -8,10 +8,10 @@ use glam::{Affine3A, Vec3};
 use raster::{Camera, Canvas, DualTable, HairLayer, ShadingModel};
 use strands::{Bounds, Hair};
 
+use crate::bounce::HeadLight;
 use crate::part::{Seen, draw_head, head_lambert};
 use crate::{
-    DrawJob, DrawReport, Drawn, EngineError, HairPart, HeadLight, PendingPicture, Scene,
-    ShadowPipeline,
+    DrawJob, DrawReport, Drawn, EngineError, HairPart, PendingPicture, Scene, ShadowPipeline,
 };
 
 pub use crate::part::DEFAULT_HAIR_COLOR;
@@ -278,19 +278,7 @@ impl Renderer {
             .filter(hair, shadows.light_count(), |l, pts, out| {
                 shadows.filter_light(l, pts, out)
             });
-        // The head's light, through the hair between as the first light's
-        // map has it (a method without a map: unattenuated).
-        if let Some(mut head) = self.head_light() {
-            let shadows = &self.shadows;
-            let light = shadows
-                .lights()
-                .next()
-                .expect("the head lights with a light");
-            if let Some(f) = shadows.frame(0) {
-                head.through_hair(light, f.ds, f.n_cells, |pts, out| {
-                    shadows.filter_light(0, pts, out)
-                });
-            }
+        if let Some(head) = self.head_light() {
             self.part.filter_head(hair, &head);
         }
     }
@@ -317,6 +305,7 @@ impl Renderer {
             &self.scene.shading,
             &lights,
             &forward,
+            pipeline.frame(0),
             |l, x, n| {
                 if head_shadow {
                     pipeline.transmittance_off_surface(l, x, n)
@@ -324,6 +313,7 @@ impl Renderer {
                     1.0
                 }
             },
+            |pts, out| pipeline.filter_light(0, pts, out),
         ))
     }
 
@@ -357,10 +347,8 @@ impl Renderer {
             look: &look,
             first_strand: 0,
         };
-        let head =
-            self.head_optics.is_some() && self.shadows.head().is_some() && !lights.is_empty();
         self.part
-            .shade(hair, seen, &self.scene.shading, &lights, shadows, head);
+            .shade(hair, seen, &self.scene.shading, &lights, shadows);
         Ok(())
     }
 

@@ -382,6 +382,12 @@ impl Share {
                 )));
             }
         };
+        // The fiber that scatters light on to the head, when the head
+        // lights the hair.
+        let forward = self
+            .head_optics
+            .filter(|_| job.shadows)
+            .map(|o| self.part.dual_table(&o));
         if job.shadows {
             if maps.len() != job.lights.len() {
                 return Err(EngineError::executor(format!(
@@ -395,14 +401,18 @@ impl Share {
                 maps[l].filter(pts, job.trilinear, out)
             });
             // The head's light (see `Renderer::filter`).
-            let forward = self.head_optics.map(|o| self.part.dual_table(&o));
-            if let (Some(forward), Some(head), Some(light)) =
-                (&forward, &mut self.head, job.lights.first())
+            if let (Some(forward), Some(head)) = (&forward, &mut self.head)
+                && !job.lights.is_empty()
             {
                 head.set_pose(job.head);
                 let head_shadow = self.head_shadow;
-                let head =
-                    crate::part::head_light(head, &job.shading, &job.lights, forward, |l, x, n| {
+                let head = crate::part::head_light(
+                    head,
+                    &job.shading,
+                    &job.lights,
+                    forward,
+                    Some(maps[0].frame()),
+                    |l, x, n| {
                         if head_shadow {
                             let m = &maps[l];
                             let q = off_surface(m.frame(), x, n, 1.0);
@@ -410,35 +420,21 @@ impl Share {
                         } else {
                             1.0
                         }
-                    });
-                let (m, mut head) = (&maps[0], head);
-                let f = m.frame();
-                head.through_hair(light, f.ds, f.n_cells, |pts, out| {
-                    m.filter(pts, job.trilinear, out)
-                });
+                    },
+                    |pts, out| maps[0].filter(pts, job.trilinear, out),
+                );
                 self.part.filter_head(hair, &head);
             }
             times.filter_ms = ms(t);
         }
-        let forward = self
-            .head_optics
-            .filter(|_| job.shadows)
-            .map(|o| self.part.dual_table(&o));
-        let head_light = forward.is_some() && self.head.is_some() && !job.lights.is_empty();
         let t = Instant::now();
         let seen = Seen {
             camera: &job.camera,
             look: &job.look,
             first_strand,
         };
-        self.part.shade(
-            hair,
-            seen,
-            &job.shading,
-            &job.lights,
-            job.shadows,
-            head_light,
-        );
+        self.part
+            .shade(hair, seen, &job.shading, &job.lights, job.shadows);
         times.shade_ms = ms(t);
         let t = Instant::now();
         let (w, h) = (job.camera.width(), job.camera.height());
