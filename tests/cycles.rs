@@ -109,6 +109,23 @@ fn export_writes_a_blender_scene_of_the_frame() {
         assert!((got - want).abs() < 1e-5, "{d:?}");
     }
     assert!(out.join("head.bin").is_file() && out.join("scene.py").is_file());
+    // The sky: the fiber's ambient radiance (the default 0.25); none
+    // with Kajiya-Kay, whose ambient term is no light.
+    assert_eq!(json["sky"].as_f64(), Some(0.25));
+    let kk = write(
+        &dir,
+        "kk.toml",
+        &SCENE.replace(
+            "model = \"marschner\"\neumelanin = 1.3\n",
+            "ambient = 0.4\n",
+        ),
+    );
+    let kk_out = dir.join("kk");
+    let o = wisplight(&["export", &kk, "--blender", kk_out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(kk_out.join("scene.json")).unwrap()).unwrap();
+    assert_eq!(json["sky"].as_f64(), Some(0.0));
     // A directory that cannot be made is refused, nothing rendered.
     let blocker = write(&dir, "file", "x");
     let o = wisplight(&["export", &scene, "--blender", &format!("{blocker}/sub")]);

@@ -196,9 +196,9 @@ fn the_light_passes_add_up_to_the_beauty_and_the_frames_stay_the_same() {
         &at("f_%04d.png"),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    // The same frames without multiple scattering: direct + sky.
+    // The same frames without the sky: direct + scattered.
     let plain = dir.join("plain.toml");
-    std::fs::write(&plain, PASSES.replace("multiple_scattering = true", "")).unwrap();
+    std::fs::write(&plain, PASSES.replace("ambient = 0.3", "ambient = 0")).unwrap();
     let plain = plain.to_str().unwrap();
     let o = wisplight(&[
         "-q",
@@ -253,14 +253,14 @@ fn the_light_passes_add_up_to_the_beauty_and_the_frames_stay_the_same() {
             .unwrap()
             .into_rgb8();
         let bg = glam::Vec3::new(0.1, 0.2, 0.3);
-        let no_ms = image::open(at(&format!("p_{frame:04}.png")))
+        let no_sky = image::open(at(&format!("p_{frame:04}.png")))
             .unwrap()
             .into_rgb8();
         let (mut sky_lit, mut scattered_lit, mut shadowed) = (0, 0, 0);
         for (i, (got, plain)) in png
             .as_raw()
             .chunks_exact(3)
-            .zip(no_ms.as_raw().chunks_exact(3))
+            .zip(no_sky.as_raw().chunks_exact(3))
             .enumerate()
         {
             let get = |k: &str| c[k][i];
@@ -290,8 +290,8 @@ fn the_light_passes_add_up_to_the_beauty_and_the_frames_stay_the_same() {
             let want = raster::to_srgb8(over);
             let off = (0..3).map(|k| got[k].abs_diff(want[k])).max().unwrap();
             assert!(off <= 1, "frame {frame} pixel {i}: {got:?} vs {want:?}");
-            // Direct and sky alone are the picture without scattering.
-            let lit = |ch: &str| get(&format!("direct.{ch}")) + get(&format!("sky.{ch}"));
+            // Direct and scattered alone are the picture without the sky.
+            let lit = |ch: &str| get(&format!("direct.{ch}")) + get(&format!("scattered.{ch}"));
             let over = glam::Vec3::new(lit("R"), lit("G"), lit("B")) + bg * (1.0 - a);
             let want = raster::to_srgb8(over);
             let off = (0..3).map(|k| plain[k].abs_diff(want[k])).max().unwrap();

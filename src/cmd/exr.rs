@@ -7,9 +7,10 @@
 //! The light passes add up to the beauty: `direct + scattered + sky`.
 //! - `direct`: the lights' light that reached the hair and head without
 //!   meeting a fiber, shadowed, shaded once;
-//! - `scattered`: what the fibers pass on to one another (`[effects]
-//!   multiple_scattering`; zero without it);
-//! - `sky`: light from no source (`[shading] ambient`);
+//! - `scattered`: what the fibers pass on to one another of the lights'
+//!   light (`[effects] multiple_scattering`; zero without it);
+//! - `sky`: light from no source (`[shading] ambient`), all of it: what
+//!   the fibers pass on of it and the head sends back of it too;
 //! - `shadow` (not part of the sum): the direct light the shadows took,
 //!   the direct pass rendered without shadows less the direct pass;
 //! - `depth`: the view depth of the nearest surface (scene units), 1e10
@@ -34,9 +35,9 @@ const NO_DEPTH: f32 = 1e10;
 pub enum Pass {
     /// The lights' light, shadowed, shaded once.
     Direct,
-    /// What the fibers pass on to one another.
+    /// What the fibers pass on to one another of the lights' light.
     Scattered,
-    /// Light from no source (the ambient term).
+    /// Light from no source (the ambient term), all of it.
     Sky,
     /// The direct light the shadows took.
     Shadow,
@@ -101,12 +102,17 @@ pub fn frame(seq: &mut Sequence, scene: &Scene, passes: &[Pass]) -> anyhow::Resu
             }
         };
         let direct = render(&direct_scene)?;
-        // With the sky: the sky's share is the difference.
+        // The sky's share: the beauty less the same frame without it
+        // (which, without multiple scattering, is the direct light).
         let sky = if scene.shading.ambient > 0.0 && (asked(Pass::Sky) || asked(Pass::Scattered)) {
-            let mut s = direct_scene.clone();
-            s.shading.ambient = scene.shading.ambient;
-            let with_sky = render(&s)?;
-            with_sky.iter().zip(&direct).map(|(a, b)| *a - *b).collect()
+            let mut s = scene.clone();
+            s.shading.ambient = 0.0;
+            let without = if s == direct_scene {
+                direct.clone()
+            } else {
+                render(&s)?
+            };
+            beauty.iter().zip(&without).map(|(a, b)| *a - *b).collect()
         } else {
             vec![Vec4::ZERO; w * h]
         };

@@ -37,8 +37,11 @@
 //! sweep out along the column sums it into the optical depth
 //! `tau_h(r) = int sigma_t dr` from the surface. A vertex looks `tau_h`
 //! up at its direction and height (bilinear, linear between radii) and
-//! gets `E_h` through `T_h = exp(-tau_h)`; the fiber scatters it as it
-//! scatters a light's irradiance, multiple scattering included. The
+//! gets `E_h` through `T_h = exp(-tau_h')`, `tau_h'` the depth its rays
+//! cross on their slanted paths from the whole cone ([`slant_depth`]).
+//! The fiber scatters it as light spread over the cone
+//! ([`raster::cone_light`]: from the cone's mean angle along the fiber,
+//! every lobe widened as the cone is), multiple scattering included. The
 //! radii near the head, whose lookups would reach the head's own deposit
 //! in the light's map, take the extinction of the first clear one.
 
@@ -205,60 +208,74 @@ fn grid(n: Vec3) -> Grid {
     ((i0, i1, fu), (j0, (j0 + 1) % N_PHI, v - vf))
 }
 
-/// Steps of the [`cone_factor`] table along `sin alpha` and `|u|`.
-const CONE_STEPS: usize = 16;
+/// Steps of the [`slant_depth`] table along `sin alpha` and `sqrt(tau)`.
+const SLANT_STEPS: usize = 32;
+/// The deepest radial optical depth the table holds (past it, deeper
+/// hair takes that depth's ratio).
+const SLANT_DEPTH: f32 = 32.0;
 
-/// How much more (or less) a fiber takes from light spread evenly over a
-/// cone of half-angle `alpha` than from the same irradiance along the
-/// cone's axis, through the fiber's `cos theta_i = sqrt(1 - (w . t)^2)`:
-/// the mean of it over the cone's directions over its value on the axis,
-/// `u = c . t` (`c` the axis, `t` the fiber's tangent). A fiber lying
-/// across the axis takes `pi / 4` of it from a hemisphere; one along the
-/// axis takes light only from the cone's sides (at most 4 times the
-/// axis's, where that is nearly none). Integrated once (midpoint rule,
-/// uniform in solid angle), looked up bilinear.
-pub(crate) fn cone_factor(sin_alpha: f32, u: f32) -> f32 {
+/// The optical depth of the hair between a point and the head, for its
+/// light as a whole: the point at distance `d` from the head's centre sees
+/// the head (radius `R`, `sin alpha = R / d`) over a cone, and a ray at
+/// `gamma` from the cone's axis crosses the hair between over a path
+/// longer than the radial one, `h = d - R`, by
+///
+/// ```text
+/// k(gamma) = (d cos gamma - sqrt(R^2 - d^2 sin^2 gamma)) / h
+///          = (1 + s) / (cos gamma + sqrt(s^2 - sin^2 gamma)),   s = sin alpha
+/// ```
+///
+/// (1 along the axis, `1 / cos gamma` over a flat layer). With the hair's
+/// extinction even along the way, the radial depth `tau` becomes `tau k`
+/// along each ray, and the head's light, even over the cone's solid
+/// angle, arrives as through the depth
+///
+/// ```text
+/// tau_h = -ln < exp(-tau k(gamma)) >
+/// ```
+///
+/// (`E_2(tau)` under a flat layer: at `tau = 1`, 0.15 where the radial
+/// path alone lets 0.37 through). Tabulated as `tau_h / tau` once
+/// (midpoint rule, uniform in solid angle), looked up bilinear.
+pub(crate) fn slant_depth(sin_alpha: f32, tau: f32) -> f32 {
     static TABLE: std::sync::OnceLock<Vec<f32>> = std::sync::OnceLock::new();
     let table = TABLE.get_or_init(|| {
-        let n = 48;
-        let mut out = Vec::with_capacity((CONE_STEPS + 1) * (CONE_STEPS + 1));
-        for a in 0..=CONE_STEPS {
-            let sa = a as f64 / CONE_STEPS as f64;
-            let ca = (1.0 - sa * sa).max(0.0).sqrt();
-            for k in 0..=CONE_STEPS {
-                let u = k as f64 / CONE_STEPS as f64;
-                let w = (1.0 - u * u).max(0.0).sqrt();
+        let mut out = Vec::with_capacity((SLANT_STEPS + 1) * (SLANT_STEPS + 1));
+        let n = 256;
+        for a in 0..=SLANT_STEPS {
+            let s = a as f64 / SLANT_STEPS as f64;
+            let ca = (1.0 - s * s).max(0.0).sqrt();
+            for k in 0..=SLANT_STEPS {
+                let x = k as f64 / SLANT_STEPS as f64;
+                let tau = (SLANT_DEPTH as f64 * x * x).max(1e-3);
                 let mut sum = 0.0;
                 for i in 0..n {
                     // cos gamma uniform over [cos alpha, 1].
                     let cg = ca + (1.0 - ca) * (i as f64 + 0.5) / n as f64;
-                    let sg = (1.0 - cg * cg).max(0.0).sqrt();
-                    for j in 0..n {
-                        let psi = 2.0 * std::f64::consts::PI * (j as f64 + 0.5) / n as f64;
-                        let wt = cg * u + sg * psi.cos() * w;
-                        sum += (1.0 - wt * wt).max(0.0).sqrt();
-                    }
+                    let sg2 = 1.0 - cg * cg;
+                    let path = (1.0 + s) / (cg + (s * s - sg2).max(0.0).sqrt()).max(1e-9);
+                    sum += (-tau * path).exp();
                 }
-                let mean = sum / (n * n) as f64;
-                out.push((mean / w.max(1e-6)).min(4.0) as f32);
+                let t = (sum / n as f64).max(1e-300);
+                out.push((-t.ln() / tau) as f32);
             }
         }
         out
     });
-    let x = sin_alpha.clamp(0.0, 1.0) * CONE_STEPS as f32;
-    let y = u.abs().min(1.0) * CONE_STEPS as f32;
-    let (a, fa) = (
-        (x as usize).min(CONE_STEPS - 1),
-        x - (x as usize).min(CONE_STEPS - 1) as f32,
+    if tau.is_nan() || tau <= 0.0 {
+        return 0.0;
+    }
+    let x = sin_alpha.clamp(0.0, 1.0) * SLANT_STEPS as f32;
+    let y = (tau / SLANT_DEPTH).min(1.0).sqrt() * SLANT_STEPS as f32;
+    let (a, k) = (
+        (x as usize).min(SLANT_STEPS - 1),
+        (y as usize).min(SLANT_STEPS - 1),
     );
-    let (k, fk) = (
-        (y as usize).min(CONE_STEPS - 1),
-        y - (y as usize).min(CONE_STEPS - 1) as f32,
-    );
-    let at = |a: usize, k: usize| table[a * (CONE_STEPS + 1) + k];
+    let (fa, fk) = (x - a as f32, y - k as f32);
+    let at = |a: usize, k: usize| table[a * (SLANT_STEPS + 1) + k];
     let top = at(a, k) + (at(a, k + 1) - at(a, k)) * fk;
     let bottom = at(a + 1, k) + (at(a + 1, k + 1) - at(a + 1, k)) * fk;
-    top + (bottom - top) * fa
+    tau * (top + (bottom - top) * fa)
 }
 
 /// The head as it stands in a frame: its centre, its frame, and its
@@ -475,7 +492,7 @@ impl HeadLight {
             let col = &self.depth[(i * N_PHI + jj) * RADII..][..RADII];
             col[j] + (col[j + 1] - col[j]) * f
         });
-        Some((e, (-tau).exp(), s))
+        Some((e, (-slant_depth(s, tau)).exp(), s))
     }
 
     /// At `p`: where its direction falls among the sampled ones, the
@@ -622,16 +639,25 @@ mod tests {
     }
 
     #[test]
-    fn a_fiber_across_a_hemisphere_takes_a_quarter_of_pi_of_it() {
-        // Across the axis, from a hemisphere: the mean of sqrt(1 - x^2)
-        // for x = w . t over the hemisphere, pi / 4.
-        assert!((cone_factor(1.0, 0.0) - PI / 4.0).abs() < 0.01);
-        // From a point: the axis's own.
-        for u in [0.0, 0.5, 0.9] {
-            assert!((cone_factor(0.0, u) - 1.0).abs() < 1e-3);
+    fn the_heads_light_crosses_the_hair_on_slanted_paths() {
+        // From a point (far from the head) every ray is radial.
+        for tau in [0.1f32, 1.0, 5.0] {
+            assert!((slant_depth(0.0, tau) - tau).abs() < 1e-3 * tau.max(1.0));
         }
-        // A fiber nearly along the axis gets more from the sides, bounded.
-        let along = cone_factor(0.8, 0.99);
-        assert!(along > 1.0 && along <= 4.0, "{along}");
+        // At the surface, a flat layer under a hemisphere: exp(-tau_h) =
+        // E_2(tau) = exp(-tau) - tau E_1(tau), from tables of E_1.
+        for (tau, e2) in [(0.5f32, 0.326_644f32), (1.0, 0.148_496), (2.0, 0.037_534)] {
+            let t = (-slant_depth(1.0, tau)).exp();
+            assert!((t / e2 - 1.0).abs() < 0.02, "tau {tau}: {t} against {e2}");
+        }
+        // The nearer the head, the wider the cone and the longer the paths.
+        let mut last = 0.0;
+        for k in 0..=10 {
+            let d = slant_depth(k as f32 / 10.0, 2.0);
+            assert!(d >= last - 1e-4 && d.is_finite(), "{k}: {d}");
+            last = d;
+        }
+        assert_eq!(slant_depth(0.7, 0.0), 0.0);
+        assert_eq!(slant_depth(0.7, f32::NAN), 0.0);
     }
 }

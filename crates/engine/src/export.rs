@@ -57,6 +57,9 @@ struct SceneJson {
     height: u32,
     samples: u32,
     background: [f32; 3],
+    /// The sky's radiance from every direction (`[shading] ambient` of
+    /// the physically based fiber); 0 for none, and for Kajiya-Kay.
+    sky: f32,
     camera: CameraJson,
     lights: Vec<LightJson>,
     hair: HairJson,
@@ -246,6 +249,11 @@ pub fn cycles_export(seq: &Sequence, samples: u32) -> Result<CyclesExport, Engin
         height: camera.height(),
         samples,
         background: scene.render.background.to_array(),
+        // Kajiya-Kay's ambient term is no light: none goes with it.
+        sky: match scene.shading.model {
+            raster::ShadingModel::Marschner { .. } => scene.shading.ambient,
+            raster::ShadingModel::KajiyaKay => 0.0,
+        },
         camera: CameraJson {
             position: z_up(camera.position),
             right: z_up(right),

@@ -2,6 +2,7 @@
 //! rasterization of some drawn hair: all of it in one process, or a
 //! cluster worker's share. The same code either way, so the same bytes.
 
+use std::f32::consts::PI;
 use std::sync::Arc;
 
 use glam::Vec3;
@@ -221,16 +222,6 @@ impl HairPart {
             ambient: 0.0,
             ..*shading
         };
-        // A fiber's ambient term is in the colour its absorption gives
-        // (a strand's own when that sets the absorption).
-        let fiber_color = match shading.model {
-            ShadingModel::Marschner {
-                optics,
-                from_color: false,
-                ..
-            } => Some(raster::color_from_sigma_a(optics.sigma_a, optics.beta_n)),
-            _ => None,
-        };
         chunks
             .into_par_iter()
             .enumerate()
@@ -247,12 +238,43 @@ impl HairPart {
                 let table = fiber
                     .as_ref()
                     .map(|((tables, of_strand), e)| (&tables[of_strand[si] as usize], *e));
-                let color = fiber_color.unwrap_or(strand_color);
-                for (v, o) in out.iter_mut().enumerate() {
-                    // Tangent by central differences (one-sided at the ends).
+                // Tangent by central differences (one-sided at the ends),
+                // and the unit direction to the eye.
+                let axes = |v: usize| {
                     let (a, b) = (pts[v.saturating_sub(1)], pts[(v + 1).min(pts.len() - 1)]);
                     let tangent = (b - a).normalize_or(Vec3::Y);
-                    let to_eye = (eye - pts[v]).normalize_or(Vec3::Z);
+                    (tangent, (eye - pts[v]).normalize_or(Vec3::Z))
+                };
+                let sky_t = |v: usize| {
+                    if !shadows || lights.is_empty() {
+                        1.0
+                    } else {
+                        (0..lights.len()).map(|l| trans[l][base + v]).sum::<f32>()
+                            / lights.len() as f32
+                    }
+                };
+                // The head's light and the sky it hides, per vertex: at
+                // every HEAD_STRIDE-th vertex and the last, linear between
+                // (they change over the head's size, not a strand's step).
+                let head_terms: Vec<(Vec3, Vec3)> = match table {
+                    Some((tables, _)) if head => match &tables.dual {
+                        Some(dual) => along_strand(out.len(), |v| {
+                            let (tangent, to_eye) = axes(v);
+                            head_term(
+                                dual,
+                                head_in[base + v],
+                                (pts[v], head_center),
+                                (tangent, to_eye),
+                                sky_t(v),
+                                shading.ambient,
+                            )
+                        }),
+                        None => Vec::new(),
+                    },
+                    _ => Vec::new(),
+                };
+                for (v, o) in out.iter_mut().enumerate() {
+                    let (tangent, to_eye) = axes(v);
                     let p = pts[v];
                     // Each light's direction towards it and its falloff
                     // (1 for a directional light: the same bits).
@@ -265,20 +287,32 @@ impl HairPart {
                             .map(|(l, light)| {
                                 let sh = if l == 0 { shading } else { &rest_lights };
                                 let (to_light, scale) = at(light);
-                                kajiya_kay(sh, color, tangent, to_light, to_eye, tr(l) * scale)
+                                kajiya_kay(
+                                    sh,
+                                    strand_color,
+                                    tangent,
+                                    to_light,
+                                    to_eye,
+                                    tr(l) * scale,
+                                )
                             })
                             .fold(Vec3::ZERO, |c, x| c + x),
                         Some((tables, irradiance)) => {
                             let uo = tangent.dot(to_eye).clamp(-1.0, 1.0);
-                            // Light from no source (the sky) is shadowed by
-                            // the same maps: their mean transmittance, so
-                            // no light reaches the hair unshadowed.
-                            let sky = if lights.is_empty() {
-                                1.0
-                            } else {
-                                (0..lights.len()).map(tr).sum::<f32>() / lights.len() as f32
+                            // The sky: radiance `k_a` from every direction,
+                            // shadowed by the same maps (their mean
+                            // transmittance, so no light reaches the hair
+                            // unshadowed), and scattered by the fiber as
+                            // the lights are, multiple scattering
+                            // included; where the head's light is known,
+                            // less the cone of it the head hides (below).
+                            let sky = sky_t(v);
+                            let mut sky_light = match &tables.dual {
+                                _ if shading.ambient <= 0.0 => Vec3::ZERO,
+                                Some(dual) => shading.ambient * dual.sky(uo, sky),
+                                None => shading.ambient * sky * tables.single.sky(uo),
                             };
-                            let mut c = shading.ambient * sky * color;
+                            let mut c = Vec3::ZERO;
                             // sin theta_i and cos phi of light from
                             // `to_light`, cos phi between its and the eye's
                             // directions across the fiber, from unit
@@ -294,19 +328,11 @@ impl HairPart {
                                 };
                                 (ui, cos_phi)
                             };
-                            if head
-                                && let Some(dual) = &tables.dual
-                                && let (e, t, sin_alpha) = head_in[base + v]
-                                && e.max_element() > 0.0
-                            {
-                                // The cone's light as from its axis, with
-                                // the fiber's cos theta_i over the cone.
-                                let to_head = (head_center - p).normalize_or_zero();
-                                let (ui, cos_phi) = incidence(to_head);
-                                let single = tables.single.radiance(ui, uo, cos_phi);
-                                let e = e * crate::bounce::cone_factor(sin_alpha, ui);
-                                c += e * dual.radiance(single, t, ui, uo, cos_phi);
+                            if let Some(&(from_head, hidden)) = head_terms.get(v) {
+                                c += from_head;
+                                sky_light -= hidden;
                             }
+                            c += sky_light.max(Vec3::ZERO);
                             for (l, light) in lights.iter().enumerate() {
                                 let (to_light, scale) = at(light);
                                 let (ui, cos_phi) = incidence(to_light);
@@ -426,21 +452,86 @@ pub struct Seen<'a> {
     pub first_strand: u32,
 }
 
+/// `term(v)` at every [`HEAD_STRIDE`]-th of `n` vertices and the last,
+/// linear between: one value a vertex.
+fn along_strand(n: usize, term: impl Fn(usize) -> (Vec3, Vec3)) -> Vec<(Vec3, Vec3)> {
+    let mut out = Vec::with_capacity(n);
+    let mut i = 0;
+    let mut a = if n > 0 { term(0) } else { return out };
+    while i + 1 < n {
+        let j = (i + HEAD_STRIDE).min(n - 1);
+        let b = term(j);
+        for k in i..j {
+            let f = (k - i) as f32 / (j - i) as f32;
+            out.push((a.0 + (b.0 - a.0) * f, a.1 + (b.1 - a.1) * f));
+        }
+        (i, a) = (j, b);
+    }
+    out.push(a);
+    out
+}
+
+/// At a vertex `p` of unit tangent and direction to the eye `axes`, with
+/// the head's light `(E_h, T_h, sin alpha)` ([`HeadLight::through_at`])
+/// from the head centred at `center`: the radiance the fiber sends to the
+/// eye of it (the cone's light as from its mean angle along the fiber,
+/// the lobes spread as the cone is, [`raster::cone_light`]), and of the
+/// sky of radiance `ambient` (transmittance `sky_t`) the head hides over
+/// that cone, `Omega = 2 pi (1 - cos alpha)` of it.
+fn head_term(
+    dual: &DualTable,
+    (e, t, sin_alpha): (Vec3, f32, f32),
+    (p, center): (Vec3, Vec3),
+    (tangent, to_eye): (Vec3, Vec3),
+    sky_t: f32,
+    ambient: f32,
+) -> (Vec3, Vec3) {
+    if sin_alpha.is_nan() || sin_alpha <= 0.0 || (ambient <= 0.0 && e.max_element() <= 0.0) {
+        return (Vec3::ZERO, Vec3::ZERO);
+    }
+    let to_head = (center - p).normalize_or_zero();
+    let (ui, uo) = (
+        tangent.dot(to_head).clamp(-1.0, 1.0),
+        tangent.dot(to_eye).clamp(-1.0, 1.0),
+    );
+    let d = ((1.0 - ui * ui) * (1.0 - uo * uo)).sqrt();
+    let cos_phi = if d > 1e-6 {
+        (to_head.dot(to_eye) - ui * uo) / d
+    } else {
+        1.0
+    };
+    let cone = raster::cone_light(sin_alpha, ui);
+    let at = (cone.sin_theta, uo, cos_phi);
+    if ambient > 0.0 {
+        let [from_head, hidden] = dual.radiance_spread([t, sky_t], at, cone.spread, cone.across);
+        let omega = 2.0 * PI * (1.0 - (1.0 - sin_alpha * sin_alpha).max(0.0).sqrt());
+        (
+            e * cone.factor * from_head,
+            ambient * omega * cone.factor * hidden,
+        )
+    } else {
+        let [from_head] = dual.radiance_spread([t], at, cone.spread, cone.across);
+        (e * cone.factor * from_head, Vec3::ZERO)
+    }
+}
+
 /// The head's colour at a surface point `p` of unit normal `n`: Lambert
 /// under the hair's shadow,
 ///
 /// ```text
-/// Phi = k_a C + sum_l s E_l T_l C max(n . L_l, 0)
+/// Phi = k_a T_sky C + sum_l s E_l T_l C max(n . L_l, 0)
 /// ```
 ///
 /// with `C` the head's linear colour, `k_a` the ambient share, `L_l` the
 /// unit direction towards light `l` at `p`, `E_l` its falloff there
 /// ([`Light::falloff`], 1 for a directional light) and `T_l` its
-/// transmittance there, `trans(l)` (asked only where the light reaches
-/// the surface). With Kajiya-Kay `s = 1 - k_a` (the paper's split); with
-/// the physically based fiber `s = E / pi`, a diffuse surface of albedo
-/// `C` under the irradiance `E` that lights the hair (radiance `C E cos /
-/// pi`, as a path tracer's diffuse surface under a sun of strength `E`).
+/// transmittance there, `trans(l)` (asked where the light reaches the
+/// surface, and for the sky). With Kajiya-Kay `s = 1 - k_a` (the paper's
+/// split) and `T_sky = 1`; with the physically based fiber `s = E / pi`,
+/// a diffuse surface of albedo `C` under the irradiance `E` that lights
+/// the hair (radiance `C E cos / pi`, as a path tracer's diffuse surface
+/// under a sun of strength `E`), and the sky of radiance `k_a` shadowed
+/// by the lights' mean transmittance `T_sky`, as the hair's is.
 ///
 /// With `forward` (multiple scattering), the light the hair scatters
 /// forward reaches the head too: `T_l` becomes the hair's forward
@@ -461,18 +552,39 @@ pub(crate) fn head_lambert(
         ShadingModel::KajiyaKay => 1.0 - ambient,
         ShadingModel::Marschner { irradiance, .. } => irradiance / std::f32::consts::PI,
     };
-    let mut c = ambient * color;
+    let through = |l: usize| {
+        let t = trans(l);
+        forward.map_or(Vec3::splat(t), |f| {
+            f.forward_transmittance(t, 0.0).max(Vec3::splat(t))
+        })
+    };
+    // The sky: Kajiya-Kay's ambient term unshadowed, as the paper has
+    // it; under the physically based fiber, radiance `k_a` from every
+    // direction (radiance `C k_a` off a diffuse surface), shadowed as the
+    // hair's is, by the lights' mean transmittance.
+    let shadowed_sky = matches!(shading.model, ShadingModel::Marschner { .. })
+        && ambient > 0.0
+        && !lights.is_empty();
+    let (mut c, mut sky) = (Vec3::ZERO, Vec3::ZERO);
     for (l, light) in lights.iter().enumerate() {
         let lambert = n.dot(-light.direction_at(p)).max(0.0);
         let scale = light.falloff(p);
-        if lambert > 0.0 && scale > 0.0 {
-            let t = trans(l);
-            let t = forward.map_or(Vec3::splat(t), |f| {
-                f.forward_transmittance(t, 0.0).max(Vec3::splat(t))
-            });
+        let lit = lambert > 0.0 && scale > 0.0;
+        if !(lit || shadowed_sky) {
+            continue;
+        }
+        let t = through(l);
+        sky += t;
+        if lit {
             c += t * scale * lambert * s * color;
         }
     }
+    let sky = if shadowed_sky {
+        sky / lights.len() as f32
+    } else {
+        Vec3::ONE
+    };
+    c += ambient * sky * color;
     c
 }
 
@@ -522,12 +634,10 @@ pub(crate) fn head_light(
     lookup: impl Fn(&[Vec3], &mut [f32]),
 ) -> HeadLight {
     let color = head.settings().color;
-    let direct = Shading {
-        ambient: 0.0,
-        ..*shading
-    };
+    // The head sends back what lights it: the lights and the sky, as it
+    // is drawn.
     let mut light = HeadLight::new(head.shape(), |x, n| {
-        head_lambert(color, &direct, lights, x, n, Some(forward), |l| {
+        head_lambert(color, shading, lights, x, n, Some(forward), |l| {
             trans(l, x, n)
         })
     });

@@ -505,3 +505,54 @@ fn a_light_inside_the_hair_is_refused_with_a_clear_error() {
     let e = seq.next_frame().unwrap_err().to_string();
     assert!(e.contains("inside the hair"), "{e}");
 }
+
+#[test]
+fn the_sky_lights_the_hair_through_its_fiber_under_its_shadow() {
+    // The same side-lit hair with and without a sky of radiance 0.3:
+    // what the sky adds is in the fiber's colour (blond: red over blue),
+    // less where the hair shadows it, and more with multiple scattering,
+    // which carries the sky's light into the hair as it carries the
+    // sun's.
+    let shot = |ambient: f32, multiple: bool, shadow: bool| {
+        let text = format!(
+            "[hair]\nstrands_per_wisp = 4\n[render]\nwidth = 96\nheight = 64\nbackground = [0, 0, 0]\n\
+             [[light]]\ndirection = [-1, -0.3, -0.2]\n[head]\nvisible = false\n\
+             [shading]\nmodel = \"marschner\"\neumelanin = 0.3\nambient = {ambient}\nirradiance = 2\n\
+             [effects]\nmultiple_scattering = {multiple}\nself_shadow = {shadow}\n"
+        );
+        let s = Scene::from_toml_str(&text, Path::new("sky.toml")).unwrap();
+        // Summed in linear RGB: the sky's share adds there.
+        let hair = build_hair(&s).unwrap();
+        let mut r = Renderer::new(&s).unwrap();
+        r.render(&hair, shadow).unwrap();
+        let px = r.linear_picture().unwrap();
+        px.iter().fold([0.0f64; 3], |a, p| {
+            [
+                a[0] + f64::from(p.x),
+                a[1] + f64::from(p.y),
+                a[2] + f64::from(p.z),
+            ]
+        })
+    };
+    let sky = |multiple: bool, shadow: bool| {
+        let (with, without) = (shot(0.3, multiple, shadow), shot(0.0, multiple, shadow));
+        [
+            with[0] - without[0],
+            with[1] - without[1],
+            with[2] - without[2],
+        ]
+    };
+    let single = sky(false, true);
+    assert!(single[0] > 0.0 && single[0] > single[2], "{single:?}");
+    let open = sky(false, false);
+    let sum = |m: [f64; 3]| m.iter().sum::<f64>();
+    assert!(
+        sum(open) > 1.2 * sum(single),
+        "open {open:?}, shadowed {single:?}"
+    );
+    let multiple = sky(true, true);
+    assert!(
+        sum(multiple) > 1.1 * sum(single),
+        "multiple {multiple:?}, single {single:?}"
+    );
+}

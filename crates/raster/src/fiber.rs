@@ -487,10 +487,12 @@ fn gauss_legendre(n: usize) -> Vec<(f32, f32)> {
     out
 }
 
+mod cone;
 mod dual;
 #[cfg(test)]
 mod tests;
 
+pub use cone::{ConeLight, cone_light};
 pub use dual::{BODY_DEPTH, DENSITY_BACK, DENSITY_FORWARD, DualTable, MAX_DEPTH, optical_depth};
 
 /// [`FarField`] tabulated for shading many vertices: the radiance a fiber
@@ -503,6 +505,40 @@ pub struct FiberTable {
     /// In SIMD lanes: the seven interpolations of a lookup run a vector
     /// at a time (about a third faster than `Vec3`).
     values: Vec<Vec3A>,
+    /// [`Self::sky`] at `SKY_THETA` nodes of `sin theta_o`.
+    sky: Vec<Vec3A>,
+}
+
+/// Nodes along `sin theta_o` of the fibers' light from a uniform sky.
+pub(crate) const SKY_THETA: usize = 17;
+
+/// `int g(w) dw` over the sphere of directions about a fiber (`u = sin
+/// theta` along it, `dw = du dphi`): Gauss-Legendre in `u`, midpoint in
+/// `phi` over the half circle (the fiber is even in `phi`), `g(u, cos
+/// phi)`.
+pub(crate) fn over_sphere(g: impl Fn(f32, f32) -> Vec3) -> Vec3 {
+    const PHI: usize = 24;
+    let mut sum = Vec3::ZERO;
+    for (u, w) in gauss_legendre(32) {
+        for k in 0..PHI {
+            let phi = (k as f32 + 0.5) * PI / PHI as f32;
+            sum += g(u, phi.cos()) * (w * 2.0 * PI / PHI as f32);
+        }
+    }
+    sum
+}
+
+/// `sin theta_o` at sky node `k`, and the node and share of the next
+/// for `uo`.
+pub(crate) fn sky_node(k: usize) -> f32 {
+    -1.0 + 2.0 * k as f32 / (SKY_THETA - 1) as f32
+}
+
+pub(crate) fn sky_cell(uo: f32) -> (usize, f32) {
+    let top = (SKY_THETA - 1) as f32;
+    let f = ((uo + 1.0) * (0.5 * top)).clamp(0.0, top - 1e-3);
+    let k = f as usize;
+    (k, f - k as f32)
 }
 
 /// Grid nodes along `sin theta_i` and `sin theta_o`: 2.9 degrees apart at
@@ -551,7 +587,26 @@ impl FiberTable {
                     }
                 }
             });
-        FiberTable { values }
+        let mut table = FiberTable {
+            values,
+            sky: Vec::new(),
+        };
+        table.sky = (0..SKY_THETA)
+            .map(|k| {
+                let uo = sky_node(k);
+                Vec3A::from(over_sphere(|ui, cos_phi| table.radiance(ui, uo, cos_phi)))
+            })
+            .collect();
+        table
+    }
+
+    /// The radiance towards `sin theta_o = uo` under a sky of unit
+    /// radiance from every direction, nothing in the way:
+    /// `int R(w_i, w_o) dw_i` over the sphere, `R` [`Self::radiance`]
+    /// (1 for a fiber that absorbs nothing, the white furnace).
+    pub fn sky(&self, uo: f32) -> Vec3 {
+        let (k, t) = sky_cell(uo);
+        Vec3::from(self.sky[k] + (self.sky[k + 1] - self.sky[k]) * t)
     }
 
     /// The radiance towards `sin theta_o = uo` per unit irradiance from

@@ -24,9 +24,9 @@ pub use canvas::{
     to_srgb8,
 };
 pub use fiber::{
-    BODY_DEPTH, Chiang, DENSITY_BACK, DENSITY_FORWARD, DualTable, FarField, FiberOptics,
-    FiberTable, MAX_DEPTH, P_MAX, color_from_sigma_a, optical_depth, sigma_a_from_color,
-    sigma_a_from_melanin,
+    BODY_DEPTH, Chiang, ConeLight, DENSITY_BACK, DENSITY_FORWARD, DualTable, FarField, FiberOptics,
+    FiberTable, MAX_DEPTH, P_MAX, color_from_sigma_a, cone_light, optical_depth,
+    sigma_a_from_color, sigma_a_from_melanin,
 };
 pub use gif::GifWriter;
 pub use png::encode_png;

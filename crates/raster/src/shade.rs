@@ -1,10 +1,12 @@
 //! Hair shading: Kajiya-Kay, as in the paper,
 //! `Phi = Phi_ambient + T (Phi_diffuse + Phi_specular)`, or a physically
 //! based fiber (Chiang et al. 2016, see [`crate::FiberOptics`]),
-//! `Phi = k_a T_sky color + T E f(w_o, w_i) |cos theta_i|` (the sky term
-//! `k_a` shadowed by the lights' mean transmittance `T_sky`), with light
-//! scattered between fibers as well if asked (dual scattering, see
-//! [`crate::DualTable`]).
+//! `Phi = k_a S(theta_o, T_sky) + T E f(w_o, w_i) |cos theta_i|` (the sky
+//! of radiance `k_a` from every direction, `S` the fiber's light under it,
+//! [`crate::FiberTable::sky`], shadowed by the lights' mean transmittance
+//! `T_sky`), with light scattered between fibers as well if asked (dual
+//! scattering, see [`crate::DualTable`], the sky's too:
+//! [`crate::DualTable::sky`]).
 
 use glam::Vec3;
 
@@ -18,9 +20,10 @@ pub enum ShadingModel {
     #[default]
     KajiyaKay,
     /// Chiang et al.'s fiber (2016), averaged across its width, lit by
-    /// each light with irradiance `irradiance`; the ambient term is light
-    /// from the sky, `k_a T_sky color`, shadowed by the mean transmittance
-    /// of the lights. With `from_color`, each strand's `sigma_a` follows
+    /// each light with irradiance `irradiance`; the ambient term is a sky
+    /// of radiance `k_a` from every direction, scattered by the fiber as
+    /// the lights are and shadowed by the mean transmittance of the
+    /// lights. With `from_color`, each strand's `sigma_a` follows
     /// its colour ([`crate::sigma_a_from_color`]) and `optics.sigma_a` is
     /// unused.
     Marschner {

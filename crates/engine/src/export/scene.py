@@ -84,17 +84,20 @@ def hair_material(h):
     bsdf.inputs["Offset"].default_value = math.radians(fiber["alpha_deg"])
     bsdf.inputs["Random Roughness"].default_value = 0.0
     bsdf.inputs["Random Color"].default_value = 0.0
-    # A fiber lets through 1 - opacity of what reaches it: the shadow's
-    # opacity for shadow rays, the draw's for rays from the camera.
+    # A fiber lets through 1 - opacity of what reaches it: the draw's
+    # opacity for rays from the camera, the shadow's for every other ray.
+    # Light passing among the fibers, towards a light (shadow rays) or
+    # scattered on (bounces), meets them as wisplight's density map has
+    # them.
     cam_op, shadow_op = h["camera_opacity"], h["shadow_opacity"]
     shader = bsdf.outputs["BSDF"]
     if cam_op < 1.0 or shadow_op < 1.0:
         path = nt.nodes.new("ShaderNodeLightPath")
         lerp = nt.nodes.new("ShaderNodeMath")
         lerp.operation = "MULTIPLY_ADD"
-        nt.links.new(path.outputs["Is Shadow Ray"], lerp.inputs[0])
-        lerp.inputs[1].default_value = shadow_op - cam_op
-        lerp.inputs[2].default_value = cam_op
+        nt.links.new(path.outputs["Is Camera Ray"], lerp.inputs[0])
+        lerp.inputs[1].default_value = cam_op - shadow_op
+        lerp.inputs[2].default_value = shadow_op
         clear_bsdf = nt.nodes.new("ShaderNodeBsdfTransparent")
         mix = nt.nodes.new("ShaderNodeMixShader")
         nt.links.new(lerp.outputs[0], mix.inputs["Fac"])
@@ -260,8 +263,14 @@ def main():
     scene.view_settings.gamma = 1.0
     world = bpy.data.worlds.new("wisplight_world")
     world.use_nodes = True
-    world.node_tree.nodes["Background"].inputs["Color"].default_value = s["background"] + [1.0]
-    world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
+    # The sky: radiance `sky` from every direction, lighting the hair and
+    # the head (through the hair) but not seen by the camera, whose
+    # background stays black as wisplight's linear pictures have it.
+    sky = float(s.get("sky", 0.0))
+    background = world.node_tree.nodes["Background"]
+    background.inputs["Color"].default_value = [sky, sky, sky, 1.0]
+    background.inputs["Strength"].default_value = 1.0 if sky > 0.0 else 0.0
+    world.cycles_visibility.camera = False
     scene.world = world
     scene.frame_current = 1
 

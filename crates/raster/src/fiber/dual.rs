@@ -70,9 +70,7 @@
 //!
 //! **The energy sent back, `A_b`.** The paper's `A_1 + A_3` counts the
 //! paths that turn back once or three times, going as deep as they come
-//! back. Against Blender Cycles with 16 bounces it left light hair with
-//! about half the light the hair behind sends back (docs/shading.md).
-//! Here `A_b` is the multiply scattered part of what a deep layer of
+//! back. Here `A_b` is the multiply scattered part of what a deep layer of
 //! fibers sends back by the two-stream (Kubelka-Munk) equations along the
 //! light, every path counted: per unit of optical depth, the light going
 //! in loses `k = 1 - a_f` and feeds `s = a_b` into the light coming out,
@@ -92,14 +90,18 @@ use std::f32::consts::PI;
 
 use glam::{Vec3, Vec3A, Vec4};
 
-use super::{FarField, FiberOptics, P_MAX, gauss_legendre, longitudinal, safe_sqrt};
+use super::{
+    FarField, FiberOptics, P_MAX, SKY_THETA, gauss_legendre, longitudinal, over_sphere, safe_sqrt,
+    sky_cell, sky_node,
+};
 
-/// `d_f`: the forward-scattering density factor. The paper suggests 0.7
-/// for human hair; against Cycles with 16 bounces, 1 was nearer on every
-/// hair colour measured (docs/shading.md).
-pub const DENSITY_FORWARD: f32 = 1.0;
+/// `d_f`: the forward-scattering density factor, the paper's 0.7 for
+/// human hair. Against Cycles with 16 bounces whose scattered light meets
+/// the fibers as the shadow's does, the hair's gain is within 10 % with
+/// it on 16 settings (docs/shading.md).
+pub const DENSITY_FORWARD: f32 = 0.7;
 /// `d_b`: the back-scattering density factor (as `d_f`).
-pub const DENSITY_BACK: f32 = 1.0;
+pub const DENSITY_BACK: f32 = 0.7;
 
 /// `|cos phi|` below which the back lobe's azimuthal spread goes smoothly
 /// from the back half of the azimuths to none.
@@ -163,6 +165,11 @@ pub struct DualTable {
     at: Vec<Averages>,
     /// `N_p^G` of each lobe: `[(o * NG_PHI + k)]`.
     ng: Vec<[Vec3A; P_MAX + 1]>,
+    /// `N_p` of each lobe on the same nodes (not spread).
+    np: Vec<[Vec3A; P_MAX + 1]>,
+    /// [`Self::sky`] at `(k * SPREAD_DEPTH_NODES + d)`: sky node `k`,
+    /// depth node `d`.
+    sky: Vec<Vec3A>,
     /// Each lobe's shift `s_p` (radians: its peak is at
     /// `theta_i + theta_o = s_p`) and variance `v_p`.
     shift: [f32; P_MAX + 1],
@@ -286,9 +293,19 @@ impl DualTable {
                 sum
             })
             .collect();
+        let np = (0..NG_THETA * NG_PHI)
+            .into_par_iter()
+            .map(|c| {
+                let uo = node(c / NG_PHI, NG_THETA);
+                let phi = node(c % NG_PHI, NG_PHI).clamp(-1.0, 1.0).acos();
+                far.azimuthal(uo, phi).map(Vec3A::from)
+            })
+            .collect();
         let mut table = DualTable {
             at,
             ng,
+            np,
+            sky: Vec::new(),
             shift,
             var,
             spread: Vec::new(),
@@ -302,7 +319,48 @@ impl DualTable {
                 table.spread_at(node(i, SPREAD_THETA), node(o, SPREAD_THETA), depth_node(d))
             })
             .collect();
+        let single = super::FiberTable::new(o);
+        table.sky = (0..SKY_THETA * SPREAD_DEPTH_NODES)
+            .into_par_iter()
+            .map(|c| {
+                let (uo, t) = (
+                    sky_node(c / SPREAD_DEPTH_NODES),
+                    (-depth_node(c % SPREAD_DEPTH_NODES)).exp(),
+                );
+                Vec3A::from(over_sphere(|ui, cp| {
+                    table.radiance(single.radiance(ui, uo, cp), t, ui, uo, cp)
+                }))
+            })
+            .collect();
         table
+    }
+
+    /// The radiance towards `sin theta_o = uo` under a sky of unit
+    /// radiance from every direction, at transmittance `t` from it (the
+    /// direct fraction, as [`Self::radiance`] takes it), multiply
+    /// scattered light included: `int L(w_i, w_o) dw_i` over the sphere,
+    /// `L` [`Self::radiance`] with the fiber's single scattering (at
+    /// `t = 1`, [`super::FiberTable::sky`] and the light the hair behind
+    /// sends back).
+    pub fn sky(&self, uo: f32, t: f32) -> Vec3 {
+        let (k, tk) = sky_cell(uo);
+        let tau = optical_depth(if t.is_finite() { t } else { 1.0 });
+        let top = (SPREAD_DEPTH_NODES - 1) as f32;
+        let f = ((tau / SPREAD_DEPTH).clamp(0.0, 1.0).sqrt() * top).min(top - 1e-3);
+        let (d, td) = (f as usize, f - f.floor());
+        let at = |k: usize| {
+            let row = &self.sky[k * SPREAD_DEPTH_NODES + d..];
+            row[0] + (row[1] - row[0]) * td
+        };
+        let (a, b) = (at(k), at(k + 1));
+        let v = Vec3::from(a + (b - a) * tk);
+        // Past the deepest node, what passes straight through goes on
+        // falling with it.
+        if tau > SPREAD_DEPTH {
+            v * (SPREAD_DEPTH - tau).exp()
+        } else {
+            v
+        }
     }
 
     /// The lobes of [`Spread`] at `sin theta_i = ui`, `sin theta_o = uo`
@@ -389,16 +447,13 @@ impl DualTable {
 
     /// `N_p^G` at `sin theta_o = uo` and `cos phi`.
     pub fn azimuthal_spread(&self, uo: f32, cos_phi: f32) -> [Vec3; P_MAX + 1] {
-        let (o, to) = cell(uo, NG_THETA);
-        let (k, tk) = cell(cos_phi, NG_PHI);
-        let at = |o: usize, k: usize| &self.ng[o * NG_PHI + k];
-        let mut out = [Vec3::ZERO; P_MAX + 1];
-        for (p, v) in out.iter_mut().enumerate() {
-            let a = at(o, k)[p] + (at(o, k + 1)[p] - at(o, k)[p]) * tk;
-            let b = at(o + 1, k)[p] + (at(o + 1, k + 1)[p] - at(o + 1, k)[p]) * tk;
-            *v = (a + (b - a) * to).into();
-        }
-        out
+        azimuthal_at(&self.ng, uo, cos_phi)
+    }
+
+    /// `N_p` at `sin theta_o = uo` and `cos phi`, from the same nodes as
+    /// [`Self::azimuthal_spread`].
+    fn azimuthal_point(&self, uo: f32, cos_phi: f32) -> [Vec3; P_MAX + 1] {
+        azimuthal_at(&self.np, uo, cos_phi)
     }
 
     /// The back-scattering lobe `f_back` widened by `spread` (radians^2),
@@ -436,6 +491,60 @@ impl DualTable {
         }
         debug_assert!(l.is_finite(), "{l}");
         l
+    }
+
+    /// [`Self::radiance`] for light that arrives spread about its
+    /// direction, as from a lit surface filling a cone: along the fiber
+    /// over a variance `spread` (radians^2) of `theta_i`, and across it
+    /// over the half circle of azimuths about the light's for a share
+    /// `across` of it (the rest along the light's azimuth). Every lobe is
+    /// widened by `spread`, the forward-scattered light's by its own
+    /// spread as well; without the single-scattering table's narrow
+    /// lobes, whose peak a light of one direction has and a spread one
+    /// has not. One radiance for each transmittance of `t`, sharing the
+    /// lookups.
+    pub fn radiance_spread<const N: usize>(
+        &self,
+        t: [f32; N],
+        (ui, uo, cos_phi): (f32, f32, f32),
+        spread: f32,
+        across: f32,
+    ) -> [Vec3; N] {
+        let a = self.averages(ui);
+        let a_back = Vec3::from(a.a_back) * (DENSITY_BACK * back_azimuth(cos_phi));
+        // The spread as the depth whose forward scattering spreads as much.
+        let tau_c = spread.max(0.0) / a.beta_f2.max(1e-4);
+        let (ng, np) = (
+            self.azimuthal_spread(uo, cos_phi),
+            self.azimuthal_point(uo, cos_phi),
+        );
+        let w = across.clamp(0.0, 1.0);
+        let n: [Vec3; P_MAX + 1] = std::array::from_fn(|p| np[p] + (ng[p] - np[p]) * w);
+        let dot =
+            |n: &[Vec3; P_MAX + 1], m: Vec4| n[0] * m.x + n[1] * m.y + n[2] * m.z + n[3] * m.w;
+        let m = self.spread(ui, uo, tau_c);
+        let direct = dot(&n, m.lobes) + a_back * m.back.x;
+        // Each transmittance: what the lookups above share, and its own
+        // forward-scattered light.
+        t.map(|t| {
+            let t = if t.is_finite() {
+                t.clamp(0.0, 1.0)
+            } else {
+                1.0
+            };
+            let tau = optical_depth(t);
+            let mut l = t * direct;
+            if tau > 0.0 && tau < BODY_DEPTH {
+                let t_f = Vec3::from((a.rest_f * -tau).exp());
+                let forward = (t_f - Vec3::splat(t)).max(Vec3::ZERO);
+                if forward.max_element() > 0.0 {
+                    let m = self.spread(ui, uo, tau_c + tau);
+                    l += DENSITY_FORWARD * forward * (dot(&ng, m.lobes) + a_back * m.back.x);
+                }
+            }
+            debug_assert!(l.is_finite(), "{l}");
+            l
+        })
     }
 
     /// [`Self::radiance`] with every lobe evaluated rather than looked up
@@ -477,6 +586,21 @@ impl DualTable {
         debug_assert!(l.is_finite(), "{l}");
         l
     }
+}
+
+/// An azimuthal table on the nodes of `N_p^G` at `sin theta_o = uo` and
+/// `cos phi` (bilinear).
+fn azimuthal_at(table: &[[Vec3A; P_MAX + 1]], uo: f32, cos_phi: f32) -> [Vec3; P_MAX + 1] {
+    let (o, to) = cell(uo, NG_THETA);
+    let (k, tk) = cell(cos_phi, NG_PHI);
+    let at = |o: usize, k: usize| &table[o * NG_PHI + k];
+    let mut out = [Vec3::ZERO; P_MAX + 1];
+    for (p, v) in out.iter_mut().enumerate() {
+        let a = at(o, k)[p] + (at(o, k + 1)[p] - at(o, k)[p]) * tk;
+        let b = at(o + 1, k)[p] + (at(o + 1, k + 1)[p] - at(o + 1, k)[p]) * tk;
+        *v = (a + (b - a) * to).into();
+    }
+    out
 }
 
 /// The fiber model's longitudinal lobe of variance `v` peaking at
