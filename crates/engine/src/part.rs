@@ -313,21 +313,8 @@ impl HairPart {
                                 None => shading.ambient * sky * tables.single.sky(uo),
                             };
                             let mut c = Vec3::ZERO;
-                            // sin theta_i and cos phi of light from
-                            // `to_light`, cos phi between its and the eye's
-                            // directions across the fiber, from unit
-                            // vectors: (l.e - sin_i sin_o) / (cos_i cos_o);
-                            // 1 when either runs along it.
-                            let incidence = |to_light: Vec3| {
-                                let ui = tangent.dot(to_light).clamp(-1.0, 1.0);
-                                let d = ((1.0 - ui * ui) * (1.0 - uo * uo)).sqrt();
-                                let cos_phi = if d > 1e-6 {
-                                    (to_light.dot(to_eye) - ui * uo) / d
-                                } else {
-                                    1.0
-                                };
-                                (ui, cos_phi)
-                            };
+                            let incidence =
+                                |to_light: Vec3| incidence(tangent, to_light, to_eye, uo);
                             if let Some(&(from_head, hidden)) = head_terms.get(v) {
                                 c += from_head;
                                 sky_light -= hidden;
@@ -452,6 +439,22 @@ pub struct Seen<'a> {
     pub first_strand: u32,
 }
 
+/// `sin theta_i` of light from `to_light` at a fiber of unit `tangent`,
+/// and `cos phi` between its and the eye's directions across the fiber
+/// (`uo = sin theta_o` of `to_eye`), from unit vectors: `(l . e - sin_i
+/// sin_o) / (cos_i cos_o)`; 1 when either runs along the fiber.
+#[inline]
+fn incidence(tangent: Vec3, to_light: Vec3, to_eye: Vec3, uo: f32) -> (f32, f32) {
+    let ui = tangent.dot(to_light).clamp(-1.0, 1.0);
+    let d = ((1.0 - ui * ui) * (1.0 - uo * uo)).sqrt();
+    let cos_phi = if d > 1e-6 {
+        (to_light.dot(to_eye) - ui * uo) / d
+    } else {
+        1.0
+    };
+    (ui, cos_phi)
+}
+
 /// `term(v)` at every [`HEAD_STRIDE`]-th of `n` vertices and the last,
 /// linear between: one value a vertex.
 fn along_strand(n: usize, term: impl Fn(usize) -> (Vec3, Vec3)) -> Vec<(Vec3, Vec3)> {
@@ -490,16 +493,8 @@ fn head_term(
         return (Vec3::ZERO, Vec3::ZERO);
     }
     let to_head = (center - p).normalize_or_zero();
-    let (ui, uo) = (
-        tangent.dot(to_head).clamp(-1.0, 1.0),
-        tangent.dot(to_eye).clamp(-1.0, 1.0),
-    );
-    let d = ((1.0 - ui * ui) * (1.0 - uo * uo)).sqrt();
-    let cos_phi = if d > 1e-6 {
-        (to_head.dot(to_eye) - ui * uo) / d
-    } else {
-        1.0
-    };
+    let uo = tangent.dot(to_eye).clamp(-1.0, 1.0);
+    let (ui, cos_phi) = incidence(tangent, to_head, to_eye, uo);
     let cone = raster::cone_light(sin_alpha, ui);
     let at = (cone.sin_theta, uo, cos_phi);
     if ambient > 0.0 {
