@@ -107,12 +107,14 @@ pub fn frame(seq: &mut Sequence, scene: &Scene, passes: &[Pass]) -> anyhow::Resu
         let sky = if scene.shading.ambient > 0.0 && (asked(Pass::Sky) || asked(Pass::Scattered)) {
             let mut s = scene.clone();
             s.shading.ambient = 0.0;
-            let without = if s == direct_scene {
-                direct.clone()
+            let rendered;
+            let without: &[Vec4] = if s == direct_scene {
+                &direct
             } else {
-                render(&s)?
+                rendered = render(&s)?;
+                &rendered
             };
-            beauty.iter().zip(&without).map(|(a, b)| *a - *b).collect()
+            beauty.iter().zip(without).map(|(a, b)| *a - *b).collect()
         } else {
             vec![Vec4::ZERO; w * h]
         };

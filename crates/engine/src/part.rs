@@ -107,26 +107,17 @@ impl HairPart {
             .with_min_len(64)
             .for_each(|(s, out)| {
                 let pts = &points[offsets[s] as usize..][..out.len()];
-                let at = |i: usize| head.through_at(pts[i]).unwrap_or((Vec3::ZERO, 1.0, 0.0));
-                let Some(first) = pts.first().map(|_| at(0)) else {
-                    return;
-                };
-                out[0] = first;
-                let (mut i, mut a) = (0, first);
-                while i + 1 < out.len() {
-                    let j = (i + HEAD_STRIDE).min(out.len() - 1);
-                    let b = at(j);
-                    for (k, o) in out[i + 1..j].iter_mut().enumerate() {
-                        let f = (k + 1) as f32 / (j - i) as f32;
-                        *o = (
+                along_strand(
+                    out,
+                    |i| head.through_at(pts[i]).unwrap_or((Vec3::ZERO, 1.0, 0.0)),
+                    |a, b, f| {
+                        (
                             a.0 + (b.0 - a.0) * f,
                             a.1 + (b.1 - a.1) * f,
                             a.2 + (b.2 - a.2) * f,
-                        );
-                    }
-                    out[j] = b;
-                    (i, a) = (j, b);
-                }
+                        )
+                    },
+                );
             });
     }
 
@@ -256,9 +247,15 @@ impl HairPart {
                 // The head's light and the sky it hides, per vertex: at
                 // every HEAD_STRIDE-th vertex and the last, linear between
                 // (they change over the head's size, not a strand's step).
-                let head_terms: Vec<(Vec3, Vec3)> = match table {
-                    Some((tables, _)) if head => match &tables.dual {
-                        Some(dual) => along_strand(out.len(), |v| {
+                let mut head_terms: Vec<(Vec3, Vec3)> = Vec::new();
+                if let Some((tables, _)) = table
+                    && head
+                    && let Some(dual) = &tables.dual
+                {
+                    head_terms.resize(out.len(), (Vec3::ZERO, Vec3::ZERO));
+                    along_strand(
+                        &mut head_terms,
+                        |v| {
                             let (tangent, to_eye) = axes(v);
                             head_term(
                                 dual,
@@ -268,11 +265,10 @@ impl HairPart {
                                 sky_t(v),
                                 shading.ambient,
                             )
-                        }),
-                        None => Vec::new(),
-                    },
-                    _ => Vec::new(),
-                };
+                        },
+                        |a, b, f| (a.0 + (b.0 - a.0) * f, a.1 + (b.1 - a.1) * f),
+                    );
+                }
                 for (v, o) in out.iter_mut().enumerate() {
                     let (tangent, to_eye) = axes(v);
                     let p = pts[v];
@@ -455,23 +451,25 @@ fn incidence(tangent: Vec3, to_light: Vec3, to_eye: Vec3, uo: f32) -> (f32, f32)
     (ui, cos_phi)
 }
 
-/// `term(v)` at every [`HEAD_STRIDE`]-th of `n` vertices and the last,
-/// linear between: one value a vertex.
-fn along_strand(n: usize, term: impl Fn(usize) -> (Vec3, Vec3)) -> Vec<(Vec3, Vec3)> {
-    let mut out = Vec::with_capacity(n);
+/// `out[v] = term(v)` at every [`HEAD_STRIDE`]-th vertex of a strand and
+/// its last, `lerp(a, b, f)` of the two about it between: what changes
+/// over the head's size, not a strand's step.
+fn along_strand<T: Copy>(out: &mut [T], term: impl Fn(usize) -> T, lerp: impl Fn(T, T, f32) -> T) {
+    let Some(first) = out.first_mut() else {
+        return;
+    };
+    let mut a = term(0);
+    *first = a;
     let mut i = 0;
-    let mut a = if n > 0 { term(0) } else { return out };
-    while i + 1 < n {
-        let j = (i + HEAD_STRIDE).min(n - 1);
+    while i + 1 < out.len() {
+        let j = (i + HEAD_STRIDE).min(out.len() - 1);
         let b = term(j);
-        for k in i..j {
-            let f = (k - i) as f32 / (j - i) as f32;
-            out.push((a.0 + (b.0 - a.0) * f, a.1 + (b.1 - a.1) * f));
+        for (k, o) in out[i + 1..j].iter_mut().enumerate() {
+            *o = lerp(a, b, (k + 1) as f32 / (j - i) as f32);
         }
+        out[j] = b;
         (i, a) = (j, b);
     }
-    out.push(a);
-    out
 }
 
 /// At a vertex `p` of unit tangent and direction to the eye `axes`, with
@@ -613,8 +611,8 @@ pub(crate) fn head_optics(scene: &Scene) -> Option<FiberOptics> {
 }
 
 /// The head's light for this frame, through the hair between: `head` as
-/// posed, shaded as its pixels are (no ambient term: light from no source
-/// is not bounced), `trans(light, x, n)` its transmittance at its point
+/// posed, shaded as its pixels are (the lights and the sky),
+/// `trans(light, x, n)` its transmittance at its point
 /// `x` of normal `n`, `forward` the fiber that scatters the light on its
 /// way; the hair between as the map of the first of `lights` (not empty)
 /// has it, in `frame`, `lookup(points, out)` its transmittance at

@@ -510,13 +510,27 @@ pub struct FiberTable {
 }
 
 /// Nodes along `sin theta_o` of the fibers' light from a uniform sky.
-pub(crate) const SKY_THETA: usize = 17;
+const SKY_THETA: usize = 17;
+
+/// A node of `n` evenly spaced over [-1, 1], and the cell and position
+/// in it of `x`.
+fn node(k: usize, n: usize) -> f32 {
+    -1.0 + 2.0 * k as f32 / (n - 1) as f32
+}
+
+#[inline]
+fn cell(x: f32, n: usize) -> (usize, f32) {
+    let top = (n - 1) as f32;
+    let f = ((x + 1.0) * (0.5 * top)).clamp(0.0, top - 1e-3);
+    let k = f as usize;
+    (k, f - k as f32)
+}
 
 /// `int g(w) dw` over the sphere of directions about a fiber (`u = sin
 /// theta` along it, `dw = du dphi`): Gauss-Legendre in `u`, midpoint in
 /// `phi` over the half circle (the fiber is even in `phi`), `g(u, cos
 /// phi)`.
-pub(crate) fn over_sphere(g: impl Fn(f32, f32) -> Vec3) -> Vec3 {
+fn over_sphere(g: impl Fn(f32, f32) -> Vec3) -> Vec3 {
     const PHI: usize = 24;
     let mut sum = Vec3::ZERO;
     for (u, w) in gauss_legendre(32) {
@@ -526,19 +540,6 @@ pub(crate) fn over_sphere(g: impl Fn(f32, f32) -> Vec3) -> Vec3 {
         }
     }
     sum
-}
-
-/// `sin theta_o` at sky node `k`, and the node and share of the next
-/// for `uo`.
-pub(crate) fn sky_node(k: usize) -> f32 {
-    -1.0 + 2.0 * k as f32 / (SKY_THETA - 1) as f32
-}
-
-pub(crate) fn sky_cell(uo: f32) -> (usize, f32) {
-    let top = (SKY_THETA - 1) as f32;
-    let f = ((uo + 1.0) * (0.5 * top)).clamp(0.0, top - 1e-3);
-    let k = f as usize;
-    (k, f - k as f32)
 }
 
 /// Grid nodes along `sin theta_i` and `sin theta_o`: 2.9 degrees apart at
@@ -563,7 +564,6 @@ impl FiberTable {
         // (theta_o, phi) node.
         let far = FarField::of(o);
         let m = Chiang::new(o, 0.0);
-        let node = |k: usize, n: usize| -1.0 + 2.0 * k as f32 / (n - 1) as f32;
         let across: Vec<[Vec3; P_MAX + 1]> = (0..TABLE_THETA * TABLE_PHI)
             .into_par_iter()
             .map(|c| {
@@ -593,7 +593,7 @@ impl FiberTable {
         };
         table.sky = (0..SKY_THETA)
             .map(|k| {
-                let uo = sky_node(k);
+                let uo = node(k, SKY_THETA);
                 Vec3A::from(over_sphere(|ui, cos_phi| table.radiance(ui, uo, cos_phi)))
             })
             .collect();
@@ -605,7 +605,7 @@ impl FiberTable {
     /// `int R(w_i, w_o) dw_i` over the sphere, `R` [`Self::radiance`]
     /// (1 for a fiber that absorbs nothing, the white furnace).
     pub fn sky(&self, uo: f32) -> Vec3 {
-        let (k, t) = sky_cell(uo);
+        let (k, t) = cell(uo, SKY_THETA);
         Vec3::from(self.sky[k] + (self.sky[k + 1] - self.sky[k]) * t)
     }
 

@@ -91,8 +91,8 @@ use std::f32::consts::PI;
 use glam::{Vec3, Vec3A, Vec4};
 
 use super::{
-    FarField, FiberOptics, P_MAX, SKY_THETA, gauss_legendre, longitudinal, over_sphere, safe_sqrt,
-    sky_cell, sky_node,
+    FarField, FiberOptics, P_MAX, SKY_THETA, cell, gauss_legendre, longitudinal, node, over_sphere,
+    safe_sqrt,
 };
 
 /// `d_f`: the forward-scattering density factor, the paper's 0.7 for
@@ -204,18 +204,34 @@ pub fn optical_depth(t: f32) -> f32 {
     (-t.max(0.0).ln()).clamp(0.0, MAX_DEPTH)
 }
 
-/// A node of `n` evenly spaced over [-1, 1], and the cell and position
-/// in it of `x`.
-fn node(k: usize, n: usize) -> f32 {
-    -1.0 + 2.0 * k as f32 / (n - 1) as f32
+/// The spread node at or below optical depth `tau` and the position
+/// past it, evenly in `sqrt(tau)` as the nodes are ([`depth_node`]).
+#[inline]
+fn depth_cell(tau: f32) -> (usize, f32) {
+    let top = (SPREAD_DEPTH_NODES - 1) as f32;
+    let f = ((tau / SPREAD_DEPTH).clamp(0.0, 1.0).sqrt() * top).min(top - 1e-3);
+    (f as usize, f - f.floor())
 }
 
+/// Of a transmittance `t` from a light (the direct fraction; 1 if not a
+/// number), with the averages `a` at its angle: `t` in [0, 1], its
+/// optical depth `tau`, and the light scattered forward that arrives
+/// besides, `max(T_f - t, 0)` (none in full light or past a body).
 #[inline]
-fn cell(x: f32, n: usize) -> (usize, f32) {
-    let top = (n - 1) as f32;
-    let f = ((x + 1.0) * (0.5 * top)).clamp(0.0, top - 1e-3);
-    let k = f as usize;
-    (k, f - k as f32)
+fn direct_and_forward(a: &Averages, t: f32) -> (f32, f32, Vec3) {
+    let t = if t.is_finite() {
+        t.clamp(0.0, 1.0)
+    } else {
+        1.0
+    };
+    let tau = optical_depth(t);
+    let forward = if tau > 0.0 && tau < BODY_DEPTH {
+        let t_f = Vec3::from((a.rest_f * -tau).exp());
+        (t_f - Vec3::splat(t)).max(Vec3::ZERO)
+    } else {
+        Vec3::ZERO
+    };
+    (t, tau, forward)
 }
 
 /// Gauss-Legendre nodes and weights on [a, b].
@@ -324,7 +340,7 @@ impl DualTable {
             .into_par_iter()
             .map(|c| {
                 let (uo, t) = (
-                    sky_node(c / SPREAD_DEPTH_NODES),
+                    node(c / SPREAD_DEPTH_NODES, SKY_THETA),
                     (-depth_node(c % SPREAD_DEPTH_NODES)).exp(),
                 );
                 Vec3A::from(over_sphere(|ui, cp| {
@@ -343,11 +359,9 @@ impl DualTable {
     /// `t = 1`, [`super::FiberTable::sky`] and the light the hair behind
     /// sends back).
     pub fn sky(&self, uo: f32, t: f32) -> Vec3 {
-        let (k, tk) = sky_cell(uo);
+        let (k, tk) = cell(uo, SKY_THETA);
         let tau = optical_depth(if t.is_finite() { t } else { 1.0 });
-        let top = (SPREAD_DEPTH_NODES - 1) as f32;
-        let f = ((tau / SPREAD_DEPTH).clamp(0.0, 1.0).sqrt() * top).min(top - 1e-3);
-        let (d, td) = (f as usize, f - f.floor());
+        let (d, td) = depth_cell(tau);
         let at = |k: usize| {
             let row = &self.sky[k * SPREAD_DEPTH_NODES + d..];
             row[0] + (row[1] - row[0]) * td
@@ -385,10 +399,7 @@ impl DualTable {
     fn spread(&self, ui: f32, uo: f32, tau: f32) -> Spread {
         let (i, ti) = cell(ui, SPREAD_THETA);
         let (o, to) = cell(uo, SPREAD_THETA);
-        // Evenly in sqrt(tau), as the nodes are.
-        let top = (SPREAD_DEPTH_NODES - 1) as f32;
-        let f = ((tau / SPREAD_DEPTH).clamp(0.0, 1.0).sqrt() * top).min(top - 1e-3);
-        let (d, td) = (f as usize, f - f.floor());
+        let (d, td) = depth_cell(tau);
         let at = |i: usize, o: usize| {
             let k = (i * SPREAD_THETA + o) * SPREAD_DEPTH_NODES + d;
             let (a, b) = (&self.spread[k], &self.spread[k + 1]);
@@ -471,23 +482,14 @@ impl DualTable {
     pub fn radiance(&self, single: Vec3, t: f32, ui: f32, uo: f32, cos_phi: f32) -> Vec3 {
         let a = self.averages(ui);
         let a_back = Vec3::from(a.a_back) * (DENSITY_BACK * back_azimuth(cos_phi));
-        let t = if t.is_finite() {
-            t.clamp(0.0, 1.0)
-        } else {
-            1.0
-        };
-        let tau = optical_depth(t);
+        let (t, tau, forward) = direct_and_forward(&a, t);
         let m = self.spread(ui, uo, tau);
         let mut l = t * (single + a_back * m.back.y);
-        if tau > 0.0 && tau < BODY_DEPTH {
-            let t_f = Vec3::from((a.rest_f * -tau).exp());
-            let forward = (t_f - Vec3::splat(t)).max(Vec3::ZERO);
-            if forward.max_element() > 0.0 {
-                let ng = self.azimuthal_spread(uo, cos_phi);
-                let single_g =
-                    ng[0] * m.lobes.x + ng[1] * m.lobes.y + ng[2] * m.lobes.z + ng[3] * m.lobes.w;
-                l += DENSITY_FORWARD * forward * (single_g + a_back * m.back.x);
-            }
+        if forward.max_element() > 0.0 {
+            let ng = self.azimuthal_spread(uo, cos_phi);
+            let single_g =
+                ng[0] * m.lobes.x + ng[1] * m.lobes.y + ng[2] * m.lobes.z + ng[3] * m.lobes.w;
+            l += DENSITY_FORWARD * forward * (single_g + a_back * m.back.x);
         }
         debug_assert!(l.is_finite(), "{l}");
         l
@@ -527,20 +529,11 @@ impl DualTable {
         // Each transmittance: what the lookups above share, and its own
         // forward-scattered light.
         t.map(|t| {
-            let t = if t.is_finite() {
-                t.clamp(0.0, 1.0)
-            } else {
-                1.0
-            };
-            let tau = optical_depth(t);
+            let (t, tau, forward) = direct_and_forward(&a, t);
             let mut l = t * direct;
-            if tau > 0.0 && tau < BODY_DEPTH {
-                let t_f = Vec3::from((a.rest_f * -tau).exp());
-                let forward = (t_f - Vec3::splat(t)).max(Vec3::ZERO);
-                if forward.max_element() > 0.0 {
-                    let m = self.spread(ui, uo, tau_c + tau);
-                    l += DENSITY_FORWARD * forward * (dot(&ng, m.lobes) + a_back * m.back.x);
-                }
+            if forward.max_element() > 0.0 {
+                let m = self.spread(ui, uo, tau_c + tau);
+                l += DENSITY_FORWARD * forward * (dot(&ng, m.lobes) + a_back * m.back.x);
             }
             debug_assert!(l.is_finite(), "{l}");
             l
@@ -563,25 +556,16 @@ impl DualTable {
         let back = |spread: f32| {
             a_back * lobe(ui, uo, a.delta_b, a.sigma_b2 + spread) * back_azimuth(cos_phi)
         };
-        let t = if t.is_finite() {
-            t.clamp(0.0, 1.0)
-        } else {
-            1.0
-        };
+        let (t, tau, forward) = direct_and_forward(&a, t);
         let mut l = t * (single + DENSITY_BACK * back(0.0));
-        let tau = optical_depth(t);
-        if tau > 0.0 && tau < BODY_DEPTH {
-            let t_f = Vec3::from((a.rest_f * -tau).exp());
-            let forward = (t_f - Vec3::splat(t)).max(Vec3::ZERO);
-            if forward.max_element() > 0.0 {
-                let spread = tau * a.beta_f2;
-                let ng = self.azimuthal_spread(uo, cos_phi);
-                let mut single_g = Vec3::ZERO;
-                for (p, n) in ng.iter().enumerate() {
-                    single_g += *n * lobe(ui, uo, self.shift[p], self.var[p] + spread);
-                }
-                l += DENSITY_FORWARD * forward * (single_g + DENSITY_BACK * back(spread));
+        if forward.max_element() > 0.0 {
+            let spread = tau * a.beta_f2;
+            let ng = self.azimuthal_spread(uo, cos_phi);
+            let mut single_g = Vec3::ZERO;
+            for (p, n) in ng.iter().enumerate() {
+                single_g += *n * lobe(ui, uo, self.shift[p], self.var[p] + spread);
             }
+            l += DENSITY_FORWARD * forward * (single_g + DENSITY_BACK * back(spread));
         }
         debug_assert!(l.is_finite(), "{l}");
         l
