@@ -78,16 +78,20 @@ impl BandPlan {
         }
     }
 
-    /// `bands` bands (or fewer, for a short picture) of about equal cost,
-    /// dealt to `workers` workers in turn, where `row_ms[r]` is what rows
-    /// `16 r .. 16 (r + 1)` of a picture of `height` rows cost to draw
-    /// last: cut on multiples of [`Canvas::BAND_ROWS`], each band at
-    /// least that tall. A row's cost counts at least a hundredth of the
+    /// `bands` bands (or fewer, for a short picture) dealt to `workers`
+    /// workers in turn, where `row_ms[r]` is what rows `16 r .. 16 (r +
+    /// 1)` of a picture of `height` rows cost to draw last: cut on
+    /// multiples of [`Canvas::BAND_ROWS`], each band at least that tall,
+    /// so that worker `w`'s bands hold `shares[w]` of the cost (shares
+    /// summing to 1, split evenly among its bands); empty `shares`, or
+    /// shares that are not one a worker of positive finite values, share
+    /// the cost evenly. A row's cost counts at least a hundredth of the
     /// mean, as even a row of background is written. `None` when the
     /// costs do not fit the picture or are not finite.
     pub fn weighted(
         height: u32,
         row_ms: &[f64],
+        shares: &[f64],
         bands: usize,
         workers: usize,
         own: usize,
@@ -103,6 +107,22 @@ impl BandPlan {
         let cost: Vec<f64> = row_ms.iter().map(|c| c.max(floor)).collect();
         let total: f64 = cost.iter().sum();
         let bands = bands.min(units);
+        // Each band's share of the cost: its worker's share over its
+        // worker's bands; then the cost the bands up to each end on.
+        let w = workers.max(1);
+        let even = shares.len() != w || shares.iter().any(|s| !s.is_finite() || *s <= 0.0);
+        let sum: f64 = shares.iter().sum();
+        let mut goal = Vec::with_capacity(bands);
+        let mut upto = 0.0;
+        for b in 0..bands {
+            let of_worker = (0..bands).filter(|c| c % w == b % w).count() as f64;
+            upto += if even {
+                1.0 / bands as f64
+            } else {
+                shares[b % w] / sum / of_worker
+            };
+            goal.push(total * upto);
+        }
         let mut cuts = vec![0u32];
         let mut acc = 0.0;
         for (u, c) in cost.iter().enumerate() {
@@ -111,7 +131,7 @@ impl BandPlan {
             acc += c;
             // Cut after this unit when its band has its share of the cost,
             // or when every band left needs one of the units left.
-            let share = total * cuts.len() as f64 / bands as f64;
+            let share = goal[cuts.len() - 1];
             let must = left_units - 1 < left_bands;
             if u + 1 < units && left_bands > 1 && (acc >= share || must) {
                 cuts.push((u as u32 + 1) * step);
@@ -373,26 +393,54 @@ mod tests {
     #[test]
     fn bands_cut_by_cost_share_it_evenly_on_whole_bands() {
         // Even costs: the bands of 48 rows that dealing gives.
-        let even = BandPlan::weighted(720, &[1.0; 45], 15, 3, 0).unwrap();
+        let even = BandPlan::weighted(720, &[1.0; 45], &[], 15, 3, 0).unwrap();
         check(&even, 720, 15);
         assert_eq!(even.cuts, BandPlan::dealt(720, 48, 3, 0).cuts);
         // Hair in rows 320..400 alone: thin bands there, wide elsewhere,
         // every band's cost within one unit's of the mean.
         let mut cost = vec![0.0; 45];
         cost[20..25].iter_mut().for_each(|c| *c = 10.0);
-        let plan = BandPlan::weighted(720, &cost, 8, 2, 1).unwrap();
+        let plan = BandPlan::weighted(720, &cost, &[], 8, 2, 1).unwrap();
         check(&plan, 720, 8);
         let rows_in = |b: usize| plan.rows(b).len() as u32;
         let narrow = (0..8).filter(|&b| plan.rows(b).start >= 320 && plan.rows(b).end <= 400);
         assert!(narrow.clone().count() >= 4, "{:?}", plan.cuts);
         assert!(narrow.map(rows_in).all(|r| r <= 32), "{:?}", plan.cuts);
         // More bands than rows of 16: one each; a short last band.
-        let short = BandPlan::weighted(56, &[1.0, 0.0, 5.0, 1.0], 8, 3, 2).unwrap();
+        let short = BandPlan::weighted(56, &[1.0, 0.0, 5.0, 1.0], &[], 8, 3, 2).unwrap();
         assert_eq!(short.cuts, vec![0, 16, 32, 48, 56]);
         check(&short, 56, 4);
         // Costs that do not fit the picture, or are not numbers.
-        assert!(BandPlan::weighted(720, &[1.0; 44], 15, 3, 0).is_none());
-        assert!(BandPlan::weighted(56, &[1.0, f64::NAN, 1.0, 1.0], 2, 2, 0).is_none());
-        assert!(BandPlan::weighted(56, &[1.0; 4], 0, 2, 0).is_none());
+        assert!(BandPlan::weighted(720, &[1.0; 44], &[], 15, 3, 0).is_none());
+        assert!(BandPlan::weighted(56, &[1.0, f64::NAN, 1.0, 1.0], &[], 2, 2, 0).is_none());
+        assert!(BandPlan::weighted(56, &[1.0; 4], &[], 0, 2, 0).is_none());
+    }
+
+    #[test]
+    fn a_worker_given_a_smaller_share_gets_bands_of_less_cost() {
+        // Even rows, three workers, 15 bands; worker 0 busy with its own
+        // strands: a fifth of the rows' cost, the others two fifths each.
+        let shares = [0.2, 0.4, 0.4];
+        let plan = BandPlan::weighted(720, &[1.0; 45], &shares, 15, 3, 0).unwrap();
+        check(&plan, 720, 15);
+        let rows = |w: usize| -> u32 { plan.rows_of(w).iter().map(|r| r.len() as u32).sum() };
+        // 45 units of 16 rows: worker 0 about 9 (144 rows), the others
+        // about 18 (288), each within a unit a band.
+        assert!((rows(0) as i32 - 144).abs() <= 5 * 16, "{:?}", plan.cuts);
+        assert!(
+            rows(1) > rows(0) + 64 && rows(2) > rows(0) + 64,
+            "{:?}",
+            plan.cuts
+        );
+        assert_eq!(rows(0) + rows(1) + rows(2), 720);
+        // Shares that are not one a worker, or not positive: even.
+        let even = BandPlan::weighted(720, &[1.0; 45], &[], 15, 3, 0).unwrap();
+        for bad in [&[0.5, 0.5][..], &[0.2, f64::NAN, 0.4], &[0.0, 0.5, 0.5]] {
+            let p = BandPlan::weighted(720, &[1.0; 45], bad, 15, 3, 0).unwrap();
+            assert_eq!(p.cuts, even.cuts);
+        }
+        // Shares need not sum to one.
+        let scaled = BandPlan::weighted(720, &[1.0; 45], &[1.0, 2.0, 2.0], 15, 3, 0).unwrap();
+        assert_eq!(scaled.cuts, plan.cuts);
     }
 }

@@ -174,14 +174,19 @@ impl RemoteExecutor {
         let sort = self.scheme.sort().unwrap_or_default();
         let mut requests = Vec::with_capacity(n);
         let mut sent = 0u64;
-        // Bands of about equal cost, by what the last round of this sort
-        // measured; until then, of equal rows.
+        // Bands cut by what the last round of this sort measured, each
+        // worker's of a cost that brings its own strands' work and its
+        // bands to the same total (see `loads.rs`); until measured, of
+        // equal rows.
         let costs = self.row_costs.lock().ok().and_then(|c| c.get(sort, height));
+        let shares = costs
+            .as_ref()
+            .map_or_else(Vec::new, |c| self.loads.row_shares(sort, n, c.iter().sum()));
         let bands = height.div_ceil(BAND_ROWS).div_ceil(n as u32) as usize * n;
         for (i, w) in self.workers.iter().enumerate() {
             let mut plan = costs
                 .as_ref()
-                .and_then(|c| engine::BandPlan::weighted(height, c, bands, n, i))
+                .and_then(|c| engine::BandPlan::weighted(height, c, &shares, bands, n, i))
                 .unwrap_or_else(|| engine::BandPlan::dealt(height, BAND_ROWS, n, i));
             plan.sort = sort;
             let bands = wire::Bands {
@@ -282,8 +287,10 @@ impl RemoteExecutor {
         });
         let mut report = DrawReport::default();
         let mut slowest = 0.0f64;
-        for w in &words {
+        for (i, w) in words.iter().enumerate() {
             let Some(c) = w else { continue };
+            self.loads
+                .drew(sort, i, n, c.filter_ms + c.shade_ms + c.raster_ms);
             report.filter_ms = report.filter_ms.max(c.filter_ms);
             report.shade_ms = report.shade_ms.max(c.shade_ms);
             report.raster_ms = report.raster_ms.max(c.raster_ms);
@@ -528,12 +535,22 @@ impl RowCosts {
         }
     }
 
-    /// The last costs of `sort` for a picture of `height` rows.
+    /// The last costs of `sort` for a picture of `height` rows; until
+    /// that sort has drawn one, the other sort's: both follow where the
+    /// hair's pixels are, and the first round of a sort cut in rows of
+    /// equal height would hand one worker most of the hair (a frame that
+    /// `--draw auto` would hold against the sort).
     pub(super) fn get(&self, sort: engine::Sort, height: u32) -> Option<Vec<f64>> {
-        match &self.of[sort.index()] {
+        let of = |s: engine::Sort| match &self.of[s.index()] {
             Some((h, c)) if *h == height && c.iter().any(|&x| x > 0.0) => Some(c.clone()),
             _ => None,
-        }
+        };
+        of(sort).or_else(|| {
+            engine::Sort::ALL
+                .into_iter()
+                .filter(|&s| s != sort)
+                .find_map(of)
+        })
     }
 
     /// Keeps a round's costs.
@@ -547,7 +564,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_bands_cost_is_spread_over_its_rows_and_kept_per_sort_and_height() {
+    fn a_bands_cost_is_spread_over_its_rows_kept_per_sort_and_lent_to_the_other() {
         let mut units = RowCosts::units(90);
         assert_eq!(units.len(), 6);
         // Rows 16..64 took 30 ms: 10 for each 16; rows 64..90, 13 ms.
@@ -560,10 +577,24 @@ mod tests {
         );
         let mut costs = RowCosts::default();
         costs.set(engine::Sort::Middle, 90, units.clone());
-        assert_eq!(costs.get(engine::Sort::Middle, 90), Some(units));
-        assert_eq!(costs.get(engine::Sort::Last, 90), None, "another sort");
+        assert_eq!(costs.get(engine::Sort::Middle, 90), Some(units.clone()));
+        // A sort not measured yet is cut by the other's costs.
+        assert_eq!(costs.get(engine::Sort::Last, 90), Some(units.clone()));
         assert_eq!(costs.get(engine::Sort::Middle, 96), None, "another picture");
+        // Once measured, each its own; a round that measured nothing is
+        // no measure.
+        let last = vec![1.0; 6];
+        costs.set(engine::Sort::Last, 90, last.clone());
+        assert_eq!(costs.get(engine::Sort::Last, 90), Some(last));
+        assert_eq!(costs.get(engine::Sort::Middle, 90), Some(units.clone()));
         costs.set(engine::Sort::Last, 90, RowCosts::units(90));
-        assert_eq!(costs.get(engine::Sort::Last, 90), None, "nothing measured");
+        assert_eq!(
+            costs.get(engine::Sort::Last, 90),
+            Some(units),
+            "the other's"
+        );
+        let mut none = RowCosts::default();
+        none.set(engine::Sort::Last, 90, RowCosts::units(90));
+        assert_eq!(none.get(engine::Sort::Last, 90), None, "nothing measured");
     }
 }

@@ -20,6 +20,7 @@
 mod choose;
 mod draw;
 mod lights;
+mod loads;
 mod maps;
 mod simulate;
 
@@ -27,6 +28,7 @@ use choose::Chooser;
 pub use choose::Scheme;
 use draw::*;
 use lights::{LightState, SweptMap};
+use loads::Loads;
 
 use std::ops::Range;
 use std::sync::{Arc, Mutex};
@@ -195,6 +197,9 @@ pub struct RemoteExecutor {
     /// What each 16 rows of the picture cost to draw in the last round of
     /// each sort: the next round's bands are cut by it.
     row_costs: Arc<Mutex<RowCosts>>,
+    /// What each worker's own strands cost it: the bands are dealt so
+    /// that its own work and its bands add up alike.
+    loads: Loads,
 }
 
 /// A step the workers take among themselves (compositing the picture,
@@ -355,6 +360,7 @@ impl RemoteExecutor {
             chooser: Chooser::default(),
             chosen: Vec::new(),
             row_costs: Arc::default(),
+            loads: Loads::default(),
             source: scene.source,
             hair: None,
             shares: None,
@@ -422,6 +428,7 @@ impl RemoteExecutor {
         }
         self.workers.remove(i);
         self.chosen.clear();
+        self.loads.clear();
         self.shares = None;
         self.posed = None;
         self.lights.iter_mut().for_each(LightState::forget_workers);

@@ -196,9 +196,13 @@ impl RemoteExecutor {
         let mut received = 0u64;
         let mut slowest = 0.0f64;
         let mut reports = Vec::with_capacity(replies.len());
+        let n = self.workers.len();
         for (addr, states, report, bytes, compute) in replies {
             received += bytes;
             slowest = slowest.max(compute);
+            if let Some(i) = self.workers.iter().position(|w| w.addr == addr) {
+                self.loads.stepped(i, n, compute);
+            }
             for (i, state) in states {
                 anim.set_wisp_state(i, state.clone())
                     .map_err(|e| malformed(&addr, e))?;
