@@ -59,7 +59,8 @@ const BAND_ROWS: u32 = 48;
 pub enum DrawAt {
     /// Sort-middle, sort-last or the coordinator's draw, chosen frame by
     /// frame by what the frames before cost (each is measured twice first,
-    /// or once when its frame cost 1.5x the best; then the cheapest taken,
+    /// two frames in a row, or once when its frame cost 1.5x the best;
+    /// then the cheapest taken,
     /// another measured again every 16 frames); with one worker, on the
     /// coordinator.
     #[default]
