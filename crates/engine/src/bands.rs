@@ -115,7 +115,8 @@ impl BandPlan {
         let mut goal = Vec::with_capacity(bands);
         let mut upto = 0.0;
         for b in 0..bands {
-            let of_worker = (0..bands).filter(|c| c % w == b % w).count() as f64;
+            // Bands `c < bands` with `c % w == b % w`.
+            let of_worker = (bands - b % w).div_ceil(w) as f64;
             upto += if even {
                 1.0 / bands as f64
             } else {

@@ -181,24 +181,22 @@ impl Chooser {
                 // then in the order of ALL.
                 (self.costs[s.index()].len(), Some(s) == self.last)
             });
-        // The second of a pair, while its scheme still wants measures.
+        // The second of a pair, while its scheme still wants measures;
+        // else the least measured.
         let again = self.last.filter(|&l| self.run == 1 && wanted(l) > 0);
-        let scheme = match (again, fewer, best) {
-            (Some(s), _, _) => s,
-            (None, fewer, best) => match (fewer, best) {
-                (Some(s), _) => s,
-                (None, None) => Scheme::ALL[0],
-                (None, Some(best)) => {
-                    if self.frames.is_multiple_of(REVISIT) {
-                        let others: Vec<Scheme> =
-                            Scheme::ALL.into_iter().filter(|&s| s != best).collect();
-                        self.revisits += 1;
-                        others[(self.revisits - 1) % others.len()]
-                    } else {
-                        best
-                    }
+        let scheme = match (again.or(fewer), best) {
+            (Some(s), _) => s,
+            (None, None) => Scheme::ALL[0],
+            (None, Some(best)) => {
+                if self.frames.is_multiple_of(REVISIT) {
+                    let others: Vec<Scheme> =
+                        Scheme::ALL.into_iter().filter(|&s| s != best).collect();
+                    self.revisits += 1;
+                    others[(self.revisits - 1) % others.len()]
+                } else {
+                    best
                 }
-            },
+            }
         };
         self.run = if self.last == Some(scheme) {
             self.run + 1
