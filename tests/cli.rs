@@ -663,7 +663,8 @@ fn bench_accuracy_writes_a_table_a_csv_and_a_plot() {
     assert_eq!(
         rows[0],
         "method,parameters,ms,mean_abs,rms,max,image_error,seen_bias,seen_abs,cycles_error,mean_ratio,\
-         scattering_shade_ms,direct_share_error,direct_share,gain,red_green,blue_green"
+         scattering_shade_ms,direct_share_error,direct_share,gain,red_green,blue_green,\
+         direct_share_error_of_direct,direct_share_error_of_scattered"
     );
     // --bounces compares with Cycles' bounces: it needs --cycles.
     let b = wisplight(&["bench", "accuracy", &scene, "--bounces", "16"]);

@@ -406,6 +406,8 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
                 r.scattering.map_or(String::new(), |s| f6(s.gain)),
                 r.scattering.map_or(String::new(), |s| f6(s.color[0])),
                 r.scattering.map_or(String::new(), |s| f6(s.color[1])),
+                r.scattering.map_or(String::new(), |s| f6(s.parts.0)),
+                r.scattering.map_or(String::new(), |s| f6(s.parts.1)),
             ])?;
         }
         // Cycles' rows: the columns named, the others empty.
@@ -465,7 +467,7 @@ pub fn run(a: AccuracyArgs) -> anyhow::Result<()> {
 }
 
 /// The CSV's columns.
-const CSV_HEADER: [&str; 17] = [
+const CSV_HEADER: [&str; 19] = [
     "method",
     "parameters",
     "ms",
@@ -483,6 +485,8 @@ const CSV_HEADER: [&str; 17] = [
     "gain",
     "red_green",
     "blue_green",
+    "direct_share_error_of_direct",
+    "direct_share_error_of_scattered",
 ];
 
 /// What a plot's vertical axis shows.

@@ -11,6 +11,13 @@
 //!   `sum(B) / sum(G)` over its pixels' linear RGB.
 //!
 //! The background is black, so the sums are the hair's and the head's.
+//!
+//! The direct-share error mixes two renderers' differences: in the direct
+//! light (the shadow, per block) and in the scattered light. Each block's
+//! `F = D / (D + S)` is also taken with one of the two swapped for
+//! Cycles' (scaled by the ratio of the two direct lights' sums over the
+//! blocks, so that units cancel): with Cycles' `S` the error left is the
+//! direct light's part, with Cycles' `D` the scattered light's part.
 
 use std::path::Path;
 
@@ -27,6 +34,9 @@ use super::cycles_truth::BLOCK;
 pub(super) struct Light {
     /// Per block, the direct share `F`.
     pub(super) share: raster::ShadowRatios,
+    /// Per block (as `share`), `sum Y(direct)` and `sum Y(all) -
+    /// sum Y(direct)` (none below 0).
+    parts: Vec<(f64, f64)>,
     /// `sum Y(all) / sum Y(direct)`.
     pub(super) gain: f64,
     /// `sum(R) / sum(G)` and `sum(B) / sum(G)` of the scattered picture.
@@ -49,8 +59,29 @@ impl Light {
         // Rec. 709 luminance, as the shadow ratios weigh.
         let total = |s: [f64; 3]| 0.2126 * s[0] + 0.7152 * s[1] + 0.0722 * s[2];
         let ratio = |x: f64, y: f64| if y > 0.0 { x / y } else { f64::NAN };
+        let share = raster::ShadowRatios::new(direct, all, w, h, BLOCK);
+        let mut parts = vec![(0.0f64, 0.0f64); share.cols * share.rows];
+        for y in 0..share.rows * BLOCK {
+            for x in 0..share.cols * BLOCK {
+                let i = y * w + x;
+                let y_of = |c: Vec3| {
+                    if c.is_finite() {
+                        f64::from(0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z).max(0.0)
+                    } else {
+                        0.0
+                    }
+                };
+                let b = &mut parts[(y / BLOCK) * share.cols + x / BLOCK];
+                b.0 += y_of(direct[i]);
+                b.1 += y_of(all[i]);
+            }
+        }
+        for b in &mut parts {
+            b.1 = (b.1 - b.0).max(0.0);
+        }
         Light {
-            share: raster::ShadowRatios::new(direct, all, w, h, BLOCK),
+            share,
+            parts,
             gain: ratio(total(a), total(d)),
             color: [ratio(a[0], a[1]), ratio(a[2], a[1])],
         }
@@ -62,6 +93,11 @@ impl Light {
 pub(super) struct Against {
     /// The direct shares compared block by block.
     pub(super) share: raster::RatioComparison,
+    /// The mean `|F - F_cycles|` with Cycles' scattered light in place of
+    /// wisplight's (the direct light's part of the error), and with
+    /// Cycles' direct light in place of wisplight's (the scattered
+    /// light's part).
+    pub(super) parts: (f64, f64),
     /// wisplight's gain and colour ratios.
     pub(super) gain: f64,
     pub(super) color: [f64; 2],
@@ -73,11 +109,44 @@ impl Against {
     pub(super) fn new(mine: &Light, cycles: &Light, shade_ms: f64) -> Against {
         Against {
             share: raster::RatioComparison::new(&mine.share, &cycles.share),
+            parts: error_parts(mine, cycles),
             gain: mine.gain,
             color: mine.color,
             shade_ms,
         }
     }
+}
+
+/// The direct-share error of `mine` against `cycles` with Cycles'
+/// scattered light, and with Cycles' direct light, in place of
+/// wisplight's (see the module's notes), over the blocks both count.
+fn error_parts(mine: &Light, cycles: &Light) -> (f64, f64) {
+    let blocks: Vec<((f64, f64), (f64, f64))> = mine
+        .share
+        .ratio
+        .iter()
+        .zip(&cycles.share.ratio)
+        .zip(mine.parts.iter().zip(&cycles.parts))
+        .filter(|((a, b), _)| a.is_some() && b.is_some())
+        .map(|(_, p)| (*p.0, *p.1))
+        .collect();
+    let (dw, dc) = blocks
+        .iter()
+        .fold((0.0, 0.0), |s, (w, c)| (s.0 + w.0, s.1 + c.0));
+    if blocks.is_empty() || dw <= 0.0 || dc <= 0.0 {
+        return (f64::NAN, f64::NAN);
+    }
+    // Cycles' light in wisplight's units.
+    let k = dw / dc;
+    let share = |d: f64, s: f64| if d + s > 0.0 { d / (d + s) } else { 0.0 };
+    let n = blocks.len() as f64;
+    let (mut of_direct, mut of_scattered) = (0.0, 0.0);
+    for ((d_w, s_w), (d_c, s_c)) in blocks {
+        let truth = share(d_c, s_c);
+        of_direct += (share(d_w, k * s_c) - truth).abs();
+        of_scattered += (share(k * d_c, s_w) - truth).abs();
+    }
+    (of_direct / n, of_scattered / n)
 }
 
 /// One setting's row of the table.
@@ -104,18 +173,30 @@ pub(super) fn print_table(
         "multiple scattering against Cycles with {bounces} bounces (direct share F per 8x8 block, gain = all / direct, colour of all):"
     );
     println!(
-        "{:<19} {:<78} {:>9} {:>9} {:>9} {:>8} {:>8} {:>8} {:>8}",
-        "method", "parameters", "ms", "shade_ms", "F_error", "F", "gain", "r/g", "b/g"
+        "{:<19} {:<78} {:>9} {:>9} {:>9} {:>9} {:>9} {:>8} {:>8} {:>8} {:>8}",
+        "method",
+        "parameters",
+        "ms",
+        "shade_ms",
+        "F_error",
+        "of_direct",
+        "of_scat",
+        "F",
+        "gain",
+        "r/g",
+        "b/g"
     );
     for r in rows {
         let s = &r.against;
         println!(
-            "{:<19} {:<78} {:>9.2} {:>9.2} {:>9.4} {:>8.4} {:>8.4} {:>8.4} {:>8.4}",
+            "{:<19} {:<78} {:>9.2} {:>9.2} {:>9.4} {:>9.4} {:>9.4} {:>8.4} {:>8.4} {:>8.4} {:>8.4}",
             r.method,
             r.parameters,
             r.shadow_ms,
             s.shade_ms,
             s.share.mean_abs,
+            s.parts.0,
+            s.parts.1,
             s.share.mean,
             s.gain,
             s.color[0],
@@ -123,11 +204,13 @@ pub(super) fn print_table(
         );
     }
     println!(
-        "{:<19} {:<78} {:>9.0} {:>9} {:>9} {:>8.4} {:>8.4} {:>8.4} {:>8.4}",
+        "{:<19} {:<78} {:>9.0} {:>9} {:>9} {:>9} {:>9} {:>8.4} {:>8.4} {:>8.4} {:>8.4}",
         "cycles",
         format!("samples={samples} bounces={bounces}"),
         1e3 * seconds,
         "-",
+        "0",
+        "0",
         "0",
         cycles.share.mean(),
         cycles.gain,
@@ -259,5 +342,38 @@ mod tests {
         // One block: its direct share is the inverse of the gain.
         let f = l.share.ratio[0].unwrap();
         assert!((f64::from(f) - 6.4 / y_all).abs() < 1e-5, "{f}");
+    }
+
+    #[test]
+    fn the_error_splits_into_the_direct_lights_part_and_the_scattered_lights() {
+        // Four 8x8 blocks, 16 x 16 pixels, each block one grey level.
+        let px = |v: [f32; 4]| -> Vec<Vec3> {
+            (0..256)
+                .map(|i| Vec3::splat(v[(i / 16 / 8) * 2 + (i % 16) / 8]))
+                .collect()
+        };
+        // Cycles: direct 1, 2, 3, 4 and scattered 1 in every block.
+        let cd = [1.0, 2.0, 3.0, 4.0];
+        let cycles = Light::new(&px(cd), &px(cd.map(|d| d + 1.0)), 16, 16);
+        // The same direct light, the scattered light twice Cycles': all of
+        // the error is the scattered light's.
+        let twice = Light::new(&px(cd), &px(cd.map(|d| d + 2.0)), 16, 16);
+        let a = Against::new(&twice, &cycles, 0.0);
+        assert!(a.share.mean_abs > 0.05, "{a:?}");
+        assert!(a.parts.0 < 1e-9, "{a:?}");
+        assert!((a.parts.1 - a.share.mean_abs).abs() < 1e-6, "{a:?}");
+        // The same scattered light, the direct light off block by block
+        // (its sum the same: the units stay): all of it is the direct
+        // light's.
+        let wd = [2.0, 1.0, 4.0, 3.0];
+        let moved = Light::new(&px(wd), &px(wd.map(|d| d + 1.0)), 16, 16);
+        let b = Against::new(&moved, &cycles, 0.0);
+        assert!(b.share.mean_abs > 0.05, "{b:?}");
+        assert!(b.parts.1 < 1e-9, "{b:?}");
+        assert!((b.parts.0 - b.share.mean_abs).abs() < 1e-6, "{b:?}");
+        // Direct: 1/2 vs 2/3 and so on; worked out by hand for block 0:
+        // F = 2 / 3 against Cycles' 1 / 2.
+        let f0 = f64::from(moved.share.ratio[0].unwrap());
+        assert!((f0 - 2.0 / 3.0).abs() < 1e-6, "{f0}");
     }
 }

@@ -44,6 +44,11 @@
 //! every lobe widened as the cone is), multiple scattering included. The
 //! radii near the head, whose lookups would reach the head's own deposit
 //! in the light's map, take the extinction of the first clear one.
+//!
+//! The same columns hold what lies between a vertex and the open sky
+//! beyond the hair: the sky's own transmittance there
+//! ([`sky_transmittance`]), which no light's map holds (the sky comes
+//! from every direction).
 
 use std::f32::consts::PI;
 use std::sync::Arc;
@@ -352,6 +357,65 @@ fn direction_at(i: f32, j: f32) -> (Vec3, f32) {
     (Vec3::new(st * cp, ct, st * sp), st)
 }
 
+/// What a vertex gets of the head's light ([`HeadLight::through_at`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Through {
+    /// The head's irradiance `E_h` across the vertex (linear RGB).
+    pub(crate) e: Vec3,
+    /// Its transmittance `T_h` through the hair between.
+    pub(crate) t: f32,
+    /// `sin alpha` of the cone the head fills.
+    pub(crate) sin_alpha: f32,
+    /// The sky's transmittance `T_sky` ([`sky_transmittance`]), once the
+    /// head's map holds the hair.
+    pub(crate) sky: Option<f32>,
+}
+
+impl Through {
+    /// None of the head's light, and no sky's transmittance known.
+    pub(crate) const NONE: Through = Through {
+        e: Vec3::ZERO,
+        t: 1.0,
+        sin_alpha: 0.0,
+        sky: None,
+    };
+
+    /// `self` and `b` mixed linearly (`f` of the way to `b`).
+    pub(crate) fn lerp(self, b: Through, f: f32) -> Through {
+        let mix = |a: f32, b: f32| a + (b - a) * f;
+        Through {
+            e: self.e + (b.e - self.e) * f,
+            t: mix(self.t, b.t),
+            sin_alpha: mix(self.sin_alpha, b.sin_alpha),
+            sky: match (self.sky, b.sky) {
+                (Some(x), Some(y)) => Some(mix(x, y)),
+                (x, y) => x.or(y),
+            },
+        }
+    }
+}
+
+/// The sky's transmittance at a point of the hair about the head, from
+/// the head's map: the radial optical depth `tau_in` between the point
+/// and the head, and `tau_out` between it and the open sky beyond the
+/// hair. The sky's light comes from every direction; taking the hair
+/// about the point as a flat layer along the head's surface, a ray at
+/// `gamma` from the normal crosses `tau / cos gamma` of it, and the outer
+/// half of the sky comes through `tau_out`, the inner half (the head's
+/// cone of it taken off apart, [`crate::part`]) through `tau_in`, each
+/// as `E_2(tau) = < exp(-tau / cos gamma) >` over its hemisphere
+/// ([`slant_depth`] at `sin alpha = 1`):
+///
+/// ```text
+/// T_sky = (E_2(tau_out) + E_2(tau_in)) / 2
+/// ```
+///
+/// (1 in free space, 1/2 on the head's bare surface).
+pub(crate) fn sky_transmittance(tau_in: f32, tau_out: f32) -> f32 {
+    let half = |tau: f32| (-slant_depth(1.0, tau)).exp();
+    0.5 * (half(tau_out) + half(tau_in))
+}
+
 impl HeadLight {
     /// The head `shape`, of radiance `radiance(x, n)` at its point `x` of
     /// outward normal `n` (world; linear RGB, as the head is shaded; asked
@@ -475,24 +539,35 @@ impl HeadLight {
     }
 
     /// The head's light at `p` through the hair between (after
-    /// [`Self::through_hair`]; unattenuated before): its irradiance
-    /// `E_h`, transmittance `T_h`, and `sin alpha` of the cone it comes
-    /// from.
+    /// [`Self::through_hair`]; unattenuated before), and the sky's
+    /// transmittance there.
     #[inline]
-    pub(crate) fn through_at(&self, p: Vec3) -> Option<(Vec3, f32, f32)> {
+    pub(crate) fn through_at(&self, p: Vec3) -> Option<Through> {
         let (g, e, s, height) = self.light(p)?;
         if self.depth.is_empty() || self.reach <= 0.0 {
-            return Some((e, 1.0, s));
+            return Some(Through {
+                e,
+                t: 1.0,
+                sin_alpha: s,
+                sky: None,
+            });
         }
         // The radius index of the height: j = (RADII - 1) sqrt(h / reach).
         let x = (RADII - 1) as f32 * (height / self.reach).min(1.0).sqrt();
         let (j, f) = ((x as usize).min(RADII - 2), x.fract());
         let f = if x >= (RADII - 1) as f32 { 1.0 } else { f };
-        let tau = bilinear(g, |i, jj| {
+        // The depth up to `p`, and through all of the hair.
+        let depths = bilinear(g, |i, jj| {
             let col = &self.depth[(i * N_PHI + jj) * RADII..][..RADII];
-            col[j] + (col[j + 1] - col[j]) * f
+            glam::Vec2::new(col[j] + (col[j + 1] - col[j]) * f, col[RADII - 1])
         });
-        Some((e, (-slant_depth(s, tau)).exp(), s))
+        let (tau, total) = (depths.x, depths.y);
+        Some(Through {
+            e,
+            t: (-slant_depth(s, tau)).exp(),
+            sin_alpha: s,
+            sky: Some(sky_transmittance(tau, (total - tau).max(0.0))),
+        })
     }
 
     /// At `p`: where its direction falls among the sampled ones, the
@@ -659,5 +734,59 @@ mod tests {
         }
         assert_eq!(slant_depth(0.7, 0.0), 0.0);
         assert_eq!(slant_depth(0.7, f32::NAN), 0.0);
+    }
+
+    #[test]
+    fn the_sky_comes_through_the_hair_over_both_halves_of_the_sphere() {
+        // No hair: all of it; on the bare surface of the head under no
+        // hair, the outer half (the inner is the head's, taken off apart).
+        assert!((sky_transmittance(0.0, 0.0) - 1.0).abs() < 1e-6);
+        // Each half through a flat layer: E_2 (tables: E_2(0.25) =
+        // 0.517730, E_2(1) = 0.148496, E_2(4) = 0.003198).
+        let cases = [
+            (0.25f32, 1.0f32, 0.5 * (0.517_730 + 0.148_496)),
+            (1.0, 4.0, 0.5 * (0.148_496 + 0.003_198)),
+            (0.0, 1.0, 0.5 * (1.0 + 0.148_496)),
+        ];
+        for (tau_in, tau_out, want) in cases {
+            for (a, b) in [(tau_in, tau_out), (tau_out, tau_in)] {
+                let t = sky_transmittance(a, b);
+                assert!((t / want - 1.0).abs() < 0.02, "{a} {b}: {t} against {want}");
+            }
+        }
+        // Deep in hair on both sides, none; never more than 1 or below 0.
+        assert!(sky_transmittance(40.0, 40.0) < 1e-6);
+        for tau in [0.0f32, 0.3, 3.0, 30.0, f32::INFINITY] {
+            let t = sky_transmittance(tau, 0.5 * tau);
+            assert!((0.0..=1.0).contains(&t), "{tau}: {t}");
+        }
+    }
+
+    #[test]
+    fn a_vertex_learns_the_skys_transmittance_once_the_map_holds_the_hair() {
+        let c = Vec3::ZERO;
+        let mut h = HeadLight::new(HeadShape::sphere(c, 1.0), |_, _| Vec3::ONE);
+        let p = Vec3::new(0.0, 1.2, 0.0);
+        assert_eq!(h.through_at(p).unwrap().sky, None);
+        // A map whose every cell along the light holds optical depth 0.5
+        // per cell: a uniform layer about the head.
+        let light = Light::directional(Vec3::NEG_Y).unwrap();
+        let cell = 0.1;
+        h.through_hair(&light, cell, 32, |pts, out| {
+            for (o, q) in out.iter_mut().zip(pts) {
+                // Depth grows along the light (-y): exp(-0.5 per cell).
+                *o = (-(0.5 / cell) * (10.0 - q.y)).exp();
+            }
+        });
+        let at = h.through_at(p).unwrap();
+        let sky = at.sky.expect("the map holds the hair");
+        // Extinction 5 per unit length every way: 0.2 over the surface,
+        // tau_in = 1; the column reaches REACH_CELLS * 0.1 * 32 = 5.76
+        // out, tau_out = 5 * 5.56 = 27.8, through which no sky comes.
+        let want = 0.5 * 0.148_496;
+        assert!((sky / want - 1.0).abs() < 0.03, "{sky} against {want}");
+        // The head's own light comes through the same tau_in over its cone.
+        let t = (-slant_depth(1.0 / 1.2, 1.0)).exp();
+        assert!((at.t / t - 1.0).abs() < 0.01, "{} against {t}", at.t);
     }
 }

@@ -14,7 +14,7 @@ use rayon::prelude::*;
 use shadow::Light;
 use strands::Hair;
 
-use crate::bounce::HeadLight;
+use crate::bounce::{HeadLight, Through};
 use crate::{HairSource, Head, Scene};
 
 /// Hair colour when neither the style nor the file gives one (linear RGB).
@@ -28,7 +28,7 @@ pub struct HairPart {
     /// The head's irradiance at each vertex and its transmittance there,
     /// when the head lights the hair ([`Self::filter_head`]), and the
     /// head's centre.
-    head_in: Vec<(Vec3, f32, f32)>,
+    head_in: Vec<Through>,
     head_center: Vec3,
     /// The shaded linear colour of each vertex.
     colors: Vec<Vec3>,
@@ -93,8 +93,8 @@ impl HairPart {
         let (points, offsets) = (hair.points(), hair.offsets());
         self.head_center = head.center();
         self.head_in.clear();
-        self.head_in.resize(points.len(), (Vec3::ZERO, 1.0, 0.0));
-        let mut strands: Vec<&mut [(Vec3, f32, f32)]> = Vec::with_capacity(hair.strand_count());
+        self.head_in.resize(points.len(), Through::NONE);
+        let mut strands: Vec<&mut [Through]> = Vec::with_capacity(hair.strand_count());
         let mut rest = &mut self.head_in[..];
         for w in offsets.windows(2) {
             let (a, b) = rest.split_at_mut((w[1] - w[0]) as usize);
@@ -109,14 +109,8 @@ impl HairPart {
                 let pts = &points[offsets[s] as usize..][..out.len()];
                 along_strand(
                     out,
-                    |i| head.through_at(pts[i]).unwrap_or((Vec3::ZERO, 1.0, 0.0)),
-                    |a, b, f| {
-                        (
-                            a.0 + (b.0 - a.0) * f,
-                            a.1 + (b.1 - a.1) * f,
-                            a.2 + (b.2 - a.2) * f,
-                        )
-                    },
+                    |i| head.through_at(pts[i]).unwrap_or(Through::NONE),
+                    Through::lerp,
                 );
             });
     }
@@ -236,8 +230,12 @@ impl HairPart {
                     let tangent = (b - a).normalize_or(Vec3::Y);
                     (tangent, (eye - pts[v]).normalize_or(Vec3::Z))
                 };
+                // The sky's transmittance: through the hair about the head
+                // where the head's map holds it, else the lights' mean.
                 let sky_t = |v: usize| {
-                    if !shadows || lights.is_empty() {
+                    if let Some(t) = head_in.get(base + v).and_then(|h| h.sky).filter(|_| head) {
+                        t
+                    } else if !shadows || lights.is_empty() {
                         1.0
                     } else {
                         (0..lights.len()).map(|l| trans[l][base + v]).sum::<f32>()
@@ -473,20 +471,29 @@ fn along_strand<T: Copy>(out: &mut [T], term: impl Fn(usize) -> T, lerp: impl Fn
 }
 
 /// At a vertex `p` of unit tangent and direction to the eye `axes`, with
-/// the head's light `(E_h, T_h, sin alpha)` ([`HeadLight::through_at`])
-/// from the head centred at `center`: the radiance the fiber sends to the
-/// eye of it (the cone's light as from its mean angle along the fiber,
-/// the lobes spread as the cone is, [`raster::cone_light`]), and of the
-/// sky of radiance `ambient` (transmittance `sky_t`) the head hides over
-/// that cone, `Omega = 2 pi (1 - cos alpha)` of it.
+/// the head's light `head` ([`HeadLight::through_at`]: `E_h`, `T_h`,
+/// `sin alpha`) from the head centred at `center`: the radiance the fiber
+/// sends to the eye of it (the cone's light as from its mean angle along
+/// the fiber, the lobes spread as the cone is, [`raster::cone_light`]),
+/// and of the sky of radiance `ambient` the head hides over that cone,
+/// `Omega = 2 pi (1 - cos alpha)` of it: through the hair between as the
+/// head's light comes where the head's map gives the sky's transmittance
+/// (the sky behind the head would cross that hair), else at the sky's
+/// transmittance `sky_t`.
 fn head_term(
     dual: &DualTable,
-    (e, t, sin_alpha): (Vec3, f32, f32),
+    head: Through,
     (p, center): (Vec3, Vec3),
     (tangent, to_eye): (Vec3, Vec3),
     sky_t: f32,
     ambient: f32,
 ) -> (Vec3, Vec3) {
+    let Through {
+        e,
+        t,
+        sin_alpha,
+        sky,
+    } = head;
     if sin_alpha.is_nan() || sin_alpha <= 0.0 || (ambient <= 0.0 && e.max_element() <= 0.0) {
         return (Vec3::ZERO, Vec3::ZERO);
     }
@@ -495,16 +502,25 @@ fn head_term(
     let (ui, cos_phi) = incidence(tangent, to_head, to_eye, uo);
     let cone = raster::cone_light(sin_alpha, ui);
     let at = (cone.sin_theta, uo, cos_phi);
-    if ambient > 0.0 {
-        let [from_head, hidden] = dual.radiance_spread([t, sky_t], at, cone.spread, cone.across);
-        let omega = 2.0 * PI * (1.0 - (1.0 - sin_alpha * sin_alpha).max(0.0).sqrt());
-        (
-            e * cone.factor * from_head,
-            ambient * omega * cone.factor * hidden,
-        )
-    } else {
-        let [from_head] = dual.radiance_spread([t], at, cone.spread, cone.across);
-        (e * cone.factor * from_head, Vec3::ZERO)
+    let omega = 2.0 * PI * (1.0 - (1.0 - sin_alpha * sin_alpha).max(0.0).sqrt());
+    match sky {
+        _ if ambient <= 0.0 => {
+            let [from_head] = dual.radiance_spread([t], at, cone.spread, cone.across);
+            (e * cone.factor * from_head, Vec3::ZERO)
+        }
+        Some(_) => {
+            let [from_head] = dual.radiance_spread([t], at, cone.spread, cone.across);
+            let r = cone.factor * from_head;
+            (e * r, ambient * omega * r)
+        }
+        None => {
+            let [from_head, hidden] =
+                dual.radiance_spread([t, sky_t], at, cone.spread, cone.across);
+            (
+                e * cone.factor * from_head,
+                ambient * omega * cone.factor * hidden,
+            )
+        }
     }
 }
 
@@ -524,7 +540,8 @@ fn head_term(
 /// a diffuse surface of albedo `C` under the irradiance `E` that lights
 /// the hair (radiance `C E cos / pi`, as a path tracer's diffuse surface
 /// under a sun of strength `E`), and the sky of radiance `k_a` shadowed
-/// by the lights' mean transmittance `T_sky`, as the hair's is.
+/// by the lights' mean transmittance `T_sky` (as the hair's is where the
+/// head's map does not give the sky's own).
 ///
 /// With `forward` (multiple scattering), the light the hair scatters
 /// forward reaches the head too: `T_l` becomes the hair's forward
@@ -553,8 +570,8 @@ pub(crate) fn head_lambert(
     };
     // The sky: Kajiya-Kay's ambient term unshadowed, as the paper has
     // it; under the physically based fiber, radiance `k_a` from every
-    // direction (radiance `C k_a` off a diffuse surface), shadowed as the
-    // hair's is, by the lights' mean transmittance.
+    // direction (radiance `C k_a` off a diffuse surface), shadowed by
+    // the lights' mean transmittance.
     let shadowed_sky = matches!(shading.model, ShadingModel::Marschner { .. })
         && ambient > 0.0
         && !lights.is_empty();

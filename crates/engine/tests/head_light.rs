@@ -59,3 +59,49 @@ fn the_head_lights_the_hair_around_it_in_its_own_colour() {
     let (inner, outer) = (gain(&order[..fifth]), gain(&order[order.len() - fifth..]));
     assert!(inner > 2.0 * outer, "inner {inner}, outer {outer}");
 }
+
+/// Each vertex's shaded colour with a sky of radiance `ambient`, the sun
+/// coming from -x, the head black (it sends no light back: what differs
+/// between two skies is the sky's own light), and each vertex's sun's
+/// transmittance.
+fn under_sky(ambient: f32) -> (Vec<Vec3>, Vec<f32>) {
+    let text = format!(
+        "[hair]\nstrands_per_wisp = 4\n[render]\nwidth = 96\nheight = 64\n\
+         [[light]]\ndirection = [1, 0, 0]\n\
+         [head]\ncolor = [0, 0, 0]\n\
+         [shading]\nmodel = \"marschner\"\neumelanin = 0.3\nambient = {ambient}\n\
+         [effects]\nmultiple_scattering = true\n"
+    );
+    let scene = Scene::from_toml_str(&text, Path::new("sky.toml")).unwrap();
+    let mut seq = Sequence::new(&scene).unwrap();
+    seq.next_frame().unwrap();
+    let colors = seq.renderer().colors().to_vec();
+    (colors, seq.renderer().transmittance()[0].clone())
+}
+
+#[test]
+fn the_sky_lights_the_hair_the_sun_does_not_reach() {
+    let (dark, sun) = under_sky(0.0);
+    let (sky, _) = under_sky(0.5);
+    let gain = |keep: &dyn Fn(f32) -> bool| {
+        let (mut sum, mut n) = (0.0f32, 0);
+        for ((a, b), &t) in sky.iter().zip(&dark).zip(&sun) {
+            if keep(t) {
+                assert!((*a - *b).min_element() >= -1e-6, "{a} against {b}");
+                sum += (*a - *b).element_sum();
+                n += 1;
+            }
+        }
+        assert!(n > 50, "{n} vertices");
+        sum / n as f32
+    };
+    // Where the sun's light comes through, and where the head or the hair
+    // stops it: the sky's does not stop with it (it comes from every
+    // direction, through the hair about the head).
+    let (lit, dark) = (gain(&|t| t > 0.5), gain(&|t| t < 1e-3));
+    assert!(lit > 0.0, "{lit}");
+    assert!(
+        dark > 0.3 * lit,
+        "in the sun's shadow {dark}, in its light {lit}"
+    );
+}

@@ -3,8 +3,9 @@
 //! based fiber (Chiang et al. 2016, see [`crate::FiberOptics`]),
 //! `Phi = k_a S(theta_o, T_sky) + T E f(w_o, w_i) |cos theta_i|` (the sky
 //! of radiance `k_a` from every direction, `S` the fiber's light under it,
-//! [`crate::FiberTable::sky`], shadowed by the lights' mean transmittance
-//! `T_sky`), with light scattered between fibers as well if asked (dual
+//! [`crate::FiberTable::sky`], shadowed by the sky's transmittance
+//! `T_sky`: through the hair about the head where the engine maps it,
+//! else the lights' mean transmittance), with light scattered between fibers as well if asked (dual
 //! scattering, see [`crate::DualTable`], the sky's too:
 //! [`crate::DualTable::sky`]).
 
@@ -22,8 +23,9 @@ pub enum ShadingModel {
     /// Chiang et al.'s fiber (2016), averaged across its width, lit by
     /// each light with irradiance `irradiance`; the ambient term is a sky
     /// of radiance `k_a` from every direction, scattered by the fiber as
-    /// the lights are and shadowed by the mean transmittance of the
-    /// lights. With `from_color`, each strand's `sigma_a` follows
+    /// the lights are and shadowed by the sky's transmittance (the
+    /// engine's: through the hair about the head, or the lights' mean).
+    /// With `from_color`, each strand's `sigma_a` follows
     /// its colour ([`crate::sigma_a_from_color`]) and `optics.sigma_a` is
     /// unused.
     Marschner {
