@@ -679,14 +679,14 @@ fn bench_accuracy_writes_a_table_a_csv_and_a_plot() {
         "{text}"
     );
     assert!(rows[1].starts_with("reference,"));
-    // As a CSV reader sees it: seventeen fields a row, the parameters
+    // As a CSV reader sees it: nineteen fields a row, the parameters
     // whole, no Cycles columns without --cycles.
     let mut reader = csv::Reader::from_path(&csv).unwrap();
     for (i, r) in reader.records().enumerate() {
         let r = r.unwrap();
-        assert_eq!(r.len(), 17, "{r:?}");
+        assert_eq!(r.len(), 19, "{r:?}");
         assert!(r[1].contains('=') && !r[1].starts_with('"'), "{r:?}");
-        assert!((9..17).all(|k| r[k].is_empty()), "{r:?}");
+        assert!((9..19).all(|k| r[k].is_empty()), "{r:?}");
         if i == 0 {
             continue;
         }

@@ -11,7 +11,11 @@
 //! - `strands.bin`: `u32` point count of each strand, then `f32 x, y, z` of
 //!   every point, strand after strand;
 //! - `head.bin` (a scene with a head): `f32 x, y, z` of every vertex, then
-//!   `i32` triples of every triangle (a sphere is tessellated);
+//!   `i32` triples of every triangle (a sphere is tessellated), then `f32
+//!   x, y, z` of every vertex's unit normal, the one wisplight shades it
+//!   with (Cycles takes them as the mesh's own: averaged by its own
+//!   weights instead, a closed neck's normals bend towards its bottom and
+//!   darken it);
 //! - `scene.json`: everything else, read by `scene.py`.
 //!
 //! What does not carry over: Kajiya-Kay is not a physical model, so a
@@ -30,7 +34,7 @@ use crate::{DEFAULT_HAIR_COLOR, EngineError, Sequence};
 pub const CYCLES_SCRIPT: &str = include_str!("export/scene.py");
 
 /// The format `scene.py` reads (`scene.json`'s `format`).
-pub const CYCLES_FORMAT: &str = "wisplight-cycles-1";
+pub const CYCLES_FORMAT: &str = "wisplight-cycles-2";
 
 /// The files of one exported frame: name and bytes.
 #[derive(Debug, Clone)]
@@ -209,11 +213,22 @@ pub fn cycles_export(seq: &Sequence, samples: u32) -> Result<CyclesExport, Engin
     let head = match seq.renderer().shadows().head() {
         None => None,
         Some(h) => {
-            let (positions, triangles) = match h.mesh() {
-                Some(m) => (m.positions().to_vec(), m.triangles().to_vec()),
-                None => uv_sphere(h.center(), h.settings().radius, 96, 48),
+            let (positions, triangles, normals) = match h.mesh() {
+                Some(m) => (
+                    m.positions().to_vec(),
+                    m.triangles().to_vec(),
+                    m.normals().to_vec(),
+                ),
+                None => {
+                    let (p, t) = uv_sphere(h.center(), h.settings().radius, 96, 48);
+                    let n = p
+                        .iter()
+                        .map(|&x| (x - h.center()).normalize_or(Vec3::Y))
+                        .collect();
+                    (p, t, n)
+                }
             };
-            let mut bytes = Vec::with_capacity(12 * (positions.len() + triangles.len()));
+            let mut bytes = Vec::with_capacity(12 * (2 * positions.len() + triangles.len()));
             for &p in &positions {
                 for c in z_up(p) {
                     bytes.extend_from_slice(&c.to_le_bytes());
@@ -222,6 +237,11 @@ pub fn cycles_export(seq: &Sequence, samples: u32) -> Result<CyclesExport, Engin
             for t in &triangles {
                 for &i in t {
                     bytes.extend_from_slice(&(i as i32).to_le_bytes());
+                }
+            }
+            for &n in &normals {
+                for c in z_up(n) {
+                    bytes.extend_from_slice(&c.to_le_bytes());
                 }
             }
             files.push(("head.bin", bytes));

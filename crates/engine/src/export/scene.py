@@ -151,7 +151,10 @@ def strands_object(h, material):
 
 
 def head_object(hd):
-    verts, tris = read_file(hd["file"], [("f", 3 * hd["vertices"]), ("i", 3 * hd["triangles"])])
+    verts, tris, normals = read_file(
+        hd["file"],
+        [("f", 3 * hd["vertices"]), ("i", 3 * hd["triangles"]), ("f", 3 * hd["vertices"])],
+    )
     mesh = bpy.data.meshes.new("wisplight_head")
     mesh.vertices.add(hd["vertices"])
     mesh.vertices.foreach_set("co", verts)
@@ -164,6 +167,13 @@ def head_object(hd):
     mesh.polygons.foreach_set("use_smooth", array.array("b", [1]) * n)
     mesh.update()
     mesh.validate()
+    # wisplight's own normals, not Blender's average of the faces (custom
+    # normals need auto smooth before Blender 4.1).
+    if hasattr(mesh, "use_auto_smooth"):
+        mesh.use_auto_smooth = True
+    mesh.normals_split_custom_set_from_vertices(
+        [tuple(normals[3 * i : 3 * i + 3]) for i in range(hd["vertices"])]
+    )
     m = bpy.data.materials.new("wisplight_head")
     m.use_nodes = True
     bsdf = m.node_tree.nodes["Principled BSDF"]
@@ -226,8 +236,8 @@ def main():
     args = parse_args()
     with open(os.path.join(HERE, "scene.json")) as f:
         s = json.load(f)
-    if s.get("format") != "wisplight-cycles-1":
-        raise SystemExit("scene.json: not a wisplight export of format wisplight-cycles-1")
+    if s.get("format") != "wisplight-cycles-2":
+        raise SystemExit("scene.json: not a wisplight export of format wisplight-cycles-2")
     clear()
     scene = bpy.context.scene
     scene.render.engine = "CYCLES"
