@@ -362,26 +362,38 @@ fn comb_shares(w: usize, lum: &[f64], mask: &[bool]) -> Vec<f64> {
     sums.iter().map(|s| s / total).collect()
 }
 
+/// Renders `scene` without shadows into `ours` (wisplight's picture, as
+/// its extension says), exports it beside `ours` and renders it in Cycles
+/// without shadows at `samples`: Cycles' picture, linear.
+fn both_unshadowed(
+    blender: &Path,
+    scene: &str,
+    ours: &Path,
+    samples: u32,
+) -> (u32, u32, Vec<glam::Vec3>) {
+    let o = wisplight(&["render", scene, "--no-shadow", "-o", ours.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = ours.with_file_name("blend");
+    let o = wisplight(&["export", scene, "--blender", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let exr = out.join("cycles-unshadowed.exr");
+    let run = wisplight_cli::cycles::CyclesRun {
+        unshadowed: true,
+        samples,
+        bounces: 0,
+        threads: 2,
+    };
+    wisplight_cli::cycles::render(blender, &out, &exr, run).unwrap();
+    wisplight_cli::cycles::read_exr(&exr).unwrap()
+}
+
 #[test]
 fn cycles_and_wisplight_shade_lone_fibers_alike() {
     let Some(blender) = blender() else { return };
     let dir = scratch("combs");
     let scene = write(&dir, "combs.toml", &combs_scene());
     let png = dir.join("wisplight.png");
-    let o = wisplight(&["render", &scene, "--no-shadow", "-o", png.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let out = dir.join("blend");
-    let o = wisplight(&["export", &scene, "--blender", out.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let exr = out.join("combs.exr");
-    let run = wisplight_cli::cycles::CyclesRun {
-        unshadowed: true,
-        samples: 32,
-        bounces: 0,
-        threads: 2,
-    };
-    wisplight_cli::cycles::render(&blender, &out, &exr, run).unwrap();
-    let (w, _, cycles) = wisplight_cli::cycles::read_exr(&exr).unwrap();
+    let (w, _, cycles) = both_unshadowed(&blender, &scene, &png, 32);
     let lum = |c: [f64; 3]| 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
     let cycles: Vec<f64> = cycles
         .iter()
@@ -438,26 +450,7 @@ fn cycles_shades_the_mesh_head_with_wisplights_normals() {
     let dir = scratch("head");
     let scene = write(&dir, "head.toml", &mesh_head_scene());
     let ours_exr = dir.join("wisplight.exr");
-    let o = wisplight(&[
-        "render",
-        &scene,
-        "--no-shadow",
-        "-o",
-        ours_exr.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let out = dir.join("blend");
-    let o = wisplight(&["export", &scene, "--blender", out.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let exr = out.join("head.exr");
-    let run = wisplight_cli::cycles::CyclesRun {
-        unshadowed: true,
-        samples: 16,
-        bounces: 0,
-        threads: 2,
-    };
-    wisplight_cli::cycles::render(&blender, &out, &exr, run).unwrap();
-    let (w, h, cycles) = wisplight_cli::cycles::read_exr(&exr).unwrap();
+    let (w, h, cycles) = both_unshadowed(&blender, &scene, &ours_exr, 16);
     let (w2, h2, ours) = wisplight_cli::cycles::read_exr(&ours_exr).unwrap();
     assert_eq!((w, h), (w2, h2));
     let lum = |c: &glam::Vec3| f64::from(0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z);
