@@ -503,24 +503,17 @@ fn head_term(
     let cone = raster::cone_light(sin_alpha, ui);
     let at = (cone.sin_theta, uo, cos_phi);
     let omega = 2.0 * PI * (1.0 - (1.0 - sin_alpha * sin_alpha).max(0.0).sqrt());
-    match sky {
-        _ if ambient <= 0.0 => {
-            let [from_head] = dual.radiance_spread([t], at, cone.spread, cone.across);
-            (e * cone.factor * from_head, Vec3::ZERO)
-        }
-        Some(_) => {
-            let [from_head] = dual.radiance_spread([t], at, cone.spread, cone.across);
-            let r = cone.factor * from_head;
-            (e * r, ambient * omega * r)
-        }
-        None => {
-            let [from_head, hidden] =
-                dual.radiance_spread([t, sky_t], at, cone.spread, cone.across);
-            (
-                e * cone.factor * from_head,
-                ambient * omega * cone.factor * hidden,
-            )
-        }
+    if ambient <= 0.0 || sky.is_some() {
+        // The hidden sky, if any, crosses the head's light's hair.
+        let [from_head] = dual.radiance_spread([t], at, cone.spread, cone.across);
+        let r = cone.factor * from_head;
+        (e * r, ambient.max(0.0) * omega * r)
+    } else {
+        let [from_head, hidden] = dual.radiance_spread([t, sky_t], at, cone.spread, cone.across);
+        (
+            e * cone.factor * from_head,
+            ambient * omega * cone.factor * hidden,
+        )
     }
 }
 
