@@ -34,9 +34,6 @@ use super::cycles_truth::BLOCK;
 pub(super) struct Light {
     /// Per block, the direct share `F`.
     pub(super) share: raster::ShadowRatios,
-    /// Per block (as `share`), `sum Y(direct)` and `sum Y(all) -
-    /// sum Y(direct)` (none below 0).
-    parts: Vec<(f64, f64)>,
     /// `sum Y(all) / sum Y(direct)`.
     pub(super) gain: f64,
     /// `sum(R) / sum(G)` and `sum(B) / sum(G)` of the scattered picture.
@@ -59,29 +56,8 @@ impl Light {
         // Rec. 709 luminance, as the shadow ratios weigh.
         let total = |s: [f64; 3]| 0.2126 * s[0] + 0.7152 * s[1] + 0.0722 * s[2];
         let ratio = |x: f64, y: f64| if y > 0.0 { x / y } else { f64::NAN };
-        let share = raster::ShadowRatios::new(direct, all, w, h, BLOCK);
-        let mut parts = vec![(0.0f64, 0.0f64); share.cols * share.rows];
-        for y in 0..share.rows * BLOCK {
-            for x in 0..share.cols * BLOCK {
-                let i = y * w + x;
-                let y_of = |c: Vec3| {
-                    if c.is_finite() {
-                        f64::from(0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z).max(0.0)
-                    } else {
-                        0.0
-                    }
-                };
-                let b = &mut parts[(y / BLOCK) * share.cols + x / BLOCK];
-                b.0 += y_of(direct[i]);
-                b.1 += y_of(all[i]);
-            }
-        }
-        for b in &mut parts {
-            b.1 = (b.1 - b.0).max(0.0);
-        }
         Light {
-            share,
-            parts,
+            share: raster::ShadowRatios::new(direct, all, w, h, BLOCK),
             gain: ratio(total(a), total(d)),
             color: [ratio(a[0], a[1]), ratio(a[2], a[1])],
         }
@@ -126,9 +102,11 @@ fn error_parts(mine: &Light, cycles: &Light) -> (f64, f64) {
         .ratio
         .iter()
         .zip(&cycles.share.ratio)
-        .zip(mine.parts.iter().zip(&cycles.parts))
+        .zip(mine.share.sums.iter().zip(&cycles.share.sums))
         .filter(|((a, b), _)| a.is_some() && b.is_some())
-        .map(|(_, p)| (*p.0, *p.1))
+        // Per block, `sum Y(direct)` and the scattered light, `sum Y(all)`
+        // less it (none below 0).
+        .map(|(_, (&(dw, aw), &(dc, ac)))| ((dw, (aw - dw).max(0.0)), (dc, (ac - dc).max(0.0))))
         .collect();
     let (dw, dc) = blocks
         .iter()

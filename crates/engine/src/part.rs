@@ -233,7 +233,7 @@ impl HairPart {
                 // The sky's transmittance: through the hair about the head
                 // where the head's map holds it, else the lights' mean.
                 let sky_t = |v: usize| {
-                    if let Some(t) = head_in.get(base + v).and_then(|h| h.sky).filter(|_| head) {
+                    if let Some(t) = head.then(|| head_in[base + v].sky).flatten() {
                         t
                     } else if !shadows || lights.is_empty() {
                         1.0

@@ -45,6 +45,9 @@ pub struct ShadowRatios {
     pub rows: usize,
     /// Per block, row by row: `R`, or `None` where it shows too little.
     pub ratio: Vec<Option<f32>>,
+    /// Per block, as `ratio`: `sum Y(shadowed)` and `sum Y(unshadowed)`
+    /// (a pixel that is not finite counting as dark).
+    pub sums: Vec<(f64, f64)>,
 }
 
 impl ShadowRatios {
@@ -98,7 +101,12 @@ impl ShadowRatios {
             .iter()
             .map(|&(s, u)| (u > floor && u > 0.0).then(|| (s / u) as f32))
             .collect();
-        ShadowRatios { cols, rows, ratio }
+        ShadowRatios {
+            cols,
+            rows,
+            ratio,
+            sums,
+        }
     }
 
     /// Mean `R` over the blocks that count.
