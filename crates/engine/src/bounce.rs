@@ -32,8 +32,9 @@
 //! whose columns are the sampled directions. [`HeadLight::through_hair`]
 //! fills it from the first light's map, which already holds the hair:
 //! along each direction, at 48 radii from the surface out past the hair,
-//! the extinction `sigma_t` is the difference of that map's optical depth
-//! `tau = -ln T` across a cell along its light (two lookups), and one
+//! the extinction `sigma_t` is what the hair of that map adds to its
+//! optical depth across a cell along its light, over the cell's length
+//! (the cell the head's own deposit enters left out: [`HairIn`]), and one
 //! sweep out along the column sums it into the optical depth
 //! `tau_h(r) = int sigma_t dr` from the surface. A vertex looks `tau_h`
 //! up at its direction and height (bilinear, linear between radii) and
@@ -41,9 +42,7 @@
 //! cross on their slanted paths from the whole cone ([`slant_depth`]).
 //! The fiber scatters it as light spread over the cone
 //! ([`raster::cone_light`]: from the cone's mean angle along the fiber,
-//! every lobe widened as the cone is), multiple scattering included. The
-//! radii near the head, whose lookups would reach the head's own deposit
-//! in the light's map, take the extinction of the first clear one.
+//! every lobe widened as the cone is), multiple scattering included.
 //!
 //! The same columns hold what lies between a vertex and the open sky
 //! beyond the hair: the sky's own transmittance there
@@ -80,13 +79,29 @@ const RADII: usize = 48;
 /// the surface: the hair anywhere in that map lies within them.
 const REACH_CELLS: f32 = 1.8;
 /// Radii nearer the surface than this many of the light map's cells
-/// would look the head's own deposit up.
+/// would look the head's own deposit up, where the map is read through
+/// its transmittance alone ([`HairIn::Lookup`]).
 const CLEAR_CELLS: f32 = 2.5;
 
 /// `cos beta` of the caps the radiance is averaged over, decreasing: from
 /// a point (hair on the head, whose horizon hides the rest) to a
 /// hemisphere (hair far from it).
 const CAPS: [f32; 7] = [1.0, 0.95, 0.85, 0.7, 0.5, 0.25, 0.0];
+
+/// How [`HeadLight::through_hair`] reads the hair in the first light's
+/// map.
+#[derive(Clone, Copy)]
+pub(crate) enum HairIn<'a> {
+    /// Its swept map, filtered or not: the hair's own optical depth over
+    /// each cell ([`shadow::Transmittance::hair_depth_along`]), the head's
+    /// deposit left out, so right down to the surface.
+    Swept(&'a shadow::Transmittance, bool),
+    /// Its transmittance at drawn points alone (a method that keeps no
+    /// swept map), `lookup(points, out)`: the difference of `tau = -ln T`
+    /// across a cell, which near the head reads the head's own deposit, so
+    /// the radii within [`CLEAR_CELLS`] of it take the first clear one's.
+    Lookup(&'a (dyn Fn(&[Vec3], &mut [f32]) + Sync)),
+}
 
 /// Where the head's surface lies along each sampled direction from its
 /// centre, in the head's own frame (at rest, about the scene's
@@ -480,43 +495,50 @@ impl HeadLight {
     }
 
     /// Fills the head's map from the hair in the map of `light` (cells
-    /// of `cell` scene units, `cells` a side): `lookup(points, out)` its
-    /// transmittance at `points`, as drawn hair looks it up.
-    pub(crate) fn through_hair(
-        &mut self,
-        light: &Light,
-        cell: f32,
-        cells: u32,
-        lookup: impl Fn(&[Vec3], &mut [f32]),
-    ) {
+    /// of `cell` scene units, `cells` a side), read as `hair` says.
+    pub(crate) fn through_hair(&mut self, light: &Light, cell: f32, cells: u32, hair: HairIn<'_>) {
         let reach = REACH_CELLS * cell * cells as f32;
         let height = |j: usize| reach * (j as f32 / (RADII - 1) as f32).powi(2);
         let shape = &self.shape;
-        // Two points a radius, a cell apart along the light.
-        let mut points = Vec::with_capacity(DIRECTIONS * RADII * 2);
+        // The radii's points, and half a cell along the light at each.
+        let mut points = Vec::with_capacity(DIRECTIONS * RADII);
         for (k, at) in shape.surface.at.iter().enumerate() {
             let (d, _) = direction(k / N_PHI, k % N_PHI);
             let r = at.map_or(0.0, |(r, _)| r);
             for j in 0..RADII {
                 let x = shape.center + shape.from_own * ((r + height(j)) * d);
-                let u = light.direction_at(x) * (0.5 * cell);
-                points.extend([x - u, x + u]);
+                points.push((x, light.direction_at(x) * (0.5 * cell)));
             }
         }
-        let mut t = vec![0.0; points.len()];
-        lookup(&points, &mut t);
-        let tau = |t: f32| -t.max(1e-30).ln();
+        // The extinction `sigma_t` at each, over the cell about it along
+        // the light; and the first radius whose value is the hair's alone.
+        let (sigma, clear): (Vec<f32>, usize) = match hair {
+            HairIn::Swept(map, trilinear) => (
+                points
+                    .iter()
+                    .map(|&(x, u)| map.hair_depth_along(x - u, 1.0, trilinear) / cell)
+                    .collect(),
+                0,
+            ),
+            HairIn::Lookup(lookup) => {
+                let pairs: Vec<Vec3> = points.iter().flat_map(|&(x, u)| [x - u, x + u]).collect();
+                let mut t = vec![0.0; pairs.len()];
+                lookup(&pairs, &mut t);
+                let tau = |t: f32| -t.max(1e-30).ln();
+                let sigma = t
+                    .chunks_exact(2)
+                    .map(|t| (tau(t[1]) - tau(t[0])).max(0.0) / cell)
+                    .collect();
+                // Radii too near the head take the first clear one's.
+                let clear = (0..RADII)
+                    .find(|&j| height(j) >= CLEAR_CELLS * cell)
+                    .unwrap_or(RADII - 1);
+                (sigma, clear)
+            }
+        };
         self.depth.clear();
         for k in 0..DIRECTIONS {
-            let sigma = |j: usize| {
-                let i = 2 * (k * RADII + j);
-                (tau(t[i + 1]) - tau(t[i])).max(0.0) / cell
-            };
-            // Radii too near the head take the first clear one's.
-            let clear = (0..RADII)
-                .find(|&j| height(j) >= CLEAR_CELLS * cell)
-                .unwrap_or(RADII - 1);
-            let sigma = |j: usize| sigma(j.max(clear));
+            let sigma = |j: usize| sigma[k * RADII + j.max(clear)];
             let mut sum = 0.0f32;
             self.depth.push(0.0);
             for j in 1..RADII {
@@ -607,186 +629,4 @@ impl HeadLight {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_uniform_head_gives_its_radiance_times_the_solid_angle() {
-        // A head of radiance 1 everywhere: E_h = Omega, from the cone's
-        // half-angle alone.
-        let c = Vec3::new(1.0, 2.0, 3.0);
-        let h = HeadLight::new(HeadShape::sphere(c, 2.0), |_, _| Vec3::ONE);
-        for d in [2.0f32, 2.5, 4.0, 20.0] {
-            for n in [
-                Vec3::X,
-                Vec3::Y,
-                -Vec3::Y,
-                Vec3::new(0.3, -0.5, 0.8).normalize(),
-            ] {
-                let (to, e, height) = h.at(c + d * n).unwrap();
-                let alpha = (2.0 / d).asin();
-                let omega = 2.0 * PI * (1.0 - alpha.cos());
-                assert!(
-                    (e - Vec3::splat(omega)).abs().max_element() < 1e-4,
-                    "{d} {n}: {e}"
-                );
-                assert!((to + n).length() < 1e-6);
-                assert!((height - (d - 2.0)).abs() < 1e-5);
-            }
-        }
-        // On the surface, a hemisphere: 2 pi.
-        let (_, e, _) = h.at(c + 2.0 * Vec3::Z).unwrap();
-        assert!((e.x - 2.0 * PI).abs() < 1e-4);
-        assert!(h.at(c).is_none());
-    }
-
-    #[test]
-    fn a_head_lit_from_one_side_sends_light_to_that_side() {
-        // Radiance max(n . x, 0): the far side's hair gets none. Hair on
-        // the lit pole sees the point under it (radiance 1) fill a
-        // hemisphere of directions; hair far off sees the lit hemisphere
-        // of the head, whose mean radiance by area is 1/2.
-        let h = HeadLight::new(HeadShape::sphere(Vec3::ZERO, 1.0), |_, n| {
-            Vec3::splat(n.x.max(0.0))
-        });
-        let (_, far, _) = h.at(-3.0 * Vec3::X).unwrap();
-        assert!(far.x < 1e-3, "{far}");
-        let (_, near, _) = h.at(1.0 * Vec3::X).unwrap();
-        let mean = near.x / (2.0 * PI);
-        assert!((mean - 1.0).abs() < 0.03, "{mean}");
-        let (_, distant, _) = h.at(50.0 * Vec3::X).unwrap();
-        let omega = 2.0 * PI * (1.0 - (1.0f32 - 1.0 / 2500.0).sqrt());
-        let mean = distant.x / omega;
-        assert!((mean - 0.5).abs() < 0.04, "{mean}");
-    }
-
-    #[test]
-    fn a_mesh_head_is_its_outermost_surface_and_none_through_a_hole() {
-        // A cube of side 2 about (0, 1, 0), its bottom face left open.
-        let obj = "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nv -1 2 -1\nv 1 2 -1\nv 1 2 1\nv -1 2 1\n\
-                   f 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\nf 2 3 7\nf 2 7 6\nf 3 4 8\nf 3 8 7\n\
-                   f 4 1 5\nf 4 5 8\n";
-        let mesh =
-            strands::load_mesh_bytes(std::path::Path::new("cube.obj"), obj.as_bytes()).unwrap();
-        let s = Surface::mesh(&mesh, Vec3::Y);
-        for (k, at) in s.at.iter().enumerate() {
-            let (d, _) = direction(k / N_PHI, k % N_PHI);
-            // Rays through the open bottom find nothing; the others the
-            // face they leave by, at 1 / max |d_i|.
-            let leaves_by_bottom = -d.y >= d.x.abs().max(d.z.abs());
-            match at {
-                None => assert!(leaves_by_bottom, "{d}"),
-                Some((r, n)) => {
-                    assert!(!leaves_by_bottom, "{d}");
-                    let want = 1.0 / d.abs().max_element();
-                    assert!((r - want).abs() < 1e-4, "{d}: {r} against {want}");
-                    assert!(n.dot(d) > 0.0 && (n.length() - 1.0).abs() < 1e-5);
-                }
-            }
-        }
-        // No light from under the hole: the radius there is 0.
-        let shape = HeadShape {
-            center: Vec3::Y,
-            to_own: Mat3A::IDENTITY,
-            from_own: Mat3A::IDENTITY,
-            surface: Arc::new(s),
-        };
-        let h = HeadLight::new(shape, |_, _| Vec3::ONE);
-        assert!(h.at(Vec3::new(0.0, -5.0, 0.0)).is_none());
-        let (_, _, height) = h.at(Vec3::new(0.0, 4.0, 0.0)).unwrap();
-        assert!((height - 2.0).abs() < 0.05, "{height}");
-        let (_, e, _) = h.at(Vec3::new(0.0, 1.0, 1.0)).unwrap();
-        assert!((e.x - 2.0 * PI).abs() < 1e-3, "{e}");
-    }
-
-    #[test]
-    fn the_polynomial_atan2_is_within_its_bound_all_round() {
-        for k in 0..3600 {
-            let a = k as f32 * 0.1f32.to_radians() - PI;
-            for r in [1e-3f32, 1.0, 7.0] {
-                let (y, x) = (r * a.sin(), r * a.cos());
-                let d = (atan2_approx(y, x) - y.atan2(x)).abs();
-                let d = d.min((d - 2.0 * PI).abs());
-                assert!(d < 0.005, "{a}: off by {d}");
-            }
-        }
-        assert_eq!(atan2_approx(0.0, 0.0), 0.0);
-    }
-
-    #[test]
-    fn the_heads_light_crosses_the_hair_on_slanted_paths() {
-        // From a point (far from the head) every ray is radial.
-        for tau in [0.1f32, 1.0, 5.0] {
-            assert!((slant_depth(0.0, tau) - tau).abs() < 1e-3 * tau.max(1.0));
-        }
-        // At the surface, a flat layer under a hemisphere: exp(-tau_h) =
-        // E_2(tau) = exp(-tau) - tau E_1(tau), from tables of E_1.
-        for (tau, e2) in [(0.5f32, 0.326_644f32), (1.0, 0.148_496), (2.0, 0.037_534)] {
-            let t = (-slant_depth(1.0, tau)).exp();
-            assert!((t / e2 - 1.0).abs() < 0.02, "tau {tau}: {t} against {e2}");
-        }
-        // The nearer the head, the wider the cone and the longer the paths.
-        let mut last = 0.0;
-        for k in 0..=10 {
-            let d = slant_depth(k as f32 / 10.0, 2.0);
-            assert!(d >= last - 1e-4 && d.is_finite(), "{k}: {d}");
-            last = d;
-        }
-        assert_eq!(slant_depth(0.7, 0.0), 0.0);
-        assert_eq!(slant_depth(0.7, f32::NAN), 0.0);
-    }
-
-    #[test]
-    fn the_sky_comes_through_the_hair_over_both_halves_of_the_sphere() {
-        // No hair: all of it; on the bare surface of the head under no
-        // hair, the outer half (the inner is the head's, taken off apart).
-        assert!((sky_transmittance(0.0, 0.0) - 1.0).abs() < 1e-6);
-        // Each half through a flat layer: E_2 (tables: E_2(0.25) =
-        // 0.517730, E_2(1) = 0.148496, E_2(4) = 0.003198).
-        let cases = [
-            (0.25f32, 1.0f32, 0.5 * (0.517_730 + 0.148_496)),
-            (1.0, 4.0, 0.5 * (0.148_496 + 0.003_198)),
-            (0.0, 1.0, 0.5 * (1.0 + 0.148_496)),
-        ];
-        for (tau_in, tau_out, want) in cases {
-            for (a, b) in [(tau_in, tau_out), (tau_out, tau_in)] {
-                let t = sky_transmittance(a, b);
-                assert!((t / want - 1.0).abs() < 0.02, "{a} {b}: {t} against {want}");
-            }
-        }
-        // Deep in hair on both sides, none; never more than 1 or below 0.
-        assert!(sky_transmittance(40.0, 40.0) < 1e-6);
-        for tau in [0.0f32, 0.3, 3.0, 30.0, f32::INFINITY] {
-            let t = sky_transmittance(tau, 0.5 * tau);
-            assert!((0.0..=1.0).contains(&t), "{tau}: {t}");
-        }
-    }
-
-    #[test]
-    fn a_vertex_learns_the_skys_transmittance_once_the_map_holds_the_hair() {
-        let c = Vec3::ZERO;
-        let mut h = HeadLight::new(HeadShape::sphere(c, 1.0), |_, _| Vec3::ONE);
-        let p = Vec3::new(0.0, 1.2, 0.0);
-        assert_eq!(h.through_at(p).unwrap().sky, None);
-        // A map whose every cell along the light holds optical depth 0.5
-        // per cell: a uniform layer about the head.
-        let light = Light::directional(Vec3::NEG_Y).unwrap();
-        let cell = 0.1;
-        h.through_hair(&light, cell, 32, |pts, out| {
-            for (o, q) in out.iter_mut().zip(pts) {
-                // Depth grows along the light (-y): exp(-0.5 per cell).
-                *o = (-(0.5 / cell) * (10.0 - q.y)).exp();
-            }
-        });
-        let at = h.through_at(p).unwrap();
-        let sky = at.sky.expect("the map holds the hair");
-        // Extinction 5 per unit length every way: 0.2 over the surface,
-        // tau_in = 1; the column reaches REACH_CELLS * 0.1 * 32 = 5.76
-        // out, tau_out = 5 * 5.56 = 27.8, through which no sky comes.
-        let want = 0.5 * 0.148_496;
-        assert!((sky / want - 1.0).abs() < 0.03, "{sky} against {want}");
-        // The head's own light comes through the same tau_in over its cone.
-        let t = (-slant_depth(1.0 / 1.2, 1.0)).exp();
-        assert!((at.t / t - 1.0).abs() < 0.01, "{} against {t}", at.t);
-    }
-}
+mod tests;

@@ -14,7 +14,7 @@ use rayon::prelude::*;
 use shadow::Light;
 use strands::Hair;
 
-use crate::bounce::{HeadLight, Through};
+use crate::bounce::{HairIn, HeadLight, Through};
 use crate::{HairSource, Head, Scene};
 
 /// Hair colour when neither the style nor the file gives one (linear RGB).
@@ -625,8 +625,8 @@ pub(crate) fn head_optics(scene: &Scene) -> Option<FiberOptics> {
 /// `trans(light, x, n)` its transmittance at its point
 /// `x` of normal `n`, `forward` the fiber that scatters the light on its
 /// way; the hair between as the map of the first of `lights` (not empty)
-/// has it, in `frame`, `lookup(points, out)` its transmittance at
-/// `points` (a method without a map: unattenuated).
+/// has it, in `frame`, read as `hair` says (a method without a map:
+/// unattenuated).
 pub(crate) fn head_light(
     head: &Head,
     shading: &Shading,
@@ -634,7 +634,7 @@ pub(crate) fn head_light(
     forward: &DualTable,
     frame: Option<&shadow::LightFrame>,
     trans: impl Fn(usize, Vec3, Vec3) -> f32,
-    lookup: impl Fn(&[Vec3], &mut [f32]),
+    hair: HairIn<'_>,
 ) -> HeadLight {
     let color = head.settings().color;
     // The head sends back what lights it: the lights and the sky, as it
@@ -645,7 +645,7 @@ pub(crate) fn head_light(
         })
     });
     if let Some(f) = frame {
-        light.through_hair(&lights[0], f.ds, f.n_cells, lookup);
+        light.through_hair(&lights[0], f.ds, f.n_cells, hair);
     }
     light
 }

@@ -296,6 +296,12 @@ impl ShadowPipeline {
         self.lights.get(l).and_then(|x| x.method.frame())
     }
 
+    /// Light `l`'s swept map and whether its lookups filter it, for the
+    /// method that keeps one (the paper's).
+    pub fn swept(&self, l: usize) -> Option<(&shadow::Transmittance, bool)> {
+        self.lights.get(l).and_then(|x| x.method.swept())
+    }
+
     /// The lights, in scene order.
     pub fn lights(&self) -> impl Iterator<Item = &Light> {
         self.lights.iter().map(|l| &l.light)

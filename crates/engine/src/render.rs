@@ -8,7 +8,7 @@ use glam::{Affine3A, Vec3};
 use raster::{Camera, Canvas, DualTable, HairLayer, ShadingModel};
 use strands::{Bounds, Hair};
 
-use crate::bounce::HeadLight;
+use crate::bounce::{HairIn, HeadLight};
 use crate::part::{Seen, draw_head, head_lambert};
 use crate::{
     DrawJob, DrawReport, Drawn, EngineError, HairPart, PendingPicture, Scene, ShadowPipeline,
@@ -300,6 +300,11 @@ impl Renderer {
         }
         let (pipeline, lights) = (&self.shadows, self.lights());
         let head_shadow = self.scene.effects.head_shadow;
+        let lookup = |pts: &[Vec3], out: &mut [f32]| pipeline.filter_light(0, pts, out);
+        let hair = match pipeline.swept(0) {
+            Some((map, trilinear)) => HairIn::Swept(map, trilinear),
+            None => HairIn::Lookup(&lookup),
+        };
         Some(crate::part::head_light(
             head,
             &self.scene.shading,
@@ -313,7 +318,7 @@ impl Renderer {
                     1.0
                 }
             },
-            |pts, out| pipeline.filter_light(0, pts, out),
+            hair,
         ))
     }
 

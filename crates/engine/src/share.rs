@@ -10,6 +10,7 @@ use glam::Vec3;
 use raster::{Canvas, HairLayer};
 
 use crate::bands::{BandPlan, BandWork, Own, Sort, Stripe};
+use crate::bounce::HairIn;
 use crate::stats::{DrawTimes, ms};
 use shadow::{DensityMap, Fiber, FillStats, LightFrame, Transmittance};
 use strands::Hair;
@@ -421,7 +422,7 @@ impl Share {
                             1.0
                         }
                     },
-                    |pts, out| maps[0].filter(pts, job.trilinear, out),
+                    HairIn::Swept(&maps[0], job.trilinear),
                 );
                 self.part.filter_head(hair, &head);
             }

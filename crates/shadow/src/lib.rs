@@ -41,8 +41,8 @@ pub use occluder::{Occluder, OccluderView, ray_triangle};
 pub use peers::{DeepOpacityMap, DeepShadowMap, DensityClustering, OpacityShadowMap};
 pub use reference::{AcrossFiber, Reference};
 pub use transmittance::{
-    ColumnSlab, DEPTH_STEP, LIT_EDGE_OFFSET, SWEEP_RUN_COLUMNS, Span, Transmittance, columns_read,
-    sweep, sweep_while,
+    BODY_CELL_DEPTH, ColumnSlab, DEPTH_STEP, LIT_EDGE_OFFSET, SWEEP_RUN_COLUMNS, Span,
+    Transmittance, columns_read, sweep, sweep_while,
 };
 
 /// Errors of the shadow stages.

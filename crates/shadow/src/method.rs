@@ -191,6 +191,15 @@ impl ShadowMethod {
         each!(self, m => m.frame())
     }
 
+    /// The swept map of the last build and whether lookups filter it, for
+    /// the method that keeps one (the paper's).
+    pub fn swept(&self) -> Option<(&Transmittance, bool)> {
+        match self {
+            ShadowMethod::DensityMap(m) => m.trans.as_ref().map(|t| (t, m.trilinear)),
+            _ => None,
+        }
+    }
+
     /// The density map of the last build, for the method that fills one
     /// (the simulation's self-collisions read it too).
     pub fn density_map(&self) -> Option<&DensityMap> {

@@ -5,7 +5,7 @@ use std::ops::Range;
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::{DEPTH_QUANTUM, DensityMap, LightFrame, ShadowError};
+use crate::{DEPTH_QUANTUM, DensityMap, LightFrame, OPAQUE_DEPTH, ShadowError};
 
 /// Lookups at drawn fiber points read the map this many cells nearer the
 /// light than the point ([`Transmittance::filter`],
@@ -251,6 +251,14 @@ pub struct Transmittance {
     cols: Vec<Col>,
     depth: Vec<f32>,
 }
+
+/// A cell of a column whose optical depth grows by more than this within
+/// it holds an opaque body's entry, not hair alone
+/// ([`Transmittance::hair_depth_along`]): a body deposits
+/// [`OPAQUE_DEPTH`] (30) in one cell; hair of shadow opacity 0.5 (optical
+/// depth `-ln 0.5 = 0.69` a fiber crossed) adds 15 only with some 22
+/// fibers stacked in one cell of one column.
+pub const BODY_CELL_DEPTH: f32 = OPAQUE_DEPTH / 2.0;
 
 /// Padding columns on each side of [`Transmittance::cols`]: lookups reach
 /// columns -2 to n + 2 (points outside the map are clamped to 2 cells
@@ -540,9 +548,7 @@ impl Transmittance {
     /// the back face. Exactly 0 in front of the column's hair.
     #[inline(always)]
     fn column_depth(&self, j: i32, k: i32, x: f32) -> f32 {
-        // j, k >= -2 (see COL_PAD); past n + 2 the index fails loudly.
-        let side = self.n + 2 * COL_PAD + 1;
-        let c = self.cols[(k + COL_PAD as i32) as usize * side + (j + COL_PAD as i32) as usize];
+        let c = self.col(j, k);
         if x <= c.front {
             return 0.0;
         }
@@ -607,6 +613,67 @@ impl Transmittance {
             }
             self.column_depth(j, k, at.centre)
         }
+    }
+
+    /// The optical depth the hair alone adds to the light's ray through
+    /// `p` over the `cells` cells past it (away from the light), filtered
+    /// as [`Self::optical_depth`] is: in each column a lookup blends, what
+    /// its cells there add, less any cell an opaque body entered (one
+    /// whose depth grows by more than [`BODY_CELL_DEPTH`]; the hair in that
+    /// cell goes with it). The extinction of the hair about a body (the
+    /// light of the head that lies under it), which [`Self::optical_depth`]
+    /// mixes with the body's own deposit.
+    pub fn hair_depth_along(&self, p: Vec3, cells: f32, trilinear: bool) -> f32 {
+        debug_assert!(p.is_finite() && cells >= 0.0);
+        let at = Lookup::at(&self.frame, p, trilinear);
+        let (x1, x2) = (at.x, at.x + cells);
+        let d = |j, k| self.column_hair(self.col(j, k), x1, x2);
+        if trilinear {
+            let (j, k, ty, tz) = (at.j, at.k, at.ty, at.tz);
+            let (sy, sz) = (1.0 - ty, 1.0 - tz);
+            sz * (sy * d(j, k) + ty * d(j + 1, k)) + tz * (sy * d(j, k + 1) + ty * d(j + 1, k + 1))
+        } else {
+            d(at.j, at.k)
+        }
+    }
+
+    /// Column `(j, k)`: `j, k >= -2` (see [`COL_PAD`]); past `n + 2` the
+    /// index fails loudly.
+    #[inline(always)]
+    fn col(&self, j: i32, k: i32) -> Col {
+        let side = self.n + 2 * COL_PAD + 1;
+        self.cols[(k + COL_PAD as i32) as usize * side + (j + COL_PAD as i32) as usize]
+    }
+
+    /// What the hair of column `c` adds between slice coordinates `x1` and
+    /// `x2` (see [`Self::hair_depth_along`]): each cell's growth, linear
+    /// within it as [`Self::column_depth`] reads it, for the part of the
+    /// cell between the two.
+    fn column_hair(&self, c: Col, x1: f32, x2: f32) -> f32 {
+        let x1 = x1.max(c.front);
+        if x2 <= x1 {
+            return 0.0;
+        }
+        // x1 >= front >= lo: the cells from x1's to x2's (none past the last).
+        let first = (x1 - c.lo) as u32;
+        let last = ((x2 - c.lo) as u32).min(c.last);
+        let mut sum = 0.0;
+        for i in first..=last {
+            let at = (c.start + i) as usize;
+            // The first cell's hair fills [front, lo + 1).
+            let (start, before) = if i == 0 {
+                (c.front, 0.0)
+            } else {
+                (c.lo + i as f32, self.depth[at - 1])
+            };
+            let end = c.lo + i as f32 + 1.0;
+            let grow = self.depth[at] - before;
+            let (a, b) = (x1.max(start), x2.min(end));
+            if grow <= BODY_CELL_DEPTH && b > a {
+                sum += grow * (b - a) / (end - start).max(1e-6);
+            }
+        }
+        sum
     }
 
     /// Transmittance `T(p) = exp(-D(p))` in [0, 1] at a point in free
