@@ -431,6 +431,24 @@ pub(crate) fn sky_transmittance(tau_in: f32, tau_out: f32) -> f32 {
     0.5 * (half(tau_out) + half(tau_in))
 }
 
+/// The sky's transmittance at a point of the head's bare surface under a
+/// flat layer of hair of optical depth `tau` (along the surface's
+/// normal): the sky's irradiance there is cosine-weighted over the
+/// hemisphere over it, so, with `E_n` the exponential integrals,
+///
+/// ```text
+/// T_surface = 2 E_3(tau) = exp(-tau) - tau E_2(tau)
+/// ```
+///
+/// (1 with no hair; at `tau = 1`, 0.22).
+pub(crate) fn surface_sky_transmittance(tau: f32) -> f32 {
+    if tau.is_nan() || tau <= 0.0 {
+        return 1.0;
+    }
+    let e2 = (-slant_depth(1.0, tau)).exp();
+    ((-tau).exp() - tau * e2).clamp(0.0, 1.0)
+}
+
 impl HeadLight {
     /// The head `shape`, of radiance `radiance(x, n)` at its point `x` of
     /// outward normal `n` (world; linear RGB, as the head is shaded; asked
@@ -590,6 +608,24 @@ impl HeadLight {
             sin_alpha: s,
             sky: Some(sky_transmittance(tau, (total - tau).max(0.0))),
         })
+    }
+
+    /// The sky's transmittance at `p` on the head's surface, through the
+    /// hair of the head's map over it ([`surface_sky_transmittance`]):
+    /// `None` before [`Self::through_hair`], at the centre, or where no
+    /// surface lies in `p`'s direction.
+    pub(crate) fn sky_over(&self, p: Vec3) -> Option<f32> {
+        if self.depth.is_empty() {
+            return None;
+        }
+        let (n, _) = self.shape.own(p)?;
+        let g = grid(n);
+        let r = self.shape.surface.radius_at(g);
+        if r.is_nan() || r <= 0.0 {
+            return None;
+        }
+        let total = bilinear(g, |i, j| self.depth[(i * N_PHI + j) * RADII + RADII - 1]);
+        Some(surface_sky_transmittance(total))
     }
 
     /// At `p`: where its direction falls among the sampled ones, the

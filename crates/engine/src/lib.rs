@@ -44,11 +44,11 @@ pub use hair::{MAX_SEGMENTS, build_hair, drawn_segments};
 pub use head::Head;
 pub use part::{HairPart, Seen, draw_head};
 pub use pipeline::ShadowPipeline;
-pub use render::{Composite, DEFAULT_HAIR_COLOR, Renderer, view_direction};
+pub use render::{Composite, DEFAULT_HAIR_COLOR, Renderer};
 pub use scene::{
     Animation, BodySettings, CameraSettings, CameraView, Collision, Dynamics, Effects, HairSource,
     HeadMesh, HeadSettings, Placement, RenderSettings, Scene, SceneError, SceneSource,
-    ShadowSettings,
+    ShadowSettings, view_direction,
 };
 pub use share::Share;
 pub use stats::{DrawTimes, FrameStats, Stage, StageRecord, running_stage};

@@ -30,6 +30,9 @@ pub struct HairPart {
     /// head's centre.
     head_in: Vec<Through>,
     head_center: Vec3,
+    /// That head's light, kept for the head's own pixels (the sky over
+    /// them, [`Self::sky_over_head`]).
+    head: Option<HeadLight>,
     /// The shaded linear colour of each vertex.
     colors: Vec<Vec3>,
     /// The fiber tables made so far, by the optics they tabulate (one per
@@ -76,6 +79,7 @@ impl HairPart {
         // The head's light of this hair, if any, comes after
         // (`filter_head`).
         self.head_in.clear();
+        self.head = None;
         self.trans.resize(lights, Vec::new());
         for (l, t) in self.trans.iter_mut().enumerate() {
             t.resize(hair.point_count(), 0.0);
@@ -89,7 +93,7 @@ impl HairPart {
     /// along a strand (over the head's size): looked up at every
     /// fourth vertex of each strand (`HEAD_STRIDE`) and its last, linear
     /// between.
-    pub(crate) fn filter_head(&mut self, hair: &Hair, head: &HeadLight) {
+    pub(crate) fn filter_head(&mut self, hair: &Hair, head: HeadLight) {
         let (points, offsets) = (hair.points(), hair.offsets());
         self.head_center = head.center();
         self.head_in.clear();
@@ -113,6 +117,19 @@ impl HairPart {
                     Through::lerp,
                 );
             });
+        self.head = Some(head);
+    }
+
+    /// The sky's transmittance at the head's surface point `p`, through
+    /// the hair over it, when the head's light was filtered this frame
+    /// ([`HeadLight::sky_over`]).
+    pub(crate) fn sky_over_head(&self, p: Vec3) -> Option<f32> {
+        self.head.as_ref()?.sky_over(p)
+    }
+
+    /// Whether the head's light was filtered this frame.
+    pub(crate) fn has_head_light(&self) -> bool {
+        self.head.is_some()
     }
 
     /// Where the tables of `optics` are kept, made now (single
@@ -517,6 +534,17 @@ fn head_term(
     }
 }
 
+/// A point of the head's surface as [`head_lambert`] shades it.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct HeadPoint {
+    pub(crate) p: Vec3,
+    /// Its unit normal.
+    pub(crate) n: Vec3,
+    /// The sky's transmittance through the hair over it, where the head's
+    /// map gives it ([`HairPart::sky_over_head`]).
+    pub(crate) sky: Option<f32>,
+}
+
 /// The head's colour at a surface point `p` of unit normal `n`: Lambert
 /// under the hair's shadow,
 ///
@@ -532,9 +560,10 @@ fn head_term(
 /// split) and `T_sky = 1`; with the physically based fiber `s = E / pi`,
 /// a diffuse surface of albedo `C` under the irradiance `E` that lights
 /// the hair (radiance `C E cos / pi`, as a path tracer's diffuse surface
-/// under a sun of strength `E`), and the sky of radiance `k_a` shadowed
-/// by the lights' mean transmittance `T_sky` (as the hair's is where the
-/// head's map does not give the sky's own).
+/// under a sun of strength `E`), and the sky of radiance `k_a` through
+/// the hair over the point, `T_sky` the point's `sky`
+/// ([`crate::bounce::surface_sky_transmittance`]), or where the head's
+/// map does not give it, the lights' mean transmittance (as the hair's).
 ///
 /// With `forward` (multiple scattering), the light the hair scatters
 /// forward reaches the head too: `T_l` becomes the hair's forward
@@ -545,11 +574,15 @@ pub(crate) fn head_lambert(
     color: Vec3,
     shading: &Shading,
     lights: &[Light],
-    p: Vec3,
-    n: Vec3,
+    at: HeadPoint,
     forward: Option<&DualTable>,
     trans: impl Fn(usize) -> f32,
 ) -> Vec3 {
+    let HeadPoint {
+        p,
+        n,
+        sky: sky_over,
+    } = at;
     let ambient = shading.ambient;
     let s = match shading.model {
         ShadingModel::KajiyaKay => 1.0 - ambient,
@@ -563,8 +596,9 @@ pub(crate) fn head_lambert(
     };
     // The sky: Kajiya-Kay's ambient term unshadowed, as the paper has
     // it; under the physically based fiber, radiance `k_a` from every
-    // direction (radiance `C k_a` off a diffuse surface), shadowed by
-    // the lights' mean transmittance.
+    // direction (radiance `C k_a` off a diffuse surface), through the
+    // hair over the point (`sky_over`, from the head's map), else
+    // shadowed by the lights' mean transmittance.
     let shadowed_sky = matches!(shading.model, ShadingModel::Marschner { .. })
         && ambient > 0.0
         && !lights.is_empty();
@@ -582,7 +616,9 @@ pub(crate) fn head_lambert(
             c += t * scale * lambert * s * color;
         }
     }
-    let sky = if shadowed_sky {
+    let sky = if let (true, Some(t)) = (shadowed_sky, sky_over) {
+        Vec3::splat(t)
+    } else if shadowed_sky {
         sky / lights.len() as f32
     } else {
         Vec3::ONE
@@ -640,7 +676,8 @@ pub(crate) fn head_light(
     // The head sends back what lights it: the lights and the sky, as it
     // is drawn.
     let mut light = HeadLight::new(head.shape(), |x, n| {
-        head_lambert(color, shading, lights, x, n, Some(forward), |l| {
+        let at = HeadPoint { p: x, n, sky: None };
+        head_lambert(color, shading, lights, at, Some(forward), |l| {
             trans(l, x, n)
         })
     });

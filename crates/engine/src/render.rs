@@ -9,7 +9,7 @@ use raster::{Camera, Canvas, DualTable, HairLayer, ShadingModel};
 use strands::{Bounds, Hair};
 
 use crate::bounce::{HairIn, HeadLight};
-use crate::part::{Seen, draw_head, head_lambert};
+use crate::part::{HeadPoint, Seen, draw_head, head_lambert};
 use crate::{
     DrawJob, DrawReport, Drawn, EngineError, HairPart, PendingPicture, Scene, ShadowPipeline,
 };
@@ -187,7 +187,7 @@ impl Renderer {
     /// The camera of the scene, framing hair with `hair_bounds` (and the
     /// head) where the scene leaves position or target open: from the front
     /// (+z), slightly above (or from three quarters, see
-    /// [`view_direction`]), far enough that the whole hair fits the
+    /// [`crate::view_direction`]), far enough that the whole hair fits the
     /// vertical field of view.
     fn framing(&self, hair_bounds: Bounds) -> Result<View, EngineError> {
         let mut b = hair_bounds;
@@ -227,7 +227,7 @@ impl Renderer {
         let look_at = s.camera.look_at.unwrap_or(center);
         let tan_v = (0.5 * s.camera.fov_deg.to_radians()).tan();
         let position = s.camera.position.unwrap_or_else(|| {
-            let d = view_direction(hair_bounds, s.camera.view);
+            let d = crate::view_direction(hair_bounds, s.camera.view);
             let dist = match points {
                 Some(visit) => {
                     let tan_h = tan_v * s.render.width as f32 / s.render.height as f32;
@@ -279,7 +279,7 @@ impl Renderer {
                 shadows.filter_light(l, pts, out)
             });
         if let Some(head) = self.head_light() {
-            self.part.filter_head(hair, &head);
+            self.part.filter_head(hair, head);
         }
     }
 
@@ -403,6 +403,11 @@ impl Renderer {
             self.canvas = Some(Canvas::new(s.render.width, s.render.height)?);
         }
         let forward = self.forward_table(shadows);
+        // The sky over the head from the head's map: this frame's filter
+        // made it, or (the hair filtered elsewhere) it is made here.
+        let made = (shadows && !self.part.has_head_light() && self.scene.shading.ambient > 0.0)
+            .then(|| self.head_light())
+            .flatten();
         let s = &self.scene;
         let canvas = self.canvas.as_mut().expect("made above");
         canvas.clear();
@@ -417,8 +422,17 @@ impl Renderer {
             let pipeline = &self.shadows;
             let shading = &s.shading;
             let color = head.settings().color;
+            let part = &self.part;
             let shade = |p: Vec3, n: Vec3| {
-                head_lambert(color, shading, &lights, p, n, forward.as_deref(), |l| {
+                let sky = made
+                    .as_ref()
+                    .map_or_else(|| part.sky_over_head(p), |h| h.sky_over(p));
+                let at = HeadPoint {
+                    p,
+                    n,
+                    sky: sky.filter(|_| shadows),
+                };
+                head_lambert(color, shading, &lights, at, forward.as_deref(), |l| {
                     // Off the surface: past the head's own deposit.
                     if head_shadow {
                         pipeline.transmittance_off_surface(l, p, n)
@@ -618,27 +632,6 @@ impl Renderer {
     ) -> Option<(Vec<glam::Vec4>, Vec<f32>)> {
         Some(self.canvas.as_ref()?.resolve_linear_and_depth(background))
     }
-}
-
-/// Where the default camera looks from, towards the hair, slightly above:
-/// as `view` says; for [`crate::CameraView::Auto`] the front (+z), but three
-/// quarters (45 degrees to the right) when the hair is less than a third
-/// as wide (x) as it is deep (z), where a front view would see it edge-on
-/// (a mohawk).
-pub fn view_direction(hair: Bounds, view: crate::CameraView) -> Vec3 {
-    use crate::CameraView as V;
-    let size = hair.size();
-    let edge_on = !hair.is_empty() && size.x < size.z / 3.0;
-    let h = std::f32::consts::FRAC_1_SQRT_2;
-    let (x, z) = match view {
-        V::Auto if edge_on => (h, h),
-        V::Auto | V::Front => (0.0, 1.0),
-        V::ThreeQuarterLeft => (-h, h),
-        V::ThreeQuarterRight => (h, h),
-        V::Left => (-1.0, 0.0),
-        V::Right => (1.0, 0.0),
-    };
-    Vec3::new(x, 0.15, z).normalize()
 }
 
 /// Calls its argument with every point of a set (the points a camera

@@ -69,7 +69,7 @@ use shadow::{Fiber, Light, MethodConfig};
 use strands::{FollowParams, Hair, StyleParams};
 
 pub use motion::{Animation, BodySettings, Collision, Dynamics, Effects};
-pub use view::{CameraSettings, CameraView, RenderSettings};
+pub use view::{CameraSettings, CameraView, RenderSettings, view_direction};
 
 /// A scene that could not be read, naming the file and the field.
 #[derive(Debug, thiserror::Error)]

@@ -15,7 +15,7 @@ use crate::stats::{DrawTimes, ms};
 use shadow::{DensityMap, Fiber, FillStats, LightFrame, Transmittance};
 use strands::Hair;
 
-use crate::part::{Seen, draw_head, head_lambert};
+use crate::part::{HeadPoint, Seen, draw_head, head_lambert};
 use crate::pipeline::off_surface;
 use crate::{
     Animator, DrawJob, EngineError, FrameStats, HairPart, Head, PosePlan, PoseReport, Scene,
@@ -424,7 +424,7 @@ impl Share {
                     },
                     HairIn::Swept(&maps[0], job.trilinear),
                 );
-                self.part.filter_head(hair, &head);
+                self.part.filter_head(hair, head);
             }
             times.filter_ms = ms(t);
         }
@@ -467,7 +467,7 @@ impl Share {
             head.set_pose(job.head);
             let head_shadow = job.shadows && self.head_shadow;
             let (color, shading) = (head.settings().color, &job.shading);
-            let camera = &job.camera;
+            let (camera, part) = (&job.camera, &self.part);
             let shade = |p: Vec3, n: Vec3| {
                 // The row of the pixel centre the point was found at.
                 let row = camera.project(p).map_or(-1.0, |s| s.y.floor());
@@ -475,7 +475,9 @@ impl Share {
                 if !mine {
                     return Vec3::ZERO;
                 }
-                head_lambert(color, shading, &job.lights, p, n, forward.as_deref(), |l| {
+                let sky = part.sky_over_head(p).filter(|_| job.shadows);
+                let at = HeadPoint { p, n, sky };
+                head_lambert(color, shading, &job.lights, at, forward.as_deref(), |l| {
                     if head_shadow {
                         let m = &maps[l];
                         m.transmittance_at_drawn(off_surface(m.frame(), p, n, 1.0), job.trilinear)

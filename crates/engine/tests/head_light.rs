@@ -105,3 +105,44 @@ fn the_sky_lights_the_hair_the_sun_does_not_reach() {
         "in the sun's shadow {dark}, in its light {lit}"
     );
 }
+
+/// The frame's linear picture (over black) under a sky of radiance
+/// `ambient`, the sun behind the head: the camera sees its shadowed side.
+fn head_under_sky(ambient: f32) -> Vec<glam::Vec4> {
+    let text = format!(
+        "[hair]\nstrands_per_wisp = 4\n[render]\nwidth = 192\nheight = 128\n\
+         [camera]\nview = \"three-quarter-left\"\n\
+         [[light]]\ndirection = [0, -0.3, 1]\n\
+         [head]\ncolor = [0.8, 0.8, 0.8]\n\
+         [shading]\nmodel = \"marschner\"\neumelanin = 0.3\nambient = {ambient}\n\
+         [effects]\nmultiple_scattering = true\n"
+    );
+    let scene = Scene::from_toml_str(&text, Path::new("sky.toml")).unwrap();
+    let mut seq = Sequence::new(&scene).unwrap();
+    seq.next_frame().unwrap();
+    seq.renderer().linear_picture_over(Vec3::ZERO).unwrap()
+}
+
+#[test]
+fn the_sky_lights_the_side_of_the_head_the_sun_does_not() {
+    let dark = head_under_sky(0.0);
+    let sky = head_under_sky(0.5);
+    // The pixels the sun leaves dark (the head's own shadow, and hair
+    // deep in the hair's): under the sky, the bare head among them gets
+    // the sky's light, 0.5 times its colour, as in the open (before, it
+    // took the sun's transmittance for the sky's: none).
+    let max = dark.iter().map(|p| p.y).fold(0.0f32, f32::max);
+    let mut gains: Vec<f32> = dark
+        .iter()
+        .zip(&sky)
+        .filter(|(d, _)| d.w > 0.99 && d.y < 0.01 * max)
+        .map(|(d, s)| (s.y - d.y) / (0.5 * 0.8))
+        .collect();
+    gains.sort_by(f32::total_cmp);
+    assert!(gains.len() > 100, "{} pixels", gains.len());
+    let median = gains[gains.len() / 2];
+    assert!(
+        median > 0.5,
+        "the sky's light there: {median} of the open's"
+    );
+}

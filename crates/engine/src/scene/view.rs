@@ -7,6 +7,7 @@ use super::{
 };
 use crate::SceneError;
 use glam::Vec3;
+use strands::Bounds;
 
 /// Where the camera is; `None` fields are framed around the hair.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -28,7 +29,7 @@ pub struct CameraSettings {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum CameraView {
     /// The front (+z), or three quarters for hair seen edge-on from there
-    /// (see [`crate::render::view_direction`]).
+    /// (see [`view_direction`]).
     #[default]
     Auto,
     /// The front (+z).
@@ -205,4 +206,25 @@ impl Validator<'_> {
         };
         Ok(render)
     }
+}
+
+/// Where the default camera looks from, towards the hair, slightly above:
+/// as `view` says; for [`crate::CameraView::Auto`] the front (+z), but three
+/// quarters (45 degrees to the right) when the hair is less than a third
+/// as wide (x) as it is deep (z), where a front view would see it edge-on
+/// (a mohawk).
+pub fn view_direction(hair: Bounds, view: CameraView) -> Vec3 {
+    use CameraView as V;
+    let size = hair.size();
+    let edge_on = !hair.is_empty() && size.x < size.z / 3.0;
+    let h = std::f32::consts::FRAC_1_SQRT_2;
+    let (x, z) = match view {
+        V::Auto if edge_on => (h, h),
+        V::Auto | V::Front => (0.0, 1.0),
+        V::ThreeQuarterLeft => (-h, h),
+        V::ThreeQuarterRight => (h, h),
+        V::Left => (-1.0, 0.0),
+        V::Right => (1.0, 0.0),
+    };
+    Vec3::new(x, 0.15, z).normalize()
 }
