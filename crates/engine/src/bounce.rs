@@ -450,10 +450,39 @@ pub(crate) fn surface_sky_transmittance(tau: f32) -> f32 {
 }
 
 impl HeadLight {
-    /// The head `shape`, of radiance `radiance(x, n)` at its point `x` of
-    /// outward normal `n` (world; linear RGB, as the head is shaded; asked
-    /// at each sampled point once).
+    /// The head `shape`, of radiance `radiance(x, n)` ([`Self::caps_of`]).
+    #[cfg(test)]
     pub(crate) fn new(shape: HeadShape, radiance: impl Fn(Vec3, Vec3) -> Vec3) -> HeadLight {
+        let mut light = HeadLight::unlit(shape);
+        light.caps = light.caps_of(radiance);
+        light
+    }
+
+    /// The head `shape`, sending no light until [`Self::light_with`]: its
+    /// map ([`Self::through_hair`]) may be filled first, for the sky over
+    /// the head ([`Self::sky_over`]) that its radiance holds.
+    pub(crate) fn unlit(shape: HeadShape) -> HeadLight {
+        HeadLight {
+            shape,
+            caps: vec![Vec3::ZERO; CAPS.len() * DIRECTIONS],
+            depth: Vec::new(),
+            reach: 0.0,
+        }
+    }
+
+    /// Sets the head's light: [`Self::caps_of`] its radiance.
+    pub(crate) fn light_with(&mut self, caps: Vec<Vec3>) {
+        debug_assert_eq!(caps.len(), CAPS.len() * DIRECTIONS);
+        self.caps = caps;
+    }
+
+    /// The mean radiance over each cap of each sampled direction (see the
+    /// module's notes) of the head of radiance `radiance(x, n)` at its
+    /// point `x` of outward normal `n` (world; linear RGB, as the head is
+    /// shaded; asked at each sampled point once): what
+    /// [`Self::light_with`] takes.
+    pub(crate) fn caps_of(&self, radiance: impl Fn(Vec3, Vec3) -> Vec3) -> Vec<Vec3> {
+        let shape = &self.shape;
         let dirs: Vec<(Vec3, f32)> = (0..N_THETA)
             .flat_map(|i| (0..N_PHI).map(move |j| direction(i, j)))
             .collect();
@@ -504,12 +533,7 @@ impl HeadLight {
                 caps.push(sum / w);
             }
         }
-        HeadLight {
-            shape,
-            caps,
-            depth: Vec::new(),
-            reach: 0.0,
-        }
+        caps
     }
 
     /// Fills the head's map from the hair in the map of `light` (cells

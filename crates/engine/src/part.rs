@@ -675,15 +675,22 @@ pub(crate) fn head_light(
     let color = head.settings().color;
     // The head sends back what lights it: the lights and the sky, as it
     // is drawn.
-    let mut light = HeadLight::new(head.shape(), |x, n| {
-        let at = HeadPoint { p: x, n, sky: None };
+    // The head's map first: the sky over the head, that it sends back.
+    let mut light = HeadLight::unlit(head.shape());
+    if let Some(f) = frame {
+        light.through_hair(&lights[0], f.ds, f.n_cells, hair);
+    }
+    let caps = light.caps_of(|x, n| {
+        let at = HeadPoint {
+            p: x,
+            n,
+            sky: light.sky_over(x),
+        };
         head_lambert(color, shading, lights, at, Some(forward), |l| {
             trans(l, x, n)
         })
     });
-    if let Some(f) = frame {
-        light.through_hair(&lights[0], f.ds, f.n_cells, hair);
-    }
+    light.light_with(caps);
     light
 }
 
