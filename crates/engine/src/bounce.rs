@@ -93,7 +93,7 @@ const CAPS: [f32; 7] = [1.0, 0.95, 0.85, 0.7, 0.5, 0.25, 0.0];
 #[derive(Clone, Copy)]
 pub(crate) enum HairIn<'a> {
     /// Its swept map, filtered or not: the hair's own optical depth over
-    /// each cell ([`shadow::Transmittance::hair_depth_along`]), the head's
+    /// each cell ([`shadow::Transmittance::hair_depth_between`]), the head's
     /// deposit left out, so right down to the surface.
     Swept(&'a shadow::Transmittance, bool),
     /// Its transmittance at drawn points alone (a method that keeps no
@@ -558,7 +558,7 @@ impl HeadLight {
             HairIn::Swept(map, trilinear) => (
                 points
                     .iter()
-                    .map(|&(x, u)| map.hair_depth_along(x - u, 1.0, trilinear) / cell)
+                    .map(|&(x, u)| map.hair_depth_between(x - u, x + u, trilinear) / cell)
                     .collect(),
                 0,
             ),

@@ -254,10 +254,10 @@ pub struct Transmittance {
 
 /// A cell of a column whose optical depth grows by more than this within
 /// it holds an opaque body's entry, not hair alone
-/// ([`Transmittance::hair_depth_along`]): a body deposits
-/// [`OPAQUE_DEPTH`] (30) in one cell; hair of shadow opacity 0.5 (optical
-/// depth `-ln 0.5 = 0.69` a fiber crossed) adds 15 only with some 22
-/// fibers stacked in one cell of one column.
+/// ([`Transmittance::hair_depth_between`]): a body deposits
+/// [`OPAQUE_DEPTH`] (30) in the one cell of a column it enters; hair of
+/// shadow opacity 0.5 (optical depth `-ln 0.5 = 0.69` a fiber crossed)
+/// adds 15 only with some 22 fibers stacked in one cell of one column.
 pub const BODY_CELL_DEPTH: f32 = OPAQUE_DEPTH / 2.0;
 
 /// Padding columns on each side of [`Transmittance::cols`]: lookups reach
@@ -615,18 +615,20 @@ impl Transmittance {
         }
     }
 
-    /// The optical depth the hair alone adds to the light's ray through
-    /// `p` over the `cells` cells past it (away from the light), filtered
-    /// as [`Self::optical_depth`] is: in each column a lookup blends, what
-    /// its cells there add, less any cell an opaque body entered (one
-    /// whose depth grows by more than [`BODY_CELL_DEPTH`]; the hair in that
-    /// cell goes with it). The extinction of the hair about a body (the
-    /// light of the head that lies under it), which [`Self::optical_depth`]
-    /// mixes with the body's own deposit.
-    pub fn hair_depth_along(&self, p: Vec3, cells: f32, trilinear: bool) -> f32 {
-        debug_assert!(p.is_finite() && cells >= 0.0);
-        let at = Lookup::at(&self.frame, p, trilinear);
-        let (x1, x2) = (at.x, at.x + cells);
+    /// The optical depth the hair alone adds to the light's ray from `a`
+    /// on to `b` (further from the light on the same ray), filtered as
+    /// [`Self::optical_depth`] is at `a`: in each column the lookup blends,
+    /// what its cells between the two add, less the deposit of any opaque
+    /// body that entered one ([`OPAQUE_DEPTH`] out of a cell whose depth
+    /// grows by more than [`BODY_CELL_DEPTH`]; the hair in that cell
+    /// stays, spread over it). The extinction of the hair
+    /// about a body (the head's own light, which it sends out through
+    /// that hair), which [`Self::optical_depth`] mixes with the body's
+    /// deposit. 0 where `b` is no further than `a`.
+    pub fn hair_depth_between(&self, a: Vec3, b: Vec3, trilinear: bool) -> f32 {
+        debug_assert!(a.is_finite() && b.is_finite());
+        let at = Lookup::at(&self.frame, a, trilinear);
+        let (x1, x2) = (at.x, Lookup::at(&self.frame, b, trilinear).x);
         let d = |j, k| self.column_hair(self.col(j, k), x1, x2);
         if trilinear {
             let (j, k, ty, tz) = (at.j, at.k, at.ty, at.tz);
@@ -646,7 +648,7 @@ impl Transmittance {
     }
 
     /// What the hair of column `c` adds between slice coordinates `x1` and
-    /// `x2` (see [`Self::hair_depth_along`]): each cell's growth, linear
+    /// `x2` (see [`Self::hair_depth_between`]): each cell's growth, linear
     /// within it as [`Self::column_depth`] reads it, for the part of the
     /// cell between the two.
     fn column_hair(&self, c: Col, x1: f32, x2: f32) -> f32 {
@@ -668,9 +670,16 @@ impl Transmittance {
             };
             let end = c.lo + i as f32 + 1.0;
             let grow = self.depth[at] - before;
+            // A body's entry: its deposit out, the hair in the cell kept
+            // (spread over the cell, as the hair of any cell is).
+            let hair = if grow > BODY_CELL_DEPTH {
+                (grow - OPAQUE_DEPTH).max(0.0)
+            } else {
+                grow
+            };
             let (a, b) = (x1.max(start), x2.min(end));
-            if grow <= BODY_CELL_DEPTH && b > a {
-                sum += grow * (b - a) / (end - start).max(1e-6);
+            if b > a {
+                sum += hair * (b - a) / (end - start).max(1e-6);
             }
         }
         sum
