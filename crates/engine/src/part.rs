@@ -26,12 +26,10 @@ pub struct HairPart {
     /// Transmittance of each light at each vertex: `[light][vertex]`.
     trans: Vec<Vec<f32>>,
     /// The head's irradiance at each vertex and its transmittance there,
-    /// when the head lights the hair ([`Self::filter_head`]), and the
-    /// head's centre.
+    /// when the head lights the hair ([`Self::filter_head`]).
     head_in: Vec<Through>,
-    head_center: Vec3,
-    /// That head's light, kept for the head's own pixels (the sky over
-    /// them, [`Self::sky_over_head`]).
+    /// That head's light: its centre for the shading, and the sky over
+    /// the head's own pixels ([`Self::sky_over_head`]).
     head: Option<HeadLight>,
     /// The shaded linear colour of each vertex.
     colors: Vec<Vec3>,
@@ -95,7 +93,6 @@ impl HairPart {
     /// between.
     pub(crate) fn filter_head(&mut self, hair: &Hair, head: HeadLight) {
         let (points, offsets) = (hair.points(), hair.offsets());
-        self.head_center = head.center();
         self.head_in.clear();
         self.head_in.resize(points.len(), Through::NONE);
         let mut strands: Vec<&mut [Through]> = Vec::with_capacity(hair.strand_count());
@@ -207,7 +204,8 @@ impl HairPart {
                 shading.model,
                 ShadingModel::Marschner { multiple: true, .. }
             );
-        let (head_in, head_center) = (&self.head_in[..], self.head_center);
+        let head_in = &self.head_in[..];
+        let head_center = self.head.as_ref().map_or(Vec3::ZERO, HeadLight::center);
         self.colors.resize(points.len(), Vec3::ZERO);
         let offsets = hair.offsets();
         let strand_colors = hair.colors();
@@ -602,12 +600,14 @@ pub(crate) fn head_lambert(
     let shadowed_sky = matches!(shading.model, ShadingModel::Marschner { .. })
         && ambient > 0.0
         && !lights.is_empty();
+    // Every light's transmittance, lit or not, only for their mean.
+    let mean_sky = shadowed_sky && sky_over.is_none();
     let (mut c, mut sky) = (Vec3::ZERO, Vec3::ZERO);
     for (l, light) in lights.iter().enumerate() {
         let lambert = n.dot(-light.direction_at(p)).max(0.0);
         let scale = light.falloff(p);
         let lit = lambert > 0.0 && scale > 0.0;
-        if !(lit || shadowed_sky) {
+        if !(lit || mean_sky) {
             continue;
         }
         let t = through(l);
@@ -616,12 +616,10 @@ pub(crate) fn head_lambert(
             c += t * scale * lambert * s * color;
         }
     }
-    let sky = if let (true, Some(t)) = (shadowed_sky, sky_over) {
-        Vec3::splat(t)
-    } else if shadowed_sky {
-        sky / lights.len() as f32
-    } else {
-        Vec3::ONE
+    let sky = match (shadowed_sky, sky_over) {
+        (true, Some(t)) => Vec3::splat(t),
+        (true, None) => sky / lights.len() as f32,
+        (false, _) => Vec3::ONE,
     };
     c += ambient * sky * color;
     c
@@ -676,10 +674,7 @@ pub(crate) fn head_light(
     // The head sends back what lights it: the lights and the sky, as it
     // is drawn.
     // The head's map first: the sky over the head, that it sends back.
-    let mut light = HeadLight::unlit(head.shape());
-    if let Some(f) = frame {
-        light.through_hair(&lights[0], f.ds, f.n_cells, hair);
-    }
+    let mut light = head_map(head, lights, frame, hair);
     let caps = light.caps_of(|x, n| {
         let at = HeadPoint {
             p: x,
@@ -691,6 +686,22 @@ pub(crate) fn head_light(
         })
     });
     light.light_with(caps);
+    light
+}
+
+/// The head's map alone (see [`head_light`]): the hair between the head
+/// and the open sky, for the sky over the head's own pixels; the head
+/// sends no light.
+pub(crate) fn head_map(
+    head: &Head,
+    lights: &[Light],
+    frame: Option<&shadow::LightFrame>,
+    hair: HairIn<'_>,
+) -> HeadLight {
+    let mut light = HeadLight::unlit(head.shape());
+    if let Some(f) = frame {
+        light.through_hair(&lights[0], f.ds, f.n_cells, hair);
+    }
     light
 }
 

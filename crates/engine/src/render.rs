@@ -278,7 +278,7 @@ impl Renderer {
             .filter(hair, shadows.light_count(), |l, pts, out| {
                 shadows.filter_light(l, pts, out)
             });
-        if let Some(head) = self.head_light() {
+        if let Some(head) = self.head_light(true) {
             self.part.filter_head(hair, head);
         }
     }
@@ -291,8 +291,9 @@ impl Renderer {
     }
 
     /// The head's light on the hair this frame, when the head lights the
-    /// hair (after the shadow stages).
-    fn head_light(&mut self) -> Option<HeadLight> {
+    /// hair (after the shadow stages); not `lit`, its map alone
+    /// ([`crate::part::head_map`]).
+    fn head_light(&mut self, lit: bool) -> Option<HeadLight> {
         let forward = self.forward_table(true)?;
         let head = self.shadows.head()?;
         if self.shadows.light_count() == 0 {
@@ -305,6 +306,14 @@ impl Renderer {
             Some((map, trilinear)) => HairIn::Swept(map, trilinear),
             None => HairIn::Lookup(&lookup),
         };
+        if !lit {
+            return Some(crate::part::head_map(
+                head,
+                &lights,
+                pipeline.frame(0),
+                hair,
+            ));
+        }
         Some(crate::part::head_light(
             head,
             &self.scene.shading,
@@ -406,7 +415,7 @@ impl Renderer {
         // The sky over the head from the head's map: this frame's filter
         // made it, or (the hair filtered elsewhere) it is made here.
         let made = (shadows && !self.part.has_head_light() && self.scene.shading.ambient > 0.0)
-            .then(|| self.head_light())
+            .then(|| self.head_light(false))
             .flatten();
         let s = &self.scene;
         let canvas = self.canvas.as_mut().expect("made above");

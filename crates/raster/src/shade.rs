@@ -5,9 +5,9 @@
 //! of radiance `k_a` from every direction, `S` the fiber's light under it,
 //! [`crate::FiberTable::sky`], shadowed by the sky's transmittance
 //! `T_sky`: through the hair about the head where the engine maps it,
-//! else the lights' mean transmittance), with light scattered between fibers as well if asked (dual
-//! scattering, see [`crate::DualTable`], the sky's too:
-//! [`crate::DualTable::sky`]).
+//! else the lights' mean transmittance), with light scattered between
+//! fibers as well if asked (dual scattering, see [`crate::DualTable`],
+//! the sky's too: [`crate::DualTable::sky`]).
 
 use glam::Vec3;
 
