@@ -288,7 +288,7 @@ impl ShadowPipeline {
             ShadowMethod::DensityMap(d) if d.contact() > 0.0 => HEAD_CONTACT_SCALE,
             _ => 1.0,
         };
-        m.transmittance_at_surface(off_surface(f, p, n, scale))
+        m.transmittance_at_surface(p, off_surface(f, p, n, scale))
     }
 
     /// The frame of light `l`'s last map (methods that keep one).

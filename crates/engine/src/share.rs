@@ -417,7 +417,7 @@ impl Share {
                         if head_shadow {
                             let m = &maps[l];
                             let q = off_surface(m.frame(), x, n, 1.0);
-                            m.transmittance_at_drawn(q, job.trilinear)
+                            m.surface_transmittance(x, q, job.trilinear)
                         } else {
                             1.0
                         }
@@ -480,7 +480,7 @@ impl Share {
                 head_lambert(color, shading, &job.lights, at, forward.as_deref(), |l| {
                     if head_shadow {
                         let m = &maps[l];
-                        m.transmittance_at_drawn(off_surface(m.frame(), p, n, 1.0), job.trilinear)
+                        m.surface_transmittance(p, off_surface(m.frame(), p, n, 1.0), job.trilinear)
                     } else {
                         1.0
                     }

@@ -155,14 +155,17 @@ impl ShadowMethod {
         each!(self, m => m.transmittance_at(p))
     }
 
-    /// [`Self::transmittance_at`] a point on a drawn surface (the head's,
-    /// moved off it by the caller): the density map reads it as it reads
-    /// drawn fibers ([`crate::LIT_EDGE_OFFSET`] nearer the light); the
-    /// other methods as any point.
-    pub fn transmittance_at_surface(&self, p: Vec3) -> f32 {
+    /// `T` at a point `p` on a drawn opaque surface (the head's), `off`
+    /// the point off it that the caller moved it to, clear of the
+    /// surface's own deposit: the density map reads the bodies' shadow at
+    /// `off` as it reads drawn fibers ([`crate::LIT_EDGE_OFFSET`] nearer
+    /// the light) and the hair's down to `p` itself
+    /// ([`Transmittance::surface_depth`]), or with contact shadows all of
+    /// it from `off`; the other methods read `off` as any point.
+    pub fn transmittance_at_surface(&self, p: Vec3, off: Vec3) -> f32 {
         match self {
-            ShadowMethod::DensityMap(m) => m.transmittance_at_surface(p),
-            _ => self.transmittance_at(p),
+            ShadowMethod::DensityMap(m) => m.transmittance_at_surface(p, off),
+            _ => self.transmittance_at(off),
         }
     }
 
@@ -366,14 +369,14 @@ impl DensityMapMethod {
     }
 
     /// [`ShadowMethod::transmittance_at_surface`].
-    fn transmittance_at_surface(&self, p: Vec3) -> f32 {
+    fn transmittance_at_surface(&self, p: Vec3, off: Vec3) -> f32 {
         let trans = self
             .trans
             .as_ref()
             .expect("the transmittance stage runs before lookups");
         match &self.near {
-            Some(c) => c.at(p, |q| trans.transmittance_at_drawn(q, self.trilinear)),
-            None => trans.transmittance_at_drawn(p, self.trilinear),
+            Some(c) => c.at(off, |q| trans.transmittance_at_drawn(q, self.trilinear)),
+            None => trans.surface_transmittance(p, off, self.trilinear),
         }
     }
 

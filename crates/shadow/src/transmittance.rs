@@ -639,6 +639,60 @@ impl Transmittance {
         }
     }
 
+    /// Optical depth at a point `p` on the surface of an opaque body
+    /// deposited in the map, `off` being where its lookup of the map is
+    /// clear of the body's own deposit (off the surface, along its
+    /// normal; the engine's `off_surface`):
+    ///
+    /// ```text
+    /// D = D_body(off) + D_hair(p)
+    /// ```
+    ///
+    /// `D_body(off)` is what opaque bodies add in front of `off`, read as
+    /// [`Self::transmittance_at_drawn`] reads (a body's shadow on itself:
+    /// a chin's on the neck); `D_hair(p)` the hair's own depth along
+    /// `p`'s ray down to the surface, every body's entry left out as
+    /// [`Self::hair_depth_between`] leaves it, and the hair of the cell
+    /// the surface enters counted whole (inside a body there is none, so
+    /// all of it lies on the surface, in front of `p`). Read at `off`
+    /// alone, hair lying on the body less deep than `off` is high was
+    /// behind the lookup: under the hair on a head, the head got almost
+    /// all of its light.
+    pub fn surface_depth(&self, p: Vec3, off: Vec3, trilinear: bool) -> f32 {
+        debug_assert!(p.is_finite() && off.is_finite());
+        let c = self.frame.to_cells(off);
+        let at = Lookup::of_cells(
+            &self.frame,
+            Vec3::new(c.x - LIT_EDGE_OFFSET, c.y, c.z),
+            trilinear,
+        );
+        let x = if trilinear { at.x } else { at.centre };
+        let body = self.blend(&at, trilinear, |j, k| {
+            let total = self.column_depth(j, k, x);
+            (total - self.column_hair(self.col(j, k), f32::NEG_INFINITY, x)).max(0.0)
+        });
+        let at = Lookup::at(&self.frame, p, trilinear);
+        let hair = self.blend(&at, trilinear, |j, k| {
+            self.column_hair(self.col(j, k), f32::NEG_INFINITY, at.x + 1.0)
+        });
+        body + hair
+    }
+
+    /// `value(j, k)` of the columns `at` reads, blended as its weights say
+    /// (bilinear across the four about it, or its own column).
+    #[inline(always)]
+    fn blend(&self, at: &Lookup, trilinear: bool, value: impl Fn(i32, i32) -> f32) -> f32 {
+        let (j, k) = (at.j, at.k);
+        if trilinear {
+            let (ty, tz) = (at.ty, at.tz);
+            let (sy, sz) = (1.0 - ty, 1.0 - tz);
+            sz * (sy * value(j, k) + ty * value(j + 1, k))
+                + tz * (sy * value(j, k + 1) + ty * value(j + 1, k + 1))
+        } else {
+            value(j, k)
+        }
+    }
+
     /// Column `(j, k)`: `j, k >= -2` (see [`COL_PAD`]); past `n + 2` the
     /// index fails loudly.
     #[inline(always)]
@@ -701,6 +755,13 @@ impl Transmittance {
         debug_assert!(p.is_finite());
         let c = self.frame.to_cells(p);
         (-self.depth_in_cells(c, trilinear, LIT_EDGE_OFFSET)).exp()
+    }
+
+    /// Transmittance `T = exp(-D)` at a point `p` on an opaque body's
+    /// surface, its lookup moved off it to `off`: [`Self::surface_depth`].
+    #[inline]
+    pub fn surface_transmittance(&self, p: Vec3, off: Vec3, trilinear: bool) -> f32 {
+        (-self.surface_depth(p, off, trilinear)).exp()
     }
 
     /// Transmittance at every drawn point (the filtering stage), in

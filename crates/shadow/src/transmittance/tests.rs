@@ -253,3 +253,49 @@ fn the_hair_depth_about_a_body_leaves_the_body_out() {
         assert!((sum - 12.0 * 0.4).abs() < 0.01, "{sum}");
     }
 }
+
+#[test]
+fn hair_lying_on_a_body_shadows_the_surface_beneath_it() {
+    // A sphere lit along +X with a layer of hair lying on its lit side:
+    // optical depth 0.6, all of it in the cell each column enters the
+    // sphere in (thinner than the distance a surface's lookup goes off
+    // the surface, 1.5 cells along the normal).
+    let light = Light::directional(Vec3::X).unwrap();
+    let frame = LightFrame::centered(&light, Vec3::ZERO, 8.0, 16).unwrap();
+    let mut map = DensityMap::new(frame);
+    let (r, ds) = (2.0f32, frame.ds);
+    let q = (0.6 / DEPTH_QUANTUM) as u32;
+    for j in 0..16usize {
+        for k in 0..16usize {
+            let centre = frame.to_world(Vec3::new(0.0, j as f32 + 0.5, k as f32 + 0.5));
+            let (y, z) = (centre.y, centre.z);
+            let h2 = r * r - y * y - z * z;
+            if h2 > 0.0 {
+                let front = Vec3::new(-h2.sqrt(), y, z);
+                map.add_quanta(frame.to_cells(front).x as usize, j, k, q);
+            }
+        }
+    }
+    map.deposit_body(&crate::Occluder::sphere(Vec3::ZERO, r), OPAQUE_DEPTH);
+    let t = Transmittance::compute(&map);
+    // Where a surface point's lookup goes: off along its normal, and a
+    // little towards the light.
+    let off = |p: Vec3| p + (p.normalize() * 1.5 - Vec3::X * 0.5) * ds;
+    // A column's centre line near the axis, where it meets the lit side.
+    let (y, z) = (0.25, 0.25);
+    let lit = Vec3::new(-(r * r - y * y - z * z).sqrt(), y, z);
+    for trilinear in [false, true] {
+        let d = t.surface_depth(lit, off(lit), trilinear);
+        assert!(
+            (d - 0.6).abs() < 0.01,
+            "under the layer: {d} (trilinear {trilinear})"
+        );
+        // Read off the surface alone, the layer lies behind the lookup.
+        let above = t.transmittance_at_drawn(off(lit), trilinear);
+        assert!(above > 0.95, "{above}");
+        // The far side stays in the body's own shadow.
+        let dark = Vec3::new(-lit.x, y, z);
+        let d = t.surface_depth(dark, off(dark), trilinear);
+        assert!(d >= OPAQUE_DEPTH - 0.01, "behind the body: {d}");
+    }
+}
