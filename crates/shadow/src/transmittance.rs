@@ -1,6 +1,7 @@
 //! Transmittance: the per-column sweep (paper 4.2) and filtering (paper 4.3).
 
 use std::ops::Range;
+use std::sync::OnceLock;
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -242,7 +243,7 @@ fn sweep_column<T>(quanta: &[u32], depth: &mut [T], store: impl Fn(u32) -> T) {
 }
 
 /// Cumulative optical depth everywhere in a map, assembled from slabs.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct Transmittance {
     frame: LightFrame,
     n: usize,
@@ -250,7 +251,23 @@ pub struct Transmittance {
     /// [`COL_PAD`] columns on each side (see [`Col`]).
     cols: Vec<Col>,
     depth: Vec<f32>,
+    /// Per column of `cols`, the cell an opaque body first enters it in
+    /// ([`BODY_CELL_DEPTH`]), [`NO_BODY`] where none does: found for every
+    /// column on the first lookup that leaves the bodies out
+    /// ([`Self::hair_depth_between`], [`Self::surface_depth`]), so that
+    /// those read the hair in front of it as the depth's own difference.
+    bodies: OnceLock<Vec<u32>>,
 }
+
+impl PartialEq for Transmittance {
+    /// The same map: what was found from it so far does not count.
+    fn eq(&self, o: &Transmittance) -> bool {
+        self.frame == o.frame && self.n == o.n && self.cols == o.cols && self.depth == o.depth
+    }
+}
+
+/// [`Transmittance::bodies`] of a column no body enters.
+const NO_BODY: u32 = u32::MAX;
 
 /// A cell of a column whose optical depth grows by more than this within
 /// it holds an opaque body's entry, not hair alone
@@ -438,6 +455,7 @@ impl Transmittance {
             n,
             cols: col_table(n, &spans),
             depth,
+            bodies: OnceLock::new(),
         }
     }
 
@@ -533,6 +551,7 @@ impl Transmittance {
             n,
             cols: col_table(n, &spans),
             depth,
+            bodies: OnceLock::new(),
         })
     }
 
@@ -548,7 +567,12 @@ impl Transmittance {
     /// the back face. Exactly 0 in front of the column's hair.
     #[inline(always)]
     fn column_depth(&self, j: i32, k: i32, x: f32) -> f32 {
-        let c = self.col(j, k);
+        self.depth_of(self.col(j, k), x)
+    }
+
+    /// [`Self::column_depth`] of column `c`.
+    #[inline(always)]
+    fn depth_of(&self, c: Col, x: f32) -> f32 {
         if x <= c.front {
             return 0.0;
         }
@@ -615,128 +639,18 @@ impl Transmittance {
         }
     }
 
-    /// The optical depth the hair alone adds to the light's ray from `a`
-    /// on to `b` (further from the light on the same ray), filtered as
-    /// [`Self::optical_depth`] is at `a`: in each column the lookup blends,
-    /// what its cells between the two add, less the deposit of any opaque
-    /// body that entered one ([`OPAQUE_DEPTH`] out of a cell whose depth
-    /// grows by more than [`BODY_CELL_DEPTH`]; the hair in that cell
-    /// stays, spread over it). The extinction of the hair
-    /// about a body (the head's own light, which it sends out through
-    /// that hair), which [`Self::optical_depth`] mixes with the body's
-    /// deposit. 0 where `b` is no further than `a`.
-    pub fn hair_depth_between(&self, a: Vec3, b: Vec3, trilinear: bool) -> f32 {
-        debug_assert!(a.is_finite() && b.is_finite());
-        let at = Lookup::at(&self.frame, a, trilinear);
-        let (x1, x2) = (at.x, Lookup::at(&self.frame, b, trilinear).x);
-        let d = |j, k| self.column_hair(self.col(j, k), x1, x2);
-        if trilinear {
-            let (j, k, ty, tz) = (at.j, at.k, at.ty, at.tz);
-            let (sy, sz) = (1.0 - ty, 1.0 - tz);
-            sz * (sy * d(j, k) + ty * d(j + 1, k)) + tz * (sy * d(j, k + 1) + ty * d(j + 1, k + 1))
-        } else {
-            d(at.j, at.k)
-        }
-    }
-
-    /// Optical depth at a point `p` on the surface of an opaque body
-    /// deposited in the map, `off` being where its lookup of the map is
-    /// clear of the body's own deposit (off the surface, along its
-    /// normal; the engine's `off_surface`):
-    ///
-    /// ```text
-    /// D = D_body(off) + D_hair(p)
-    /// ```
-    ///
-    /// `D_body(off)` is what opaque bodies add in front of `off`, read as
-    /// [`Self::transmittance_at_drawn`] reads (a body's shadow on itself:
-    /// a chin's on the neck); `D_hair(p)` the hair's own depth along
-    /// `p`'s ray down to the surface, every body's entry left out as
-    /// [`Self::hair_depth_between`] leaves it, and the hair of the cell
-    /// the surface enters counted whole (inside a body there is none, so
-    /// all of it lies on the surface, in front of `p`). Read at `off`
-    /// alone, hair lying on the body less deep than `off` is high was
-    /// behind the lookup: under the hair on a head, the head got almost
-    /// all of its light.
-    pub fn surface_depth(&self, p: Vec3, off: Vec3, trilinear: bool) -> f32 {
-        debug_assert!(p.is_finite() && off.is_finite());
-        let c = self.frame.to_cells(off);
-        let at = Lookup::of_cells(
-            &self.frame,
-            Vec3::new(c.x - LIT_EDGE_OFFSET, c.y, c.z),
-            trilinear,
-        );
-        let x = if trilinear { at.x } else { at.centre };
-        let body = self.blend(&at, trilinear, |j, k| {
-            let total = self.column_depth(j, k, x);
-            (total - self.column_hair(self.col(j, k), f32::NEG_INFINITY, x)).max(0.0)
-        });
-        let at = Lookup::at(&self.frame, p, trilinear);
-        let hair = self.blend(&at, trilinear, |j, k| {
-            self.column_hair(self.col(j, k), f32::NEG_INFINITY, at.x + 1.0)
-        });
-        body + hair
-    }
-
-    /// `value(j, k)` of the columns `at` reads, blended as its weights say
-    /// (bilinear across the four about it, or its own column).
-    #[inline(always)]
-    fn blend(&self, at: &Lookup, trilinear: bool, value: impl Fn(i32, i32) -> f32) -> f32 {
-        let (j, k) = (at.j, at.k);
-        if trilinear {
-            let (ty, tz) = (at.ty, at.tz);
-            let (sy, sz) = (1.0 - ty, 1.0 - tz);
-            sz * (sy * value(j, k) + ty * value(j + 1, k))
-                + tz * (sy * value(j, k + 1) + ty * value(j + 1, k + 1))
-        } else {
-            value(j, k)
-        }
-    }
-
     /// Column `(j, k)`: `j, k >= -2` (see [`COL_PAD`]); past `n + 2` the
     /// index fails loudly.
     #[inline(always)]
     fn col(&self, j: i32, k: i32) -> Col {
-        let side = self.n + 2 * COL_PAD + 1;
-        self.cols[(k + COL_PAD as i32) as usize * side + (j + COL_PAD as i32) as usize]
+        self.cols[self.col_index(j, k)]
     }
 
-    /// What the hair of column `c` adds between slice coordinates `x1` and
-    /// `x2` (see [`Self::hair_depth_between`]): each cell's growth, linear
-    /// within it as [`Self::column_depth`] reads it, for the part of the
-    /// cell between the two.
-    fn column_hair(&self, c: Col, x1: f32, x2: f32) -> f32 {
-        let x1 = x1.max(c.front);
-        if x2 <= x1 {
-            return 0.0;
-        }
-        // x1 >= front >= lo: the cells from x1's to x2's (none past the last).
-        let first = (x1 - c.lo) as u32;
-        let last = ((x2 - c.lo) as u32).min(c.last);
-        let mut sum = 0.0;
-        for i in first..=last {
-            let at = (c.start + i) as usize;
-            // The first cell's hair fills [front, lo + 1).
-            let (start, before) = if i == 0 {
-                (c.front, 0.0)
-            } else {
-                (c.lo + i as f32, self.depth[at - 1])
-            };
-            let end = c.lo + i as f32 + 1.0;
-            let grow = self.depth[at] - before;
-            // A body's entry: its deposit out, the hair in the cell kept
-            // (spread over the cell, as the hair of any cell is).
-            let hair = if grow > BODY_CELL_DEPTH {
-                (grow - OPAQUE_DEPTH).max(0.0)
-            } else {
-                grow
-            };
-            let (a, b) = (x1.max(start), x2.min(end));
-            if b > a {
-                sum += hair * (b - a) / (end - start).max(1e-6);
-            }
-        }
-        sum
+    /// Where column `(j, k)` is in [`Self::cols`].
+    #[inline(always)]
+    fn col_index(&self, j: i32, k: i32) -> usize {
+        let side = self.n + 2 * COL_PAD + 1;
+        (k + COL_PAD as i32) as usize * side + (j + COL_PAD as i32) as usize
     }
 
     /// Transmittance `T(p) = exp(-D(p))` in [0, 1] at a point in free
@@ -755,13 +669,6 @@ impl Transmittance {
         debug_assert!(p.is_finite());
         let c = self.frame.to_cells(p);
         (-self.depth_in_cells(c, trilinear, LIT_EDGE_OFFSET)).exp()
-    }
-
-    /// Transmittance `T = exp(-D)` at a point `p` on an opaque body's
-    /// surface, its lookup moved off it to `off`: [`Self::surface_depth`].
-    #[inline]
-    pub fn surface_transmittance(&self, p: Vec3, off: Vec3, trilinear: bool) -> f32 {
-        (-self.surface_depth(p, off, trilinear)).exp()
     }
 
     /// Transmittance at every drawn point (the filtering stage), in
@@ -791,5 +698,6 @@ impl Transmittance {
     }
 }
 
+mod bodies;
 #[cfg(test)]
 mod tests;
