@@ -334,6 +334,20 @@ pub(crate) fn off_surface(f: &shadow::LightFrame, p: Vec3, n: Vec3, scale: f32) 
     }
 }
 
+/// Transmittance of swept map `m` at a point `p` of normal `n` on the
+/// head's surface, its lookup moved off it as [`off_surface`] says
+/// ([`shadow::Transmittance::surface_transmittance`]): what
+/// [`ShadowPipeline::transmittance_off_surface`] gives without contact
+/// shadows, from a map held here.
+pub(crate) fn surface_transmittance(
+    m: &shadow::Transmittance,
+    p: Vec3,
+    n: Vec3,
+    trilinear: bool,
+) -> f32 {
+    m.surface_transmittance(p, off_surface(m.frame(), p, n, 1.0), trilinear)
+}
+
 /// The hair is held elsewhere, and a map of it needs `what`.
 fn held_needs(what: &str) -> EngineError {
     EngineError::executor(format!("a shadow map of hair held elsewhere needs {what}"))

@@ -16,7 +16,7 @@ use shadow::{DensityMap, Fiber, FillStats, LightFrame, Transmittance};
 use strands::Hair;
 
 use crate::part::{HeadPoint, Seen, draw_head, head_lambert};
-use crate::pipeline::off_surface;
+use crate::pipeline::surface_transmittance;
 use crate::{
     Animator, DrawJob, EngineError, FrameStats, HairPart, Head, PosePlan, PoseReport, Scene,
     StepPlan, step_wisps, step_wisps_while,
@@ -415,9 +415,7 @@ impl Share {
                     Some(maps[0].frame()),
                     |l, x, n| {
                         if head_shadow {
-                            let m = &maps[l];
-                            let q = off_surface(m.frame(), x, n, 1.0);
-                            m.surface_transmittance(x, q, job.trilinear)
+                            surface_transmittance(&maps[l], x, n, job.trilinear)
                         } else {
                             1.0
                         }
@@ -479,8 +477,7 @@ impl Share {
                 let at = HeadPoint { p, n, sky };
                 head_lambert(color, shading, &job.lights, at, forward.as_deref(), |l| {
                     if head_shadow {
-                        let m = &maps[l];
-                        m.surface_transmittance(p, off_surface(m.frame(), p, n, 1.0), job.trilinear)
+                        surface_transmittance(&maps[l], p, n, job.trilinear)
                     } else {
                         1.0
                     }

@@ -618,16 +618,10 @@ impl Transmittance {
         let at = Lookup::of_cells(&self.frame, c, trilinear);
         let (j, k, x) = (at.j, at.k, at.x);
         if trilinear {
-            let d00 = self.column_depth(j, k, x);
-            let d10 = self.column_depth(j + 1, k, x);
-            let d01 = self.column_depth(j, k + 1, x);
-            let d11 = self.column_depth(j + 1, k + 1, x);
             // Non-negative weights: for fixed weights the sum never
             // decreases when any column's depth grows (monotone along the
             // light, rounding included).
-            let (ty, tz) = (at.ty, at.tz);
-            let (sy, sz) = (1.0 - ty, 1.0 - tz);
-            sz * (sy * d00 + ty * d10) + tz * (sy * d01 + ty * d11)
+            self.blend(&at, true, |j, k| self.column_depth(j, k, x))
         } else {
             // The value at the centre of p's cell, but none in front of the
             // column's hair: monotone along the light, and exactly 0 where
@@ -636,6 +630,21 @@ impl Transmittance {
                 return 0.0;
             }
             self.column_depth(j, k, at.centre)
+        }
+    }
+
+    /// `value(j, k)` of the columns `at` reads, blended as its weights say
+    /// (bilinear across the four about it, or its own column).
+    #[inline(always)]
+    fn blend(&self, at: &Lookup, trilinear: bool, value: impl Fn(i32, i32) -> f32) -> f32 {
+        let (j, k) = (at.j, at.k);
+        if trilinear {
+            let (ty, tz) = (at.ty, at.tz);
+            let (sy, sz) = (1.0 - ty, 1.0 - tz);
+            sz * (sy * value(j, k) + ty * value(j + 1, k))
+                + tz * (sy * value(j, k + 1) + ty * value(j + 1, k + 1))
+        } else {
+            value(j, k)
         }
     }
 

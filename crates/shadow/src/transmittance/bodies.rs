@@ -65,21 +65,6 @@ impl Transmittance {
         body + hair
     }
 
-    /// `value(j, k)` of the columns `at` reads, blended as its weights say
-    /// (bilinear across the four about it, or its own column).
-    #[inline(always)]
-    fn blend(&self, at: &Lookup, trilinear: bool, value: impl Fn(i32, i32) -> f32) -> f32 {
-        let (j, k) = (at.j, at.k);
-        if trilinear {
-            let (ty, tz) = (at.ty, at.tz);
-            let (sy, sz) = (1.0 - ty, 1.0 - tz);
-            sz * (sy * value(j, k) + ty * value(j + 1, k))
-                + tz * (sy * value(j, k + 1) + ty * value(j + 1, k + 1))
-        } else {
-            value(j, k)
-        }
-    }
-
     /// [`Self::bodies`], found on first use: each column's cells in turn
     /// until one grows by more than [`BODY_CELL_DEPTH`].
     fn bodies(&self) -> &[u32] {
